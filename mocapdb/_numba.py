@@ -1,0 +1,19 @@
+"""Numba options for every kernel of the package, set in one place.
+
+``cache=True`` is deliberate: the CLI and the SQL functions start in fresh
+processes, and a cold compile of the feature kernels costs seconds.
+``nogil=True`` lets a thread pool run kernels side by side (DuckDB calls a
+Python UDF from one thread; parallelism happens inside).
+"""
+import numba
+
+#: Serial kernel: compiled once, cached on disk, releases the GIL.
+jit = numba.njit(cache=True, nogil=True)
+
+#: Parallel kernel: as :data:`jit`, with ``prange`` loops over independent
+#: takes, templates or chunks (each iteration writes only its own slice).
+pjit = numba.njit(cache=True, nogil=True, parallel=True)
+
+prange = numba.prange
+
+__all__ = ["jit", "pjit", "prange"]

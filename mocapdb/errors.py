@@ -1,0 +1,35 @@
+"""Exceptions raised by mocapdb. Every error derives from :class:`MocapdbError`."""
+
+
+class MocapdbError(Exception):
+    """Root of all mocapdb errors."""
+
+
+class ParameterError(MocapdbError, ValueError):
+    """A parameter value is invalid; the message names the parameter and the fix."""
+
+
+class ParseError(MocapdbError, ValueError):
+    """A motion file is malformed.
+
+    The message starts with ``path:line`` (and the frame or joint where it
+    applies) followed by what was expected and what was found, e.g.
+    ``walk.bvh:1207 (frame 88): expected 57 channels, got 54``.
+    """
+
+    def __init__(self, path, line, message, *, frame=None):
+        self.path = str(path)
+        self.line = line
+        self.frame = frame
+        where = f"{self.path}:{line}" if line is not None else self.path
+        if frame is not None:
+            where += f" (frame {frame})"
+        super().__init__(f"{where}: {message}")
+        self.reason = message
+
+
+class SchemaError(MocapdbError):
+    """The database lacks an object (table, motion, model, class) that a call needs."""
+
+
+__all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError"]

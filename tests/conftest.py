@@ -1,0 +1,32 @@
+"""Shared fixtures: where the real data and the toolbox oracle live.
+
+The data is never copied into the repository; it is read from ``../shared``
+beside the checkout (override with ``MOCAPDB_SHARED``).
+"""
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared")).resolve()
+DATA = SHARED / "data"
+ORACLE = SHARED / "oracle"
+
+
+def pytest_report_header(config):
+    return f"mocapdb shared data: {SHARED} ({'found' if DATA.is_dir() else 'MISSING'})"
+
+
+@pytest.fixture(scope="session")
+def data_dir():
+    if not DATA.is_dir():
+        pytest.fail(f"real data not found at {DATA}; set MOCAPDB_SHARED")
+    return DATA
+
+
+@pytest.fixture(scope="session")
+def oracle_dir():
+    if not ORACLE.is_dir():
+        pytest.fail(f"oracle not found at {ORACLE}; set MOCAPDB_SHARED")
+    return ORACLE
