@@ -1,0 +1,326 @@
+"""Malformed input (DESIGN.md §6): every broken file raises ParseError naming the
+file, the line (and frame/bone) and what was expected vs found. The broken files
+are built from real ones; line numbers are located in the corrupted text.
+
+Also: the skeleton-finding conventions of the data set.
+"""
+import re
+import shutil
+from dataclasses import replace
+
+import pytest
+
+from conftest import DATA
+from mocapdb.amc import read_amc
+from mocapdb.asf import read_asf
+from mocapdb.bvh import read_bvh, write_bvh
+from mocapdb.errors import MocapdbError, ParseError
+from mocapdb.readers import find_skeleton, read_motion
+
+ASF = DATA / "hdm05_cut/HDM_bd.asf"
+AMC = DATA / "hdm05_cut/squat1Reps/HDM_bd_squat1Reps_001_120.amc"
+
+
+@pytest.fixture
+def folder(tmp_path):
+    """A take folder with the actor's skeleton (so read_motion finds it)."""
+    shutil.copy(ASF, tmp_path / "HDM_bd.asf")
+    return tmp_path
+
+
+def lines_of(path):
+    return path.read_bytes().split(b"\n")
+
+
+def line_no(lines, k):
+    return k + 1  # 0-based list index -> 1-based line number
+
+
+def nth_line(lines, prefix, n=1):
+    """Index of the n-th line starting with ``prefix``."""
+    hits = [k for k, ln in enumerate(lines) if ln.startswith(prefix)]
+    return hits[n - 1]
+
+
+def write(folder, name, lines):
+    p = folder / name
+    p.write_bytes(b"\n".join(lines))
+    return p
+
+
+def raises(path, line, msg, frame=None):
+    where = re.escape(f"{path}:{line}") + (rf" \(frame {frame}\)" if frame is not None else "")
+    return pytest.raises(ParseError, match=where + ": " + msg)
+
+
+# ----------------------------------------------------------------------------
+# AMC
+
+def test_truncated_amc_last_frame_incomplete(folder):
+    lines = lines_of(AMC)
+    lines = lines[:-12]                 # drop the last 12 bone lines
+    p = write(folder, "HDM_bd_cut_a.amc", lines)
+    last = max(k for k, ln in enumerate(lines) if ln.strip())
+    n_frames = sum(1 for ln in lines if ln.strip().isdigit())
+    with raises(p, line_no(lines, last), r"every frame must list the bones of frame 1; "
+                r"missing .*rtoes.* \(the file may be truncated\)", frame=n_frames):
+        read_motion(p)
+
+
+def test_truncated_amc_mid_line(folder):
+    data = AMC.read_bytes()
+    cut = data[:data.rstrip().rfind(b" ")]     # last value of the last line cut off
+    p = folder / "HDM_bd_cut_b.amc"
+    p.write_bytes(cut)
+    lines = cut.split(b"\n")
+    bone = lines[-1].split()[0].decode()
+    n_frames = sum(1 for ln in lines if ln.strip().isdigit())
+    with raises(p, len(lines), rf"bone '{bone}': expected 1 value \(DOFs: rx\), found 0 "
+                r"\(the last line is incomplete: the file may be truncated\)", frame=n_frames):
+        read_motion(p)
+
+
+def test_amc_bone_not_in_the_asf(folder):
+    lines = lines_of(AMC)
+    k = nth_line(lines, b"lthumb", 5)
+    lines[k] = lines[k].replace(b"lthumb", b"lpinky")
+    p = write(folder, "HDM_bd_bone.amc", lines)
+    with raises(p, line_no(lines, k), r"bone 'lpinky' is not in the skeleton HDM_bd\.asf "
+                r"\(its bones: root, lhipjoint, .*\)", frame=5):
+        read_motion(p)
+
+
+@pytest.mark.parametrize("change,expected", [
+    (lambda v: v + [b"1.5"], r"expected 3 values \(DOFs: rx ry rz\), found 4"),
+    (lambda v: v[:2], r"expected 3 values \(DOFs: rx ry rz\), found 2"),
+])
+def test_amc_wrong_number_of_values(folder, change, expected):
+    lines = lines_of(AMC)
+    k = nth_line(lines, b"rfemur", 7)
+    t = lines[k].split()
+    lines[k] = b" ".join([t[0]] + change(t[1:])) + b"\r"
+    p = write(folder, "HDM_bd_count.amc", lines)
+    with raises(p, line_no(lines, k), "bone 'rfemur': " + expected, frame=7):
+        read_motion(p)
+
+
+@pytest.mark.parametrize("token,expected", [
+    (b"abc", r"expected a number, found 'abc'"),
+    (b"1.2.3", r"expected a number, found '1\.2\.3'"),
+    (b"12,5", r"expected a number, found '12,5'"),
+    (b"nan", r"expected a finite number, found 'nan' \(NaN/inf values are not allowed\)"),
+    (b"-inf", r"expected a finite number, found '-inf'"),
+    (b"1e999", r"expected a finite number, found '1e999'"),
+])
+def test_amc_non_numeric_and_non_finite_values(folder, token, expected):
+    lines = lines_of(AMC)
+    k = nth_line(lines, b"lhumerus", 11)
+    t = lines[k].split()
+    lines[k] = b" ".join([t[0], t[1], token, t[3]])
+    p = write(folder, "HDM_bd_value.amc", lines)
+    with raises(p, line_no(lines, k), "bone 'lhumerus': " + expected, frame=11):
+        read_motion(p)
+
+
+def test_amc_zero_frames(folder):
+    lines = lines_of(AMC)
+    header = lines[:nth_line(lines, b"1")]
+    p = write(folder, "HDM_bd_empty.amc", header)
+    with raises(p, len(header), r"no frames \(expected a frame number line"):
+        read_motion(p)
+
+
+def test_amc_frame_numbers_out_of_sequence(folder):
+    lines = lines_of(AMC)
+    k = next(i for i, ln in enumerate(lines) if ln.strip() == b"9")
+    lines[k] = b"10"
+    p = write(folder, "HDM_bd_seq.amc", lines)
+    with raises(p, line_no(lines, k), "expected frame number 9, found 10"):
+        read_motion(p)
+
+
+def test_amc_bone_twice_in_a_frame(folder):
+    lines = lines_of(AMC)
+    k = nth_line(lines, b"head", 3)
+    lines.insert(k + 1, lines[k])
+    p = write(folder, "HDM_bd_dup.amc", lines)
+    with raises(p, line_no(lines, k + 1), "bone 'head' appears twice in one frame", frame=3):
+        read_motion(p)
+
+
+def test_amc_bone_line_before_the_first_frame(folder):
+    lines = lines_of(AMC)
+    k = nth_line(lines, b":DEGREES")
+    lines.insert(k + 1, b"root 1 2 3 4 5 6")
+    p = write(folder, "HDM_bd_hdr.amc", lines)
+    with raises(p, line_no(lines, k + 1), "expected a frame number before the first bone line"):
+        read_motion(p)
+
+
+# ----------------------------------------------------------------------------
+# ASF
+
+@pytest.mark.parametrize("old,new,expected", [
+    (b"angle deg", b"angle grad", r"units angle: expected 'deg' or 'rad', found 'grad'"),
+    (b"length 0.45", b"length abc", r"units length: expected a number, found 'abc'"),
+    (b"length 0.45", b"length -1", r"units length: expected a positive number, found '-1'"),
+    (b"mass 1.0", b"time 1.0", r"unsupported unit 'time' \(expected mass, length or angle\)"),
+    (b"order TX TY TZ RX RY RZ", b"order TX TY TZ RX RY RW",
+     r"root order: unknown token 'RW' \(expected TX TY TZ RX RY RZ\)"),
+    (b"axis XYZ", b"axis ZYX", r"root axis: unsupported rotation order 'ZYX'"),
+    (b"dof rx ry rz", b"dof rx rw rz", r"dof: unknown token 'rw' \(expected rx, ry, rz\)"),
+    (b"dof rx ry rz", b"dof tx ry rz", r"dof: unsupported translation/length DOF 'tx'"),
+    (b"axis 0 0 20  XYZ", b"axis 0 0 20  ZXY", r"bone axis: unsupported rotation order 'ZXY'"),
+    (b"length 7.34031", b"length 7.34o31", r"bone length: expected a number, found '7\.34o31'"),
+    (b"direction 0.567149 -0.783011 0.255413", b"direction 0.567149 nan 0.255413",
+     r"bone direction: expected a finite number, found 'nan'"),
+])
+def test_asf_bad_units_tokens_and_numbers(tmp_path, old, new, expected):
+    data = ASF.read_bytes()
+    assert old in data
+    bad = data.replace(old, new, 1)
+    lines = bad.split(b"\n")
+    k = next(i for i, ln in enumerate(lines) if new in ln)
+    p = tmp_path / "broken.asf"
+    p.write_bytes(bad)
+    with raises(p, line_no(lines, k), expected):
+        read_asf(p)
+
+
+def test_asf_bone_missing_from_the_hierarchy(tmp_path):
+    lines = lines_of(ASF)
+    k = next(i for i, ln in enumerate(lines) if ln.strip() == b"lhand lfingers")
+    del lines[k]
+    h = next(i for i, ln in enumerate(lines) if ln.startswith(b":hierarchy"))
+    p = write(tmp_path, "nohier.asf", lines)
+    with raises(p, line_no(lines, h), r"hierarchy: bone 'lfingers' \(line \d+\) is not the "
+                r"child of any bone or of root"):
+        read_asf(p)
+
+
+def test_amc_read_with_a_skeleton_lacking_its_bones(tmp_path):
+    # an HDM05 take with a skeleton whose thumb bones were renamed
+    data = ASF.read_bytes().replace(b"lthumb", b"lthumb1")
+    p = tmp_path / "other.asf"
+    p.write_bytes(data)
+    lines = lines_of(AMC)
+    k = nth_line(lines, b"lthumb")
+    with raises(AMC, line_no(lines, k), r"bone 'lthumb' is not in the skeleton other\.asf",
+                frame=1):
+        read_amc(AMC, read_asf(p))
+
+
+# ----------------------------------------------------------------------------
+# BVH
+
+@pytest.fixture(scope="module")
+def bvh_lines(tmp_path_factory):
+    s = read_asf(ASF)
+    m = read_amc(AMC, s)
+    p = write_bvh(tmp_path_factory.mktemp("bvh") / "ok.bvh", s, replace(m, values=m.values[:30]),
+                  precision=9)
+    return lines_of(p)
+
+
+def motion_line(lines, frame):
+    return lines.index(b"MOTION") + 2 + frame  # 0-based index of a frame's line (1-based frame)
+
+
+@pytest.mark.parametrize("edit,found", [(lambda t: t + [b"1.5"], 97),
+                                        (lambda t: t[:-3], 93)])
+def test_bvh_motion_line_with_wrong_channel_count(tmp_path, bvh_lines, edit, found):
+    lines = list(bvh_lines)
+    k = motion_line(lines, 12)
+    lines[k] = b" ".join(edit(lines[k].split()))
+    p = write(tmp_path, "walk.bvh", lines)
+    with raises(p, line_no(lines, k), f"expected 96 channel values, found {found}", frame=12):
+        read_bvh(p)
+
+
+def test_bvh_unknown_channel_name(tmp_path, bvh_lines):
+    lines = list(bvh_lines)
+    k = next(i for i, ln in enumerate(lines) if b"JOINT lfemur" in ln) + 3
+    assert b"CHANNELS 3 Zrotation Yrotation Xrotation" in lines[k]
+    lines[k] = lines[k].replace(b"Yrotation", b"Wrotation")
+    p = write(tmp_path, "chan.bvh", lines)
+    with raises(p, line_no(lines, k), r"joint 'lfemur': unknown channel 'Wrotation' "
+                r"\(expected Xposition, .*Zrotation\)"):
+        read_bvh(p)
+
+
+def test_bvh_channel_count_disagrees_with_names(tmp_path, bvh_lines):
+    lines = list(bvh_lines)
+    k = next(i for i, ln in enumerate(lines) if b"CHANNELS 3" in ln)
+    lines[k] = lines[k].replace(b"CHANNELS 3", b"CHANNELS 4")
+    p = write(tmp_path, "count.bvh", lines)
+    with raises(p, line_no(lines, k), r"joint 'lhipjoint': CHANNELS 4 but 3 channel names"):
+        read_bvh(p)
+
+
+def test_bvh_non_numeric_and_nan_motion_values(tmp_path, bvh_lines):
+    for tok, msg in ((b"x1", "expected a number, found 'x1'"),
+                     (b"NaN", r"expected a finite number, found 'NaN'")):
+        lines = list(bvh_lines)
+        k = motion_line(lines, 20)
+        t = lines[k].split()
+        t[40] = tok
+        lines[k] = b" ".join(t)
+        p = write(tmp_path, "nan.bvh", lines)
+        with raises(p, line_no(lines, k), msg, frame=20):
+            read_bvh(p)
+
+
+def test_bvh_truncated_and_overlong(tmp_path, bvh_lines):
+    lines = list(bvh_lines)
+    frames_line = lines.index(b"MOTION") + 1
+    p = write(tmp_path, "short.bvh", lines[:-6])
+    with raises(p, line_no(lines, frames_line), r"'Frames: 30' but only 25 motion lines follow"):
+        read_bvh(p)
+    extra = list(lines)
+    extra[frames_line] = b"Frames: 29"
+    p = write(tmp_path, "long.bvh", extra)
+    with raises(p, line_no(extra, motion_line(extra, 30)), "more motion lines than the 29 "
+                "announced", frame=30):
+        read_bvh(p)
+
+
+def test_bvh_bad_offset(tmp_path, bvh_lines):
+    lines = list(bvh_lines)
+    k = next(i for i, ln in enumerate(lines) if ln.strip().startswith(b"OFFSET"))
+    lines[k] = lines[k].rsplit(b" ", 1)[0]
+    p = write(tmp_path, "offset.bvh", lines)
+    with raises(p, line_no(lines, k), r"joint 'root': OFFSET: expected 3 numbers, found 2"):
+        read_bvh(p)
+
+
+# ----------------------------------------------------------------------------
+# dispatch and skeleton conventions
+
+def test_find_skeleton_conventions(tmp_path):
+    assert find_skeleton(DATA / "cmu/02/02_01.amc") == DATA / "cmu/02/02.asf"
+    assert find_skeleton(AMC) == ASF
+    assert (find_skeleton(DATA / "hdm05_full/HDM_dg_06-03_03_120.amc")
+            == DATA / "hdm05_full/HDM_dg.asf")
+    assert find_skeleton(DATA / "cmu/13/13_29.amc") is None
+    # the same stem wins over the subject's skeleton
+    (tmp_path / "07_01.amc").write_bytes(b"")
+    (tmp_path / "07.asf").write_bytes(b"")
+    assert find_skeleton(tmp_path / "07_01.amc") == tmp_path / "07.asf"
+    (tmp_path / "07_01.asf").write_bytes(b"")
+    assert find_skeleton(tmp_path / "07_01.amc") == tmp_path / "07_01.asf"
+
+
+def test_amc_without_a_skeleton_says_how_to_pass_one():
+    p = DATA / "cmu/13/13_29.amc"
+    with pytest.raises(ParseError, match=re.escape(f"{p}: no ASF skeleton found") +
+                       r".*--asf FILE.*cmu/02/02\.asf reads them"):
+        read_motion(p)
+    assert read_motion(p, asf=DATA / "cmu/02/02.asf").n_frames > 0
+
+
+def test_unsupported_extension(tmp_path):
+    p = tmp_path / "take.c3x"
+    p.write_bytes(b"")
+    with pytest.raises(ParseError, match=re.escape(f"{p}: unsupported file type '.c3x'")):
+        read_motion(p)
+    assert issubclass(ParseError, MocapdbError)
