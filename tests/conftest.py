@@ -4,6 +4,7 @@ The data is never copied into the repository; it is read from ``../shared``
 beside the checkout (override with ``MOCAPDB_SHARED``).
 """
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -30,3 +31,9 @@ def oracle_dir():
     if not ORACLE.is_dir():
         pytest.fail(f"oracle not found at {ORACLE}; set MOCAPDB_SHARED")
     return ORACLE
+
+
+def amc_frame_count(path):
+    """Frames of an AMC counted independently of the reader: lines that are a bare integer."""
+    with open(path, "rb") as f:
+        return sum(1 for line in f if re.fullmatch(rb"\s*\d+\s*", line))

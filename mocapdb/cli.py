@@ -1,0 +1,214 @@
+"""The ``mocapdb`` command line: one command per API function (sqlite-utils style).
+
+Library exceptions become ``click.ClickException`` here (``Error: …``, exit 1);
+progress bars are drawn here and nowhere else.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from .errors import MocapdbError
+
+
+def _open(ctx, *, read_only=False):
+    db = ctx.obj.get("db")
+    if db is None:
+        raise click.UsageError("this command needs a database: mocapdb --db FILE …")
+    from .database import connect
+
+    try:
+        con = connect(db, read_only=read_only)
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    ctx.call_on_close(con.close)
+    return con
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("--db", type=click.Path(dir_okay=False, path_type=Path), envvar="MOCAPDB_DB",
+              help="DuckDB database file (created if missing). Env: MOCAPDB_DB.")
+@click.version_option(package_name="mocapdb")
+@click.pass_context
+def main(ctx, db):
+    """mocapdb: annotate and retrieve motion capture data with SQL.
+
+    \b
+    Example:
+      mocapdb --db archive.duckdb ingest ../shared/data/cmu/86
+      mocapdb --db archive.duckdb annotate
+      mocapdb --db archive.duckdb sql "SELECT name, n_frames FROM motions"
+    """
+    ctx.ensure_object(dict)
+    ctx.obj["db"] = db
+
+
+def _progress_bar(total, label, silent):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=label, unit="file", disable=silent, file=sys.stderr, leave=False)
+
+
+@main.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Skeleton for every AMC file (default: found by the dataset conventions: "
+                   "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")
+@click.option("--silent", is_flag=True, help="No progress bar.")
+@click.pass_context
+def ingest(ctx, paths, asf, silent):
+    """Read ASF/AMC and BVH files (or folders, recursively) into the database.
+
+    One transaction per file: a broken file changes nothing and the others
+    still go in; files already stored (same bytes) are skipped.
+    """
+    from .ingest import ingest as ingest_files, motion_files
+
+    con = _open(ctx)
+    try:
+        n = len(motion_files(paths))
+        with _progress_bar(n, "ingest", silent) as bar:
+            report = ingest_files(con, paths, asf=asf, progress=lambda path, frames: bar.update(1))
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    for path, reason in report.skipped:
+        click.echo(f"skipped {path}: {reason}", err=True)
+    for path, reason in report.failed:
+        click.echo(f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}", err=True)
+    click.echo(f"{report.summary()} ({report.source_frames} source frames)")
+    if report.failed and not report.ingested and not report.skipped:
+        ctx.exit(1)
+
+
+@main.command()
+@click.argument("motions", nargs=-1, required=True)
+@click.pass_context
+def delete(ctx, motions):
+    """Delete motions (ids or names) with their features, index postings and annotations."""
+    from .database import motion_ids
+    from .ingest import delete_motions
+
+    con = _open(ctx)
+    try:
+        n = delete_motions(con, motion_ids(con, motions))
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    click.echo(f"{n} motion(s) deleted")
+
+
+FORMATS = click.Choice(["table", "csv", "json"])
+
+
+def write_relation(rel_or_rows, columns, fmt, out=None):
+    """Print rows as an aligned table, CSV or JSON (to stdout or ``out``)."""
+    import csv
+    import io
+
+    rows = rel_or_rows
+    stream = io.StringIO()
+    if fmt == "csv":
+        w = csv.writer(stream, lineterminator="\n")
+        w.writerow(columns)
+        w.writerows(rows)
+    elif fmt == "json":
+        json.dump([dict(zip(columns, r)) for r in rows], stream, indent=1, default=_json_default)
+        stream.write("\n")
+    else:
+        cells = [[_cell(v) for v in r] for r in rows]
+        widths = [max([len(str(c))] + [len(r[i]) for r in cells]) for i, c in enumerate(columns)]
+        stream.write("  ".join(str(c).ljust(w) for c, w in zip(columns, widths)).rstrip() + "\n")
+        stream.write("  ".join("-" * w for w in widths) + "\n")
+        for r in cells:
+            stream.write("  ".join(c.rjust(w) if _numeric(c) else c.ljust(w) for c, w in zip(r, widths)).rstrip() + "\n")
+    text = stream.getvalue()
+    if out is None:
+        click.echo(text, nl=False)
+    else:
+        Path(out).write_text(text, encoding="utf-8")
+
+
+def _cell(v):
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return "NULL" if v is None else str(v)
+
+
+def _numeric(s):
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+def _json_default(v):
+    if hasattr(v, "isoformat"):
+        return v.isoformat()
+    if hasattr(v, "tolist"):
+        return v.tolist()
+    return str(v)
+
+
+@main.command()
+@click.argument("query")
+@click.option("--format", "fmt", type=FORMATS, default="table", show_default=True)
+@click.pass_context
+def sql(ctx, query, fmt):
+    """Run a SQL query with the mocapdb functions registered and print the result.
+
+    \b
+    Example:
+      mocapdb --db a.duckdb sql "SELECT name, unnest(annotate(motion_id), recursive := true) FROM motions"
+    """
+    import duckdb
+
+    con = _open(ctx)
+    try:
+        rel = con.sql(query)
+    except (duckdb.Error, MocapdbError) as exc:
+        raise click.ClickException(str(exc)) from exc
+    if rel is None:  # a statement without a result (CREATE, INSERT, …)
+        return
+    try:
+        rows = rel.fetchall()
+    except duckdb.Error as exc:
+        raise click.ClickException(str(exc)) from exc
+    write_relation(rows, rel.columns, fmt)
+
+
+@main.command("export-features")
+@click.argument("directory", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--overwrite", is_flag=True, help="Write into a non-empty directory.")
+@click.pass_context
+def export_features_cmd(ctx, directory, overwrite):
+    """Write motions and features to Parquet, partitioned by motion (DIR/features/motion_id=N/)."""
+    from .parquet import export_features
+
+    con = _open(ctx, read_only=False)
+    try:
+        n = export_features(con, directory, overwrite=overwrite)
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    click.echo(f"{n} motion(s) exported to {directory}")
+
+
+@main.command("import-features")
+@click.argument("directory", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.pass_context
+def import_features_cmd(ctx, directory):
+    """Load motions and features exported by export-features (motions already present are kept)."""
+    from .parquet import import_features
+
+    con = _open(ctx)
+    try:
+        mapping = import_features(con, directory)
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    click.echo(f"{len(mapping)} motion(s) imported")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

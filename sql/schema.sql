@@ -1,0 +1,109 @@
+-- mocapdb schema: plain tables, created on every connect (IF NOT EXISTS).
+-- Frames stored here are 1-based and inclusive, like the HDM05 annotations;
+-- `frame` in `features` counts 30 Hz frames (native frame 4·frame − 3).
+
+CREATE SEQUENCE IF NOT EXISTS motion_id_seq START 1;
+
+CREATE TABLE IF NOT EXISTS motions (
+    motion_id        INTEGER PRIMARY KEY DEFAULT nextval('motion_id_seq'),
+    name             VARCHAR NOT NULL,          -- file stem, e.g. 86_09
+    source_path      VARCHAR NOT NULL,
+    format           VARCHAR NOT NULL,          -- amc, bvh
+    sha256           VARCHAR NOT NULL,          -- of the source file's bytes
+    skeleton_sha256  VARCHAR,                   -- of the ASF's bytes (AMC only)
+    source_fps       DOUBLE NOT NULL,           -- native rate, usually 120
+    fps              DOUBLE NOT NULL,           -- rate of `features` (source_fps / 4)
+    n_source_frames  INTEGER NOT NULL,
+    n_frames         INTEGER NOT NULL,          -- rows in `features` = ceil(n_source_frames / 4)
+    skeleton         VARCHAR,
+    skeleton_path    VARCHAR,
+    ingested_at      TIMESTAMP NOT NULL DEFAULT current_timestamp,
+    UNIQUE (sha256, skeleton_sha256)
+);
+
+-- One row per 30 Hz frame: the 40 relational features packed into one word,
+-- bit k-1 = feature k (FEATURES.md §0 order; see the view feature_flags).
+CREATE TABLE IF NOT EXISTS features (
+    motion_id  INTEGER NOT NULL,
+    frame      INTEGER NOT NULL,
+    bits       UBIGINT NOT NULL
+);
+
+-- Class models: several live side by side, told apart by `model`.
+CREATE TABLE IF NOT EXISTS models (
+    model        VARCHAR PRIMARY KEY,
+    description  VARCHAR,
+    source       VARCHAR,                  -- how it was made (training data, command)
+    fingerprint  VARCHAR NOT NULL,         -- changes whenever the model's rows change
+    created_at   TIMESTAMP NOT NULL DEFAULT current_timestamp
+);
+
+-- One row per fine class: its coarse label (squat1Reps -> exercise), the
+-- quantization threshold δ of its template and its hit threshold τ.
+CREATE TABLE IF NOT EXISTS classes (
+    model     VARCHAR NOT NULL,
+    class     VARCHAR NOT NULL,
+    class_id  INTEGER NOT NULL,            -- order of Δ rows and hits (1-based)
+    label     VARCHAR NOT NULL,
+    label_id  INTEGER NOT NULL,            -- label order: ties in Δmin go to the lowest
+    delta     DOUBLE NOT NULL,
+    tau       DOUBLE NOT NULL,
+    n_clips   INTEGER,
+    PRIMARY KEY (model, class)
+);
+
+-- Motion templates, one row per template column (30 Hz template frame):
+-- the real-valued template (40 values in [0, 1]) and its weight, and the
+-- quantized column as (mask, value) words: mask bit = not a wildcard.
+CREATE TABLE IF NOT EXISTS templates (
+    model   VARCHAR NOT NULL,
+    class   VARCHAR NOT NULL,
+    col     INTEGER NOT NULL,              -- 1-based
+    mask    UBIGINT NOT NULL,
+    value   UBIGINT NOT NULL,
+    weight  DOUBLE NOT NULL,               -- weight of the quantized column
+    real    DOUBLE[],                      -- real-valued template column (NULL if unknown)
+    real_weight DOUBLE,
+    PRIMARY KEY (model, class, col)
+);
+
+-- Keyframe queries (one per class and model) and their keyframes.
+CREATE TABLE IF NOT EXISTS keyframe_queries (
+    model            VARCHAR NOT NULL,
+    class            VARCHAR NOT NULL,
+    n_keyframes      INTEGER NOT NULL,
+    template_length  INTEGER NOT NULL,
+    source           VARCHAR NOT NULL,     -- manual, heuristic, ga
+    fitness          DOUBLE,
+    precision        DOUBLE,
+    recall           DOUBLE,
+    PRIMARY KEY (model, class)
+);
+
+CREATE TABLE IF NOT EXISTS keyframes (
+    model        VARCHAR NOT NULL,
+    class        VARCHAR NOT NULL,
+    k            INTEGER NOT NULL,         -- 1-based keyframe number
+    feature_set  VARCHAR,                  -- upper, lower, mix or NULL (all 40 bits)
+    mask         UBIGINT NOT NULL,         -- over the 40-bit word
+    value        UBIGINT NOT NULL,
+    position     INTEGER NOT NULL,         -- template column (1-based)
+    d_min        INTEGER,                  -- bounds on the gap to keyframe k+1 (30 Hz frames);
+    d_max        INTEGER,                  -- NULL d_max = unbounded; both NULL for the last
+    PRIMARY KEY (model, class, k)
+);
+
+-- Materialised annotation results (frames 1-based, inclusive, 30 Hz).
+CREATE TABLE IF NOT EXISTS annotations (
+    motion_id    INTEGER NOT NULL,
+    model        VARCHAR NOT NULL,
+    label        VARCHAR NOT NULL,
+    start_frame  INTEGER NOT NULL,
+    end_frame    INTEGER NOT NULL,
+    cost         DOUBLE NOT NULL,
+    start_s      DOUBLE NOT NULL,
+    end_s        DOUBLE NOT NULL,
+    tau          DOUBLE,
+    keyframes    BOOLEAN,
+    annotated_at TIMESTAMP NOT NULL DEFAULT current_timestamp
+);
