@@ -1,0 +1,132 @@
+"""Annotation models: the classes an annotation run distinguishes (no I/O here).
+
+A :class:`Model` is an ordered set of :class:`ClassModel` (fine classes, e.g.
+``squat1Reps``), each mapped to a (coarser) label (e.g. ``exercise``); the
+label order breaks ties in Δarg (TEMPLATES.md §10.2–§10.3, paper Sect. 4).
+Storage (DuckDB / Parquet) lives elsewhere.
+"""
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mocapdb.errors import ParameterError
+from mocapdb.templates import MotionTemplate, QuantizedTemplate
+
+__all__ = ["ClassModel", "Model", "DEFAULT_DELTA", "DEFAULT_TAU"]
+
+#: quantization threshold δ used by the annotation scripts (TEMPLATES.md §8)
+DEFAULT_DELTA = 0.05
+#: hit threshold τ of annotationScript.m (TEMPLATES.md §9.1)
+DEFAULT_TAU = 0.13
+
+
+@dataclass(frozen=True, eq=False)
+class ClassModel:
+    """One motion class of a model.
+
+    Attributes
+    ----------
+    name : str
+        Fine class name (e.g. ``"squat1Reps"``).
+    label : str
+        Label the class annotates with (e.g. ``"exercise"``); several classes
+        may share a label (their classification deltas are combined by min).
+    template : MotionTemplate or None
+        The real-valued template (None if only the quantized one is known).
+    quantized : QuantizedTemplate or None
+        The template used for Δ; if None it is ``template.quantize(delta)``.
+    delta : float, default 0.05
+        Quantization threshold δ the quantized template was made with.
+    tau : float, default 0.13
+        Hit threshold τ (TEMPLATES.md §9.1).
+    keyframe_query : object, optional
+        The learned keyframe query (owned by the keyframe module), or None.
+    """
+
+    name: str
+    label: str
+    template: MotionTemplate | None = None
+    quantized: QuantizedTemplate | None = None
+    delta: float = DEFAULT_DELTA
+    tau: float = DEFAULT_TAU
+    keyframe_query: Any = None
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise ParameterError(f"name must be a non-empty string, got {self.name!r}")
+        if not isinstance(self.label, str) or not self.label:
+            raise ParameterError(
+                f"label of class {self.name!r} must be a non-empty string, got {self.label!r}")
+        if self.template is not None and not isinstance(self.template, MotionTemplate):
+            raise ParameterError(
+                f"template of class {self.name!r} must be a MotionTemplate, "
+                f"got {type(self.template).__name__}")
+        if self.quantized is None:
+            if self.template is None:
+                raise ParameterError(
+                    f"class {self.name!r} needs a template or a quantized template")
+            object.__setattr__(self, "quantized", self.template.quantize(self.delta))
+        elif not isinstance(self.quantized, QuantizedTemplate):
+            raise ParameterError(
+                f"quantized of class {self.name!r} must be a QuantizedTemplate, "
+                f"got {type(self.quantized).__name__}")
+        if not np.isfinite(self.tau) or self.tau < 0:
+            raise ParameterError(
+                f"tau of class {self.name!r} must be a non-negative number, got {self.tau!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """An annotation model: classes plus the order of their labels.
+
+    Attributes
+    ----------
+    name : str
+    classes : tuple of ClassModel
+        Fine classes; their order is the order of Δ rows and of hits.
+    labels : tuple of str, optional
+        Label order (ties in Δarg go to the earlier label). Default: order of
+        first appearance in ``classes``. Must contain every class label; extra
+        labels are allowed (they never annotate).
+    """
+
+    name: str
+    classes: tuple = field(default_factory=tuple)
+    labels: tuple | None = None
+
+    def __post_init__(self):
+        classes = tuple(self.classes)
+        for k, c in enumerate(classes):
+            if not isinstance(c, ClassModel):
+                raise ParameterError(
+                    f"classes[{k}] must be a ClassModel, got {type(c).__name__}")
+        names = [c.name for c in classes]
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise ParameterError(f"class names must be unique; repeated: {dup}")
+        if self.labels is None:
+            labels = tuple(dict.fromkeys(c.label for c in classes))
+        else:
+            labels = tuple(self.labels)
+            if len(set(labels)) != len(labels):
+                raise ParameterError(f"labels must be unique, got {labels}")
+            missing = sorted({c.label for c in classes} - set(labels))
+            if missing:
+                raise ParameterError(f"labels lacks the class labels {missing}; add them")
+        object.__setattr__(self, "classes", classes)
+        object.__setattr__(self, "labels", labels)
+
+    @property
+    def class_names(self):
+        """Fine class names in model order."""
+        return tuple(c.name for c in self.classes)
+
+    @property
+    def label_index(self):
+        """(n_classes,) int64: index into ``labels`` of each class."""
+        pos = {lab: k for k, lab in enumerate(self.labels)}
+        return np.array([pos[c.label] for c in self.classes], dtype=np.int64)
+
+    def __len__(self):
+        return len(self.classes)

@@ -1,0 +1,198 @@
+"""The annotation chain (TEMPLATES.md §9.1, §10) against the toolbox and naive references."""
+import numpy as np
+import pytest
+
+from mocapdb.annotation import (
+    annotate, combine_by_label, extract_hits, form_segments, frame_labels)
+from mocapdb.errors import ParameterError
+from mocapdb.model import ClassModel, Model
+from mocapdb.sdtw import mt_distance
+from naive_dtw import naive_hits, naive_segments
+from template_oracle import (
+    ANNOTATION, CLASSES, COARSE, DOCS, TEMPLATES, csv_rows, csv_table, oracle_model,
+    quantized_template, words)
+
+
+def _same(got, ref):
+    np.testing.assert_array_equal(np.isinf(got), np.isinf(ref))
+    fin = np.isfinite(ref)
+    assert np.abs(got[fin] - ref[fin]).max(initial=0.0) <= 1e-9
+
+
+@pytest.fixture(scope="module")
+def model():
+    return oracle_model()
+
+
+@pytest.mark.parametrize("doc", DOCS)
+def test_annotation_reproduces_toolbox(model, doc):
+    folder = ANNOTATION / doc
+    r = annotate(words(doc), model, keep_deltas=True)
+    header, cdf = csv_table(folder / "classificationDelta_fine.csv")
+    assert tuple(header) == model.class_names == r.class_names
+    _same(r.classification_delta, cdf.T)
+    _, delta = csv_table(folder / "delta_fine.csv")
+    _same(r.delta, delta.T)
+    header, cdc = csv_table(folder / "classificationDelta_coarse.csv")
+    assert tuple(header) == model.labels == r.labels
+    _same(r.label_delta, cdc.T)
+    _, dc = csv_table(folder / "delta_coarse.csv")
+    _same(combine_by_label(r.delta, model.label_index, len(model.labels)), dc.T)
+    hits = csv_rows(folder / "hits_fine.csv")
+    assert len(r.hits) == len(hits)
+    assert [h["class"] for h in hits] == [r.class_names[k] for k in r.hits["class_id"]]
+    np.testing.assert_array_equal([int(h["first_frame"]) - 1 for h in hits], r.hits["start"])
+    np.testing.assert_array_equal([int(h["last_frame"]) - 1 for h in hits], r.hits["end"])
+    _same(r.hits["cost"], np.array([float(h["cost"]) for h in hits]))
+    assert (r.hits["doc"] == 0).all()
+    segs = csv_rows(folder / "segments.csv")
+    assert len(r.segments) == len(segs) > 0
+    assert [s["label"] for s in segs] == list(r.segments["label"])
+    np.testing.assert_array_equal([int(s["start_frame"]) - 1 for s in segs], r.segments["start"])
+    np.testing.assert_array_equal([int(s["end_frame"]) - 1 for s in segs], r.segments["end"])
+    _same(r.segments["cost"], np.array([float(s["cost"]) for s in segs]))
+
+
+def test_concatenated_documents_reproduce_toolbox(model):
+    ws = [words(d) for d in DOCS]
+    layout = csv_rows(ANNOTATION / "concat_layout.csv")
+    assert [int(x["files_frame_length"]) for x in layout] == [len(w) for w in ws]
+    r = annotate(np.concatenate(ws), model, doc_lengths=[len(w) for w in ws])
+    ref = csv_rows(ANNOTATION / "segments_concat_check.csv")
+    assert len(r.segments) == len(ref) == 19
+    assert [s["label"] for s in ref] == list(r.segments["label"])
+    assert [s["doc"] for s in ref] == [DOCS[d] for d in r.segments["doc"]]
+    np.testing.assert_array_equal([int(s["start_frame"]) - 1 for s in ref], r.segments["start"])
+    np.testing.assert_array_equal([int(s["end_frame"]) - 1 for s in ref], r.segments["end"])
+    _same(r.segments["cost"], np.array([float(s["cost"]) for s in ref]))
+    # frames in the database: document start (the toolbox's 1-based db frames
+    # include two separator frames after every document)
+    db = [int(x["files_frame_start"]) - 1 for x in layout]
+    np.testing.assert_array_equal([int(s["start_frame_db"]) - 1 for s in ref],
+                                  np.array(db)[r.segments["doc"]] + r.segments["start"])
+
+
+def test_batched_annotation_equals_one_batch(model, monkeypatch):
+    import mocapdb.annotation as ann
+    ws = [words(d) for d in DOCS]
+    lens = [len(w) for w in ws]
+    full = annotate(np.concatenate(ws), model, doc_lengths=lens)
+    monkeypatch.setattr(ann, "BATCH_FRAMES", 100)
+    small = annotate(np.concatenate(ws), model, doc_lengths=lens)
+    np.testing.assert_array_equal(small.segments, full.segments)
+    np.testing.assert_array_equal(small.hits, full.hits)
+
+
+# --- hit extraction ---------------------------------------------------------
+
+def test_extract_hits_matches_toolbox_loop_on_real_delta():
+    d, s = mt_distance(words("86_09"), quantized_template(TEMPLATES / "kickLFront1Reps"),
+                       return_starts=True)
+    hits, cd = extract_hits(d, s, tau=0.13)
+    ref, cdn = naive_hits(d, s, 0.13)
+    assert len(hits) == len(ref) > 100
+    np.testing.assert_array_equal(np.array([(a, b) for a, b, _ in ref]),
+                                  np.stack([hits["start"], hits["end"]], 1))
+    np.testing.assert_array_equal(hits["cost"], [c for _, _, c in ref])
+    np.testing.assert_array_equal(cd, cdn)
+
+
+def test_extract_hits_matches_toolbox_loop_on_random_ties():
+    rng = np.random.default_rng(4)
+    for _ in range(100):
+        n = int(rng.integers(1, 60))
+        d = rng.integers(0, 6, n) / 20.0
+        d[rng.random(n) < 0.2] = np.inf
+        s = np.maximum(0, np.arange(n) - rng.integers(0, 8, n))
+        tau = float(rng.choice([0.0, 0.1, 0.13, 1.0]))
+        hits, cd = extract_hits(d, s, tau=tau, match_num_max=None)
+        ref, cdn = naive_hits(d, s, tau)
+        assert [tuple(h) for h in hits.tolist()] == [(a, b, c) for a, b, c in ref]
+        np.testing.assert_array_equal(cd, cdn)
+
+
+def test_match_num_max_raises():
+    d = np.zeros(10)
+    s = np.arange(10)
+    assert len(extract_hits(d, s, match_num_max=11)[0]) == 10
+    with pytest.raises(ParameterError, match="match_num_max=10"):
+        extract_hits(d, s, match_num_max=10)
+    model = Model("m", [ClassModel("kick", "kick", quantized=quantized_template(
+        TEMPLATES / "kickLFront1Reps"))])
+    with pytest.raises(ParameterError, match="'kick'.*match_num_max=5.*document 0"):
+        annotate(words("86_09"), model, match_num_max=5)
+
+
+# --- segments ---------------------------------------------------------------
+
+def test_form_segments_matches_toolbox_algorithm_on_random_data():
+    rng = np.random.default_rng(9)
+    labels = ("a", "b", "c")
+    for _ in range(60):
+        lens = [int(x) for x in rng.integers(1, 40, int(rng.integers(1, 4)))]
+        docs = []
+        for n in lens:
+            c = rng.integers(0, 5, (3, n)) / 10.0
+            c[rng.random((3, n)) < 0.4] = np.inf
+            docs.append(c)
+        got = form_segments(np.concatenate(docs, axis=1), doc_lengths=lens, labels=labels)
+        ref = naive_segments(docs, labels)
+        assert [tuple(x) for x in got.tolist()] == [
+            (lab, d, s, e, c) for lab, d, s, e, c in ref]
+
+
+def test_frame_labels_ties_go_to_the_first_label():
+    cd = np.array([[0.1, np.inf, 0.2, np.inf],
+                   [0.1, 0.05, 0.2, np.inf]])
+    dmin, arg = frame_labels(cd)
+    np.testing.assert_array_equal(arg, [0, 1, 0, -1])
+    np.testing.assert_array_equal(dmin, [0.1, 0.05, 0.2, np.inf])
+
+
+# --- keyframe preselection (§10.1) ------------------------------------------
+
+def test_preselection_limits_delta_to_slices(model):
+    w = words("86_09")
+    full = annotate(w, model, keep_deltas=True)
+    whole = [[(0, len(w) - 1)]] * len(model.classes)
+    same = annotate(w, model, preselection=whole, keep_deltas=True)
+    np.testing.assert_array_equal(same.classification_delta, full.classification_delta)
+    np.testing.assert_array_equal(same.segments, full.segments)
+    k = model.class_names.index("kickLFront1Reps")
+    pre = {"kickLFront1Reps": [(500, 700), (650, 900)], "squat1Reps": []}
+    r = annotate(w, model, preselection=pre, keep_deltas=True)
+    assert np.isinf(r.delta[k, :500]).all() and np.isinf(r.delta[k, 901:]).all()
+    # the later slice overwrites the overlap, as annotationScript.m does
+    np.testing.assert_array_equal(r.delta[k, 500:650], mt_distance(w[500:701],
+                                  model.classes[k].quantized)[:150])
+    np.testing.assert_array_equal(r.delta[k, 650:901], mt_distance(w[650:901],
+                                  model.classes[k].quantized))
+    assert np.isinf(r.delta[model.class_names.index("squat1Reps")]).all()
+    other = model.class_names.index("throwBasketball")
+    np.testing.assert_array_equal(r.delta[other], full.delta[other])
+
+
+def test_preselection_slices_must_stay_in_one_document(model):
+    ws = [words(d) for d in DOCS[:2]]
+    with pytest.raises(ParameterError, match="crosses a document boundary"):
+        annotate(np.concatenate(ws), model, doc_lengths=[len(x) for x in ws],
+                 preselection={"squat1Reps": [(1190, 1210)]})
+    with pytest.raises(ParameterError, match="unknown classes"):
+        annotate(ws[0], model, preselection={"walk": []})
+
+
+# --- model ------------------------------------------------------------------
+
+def test_model_validation():
+    q = quantized_template(TEMPLATES / "squat1Reps")
+    with pytest.raises(ParameterError, match="unique"):
+        Model("m", [ClassModel("a", "x", quantized=q), ClassModel("a", "y", quantized=q)])
+    with pytest.raises(ParameterError, match="lacks the class labels"):
+        Model("m", [ClassModel("a", "x", quantized=q)], labels=("y",))
+    with pytest.raises(ParameterError, match="needs a template"):
+        ClassModel("a", "x")
+    m = Model("m", [ClassModel("a", "x", quantized=q), ClassModel("b", "w", quantized=q),
+                    ClassModel("c", "x", quantized=q)])
+    assert m.labels == ("x", "w")
+    np.testing.assert_array_equal(m.label_index, [0, 1, 0])
+    assert set(CLASSES) == {c for cs in COARSE.values() for c in cs}
