@@ -1,0 +1,1044 @@
+"""Keyframe queries and the keyframe-chain search (Baak, Müller & Seidel 2008).
+
+A keyframe query (V, d) is a sequence of K keyframes -- fuzzy feature words,
+each a pair ``(mask, value)`` of 40-bit words: a frame with word w matches iff
+``w & mask == value`` (mask bit 0 = wildcard) -- and K-1 gap bounds
+``d_min[g] <= t_{g+1} - t_g <= d_max[g]`` (30 Hz frames).  The search returns
+the document segments that contain an admissible chain of matching frames,
+extended by margins and merged, exactly as the toolbox's ``C_KeyframeSearch``
+(KEYFRAMES.md §3-5).
+
+Public API
+----------
+KeyframeQuery                          the query (+ ``from_stiffness``, ``from_toolbox``)
+keyframe_mask_value                    a 0/1/0.5 keyframe vector -> (mask, value)
+keyframe_search                        one query -> segments (and raw hits)
+keyframe_search_batch                  many queries on one index -> segments per query
+keyframe_hit_documents                 many queries -> (n_queries, n_docs) "has a hit" (GA fitness)
+keyframe_intervals, keyframe_postings  the per-keyframe intermediate results (§3)
+annot_margins                          extension margins used by annotation (TEMPLATES.md §10)
+choose_keyframes_equally_distributed   the toolbox's heuristic chooser (§8.1)
+
+Frames, template positions and documents are 0-based, segment ends inclusive.
+``d_max = +inf`` is stored as :data:`UNBOUNDED`.
+"""
+from __future__ import annotations
+
+import math
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapdb._numba import jit
+from mocapdb.errors import ParameterError
+from mocapdb.features import FEATURE_SETS, N_FEATURES
+from mocapdb.index import SET_PARTS, Index, Segments, _fuzzy_kernel, fuzzy_postings
+
+#: d_max value meaning "+inf" (large enough never to bind, small enough that
+#: frame + UNBOUNDED and frame - UNBOUNDED cannot overflow int64)
+UNBOUNDED = 1 << 62
+#: the toolbox's keyframeIndex order {'AK_upper', 'AK_lower', 'AK_mix_avr'}
+TOOLBOX_SETS = ("upper", "lower", "mix")
+
+_ALL40 = (1 << N_FEATURES) - 1
+
+
+# --------------------------------------------------------------------------
+# the query
+
+
+def _set_bits(name) -> int:
+    first, n = FEATURE_SETS[name]
+    return ((1 << n) - 1) << first
+
+
+def keyframe_mask_value(vector, *, feature_set=None) -> tuple[int, int]:
+    """Convert a keyframe vector with entries 0, 1, 0.5 (wildcard) to ``(mask, value)``.
+
+    Parameters
+    ----------
+    vector : (n,) array_like of {0, 0.5, 1}
+        Over one feature set (n = its size, entry i = feature i+1 of the set)
+        when ``feature_set`` is given, else over all 40 features.
+    feature_set : {'upper', 'lower', 'mix'}, optional
+
+    Returns
+    -------
+    mask, value : int
+        40-bit words (bit k-1 = feature k of the full word).
+
+    Raises
+    ------
+    ParameterError
+        Entries other than 0, 0.5, 1 or a length not matching the set
+        (as checkKeyframes.m).
+    """
+    if feature_set is not None and feature_set not in FEATURE_SETS:
+        raise ParameterError(f"feature_set={feature_set!r}; allowed: "
+                             f"{', '.join(FEATURE_SETS)} or None")
+    v = np.asarray(vector, dtype=np.float64).ravel()
+    first, n = FEATURE_SETS[feature_set] if feature_set is not None else (0, N_FEATURES)
+    if len(v) != n:
+        where = f"feature set {feature_set!r}" if feature_set else "the full word"
+        raise ParameterError(f"keyframe vector has {len(v)} entries; {where} needs {n}")
+    bad = ~((v == 0) | (v == 0.5) | (v == 1))
+    if bad.any():
+        raise ParameterError(f"keyframe vector entry {int(np.argmax(bad))} is {v[bad][0]!r}; "
+                             "entries must be 0, 1 or 0.5 (wildcard)")
+    mask = value = 0
+    for i, x in enumerate(v):
+        if x != 0.5:
+            mask |= 1 << (first + i)
+            if x == 1:
+                value |= 1 << (first + i)
+    return mask, value
+
+
+def _gap_array(x, name, k):
+    a = np.asarray(x, dtype=np.float64).ravel()
+    if len(a) != k:
+        raise ParameterError(f"{name} has {len(a)} entries; a query with {k + 1} keyframes "
+                             f"needs {k}")
+    if np.isnan(a).any():
+        raise ParameterError(f"{name} contains NaN; use inf for an unbounded gap")
+    if (a < 0).any():
+        raise ParameterError(f"{name}={a.tolist()} has negative entries; gap bounds are "
+                             ">= 0 frames")
+    if (np.isfinite(a) & (a != np.floor(a))).any():
+        raise ParameterError(f"{name}={a.tolist()} must be whole frame counts")
+    return np.where(a >= UNBOUNDED, UNBOUNDED, np.minimum(a, UNBOUNDED)).astype(np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class KeyframeQuery:
+    """A keyframe query (V, d) over packed 40-bit feature words.
+
+    Parameters
+    ----------
+    mask, value : (K,) uint64
+        Keyframe k matches word w iff ``w & mask[k] == value[k]``.
+    positions : (K,) int
+        Template columns (0-based, non-decreasing) the keyframes were taken
+        from; used for :func:`annot_margins` and :meth:`from_stiffness`.
+    d_min, d_max : (K-1,) int
+        Admissible distance between the frames matched to keyframes g and g+1;
+        ``d_max`` may be ``inf`` (stored as :data:`UNBOUNDED`).
+    template_length : int
+        Length L of the motion template (>= positions[-1] + 1).
+    feature_sets : tuple of (str or None), optional
+        Per keyframe the feature set it is restricted to (its mask must lie
+        within the set's bits); None = any bits of the 40-bit word.
+
+    Raises
+    ------
+    ParameterError
+        Inconsistent lengths, value bits outside the mask, mask bits outside
+        the keyframe's set or above bit 39, decreasing positions, negative or
+        crossed gap bounds.
+    """
+
+    mask: np.ndarray
+    value: np.ndarray
+    positions: np.ndarray
+    d_min: np.ndarray
+    d_max: np.ndarray
+    template_length: int
+    feature_sets: tuple = None
+
+    def __post_init__(self):
+        mask = np.atleast_1d(np.asarray(self.mask)).astype(np.uint64)
+        value = np.atleast_1d(np.asarray(self.value)).astype(np.uint64)
+        pos = np.atleast_1d(np.asarray(self.positions))
+        K = len(mask)
+        if K < 1 or mask.ndim != 1:
+            raise ParameterError("a keyframe query needs at least one keyframe "
+                                 "(mask of shape (K,))")
+        if len(value) != K or len(pos) != K:
+            raise ParameterError(f"mask, value, positions have lengths {K}, {len(value)}, "
+                                 f"{len(pos)}; "
+                                 "they must be equal")
+        if (mask & ~np.uint64(_ALL40)).any():
+            raise ParameterError("mask has bits above bit 39; keyframes are 40-bit feature words")
+        if (value & ~mask).any():
+            k = int(np.argmax(value & ~mask))
+            raise ParameterError(f"value[{k}]={int(value[k]):#x} has bits outside mask[{k}]="
+                                 f"{int(mask[k]):#x}; clear them (wildcard bits carry no value)")
+        if pos.dtype.kind == "f" and (pos != np.floor(pos)).any():
+            raise ParameterError(f"positions={pos.tolist()} must be whole template columns")
+        pos = pos.astype(np.int64)
+        if (pos < 0).any() or (np.diff(pos) < 0).any():
+            raise ParameterError(f"positions={pos.tolist()} must be >= 0 and non-decreasing "
+                                 "(Keyframe Positions are not ascending)")
+        L = int(self.template_length)
+        if L != self.template_length or L < int(pos[-1]) + 1:
+            raise ParameterError(f"template_length={self.template_length!r} must be an integer "
+                                 f">= last position + 1 = {int(pos[-1]) + 1}")
+        sets = self.feature_sets
+        sets = (None,) * K if sets is None else tuple(sets)
+        if len(sets) != K:
+            raise ParameterError(f"feature_sets has {len(sets)} entries for {K} keyframes")
+        for k, s in enumerate(sets):
+            if s is None:
+                continue
+            if s not in FEATURE_SETS:
+                raise ParameterError(f"feature_sets[{k}]={s!r}; allowed: "
+                                     f"{', '.join(FEATURE_SETS)} or None")
+            if int(mask[k]) & ~_set_bits(s):
+                raise ParameterError(f"keyframe {k} is restricted to {s!r} but its mask "
+                                     f"{int(mask[k]):#x} has bits outside that set")
+        d_min = _gap_array(self.d_min, "d_min", K - 1)
+        d_max = _gap_array(self.d_max, "d_max", K - 1)
+        if (d_max < d_min).any():
+            g = int(np.argmax(d_max < d_min))
+            raise ParameterError(f"gap {g}: d_max={self.d_max[g]!r} < d_min={self.d_min[g]!r}; "
+                                 "need d_min <= d_max")
+        for name, val in (("mask", mask), ("value", value), ("positions", pos),
+                          ("d_min", d_min), ("d_max", d_max), ("template_length", L),
+                          ("feature_sets", sets)):
+            object.__setattr__(self, name, val)
+        for a in (mask, value, pos, d_min, d_max):
+            a.flags.writeable = False
+
+    @property
+    def n_keyframes(self) -> int:
+        return len(self.mask)
+
+    def to_vectors(self) -> np.ndarray:
+        """``(K, 40) float64`` keyframe vectors with 0, 1 and 0.5 (wildcard)."""
+        bits = np.arange(N_FEATURES, dtype=np.uint64)
+        m = (self.mask[:, None] >> bits) & np.uint64(1)
+        v = (self.value[:, None] >> bits) & np.uint64(1)
+        return np.where(m == 1, v.astype(np.float64), 0.5)
+
+    @classmethod
+    def from_stiffness(cls, mask, value, positions, stiffness, *, template_length,
+                       feature_sets=None) -> "KeyframeQuery":
+        """Gap bounds from keyframe distances and stiffness (KEYFRAMES.md §4).
+
+        For gap g with distance δ = positions[g+1] - positions[g] and
+        stiffness s: ``d_min = ceil(s·δ)``, ``d_max = floor((1/s)·δ)`` in IEEE
+        doubles as keyframeSearchEfficient.m computes them; NaN (δ = 0, s = 0)
+        becomes +inf, s = 0 gives [0, +inf], s = 1 gives [δ, δ].
+
+        Parameters
+        ----------
+        mask, value, positions
+            As :class:`KeyframeQuery`.
+        stiffness : float or (K-1,) array_like
+            In [0, 1]; a scalar applies to every gap.
+        template_length : int
+        feature_sets : tuple, optional
+
+        Raises
+        ------
+        ParameterError
+            Stiffness outside [0, 1] or of the wrong length (checkKeyframes.m),
+            decreasing positions, or d_max < d_min.
+        """
+        pos = np.atleast_1d(np.asarray(positions))
+        if (np.diff(pos) < 0).any():
+            raise ParameterError(f"positions={pos.tolist()} are not ascending")
+        n_gaps = max(len(pos) - 1, 0)
+        s = np.asarray(stiffness, dtype=np.float64)
+        if s.ndim == 0:
+            s = np.full(n_gaps, float(s))
+        s = s.ravel()
+        if len(s) != n_gaps:
+            raise ParameterError(f"stiffness has {len(s)} entries; {len(pos)} keyframes need "
+                                 f"{n_gaps} "
+                                 "(Stiffness dimension doesn't match)")
+        if np.isnan(s).any() or (s < 0).any() or (s > 1).any():
+            raise ParameterError(f"stiffness={s.tolist()} out of range; each must be in [0, 1]")
+        d_min, d_max = stiffness_bounds(np.diff(pos).astype(np.float64), s)
+        return cls(mask, value, pos, d_min, d_max, template_length, feature_sets)
+
+    @classmethod
+    def from_toolbox(cls, vectors, set_index, positions, stiffness, *, template_length,
+                     pad_short_mix=False) -> "KeyframeQuery":
+        """A hand-made toolbox query (manualKeyframesForAnnotation_AVR.m form).
+
+        Parameters
+        ----------
+        vectors : sequence of (n_s,) array_like of {0, 0.5, 1}
+            Keyframe k over the feature set ``set_index[k]``.
+        set_index : (K,) int
+            Toolbox ``keyframeIndex``: 1 = upper, 2 = lower, 3 = mix.
+        positions : (K,) int
+            Toolbox ``keyframePositions`` (1-based template columns).
+        stiffness : float or (K-1,)
+        template_length : int
+        pad_short_mix : bool, default False
+            Pad 13-entry vectors of the 14-bit mix set with a wildcard for
+            feature 40 (the stale 39-feature cases of the toolbox file,
+            KEYFRAMES.md §2, proposed); the toolbox itself rejects them.
+
+        Raises
+        ------
+        ParameterError
+            As checkKeyframes.m.
+        """
+        set_index = np.atleast_1d(np.asarray(set_index)).astype(np.int64)
+        if len(vectors) != len(set_index):
+            raise ParameterError(f"{len(vectors)} vectors but {len(set_index)} set indices")
+        if ((set_index < 1) | (set_index > 3)).any():
+            raise ParameterError(f"set_index={set_index.tolist()}; toolbox indices are 1 (upper), "
+                                 "2 (lower), 3 (mix)")
+        sets = tuple(TOOLBOX_SETS[i - 1] for i in set_index)
+        masks, values = [], []
+        for k, (vec, s) in enumerate(zip(vectors, sets)):
+            vec = np.asarray(vec, dtype=np.float64).ravel()
+            if pad_short_mix and s == "mix" and len(vec) == FEATURE_SETS["mix"][1] - 1:
+                vec = np.append(vec, 0.5)
+            try:
+                m, v = keyframe_mask_value(vec, feature_set=s)
+            except ParameterError as e:
+                raise ParameterError(f"keyframe {k + 1}: {e}") from None
+            masks.append(m)
+            values.append(v)
+        pos = np.atleast_1d(np.asarray(positions)).astype(np.int64) - 1
+        return cls.from_stiffness(np.array(masks, np.uint64), np.array(values, np.uint64), pos,
+                                  stiffness, template_length=template_length, feature_sets=sets)
+
+
+def stiffness_bounds(distances, stiffness):
+    """``(d_min, d_max)`` int64 arrays from gap distances and stiffness (KEYFRAMES.md §4).
+
+    ``d_min = ceil(s·δ)``, ``d_max = floor((1/s)·δ)``, NaN -> +inf
+    (:data:`UNBOUNDED`).  Raises ParameterError if some d_max < d_min.
+    """
+    delta = np.asarray(distances, dtype=np.float64)
+    s = np.asarray(stiffness, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lo = np.ceil(s * delta)
+        hi = np.floor((1.0 / s) * delta)
+    lo = np.where(np.isnan(lo), np.inf, lo)
+    hi = np.where(np.isnan(hi), np.inf, hi)
+    if (hi - lo < 0).any():
+        g = int(np.argmax(hi - lo < 0))
+        raise ParameterError(f"gap {g}: distance {delta[g]} with stiffness {s[g]} gives "
+                             f"d_max={hi[g]} < d_min={lo[g]}")
+    if np.isinf(lo).any():  # cannot happen for stiffness in [0, 1]; keep the query valid
+        raise ParameterError("a gap got d_min = inf; check distances and stiffness")
+    lo = lo.astype(np.int64)
+    hi = np.where(np.isinf(hi) | (hi >= UNBOUNDED), UNBOUNDED, np.minimum(hi, UNBOUNDED))
+    hi = hi.astype(np.int64)
+    return lo, hi
+
+
+def annot_margins(query: KeyframeQuery) -> tuple[int, int]:
+    """Extension margins of the annotation scripts: ``(2·(pos_1 - 1), 2·(L - pos_K))``.
+
+    With 0-based positions p: ``(2·p_1, 2·(L - 1 - p_K))``, so a segment can
+    hold a template match stretched up to 2x (TEMPLATES.md §10, KEYFRAMES.md §5).
+    """
+    p = query.positions
+    return 2 * int(p[0]), 2 * (query.template_length - 1 - int(p[-1]))
+
+
+# --------------------------------------------------------------------------
+# kernels
+
+
+@jit
+def _intersect_kernel(a_doc, a_s, a_e, na, b_doc, b_s, b_e, nb,
+                      o_doc, o_s, o_e):  # pragma: no cover
+    """Intersection of two sorted interval lists (frames matching both); returns the count."""
+    i = 0
+    j = 0
+    n = 0
+    while i < na and j < nb:
+        if a_doc[i] < b_doc[j]:
+            i += 1
+        elif b_doc[j] < a_doc[i]:
+            j += 1
+        else:
+            s = max(a_s[i], b_s[j])
+            e = min(a_e[i], b_e[j])
+            if s <= e:
+                o_doc[n] = a_doc[i]
+                o_s[n] = s
+                o_e[n] = e
+                n += 1
+            if a_e[i] < b_e[j]:
+                i += 1
+            else:
+                j += 1
+    return n
+
+
+@jit
+def _keyframe_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, list_end,
+                               seg_start, seg_len, part_word_offset, doc_seg_offset,
+                               sub_part, sub_mask, sub_value, kf_sub_offset,
+                               d0, d1):  # pragma: no cover
+    """Per-keyframe interval lists B[k] for many keyframes, documents d0 <= d < d1 (§3).
+
+    The first 10 arguments are :meth:`Index.kernel_arrays`.  A keyframe is
+    the conjunction of one or more single-part sub-keyframes (its constraints
+    on each feature set); its intervals are the intersection of theirs.
+    Returns flat ``(doc, start, end)`` and ``kf_offset`` (n_kf+1,).  Output
+    sizes are data dependent, hence the allocation here.
+    """
+    n_kf = len(kf_sub_offset) - 1
+    kf_offset = np.zeros(n_kf + 1, np.int64)
+    cap = 256
+    out_doc = np.empty(cap, np.int64)
+    out_s = np.empty(cap, np.int64)
+    out_e = np.empty(cap, np.int64)
+    n_out = 0
+    for k in range(n_kf):
+        nc = -1
+        c_doc = out_doc[:0]
+        c_s = out_s[:0]
+        c_e = out_e[:0]
+        for j in range(kf_sub_offset[k], kf_sub_offset[k + 1]):
+            if nc == 0:
+                break
+            _, b_doc, b_s, b_e, _, _ = _fuzzy_kernel(words, list_offset, list_doc, list_seg,
+                                                     list_start, list_end, seg_start, seg_len,
+                                                     part_word_offset, doc_seg_offset,
+                                                     sub_part[j], sub_mask[j], sub_value[j],
+                                                     d0, d1, False, 0)
+            nb = len(b_doc)
+            if nc < 0:
+                c_doc, c_s, c_e, nc = b_doc, b_s, b_e, nb
+                continue
+            t_doc = np.empty(nc + nb, np.int64)
+            t_s = np.empty(nc + nb, np.int64)
+            t_e = np.empty(nc + nb, np.int64)
+            nc = _intersect_kernel(c_doc, c_s, c_e, nc, b_doc, b_s, b_e, nb, t_doc, t_s, t_e)
+            c_doc, c_s, c_e = t_doc, t_s, t_e
+        if nc < 0:
+            nc = 0
+        if n_out + nc > cap:
+            cap = max(2 * cap, n_out + nc)
+            out_doc = _grow1(out_doc, n_out, cap)
+            out_s = _grow1(out_s, n_out, cap)
+            out_e = _grow1(out_e, n_out, cap)
+        out_doc[n_out:n_out + nc] = c_doc[:nc]
+        out_s[n_out:n_out + nc] = c_s[:nc]
+        out_e[n_out:n_out + nc] = c_e[:nc]
+        n_out += nc
+        kf_offset[k + 1] = n_out
+    return out_doc[:n_out], out_s[:n_out], out_e[:n_out], kf_offset
+
+
+@jit
+def _grow1(a, n, cap):  # pragma: no cover
+    b = np.empty(cap, a.dtype)
+    b[:n] = a[:n]
+    return b
+
+
+@jit
+def _grow_rows(a, n, need):  # pragma: no cover
+    if need <= a.shape[0]:
+        return a
+    b = np.empty((max(need, 2 * a.shape[0]), 3), np.int64)
+    b[:n] = a[:n]
+    return b
+
+
+@jit
+def _chain_query_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min, d_max, doc_lengths,
+                        ext_l, ext_r, mode, seg_base, segs, n_segs, hits, n_hits,
+                        doc_hit):  # pragma: no cover
+    """Chain search of one query (C_KeyframeSearch.c, KEYFRAMES.md §5).
+
+    Keyframe k's intervals are ``iv_*[kf_lo[k]:kf_hi[k]]`` sorted by (doc,
+    start).  The toolbox's recursion runs here as an explicit stack with the
+    same per-keyframe pointers (reset per document only; moved back by one
+    interval after a scan that found something), so hits come out in the
+    toolbox's order.  mode 0: segments; 1: segments and raw hits; 2: only set
+    ``doc_hit[d]`` at the first hit of each document.  Segments from
+    ``seg_base`` on belong to this query (merging never looks further back).
+    Returns the (possibly reallocated) ``segs``, ``n_segs``, ``hits``,
+    ``n_hits``.  Everything on the hot path is inlined: helper calls that pass
+    or return arrays cost reference counting per hit.
+    """
+    K = len(kf_lo)
+    cur = kf_lo.copy()
+    re = np.empty(K, np.int64)
+    ptr = np.empty(K, np.int64)
+    xs = np.empty(K, np.int64)
+    xe = np.empty(K, np.int64)
+    lo = np.empty(K, np.int64)
+    hi = np.empty(K, np.int64)
+    found = np.zeros(K, np.bool_)
+    i0 = kf_lo[0]
+    end0 = kf_hi[0]
+    while i0 < end0:
+        d = iv_doc[i0]
+        e0 = i0 + 1
+        while e0 < end0 and iv_doc[e0] == d:
+            e0 += 1
+        ok = True
+        for k in range(1, K):  # locate document d in every other keyframe's list
+            c = cur[k]
+            hk = kf_hi[k]
+            while c < hk and iv_doc[c] < d:
+                c += 1
+            e = c
+            while e < hk and iv_doc[e] == d:
+                e += 1
+            cur[k] = e
+            ptr[k] = c
+            re[k] = e
+            if e == c:  # keyframe k has no interval in d: skip the document
+                ok = False
+                break
+        if ok:
+            last = doc_lengths[d] - 1
+            done = False
+            for p0 in range(i0, e0):
+                xs[0] = iv_start[p0]
+                xe[0] = iv_end[p0]
+                level = 0
+                if K > 1:  # enter level 1 with the range allowed by X_1
+                    lo[1] = xs[0] + d_min[0]
+                    hi[1] = xe[0] + d_max[0]
+                    q = ptr[1]
+                    while q < re[1] and lo[1] > iv_end[q]:
+                        q += 1
+                    ptr[1] = q
+                    found[1] = False
+                    level = 1
+                while True:
+                    if level == 0:
+                        # K = 1 (not defined by the toolbox): every interval is a hit
+                        h_s = xs[0]
+                        h_e = xe[0]
+                    else:
+                        k = level
+                        p = ptr[k]
+                        if p < re[k] and hi[k] >= iv_start[p] and lo[k] <= iv_end[p]:
+                            found[k] = True
+                            xs[k] = max(iv_start[p], lo[k])
+                            xe[k] = min(iv_end[p], hi[k])
+                            if k < K - 1:  # recurse into level k+1
+                                nk = k + 1
+                                lo[nk] = xs[k] + d_min[k]
+                                hi[nk] = xe[k] + d_max[k]
+                                q = ptr[nk]
+                                while q < re[nk] and lo[nk] > iv_end[q]:
+                                    q += 1
+                                ptr[nk] = q
+                                found[nk] = False
+                                level = nk
+                                continue
+                            # last keyframe: reconstruct the hit from the left end of X_K
+                            ptr[k] = p + 1
+                            h_s = xs[k]
+                            for g in range(K - 2, -1, -1):
+                                js = max(h_s - d_max[g], xs[g])
+                                if js > min(h_s - d_min[g], xe[g]):
+                                    raise RuntimeError("keyframe search: illegal interval in the "
+                                                       "reconstruction of hits")
+                                h_s = js
+                            h_e = xe[k]
+                        else:
+                            # scan of level k done: step back onto the last intersecting
+                            # interval (reusable by the next, later range) and return
+                            # to level k-1, which moves on to its next interval
+                            if found[k]:
+                                ptr[k] -= 1
+                            level -= 1
+                            if level == 0:
+                                break
+                            ptr[level] += 1
+                            continue
+                    # a hit [h_s, h_e]
+                    if mode == 2:
+                        doc_hit[d] = True
+                        done = True
+                        break
+                    if mode == 1:
+                        if n_hits == hits.shape[0]:
+                            hits = _grow_rows(hits, n_hits, n_hits + 1)
+                        hits[n_hits, 0] = d
+                        hits[n_hits, 1] = h_s
+                        hits[n_hits, 2] = h_e
+                        n_hits += 1
+                    s = max(h_s - ext_l, 0)
+                    e = min(h_e + ext_r, last)
+                    if n_segs > seg_base and segs[n_segs - 1, 0] == d and s <= segs[n_segs - 1, 2]:
+                        # overlap: the toolbox overwrites the end; max is the same for
+                        # non-decreasing hit ends (§5, proposed) and never shrinks
+                        if e > segs[n_segs - 1, 2]:
+                            segs[n_segs - 1, 2] = e
+                    else:
+                        if n_segs == segs.shape[0]:
+                            segs = _grow_rows(segs, n_segs, n_segs + 1)
+                        segs[n_segs, 0] = d
+                        segs[n_segs, 1] = s
+                        segs[n_segs, 2] = e
+                        n_segs += 1
+                    if level == 0:
+                        break
+                if done:
+                    break
+        i0 = e0
+    return segs, n_segs, hits, n_hits
+
+
+@jit
+def _chain_batch_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset, d_min, d_max,
+                        doc_lengths, ext_l, ext_r, want_hits):  # pragma: no cover
+    """Segments (and hits) of many queries, concatenated; per-query offsets."""
+    n_q = len(q_kf_offset) - 1
+    segs = np.empty((64, 3), np.int64)
+    hits = np.empty((64 if want_hits else 0, 3), np.int64)
+    seg_q = np.zeros(n_q + 1, np.int64)
+    hit_q = np.zeros(n_q + 1, np.int64)
+    dummy = np.zeros(0, np.bool_)
+    n_segs = 0
+    n_hits = 0
+    mode = 1 if want_hits else 0
+    for q in range(n_q):
+        a = q_kf_offset[q]
+        b = q_kf_offset[q + 1]
+        kfs = q_kf[a:b]
+        g0 = a - q  # gaps of query q start here
+        segs, n_segs, hits, n_hits = _chain_query_kernel(
+            iv_doc, iv_start, iv_end, kf_offset[kfs], kf_offset[kfs + 1],
+            d_min[g0:g0 + b - a - 1], d_max[g0:g0 + b - a - 1], doc_lengths,
+            ext_l[q], ext_r[q], mode, n_segs, segs, n_segs, hits, n_hits, dummy)
+        seg_q[q + 1] = n_segs
+        hit_q[q + 1] = n_hits
+    return segs[:n_segs], seg_q, hits[:n_hits], hit_q
+
+
+@jit
+def _search_kernel(words, list_offset, list_doc, list_seg, list_start, list_end, seg_start,
+                   seg_len, part_word_offset, doc_seg_offset,
+                   sub_part, sub_mask, sub_value, kf_sub_offset,
+                   q_kf, q_kf_offset, d_min, d_max, doc_lengths, ext_l, ext_r, want_hits,
+                   d0, d1):  # pragma: no cover
+    """Intervals + chain search of many queries on documents ``d0 <= d < d1``.
+
+    Documents are independent (merging never crosses them), so a search can
+    be split into document ranges that run on separate threads.
+    """
+    iv_doc, iv_start, iv_end, kf_offset = _keyframe_intervals_kernel(
+        words, list_offset, list_doc, list_seg, list_start, list_end, seg_start, seg_len,
+        part_word_offset, doc_seg_offset, sub_part, sub_mask, sub_value,
+        kf_sub_offset, d0, d1)
+    return _chain_batch_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset, d_min,
+                               d_max, doc_lengths, ext_l, ext_r, want_hits)
+
+
+@jit
+def _hit_documents_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset, d_min, d_max,
+                          doc_lengths, out):  # pragma: no cover
+    """``out[q, d]`` = query q has at least one hit in document d (first hit ends the document).
+
+    Serial on purpose: the GA calls this thousands of times on a small index,
+    where a parallel region's wake-up costs more than the work (and stalls for
+    milliseconds when another process holds a core); run independent GA runs
+    on separate threads instead (the kernel releases the GIL).
+    """
+    n_q = len(q_kf_offset) - 1
+    for q in range(n_q):
+        a = q_kf_offset[q]
+        b = q_kf_offset[q + 1]
+        kfs = q_kf[a:b]
+        kf_lo = kf_offset[kfs]
+        kf_hi = kf_offset[kfs + 1]
+        g0 = a - q
+        empty = np.empty((0, 3), np.int64)
+        _chain_query_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min[g0:g0 + b - a - 1],
+                            d_max[g0:g0 + b - a - 1], doc_lengths, 0, 0, 2, 0,
+                            empty, 0, empty, 0, out[q])
+
+
+# --------------------------------------------------------------------------
+# planning: keyframes -> single-part sub-keyframes
+
+
+def _check_layout(layout):
+    if layout not in (None, "sets", "full"):
+        raise ParameterError(f"layout={layout!r}; use None (auto), 'sets' (the toolbox's per-set "
+                             "indexes) or 'full' (the 40-bit index)")
+
+
+def _keyframe_subs(index: Index, mask: int, value: int, feature_set, layout):
+    """Sub-keyframes ``((part id, local mask, local value), ...)`` answering one keyframe.
+
+    None (auto): a keyframe within one feature set uses that set's part when
+    the index has it, otherwise the 40-bit part; a keyframe spanning several
+    sets uses the 40-bit part when present, else one sub-keyframe per set
+    (their intervals are intersected).  'sets'/'full' force a layout.
+    """
+    sets = [name for name in SET_PARTS if mask & _set_bits(name)]
+    if feature_set is not None and not sets:
+        sets = [feature_set]
+    has_sets = all(name in index.parts for name in sets)
+    if layout == "full" or (layout is None and "full" in index.parts
+                            and (len(sets) > 1 or not has_sets)):
+        return ((index.part_id("full"), mask, value),)
+    if not sets:  # all wildcards: every frame matches, any part will do
+        return ((0, 0, 0),)
+    subs = []
+    for name in sets:
+        first, n = FEATURE_SETS[name]
+        full = (1 << n) - 1
+        subs.append((index.part_id(name), (mask >> first) & full, (value >> first) & full))
+    return tuple(subs)
+
+
+def _plan(index: Index, queries, layout):
+    """Distinct keyframes of the queries and the flat arrays the kernels take."""
+    _check_layout(layout)
+    kf_id = {}
+    q_kf = []
+    q_kf_offset = [0]
+    for query in queries:
+        if not isinstance(query, KeyframeQuery):
+            raise ParameterError(f"expected a KeyframeQuery, got {type(query).__name__}")
+        for k in range(query.n_keyframes):
+            subs = _keyframe_subs(index, int(query.mask[k]), int(query.value[k]),
+                                  query.feature_sets[k], layout)
+            q_kf.append(kf_id.setdefault(subs, len(kf_id)))
+        q_kf_offset.append(len(q_kf))
+    keys = list(kf_id)  # insertion order = keyframe id
+    d_min = np.concatenate([q.d_min for q in queries]) if queries else np.empty(0, np.int64)
+    d_max = np.concatenate([q.d_max for q in queries]) if queries else np.empty(0, np.int64)
+    return keys, np.array(q_kf, np.int64), np.array(q_kf_offset, np.int64), d_min, d_max
+
+
+def _sub_arrays(keys):
+    sub_part, sub_mask, sub_value, kf_sub_offset = [], [], [], [0]
+    for subs in keys:
+        for p, m, v in subs:
+            sub_part.append(p)
+            sub_mask.append(m)
+            sub_value.append(v)
+        kf_sub_offset.append(len(sub_part))
+    return (np.array(sub_part, np.int64), np.array(sub_mask, np.uint64),
+            np.array(sub_value, np.uint64), np.array(kf_sub_offset, np.int64))
+
+
+def _intervals(index: Index, keys, cache=None):
+    """Intervals of the distinct keyframes ``keys``: (doc, start, end, kf_offset).
+
+    With a ``cache`` dict, keyframes computed by earlier calls on the same
+    index are reused and new ones are added.
+    """
+    if cache is None:
+        return _keyframe_intervals_kernel(*index.kernel_arrays(), *_sub_arrays(keys),
+                                          0, index.n_docs)
+    missing = [k for k in keys if k not in cache]
+    if missing:
+        doc, start, end, off = _keyframe_intervals_kernel(*index.kernel_arrays(),
+                                                          *_sub_arrays(missing), 0, index.n_docs)
+        for i, key in enumerate(missing):
+            a, b = off[i], off[i + 1]
+            cache[key] = (doc[a:b].copy(), start[a:b].copy(), end[a:b].copy())
+    parts = [cache[k] for k in keys]
+    off = np.zeros(len(keys) + 1, np.int64)
+    np.cumsum([len(x[0]) for x in parts], out=off[1:])
+    return (*(np.concatenate([x[i] for x in parts]) for i in range(3)), off)
+
+
+#: below this many frames a search runs on the calling thread (the hand-off to
+#: a thread costs more than it saves on small indexes)
+PARALLEL_MIN_FRAMES = 1 << 19
+_POOL = None
+_POOL_LOCK = threading.Lock()
+
+
+def _pool():
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=os.cpu_count() or 1,
+                                       thread_name_prefix="mocapdb-keyframes")
+        return _POOL
+
+
+def _shards(index: Index, n_threads):
+    """Document ranges of about equal frame counts, one per thread."""
+    if n_threads is None:
+        n_threads = (os.cpu_count() or 1) if index.n_frames >= PARALLEL_MIN_FRAMES else 1
+    if isinstance(n_threads, bool) or not isinstance(n_threads, (int, np.integer)) or n_threads < 1:
+        raise ParameterError(f"n_threads={n_threads!r}; use None (auto) or a positive int")
+    if n_threads == 1 or index.n_docs < 2:
+        return [(0, index.n_docs)]
+    cum = np.cumsum(index.doc_lengths)
+    cuts = np.searchsorted(cum, cum[-1] * np.arange(1, n_threads) / n_threads)
+    bounds = np.unique(np.concatenate([[0], np.minimum(cuts + 1, index.n_docs), [index.n_docs]]))
+    return list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
+
+
+def _search(index: Index, queries, ext_l, ext_r, want_hits, layout, n_threads, cache=None):
+    """Segments (and hits) per query: lists of (n, 3) int64 row arrays."""
+    keys, q_kf, q_kf_offset, d_min, d_max = _plan(index, queries, layout)
+    n_q = len(queries)
+    if cache is not None:
+        iv = _intervals(index, keys, cache)
+        segs, seg_q, hits, hit_q = _chain_batch_kernel(*iv, q_kf, q_kf_offset, d_min, d_max,
+                                                       index.doc_lengths, ext_l, ext_r,
+                                                       bool(want_hits))
+        return ([segs[seg_q[i]:seg_q[i + 1]] for i in range(n_q)],
+                [hits[hit_q[i]:hit_q[i + 1]] for i in range(n_q)])
+    args = (*index.kernel_arrays(), *_sub_arrays(keys), q_kf, q_kf_offset, d_min, d_max,
+            index.doc_lengths, ext_l, ext_r, bool(want_hits))
+    shards = _shards(index, n_threads)
+    if len(shards) == 1:
+        parts = [_search_kernel(*args, *shards[0])]
+    else:  # documents are independent and the kernel releases the GIL
+        parts = list(_pool().map(lambda sh: _search_kernel(*args, *sh), shards))
+    segs = [np.concatenate([s[s_q[i]:s_q[i + 1]] for s, s_q, _, _ in parts]) for i in range(n_q)]
+    hits = [np.concatenate([h[h_q[i]:h_q[i + 1]] for _, _, h, h_q in parts]) for i in range(n_q)]
+    return segs, hits
+
+
+def _margins(x, n_q, name):
+    a = np.asarray(x)
+    if a.ndim == 0:
+        a = np.full(n_q, a)
+    if a.shape != (n_q,):
+        raise ParameterError(f"{name} must be an int or one int per query ({n_q}), "
+                             f"got shape {a.shape}")
+    if a.dtype.kind not in "iu" and not (a == np.floor(a)).all():
+        raise ParameterError(f"{name}={a.tolist()} must be whole frame counts")
+    a = a.astype(np.int64)
+    if (a < 0).any():
+        raise ParameterError(f"{name}={a.tolist()} must be >= 0")
+    return a
+
+
+def _to_segments(rows):
+    return Segments(rows[:, 0].copy(), rows[:, 1].copy(), rows[:, 2].copy())
+
+
+# --------------------------------------------------------------------------
+# public search API
+
+
+def keyframe_intervals(index: Index, query: KeyframeQuery, *, layout=None) -> list:
+    """Per-keyframe frame intervals B[k] (KEYFRAMES.md §3).
+
+    Returns
+    -------
+    list of K :class:`~mocapdb.index.Segments`
+        Keyframe k's maximal runs of matching frames ``(doc, start, end)``,
+        sorted by (doc, start).  The same for every layout.
+    """
+    keys, q_kf, _, _, _ = _plan(index, [query], layout)
+    doc, s, e, off = _intervals(index, keys)
+    return [Segments(doc[off[i]:off[i + 1]], s[off[i]:off[i + 1]], e[off[i]:off[i + 1]])
+            for i in q_kf]
+
+
+def keyframe_postings(index: Index, query: KeyframeQuery, *, layout=None) -> list:
+    """Per keyframe the matching index words and the union of their posting lists (§3).
+
+    Every keyframe must be answered by one index part (restricted to one
+    feature set, or the 40-bit part).
+
+    Returns
+    -------
+    list of K :class:`~mocapdb.index.Postings`
+    """
+    _check_layout(layout)
+    out = []
+    for k in range(query.n_keyframes):
+        subs = _keyframe_subs(index, int(query.mask[k]), int(query.value[k]),
+                              query.feature_sets[k], layout)
+        if len(subs) != 1:
+            raise ParameterError(f"keyframe {k} spans several feature sets; its posting lists "
+                                 "live in different per-set indexes (use a 'full' index)")
+        p, m, v = subs[0]
+        out.append(fuzzy_postings(index, index.parts[p], m, v))
+    return out
+
+
+def keyframe_search(index: Index, query: KeyframeQuery, *, extend_left=0, extend_right=0,
+                    return_hits=False, layout=None, n_threads=None):
+    """Segments of the documents that contain the keyframe chain (KEYFRAMES.md §5).
+
+    Parameters
+    ----------
+    index : Index
+    query : KeyframeQuery
+    extend_left, extend_right : int, default 0
+        Margins added to every hit before merging (annotation uses
+        :func:`annot_margins`).
+    return_hits : bool, default False
+        Also return the raw hits (before extension and merging) in the
+        toolbox's order (duplicates included).
+    layout : {None, 'sets', 'full'}
+        Which index parts answer the keyframes.  None: a keyframe within one
+        feature set uses that set's index (the toolbox), a keyframe spanning
+        several sets the 40-bit index if built, else the intersection of its
+        per-set parts.  'sets'/'full' force one layout.  All give identical
+        results.
+    n_threads : int, optional
+        Split the documents into this many ranges searched in parallel
+        (default: every core for indexes of at least
+        :data:`PARALLEL_MIN_FRAMES` frames, else 1).
+
+    Returns
+    -------
+    segments : Segments
+        ``(doc, start, end)``, 0-based inclusive, sorted by (doc, start),
+        overlapping extended hits merged.
+    hits : Segments
+        Only with ``return_hits``: ``(doc, hit_start, hit_end)``.
+
+    Notes
+    -----
+    With K = 1 (not defined by the toolbox) every interval of the keyframe is
+    a hit.  A document is searched only if every keyframe matches in it.
+
+    References
+    ----------
+    KEYFRAMES.md §3-5; toolbox keyframeSearchEfficient.m, C_KeyframeSearch.c.
+    """
+    el = _margins(extend_left, 1, "extend_left")
+    er = _margins(extend_right, 1, "extend_right")
+    segs, hits = _search(index, [query], el, er, return_hits, layout, n_threads)
+    if return_hits:
+        return _to_segments(segs[0]), _to_segments(hits[0])
+    return _to_segments(segs[0])
+
+
+def keyframe_search_batch(index: Index, queries, *, extend_left=0, extend_right=0,
+                          layout=None, n_threads=None, cache=None) -> list:
+    """:func:`keyframe_search` for many queries on one index.
+
+    Keyframes shared between queries (frequent in a GA population) are
+    matched once.  ``extend_left``/``extend_right`` are ints or one int per
+    query.  ``cache``: a dict owned by the caller, used with this index (and
+    layout) only and by one thread at a time, that keeps every keyframe's
+    intervals across calls (the search then runs on the calling thread).
+
+    Returns
+    -------
+    list of Segments, one per query.
+    """
+    queries = list(queries)
+    el = _margins(extend_left, len(queries), "extend_left")
+    er = _margins(extend_right, len(queries), "extend_right")
+    if not queries:
+        return []
+    segs, _ = _search(index, queries, el, er, False, layout, n_threads, cache)
+    return [_to_segments(x) for x in segs]
+
+
+def keyframe_hit_documents(index: Index, queries, *, layout=None, cache=None) -> np.ndarray:
+    """Which documents each query hits (the GA fitness, KEYFRAMES.md §8.2).
+
+    Document d is hit iff :func:`keyframe_search` returns a segment in it;
+    the search of a document stops at its first hit.  Runs on the calling
+    thread (and releases the GIL): parallelise over independent GA runs.
+
+    Parameters
+    ----------
+    index : Index
+    queries : sequence of KeyframeQuery
+    layout : {None, 'sets', 'full'}
+        As in :func:`keyframe_search`.
+    cache : dict, optional
+        As in :func:`keyframe_search_batch`; a GA keeps one per training
+        index (offspring mostly reuse their parents' keyframes).
+
+    Returns
+    -------
+    (n_queries, n_docs) bool
+    """
+    queries = list(queries)
+    out = np.zeros((len(queries), index.n_docs), np.bool_)
+    if not queries:
+        return out
+    keys, q_kf, q_kf_offset, d_min, d_max = _plan(index, queries, layout)
+    iv = _intervals(index, keys, cache)
+    _hit_documents_kernel(*iv, q_kf, q_kf_offset, d_min, d_max, index.doc_lengths, out)
+    return out
+
+
+# --------------------------------------------------------------------------
+# heuristic keyframe chooser (§8.1)
+
+
+def choose_keyframes_equally_distributed(mask, value, *, n_keyframes=3, stiffness=0.5,
+                                         feature_set=None) -> KeyframeQuery:
+    """keyframesChooseLeastGrayValuesEquallyDistributed.m on a quantized template.
+
+    Ignore floor(0.1·L) columns at each end; split the remaining L' columns
+    into ``n_keyframes`` sections of floor(L'/K) columns, one column skipped
+    between sections, the last section running to the end; in each section
+    take the first column with the fewest wildcards.
+
+    Parameters
+    ----------
+    mask, value : (L,) uint64
+        Quantized template columns (mask bit 0 = wildcard), e.g.
+        ``QuantizedTemplate.mask``/``.value``; L = template length.
+    n_keyframes : int, default 3
+        The toolbox's ``par.keyframesNumMax`` (3 = the paper's mean number of
+        keyframes).
+    stiffness : float or (K-1,), default 0.5
+        Gap stiffness for :meth:`KeyframeQuery.from_stiffness` (proposed: the
+        value most hand-made queries use; 0.5 admits time warps of 0.5x-2x).
+    feature_set : {'upper', 'lower', 'mix'}, optional
+        Restrict the keyframes (and the wildcard count) to one set, as the
+        toolbox's single-set use; default all 40 features.
+
+    Returns
+    -------
+    KeyframeQuery
+        Positions = chosen columns (0-based), template_length = L.
+
+    Raises
+    ------
+    ParameterError
+        Template too short for ``n_keyframes`` sections (the toolbox fails
+        with an index error there).
+    """
+    mask = np.atleast_1d(np.asarray(mask)).astype(np.uint64)
+    value = np.atleast_1d(np.asarray(value)).astype(np.uint64)
+    if mask.ndim != 1 or mask.shape != value.shape or len(mask) == 0:
+        raise ParameterError(f"mask and value must be (L,) uint64 of equal length, "
+                             f"got {mask.shape}, {value.shape}")
+    K = int(n_keyframes)
+    if K != n_keyframes or K < 1:
+        raise ParameterError(f"n_keyframes={n_keyframes!r} must be a positive integer")
+    if feature_set is not None and feature_set not in FEATURE_SETS:
+        raise ParameterError(f"feature_set={feature_set!r}; allowed: "
+                             f"{', '.join(FEATURE_SETS)} or None")
+    bits = _set_bits(feature_set) if feature_set is not None else _ALL40
+    L = len(mask)
+    m = mask & np.uint64(bits)
+    v = value & m
+    n_bits = bin(bits).count("1")
+    wild = n_bits - np.array([bin(int(x)).count("1") for x in m], np.int64)
+    ignored = math.floor(L * 0.1)
+    inner = wild[ignored:L - ignored]
+    n = len(inner)
+    sec = n // K
+    last_start = (K - 1) * (sec + 1)
+    if sec < 1 or last_start >= n:
+        raise ParameterError(f"template of length {L} ({n} columns after ignoring {ignored} "
+                             "at each end) "
+                             f"is too short for n_keyframes={K}; use fewer keyframes")
+    pos = []
+    c = 0
+    for _ in range(K - 1):
+        pos.append(c + int(np.argmin(inner[c:c + sec])) + ignored)  # argmin: first minimum
+        c += sec + 1
+    pos.append(c + int(np.argmin(inner[c:])) + ignored)
+    pos = np.array(pos, np.int64)
+    sets = None if feature_set is None else (feature_set,) * K
+    return KeyframeQuery.from_stiffness(m[pos], v[pos], pos, stiffness, template_length=L,
+                                        feature_sets=sets)
+
+
+__all__ = ["PARALLEL_MIN_FRAMES", "UNBOUNDED", "TOOLBOX_SETS", "KeyframeQuery", "annot_margins",
+           "choose_keyframes_equally_distributed", "keyframe_hit_documents",
+           "keyframe_intervals", "keyframe_mask_value", "keyframe_postings", "keyframe_search",
+           "keyframe_search_batch", "stiffness_bounds"]
