@@ -141,7 +141,7 @@ def _numeric(s):
         float(s)
     except ValueError:
         return False
-    return True
+    return "_" not in s  # float() accepts "86_09"
 
 
 def _json_default(v):
@@ -153,18 +153,25 @@ def _json_default(v):
 
 
 @main.command()
-@click.argument("query")
+@click.argument("query", required=False)
+@click.option("--file", "sql_file", type=click.File("r", encoding="utf-8"),
+              help="Read the query from a file ('-' for stdin), e.g. one of sql/queries/*.sql.")
 @click.option("--format", "fmt", type=FORMATS, default="table", show_default=True)
 @click.pass_context
-def sql(ctx, query, fmt):
+def sql(ctx, query, sql_file, fmt):
     """Run a SQL query with the mocapdb functions registered and print the result.
 
     \b
     Example:
       mocapdb --db a.duckdb sql "SELECT name, unnest(annotate(motion_id), recursive := true) FROM motions"
+      mocapdb --db a.duckdb sql --file sql/queries/long_kicks.sql --format csv
     """
     import duckdb
 
+    if (query is None) == (sql_file is None):
+        raise click.UsageError("give a QUERY or --file FILE (not both)")
+    if sql_file is not None:
+        query = sql_file.read()
     con = _open(ctx)
     try:
         rel = con.sql(query)
@@ -177,6 +184,87 @@ def sql(ctx, query, fmt):
     except duckdb.Error as exc:
         raise click.ClickException(str(exc)) from exc
     write_relation(rows, rel.columns, fmt)
+
+
+@main.command()
+@click.option("--model", required=True, help="Name to store the model under.")
+@click.option("--folder", type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="Clips in the HDM05 cut layout: one folder per class (files read directly).")
+@click.option("--labels", "label_csv", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Label CSV document,label,start_frame,end_frame (native frames, 1-based) cutting "
+                   "clips out of ingested documents.")
+@click.option("--class-labels", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="CSV class,label mapping fine classes to coarse labels (default: the shipped "
+                   "HDM05 mapping when it covers every class).")
+@click.option("--delta", type=float, default=0.05, show_default=True, help="Quantization threshold δ.")
+@click.option("--tau", type=float, default=0.13, show_default=True, help="Hit threshold τ.")
+@click.option("--replace", is_flag=True, help="Overwrite a stored model of the same name.")
+@click.option("--silent", is_flag=True, help="No progress bar.")
+@click.pass_context
+def train(ctx, model, folder, label_csv, class_labels, delta, tau, replace, silent):
+    """Learn class motion templates from labelled clips and store them as a model.
+
+    \b
+    Example:
+      mocapdb --db a.duckdb train --model hdm05 --folder ../shared/data/hdm05_cut
+    """
+    from tqdm import tqdm
+
+    from .api import train as train_model
+
+    con = _open(ctx)
+    bar = tqdm(desc="train", unit="step", disable=silent, file=sys.stderr, leave=False)
+
+    def progress(done, total, what):
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    try:
+        m = train_model(con, model=model, folder=folder, label_csv=label_csv, class_labels=class_labels,
+                        delta=delta, tau=tau, replace=replace, progress=progress)
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    finally:
+        bar.close()
+    for c in m.classes:
+        n = getattr(c.template, "n_clips", None)
+        click.echo(f"{c.name:32s} -> {c.label:12s} K={len(c.quantized):4d}  clips={n}")
+    click.echo(f"model {model!r}: {len(m.classes)} classes, {len(m.labels)} labels")
+
+
+@main.command()
+@click.argument("motions", nargs=-1)
+@click.option("--model", default="default", show_default=True,
+              help="Model name (the shipped default model is loaded on first use).")
+@click.option("--tau", type=float, help="Hit threshold τ for every class (default: each class's, 0.13).")
+@click.option("--keyframes/--no-keyframes", default=None,
+              help="Keyframe preselection (default: on when the model has keyframe queries).")
+@click.option("--format", "fmt", type=FORMATS, default="table", show_default=True)
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), help="Write to a file instead of stdout.")
+@click.pass_context
+def annotate(ctx, motions, model, tau, keyframes, fmt, out):
+    """Annotate motions (ids or names; default all) and store the segments in `annotations`.
+
+    Frames are 30 Hz frames, 1-based inclusive; CSV columns
+    document,label,start_frame,end_frame,start_s,end_s,cost.
+
+    \b
+    Example:
+      mocapdb --db a.duckdb annotate --format csv --out segments.csv
+    """
+    from .api import annotate_motions
+    from .database import motion_ids
+
+    con = _open(ctx)
+    try:
+        ids = motion_ids(con, motions) if motions else None
+        table = annotate_motions(con, ids, model=model, tau=tau, keyframes=keyframes)
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
+    rows = list(zip(*(table.column(c).to_pylist() for c in cols)))
+    write_relation(rows, cols, fmt, out)
 
 
 @main.command("export-features")

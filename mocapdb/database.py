@@ -61,9 +61,19 @@ def connect(path=":memory:", *, read_only: bool = False) -> duckdb.DuckDBPyConne
 
 
 def create_schema(con) -> None:
-    """Create the mocapdb tables and views if they are missing (idempotent)."""
+    """Create the mocapdb tables and views if they are missing (idempotent).
+
+    A new database also gets the keyframe index (``mocap_index``); an existing
+    one keeps it or not, as its owner chose (:func:`mocapdb.postings.drop_index`).
+    """
+    from .postings import create_index
+
+    new = not con.execute("SELECT count(*) FROM duckdb_tables() WHERE schema_name = 'main' "
+                          "AND table_name = 'motions'").fetchall()[0][0]
     for name in SCHEMA_FILES:
         con.execute(sql_text(name))
+    if new:
+        create_index(con)
 
 
 def motion_ids(con, motions) -> list[int]:

@@ -961,6 +961,63 @@ def keyframe_hit_documents(index: Index, queries, *, layout=None, cache=None) ->
     return out
 
 
+def intervals_from_runs(keyframe, doc, start, length):
+    """Frame intervals of keyframes from their matching runs (KEYFRAMES.md §3 re-segmentation).
+
+    Parameters
+    ----------
+    keyframe, doc, start, length : (n,) int
+        Runs of constant word that match keyframe ``keyframe`` (any order):
+        document, first frame (0-based) and number of frames — e.g. the rows
+        of a postings table filtered by ``word & mask = value``.
+
+    Returns
+    -------
+    keyframe, doc, start, end : (m,) int64
+        Maximal intervals (adjacent runs merged), sorted by (keyframe, doc, start).
+    """
+    k, d, s, n = (np.asarray(x, dtype=np.int64) for x in (keyframe, doc, start, length))
+    order = np.lexsort((s, d, k))
+    k, d, s, e = k[order], d[order], s[order], s[order] + n[order] - 1
+    new = np.ones(len(k), bool)
+    new[1:] = (k[1:] != k[:-1]) | (d[1:] != d[:-1]) | (s[1:] != e[:-1] + 1)
+    first = np.flatnonzero(new)
+    last = np.append(first[1:], len(k)) - 1
+    return k[first], d[first], s[first], e[last]
+
+
+def chain_search(intervals, query: KeyframeQuery, doc_lengths, *, extend_left=0, extend_right=0):
+    """The chain search (§5) on given per-keyframe intervals instead of an index.
+
+    Parameters
+    ----------
+    intervals : tuple (keyframe, doc, start, end) of (m,) int
+        As returned by :func:`intervals_from_runs`: keyframe k's maximal
+        matching intervals, sorted by (keyframe, doc, start), 0-based inclusive.
+    query : KeyframeQuery
+        Gap bounds (its masks are not used: ``intervals`` already answer them).
+    doc_lengths : (n_docs,) int
+        Frames per document (segments are clipped to them).
+    extend_left, extend_right : int
+
+    Returns
+    -------
+    Segments
+        As :func:`keyframe_search` on an index whose keyframes give these intervals.
+    """
+    kf, doc, start, end = (np.ascontiguousarray(x, dtype=np.int64) for x in intervals)
+    K = query.n_keyframes
+    if len(kf) and (kf.min() < 0 or kf.max() >= K):
+        raise ParameterError(f"interval keyframe numbers must be in 0..{K - 1}")
+    kf_offset = np.searchsorted(kf, np.arange(K + 1)).astype(np.int64)
+    el = _margins(extend_left, 1, "extend_left")
+    er = _margins(extend_right, 1, "extend_right")
+    segs, _, _, _ = _chain_batch_kernel(doc, start, end, kf_offset, np.arange(K, dtype=np.int64),
+                                        np.array([0, K], np.int64), query.d_min, query.d_max,
+                                        np.asarray(doc_lengths, dtype=np.int64), el, er, False)
+    return _to_segments(segs)
+
+
 # --------------------------------------------------------------------------
 # heuristic keyframe chooser (§8.1)
 
@@ -1039,6 +1096,7 @@ def choose_keyframes_equally_distributed(mask, value, *, n_keyframes=3, stiffnes
 
 
 __all__ = ["PARALLEL_MIN_FRAMES", "UNBOUNDED", "TOOLBOX_SETS", "KeyframeQuery", "annot_margins",
+           "chain_search", "intervals_from_runs",
            "choose_keyframes_equally_distributed", "keyframe_hit_documents",
            "keyframe_intervals", "keyframe_mask_value", "keyframe_postings", "keyframe_search",
            "keyframe_search_batch", "stiffness_bounds"]

@@ -1,0 +1,239 @@
+"""Database-level operations shared by the Python API, the CLI and the SQL functions.
+
+Each function here is one CLI command (sqlite-utils style): it reads what it
+needs from the database, calls the pure array functions of the algorithm
+modules, and writes results back.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pyarrow as pa
+
+from .annotation import annotate as annotate_words
+from .errors import ParameterError, SchemaError
+from .modelstore import DEFAULT_MODEL, load_model
+
+log = logging.getLogger("mocapdb")
+
+#: columns of an annotation result (frames 1-based, inclusive, 30 Hz)
+SEGMENT_COLUMNS = ("motion_id", "document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost")
+
+
+def motion_words(con, motion_ids=None):
+    """Packed 30 Hz words of motions, in motion_id order.
+
+    Returns
+    -------
+    ids : list of int
+    names : list of str
+    fps : (n,) float64
+    words : (N,) uint64, all motions concatenated
+    lengths : (n,) int64
+    """
+    where, params = "", []
+    if motion_ids is not None:
+        ids = [int(i) for i in motion_ids]
+        if not ids:
+            return [], [], np.zeros(0), np.zeros(0, np.uint64), np.zeros(0, np.int64)
+        where, params = f"WHERE motion_id IN ({', '.join('?' * len(ids))})", ids
+    meta = con.execute(f"SELECT motion_id, name, fps, n_frames FROM motions {where} ORDER BY motion_id",
+                       params).fetchall()
+    if motion_ids is not None and len(meta) != len(set(params)):
+        missing = sorted(set(params) - {m[0] for m in meta})
+        raise SchemaError(f"no motion with id {missing} (see: SELECT motion_id, name FROM motions)")
+    bits = con.execute(f"SELECT bits FROM features {where} ORDER BY motion_id, frame", params).fetchnumpy()["bits"]
+    lengths = np.array([m[3] for m in meta], dtype=np.int64)
+    if int(lengths.sum()) != len(bits):
+        raise SchemaError("features and motions.n_frames disagree; the database is inconsistent")
+    return ([m[0] for m in meta], [m[1] for m in meta], np.array([m[2] for m in meta], np.float64),
+            np.asarray(bits, dtype=np.uint64), lengths)
+
+
+def segments_of_documents(words, lengths, model, *, tau=None, keyframes=None):
+    """Annotate concatenated documents; segments per document (0-based inclusive).
+
+    Parameters
+    ----------
+    words : (N,) uint64
+    lengths : (n_docs,) int
+    model : mocapdb.model.Model
+    tau : float, optional
+        One hit threshold for every class (default: each class's τ).
+    keyframes : bool, optional
+        Keyframe preselection (paper Sect. 5); default: on when the model has
+        keyframe queries.
+
+    Returns
+    -------
+    ndarray of mocapdb.annotation.SEGMENT_DTYPE
+        (label, doc, start, end, cost), ``doc`` indexing ``lengths``.
+    """
+    use_kf = any(c.keyframe_query is not None for c in model.classes) if keyframes is None else bool(keyframes)
+    preselection = None
+    if use_kf:
+        from .preselection import keyframe_preselection
+
+        preselection = keyframe_preselection(words, lengths, model)
+    return annotate_words(words, model, doc_lengths=lengths, preselection=preselection, tau=tau).segments
+
+
+def annotate_motions(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True):
+    """Annotate motions of the database with a model.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    motions : sequence of int, optional
+        Motion ids (default: every motion).
+    model : str, keyword-only, default "default"
+        Model name; the shipped default model is loaded on first use.
+    tau : float, optional, keyword-only
+        Hit threshold for every class (paper default 0.13; default: each class's τ).
+    keyframes : bool, optional, keyword-only
+        Keyframe preselection; default on when the model has keyframe queries.
+    store : bool, keyword-only
+        Replace the ``annotations`` rows of these motions and this model.
+
+    Returns
+    -------
+    pyarrow.Table
+        Columns :data:`SEGMENT_COLUMNS`, ordered by motion, start frame, label.
+    """
+    if tau is not None and not (np.isfinite(tau) and tau >= 0):
+        raise ParameterError(f"tau must be a non-negative number, got {tau!r}")
+    m = load_model(con, model)
+    ids, names, fps, words, lengths = motion_words(con, motions)
+    segs = segments_of_documents(words, lengths, m, tau=tau, keyframes=keyframes)
+    order = np.lexsort((segs["label"], segs["start"], segs["doc"]))
+    segs = segs[order]
+    doc = segs["doc"]
+    seg_fps = fps[doc] if len(doc) else np.zeros(0)
+    table = pa.table({
+        "motion_id": pa.array(np.asarray(ids, dtype=np.int32)[doc] if len(doc) else [], pa.int32()),
+        "document": pa.array([names[d] for d in doc], pa.string()),
+        "label": pa.array(segs["label"].tolist(), pa.string()),
+        "start_frame": pa.array(segs["start"] + 1, pa.int32()),
+        "end_frame": pa.array(segs["end"] + 1, pa.int32()),
+        "start_s": pa.array(segs["start"] / seg_fps if len(doc) else [], pa.float64()),
+        "end_s": pa.array((segs["end"] + 1) / seg_fps if len(doc) else [], pa.float64()),
+        "cost": pa.array(segs["cost"], pa.float64()),
+    })
+    if store:
+        store_annotations(con, table, ids, model=model, tau=tau, keyframes=keyframes)
+    return table
+
+
+def store_annotations(con, table, motion_ids, *, model, tau, keyframes):
+    """Replace the stored annotations of ``motion_ids`` under ``model`` (one transaction)."""
+    con.begin()
+    try:
+        if motion_ids:
+            con.execute(f"DELETE FROM annotations WHERE model = ? AND motion_id IN "
+                        f"({', '.join('?' * len(motion_ids))})", [model, *map(int, motion_ids)])
+        con.register("_mocapdb_new_annotations", table)
+        try:
+            con.execute(
+                "INSERT INTO annotations (motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, "
+                "tau, keyframes) SELECT motion_id, ?, label, start_frame, end_frame, cost, start_s, end_s, ?, ? "
+                "FROM _mocapdb_new_annotations", [model, tau, keyframes])
+        finally:
+            con.unregister("_mocapdb_new_annotations")
+        con.commit()
+    except BaseException:
+        con.rollback()
+        raise
+
+
+def documents_by_name(con, names=None) -> dict:
+    """Packed words of motions by name (for cutting labelled clips out of documents).
+
+    Raises
+    ------
+    SchemaError
+        A name matches no motion, or several (give unique names).
+    """
+    rows = con.execute("SELECT name, count(*) FROM motions GROUP BY name").fetchall()
+    count = dict(rows)
+    wanted = sorted(count) if names is None else sorted(set(names))
+    missing = [n for n in wanted if n not in count]
+    if missing:
+        raise SchemaError(f"documents {missing} are not in the database; ingest them first "
+                          "(document = motion name, the file stem)")
+    dup = [n for n in wanted if count[n] > 1]
+    if dup:
+        raise SchemaError(f"documents {dup} name several motions; rename or delete duplicates")
+    out = {}
+    for name in wanted:
+        out[name] = np.asarray(con.execute(
+            "SELECT f.bits FROM features f JOIN motions m USING (motion_id) WHERE m.name = ? ORDER BY f.frame",
+            [name]).fetchnumpy()["bits"], dtype=np.uint64)
+    return out
+
+
+def default_class_labels(classes) -> dict | None:
+    """The shipped HDM05 class → label mapping when it covers every class, else None
+    (each class its own label)."""
+    from .labels import class_labels
+
+    shipped = class_labels("hdm05")
+    return shipped if all(c in shipped for c in classes) else None
+
+
+def train(con, *, model, folder=None, label_csv=None, class_labels=None, delta=0.05, tau=0.13,
+          replace=False, description=None, progress=None):
+    """Learn a model from labelled clips and store it.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    model : str, keyword-only
+        Name to store the model under.
+    folder : str or Path, optional, keyword-only
+        Clips in the HDM05 "cut" layout: one folder per class under ``folder``
+        (files read directly, not from the database).
+    label_csv : str or Path, optional, keyword-only
+        A label CSV ``document,label,start_frame,end_frame`` (native frames,
+        1-based inclusive) cutting clips out of ingested documents; the label
+        column names the class. Exactly one of ``folder``/``label_csv``.
+    class_labels : str, Path or dict, optional, keyword-only
+        Class → coarse label mapping (CSV ``class,label``); default the shipped
+        HDM05 mapping when it covers every class, else each class its own label.
+    delta, tau : float, keyword-only
+        Quantization threshold δ and hit threshold τ (paper defaults 0.05, 0.13).
+    replace : bool, keyword-only
+        Overwrite a stored model of the same name.
+    progress : callable, optional
+        ``progress(n_done, n_total, what)`` while reading clips and learning.
+
+    Returns
+    -------
+    mocapdb.model.Model
+    """
+    from .labels import read_class_labels, read_labels, to_feature_grid
+    from .modelstore import save_model
+    from .training import clips_from_folders, clips_from_segments, train_model
+
+    if (folder is None) == (label_csv is None):
+        raise ParameterError("give exactly one of folder (--folder) and label_csv (--labels)")
+    if folder is not None:
+        clips = clips_from_folders(folder, progress=progress)
+        source = f"folder {folder}"
+    else:
+        rows = to_feature_grid(read_labels(label_csv))
+        clips = clips_from_segments(documents_by_name(con, set(rows["document"])), rows)
+        source = f"label CSV {label_csv}"
+    if isinstance(class_labels, dict):
+        mapping = class_labels
+    elif class_labels is not None:
+        mapping = read_class_labels(class_labels)
+    else:
+        mapping = default_class_labels(clips)
+    trained = train_model(clips, name=model, labels=mapping, delta=delta, tau=tau, progress=progress)
+    save_model(con, trained, description=description, replace=replace,
+               source=f"mocapdb train from {source}: {sum(len(v) for v in clips.values())} clips")
+    return trained
+
+
+__all__ = ["annotate_motions", "train", "documents_by_name", "default_class_labels", "segments_of_documents", "motion_words", "store_annotations", "SEGMENT_COLUMNS"]
