@@ -73,3 +73,44 @@ def test_every_command_has_help_and_a_readme_entry():
         r = runner.invoke(main, [name, "--help"])
         assert r.exit_code == 0 and "Usage:" in r.output
         assert f"`{name}" in readme, f"README.md does not document the command {name!r}"
+
+
+def _class_folder(tmp_path, classes):
+    """An HDM05-cut-layout folder with some real classes (symlinked, not copied)."""
+    root = tmp_path / "cut"
+    root.mkdir()
+    for asf in (DATA / "hdm05_cut").glob("HDM_*.asf"):
+        (root / asf.name).symlink_to(asf)
+    for c in classes:
+        (root / c).symlink_to(DATA / "hdm05_cut" / c, target_is_directory=True)
+    return root
+
+
+def test_train_then_annotate(run, tmp_path):
+    root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps"])
+    r = run("train", "--model", "two", "--folder", root, "--silent")
+    assert r.exit_code == 0, r.output
+    assert "kickLFront1Reps" in r.output and "-> kick" in r.output and "-> exercise" in r.output
+    assert "model 'two': 2 classes, 2 labels" in r.output
+    r = run("train", "--model", "two", "--folder", root, "--silent")
+    assert r.exit_code == 1 and "already exists" in r.output
+    run("ingest", DATA / "cmu" / "86", DATA / "hdm05_cut" / "squat1Reps" / "HDM_bd_squat1Reps_001_120.amc", "--silent")
+    out = tmp_path / "seg.csv"
+    r = run("annotate", "--model", "two", "--format", "csv", "--out", out)
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader(out.open()))
+    assert list(rows[0]) == ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
+    # the training clip itself is found as exercise, with a near-zero cost, over most of its frames
+    squat = [r for r in rows if r["document"] == "HDM_bd_squat1Reps_001_120" and r["label"] == "exercise"]
+    assert squat and min(float(r["cost"]) for r in squat) < 0.05
+    assert sum(int(r["end_frame"]) - int(r["start_frame"]) + 1 for r in squat) >= 0.8 * 35
+    stored = run("sql", "SELECT count(*) FROM annotations WHERE model = 'two'", "--format", "csv")
+    assert int(stored.output.splitlines()[1]) == len(rows)
+    r = run("annotate", "86_09", "--model", "two", "--tau", "0.05", "--format", "json")
+    assert all(s["cost"] <= 0.05 and s["document"] == "86_09" for s in json.loads(r.output))
+
+
+def test_annotate_unknown_model(run):
+    run("ingest", DATA / "cmu" / "86", "--silent")
+    r = run("annotate", "--model", "nope")
+    assert r.exit_code == 1 and "no model 'nope'" in r.output

@@ -1,0 +1,180 @@
+"""Label CSVs, the native ↔ 30 Hz frame conversion and class → label mappings."""
+import io
+import re
+
+import numpy as np
+import pytest
+
+from mocapdb.errors import ParameterError, ParseError
+from mocapdb.features import motion_features
+from mocapdb.labels import (
+    LABEL_DTYPE, class_labels, feature_to_native_frames, label_rows, map_labels,
+    native_to_feature_frames, read_class_labels, read_labels, segments_to_rows,
+    to_feature_grid, to_native_grid, write_class_labels, write_labels)
+from mocapdb.readers import read_motion
+
+from conftest import DATA
+
+SEGMENTS_86 = DATA / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv"
+
+
+def _covered_30hz(s, e):
+    """30 Hz frames (0-based) whose native block 4k+1..4k+4 (1-based) meets [s, e]."""
+    return [k for k in range(e // 4 + 2) if 4 * k + 1 <= e and 4 * k + 4 >= s]
+
+
+def _rows_86():
+    import csv
+    with open(SEGMENTS_86, newline="") as fh:
+        return [(r["trial"], r["label"], int(r["start_frame"]), int(r["end_frame"]))
+                for r in csv.DictReader(fh)]
+
+
+def test_native_to_30hz_on_the_86_09_segments(tmp_path):
+    rows = _rows_86()
+    path = tmp_path / "gt.csv"
+    path.write_text("document,label,start_frame,end_frame\r\n"
+                    + "".join(f"{d},{lab},{s},{e}\r\n" for d, lab, s, e in rows))
+    motion = read_motion(DATA / "cmu" / "86" / "86_09.amc")
+    native = read_labels(path, n_frames={"86_09": motion.n_frames})
+    assert [tuple(r) for r in native] == rows
+    grid = to_feature_grid(native)
+    n30 = motion_features(motion).size
+    for (d, lab, s, e), g in zip(rows, grid):
+        cov = _covered_30hz(s, e)
+        assert (g["start"], g["end"]) == (cov[0], cov[-1]) and len(cov) == cov[-1] - cov[0] + 1
+        # the first 30 Hz frame is the feature sampled at or before the first native frame
+        assert 4 * g["start"] + 1 <= s <= 4 * g["start"] + 4
+    # walk ends at native 880 = 4·220: 30 Hz frames 0..219; the last segment ends at the
+    # document's last native frame, i.e. at the last 30 Hz word of the feature pipeline
+    assert (grid[0]["start"], grid[0]["end"]) == (0, 219)
+    assert grid[-1]["end"] == n30 - 1 == (motion.n_frames - 1) // 4
+    back = to_native_grid(grid, n_native={"86_09": motion.n_frames})
+    assert back[-1]["end"] == motion.n_frames
+    assert (back["start"] <= native["start"]).all() and (back["end"] >= native["end"]).all()
+    np.testing.assert_array_equal(to_feature_grid(back)["start"], grid["start"])
+    np.testing.assert_array_equal(to_feature_grid(back)["end"], grid["end"])
+
+
+def test_feature_grid_round_trip_is_identity():
+    rng = np.random.default_rng(3)
+    a = rng.integers(0, 5000, 1000)
+    b = a + rng.integers(0, 300, 1000)
+    s, e = feature_to_native_frames(a, b)
+    assert ((s - 1) % 4 == 0).all() and (e % 4 == 0).all()
+    a2, b2 = native_to_feature_frames(s, e)
+    np.testing.assert_array_equal(a2, a)
+    np.testing.assert_array_equal(b2, b)
+    # native → grid → native covers the original (whole blocks of 4)
+    s = rng.integers(1, 20000, 1000)
+    e = s + rng.integers(0, 999, 1000)
+    s2, e2 = feature_to_native_frames(*native_to_feature_frames(s, e))
+    assert (s2 <= s).all() and (s - s2 < 4).all() and (e2 >= e).all() and (e2 - e < 4).all()
+    # clipping to the document's length
+    assert feature_to_native_frames(10, 11, n_native=45) == (41, 45)
+    with pytest.raises(ParameterError, match="beyond"):
+        feature_to_native_frames(12, 12, n_native=45)
+    with pytest.raises(ParameterError, match="1 <= start <= end"):
+        native_to_feature_frames(0, 3)
+
+
+def test_write_read_round_trip(tmp_path):
+    rows = label_rows(["a", "a", "b"], ["move", "kick", "exercise"], [1, 50, 7], [40, 90, 7])
+    p = tmp_path / "l.csv"
+    write_labels(p, rows)
+    assert p.read_text().splitlines()[0] == "document,label,start_frame,end_frame"
+    back = read_labels(p)
+    assert back.dtype == LABEL_DTYPE and [tuple(r) for r in back] == [tuple(r) for r in rows]
+    buf = io.StringIO()
+    write_labels(buf, [("x", "y", 1, 2)])
+    assert buf.getvalue() == "document,label,start_frame,end_frame\nx,y,1,2\n"
+    with pytest.raises(ParameterError, match="to_native_grid"):
+        write_labels(tmp_path / "z.csv", [("x", "y", 0, 2)])
+
+
+def test_header_variants_comments_and_extra_columns(tmp_path):
+    p = tmp_path / "l.csv"
+    p.write_bytes("\ufeff# ground truth\r\nLabel,Document,End_Frame,Start_Frame,note\r\n\r\n"
+                  "walk,86_09,880,1,caf\xe9\r\n".encode("utf-8"))
+    assert [tuple(r) for r in read_labels(p)] == [("86_09", "walk", 1, 880)]
+    p.write_bytes(b"document,label,start_frame,end_frame\nd\xe9,a,1,2\n")   # Latin-1
+    assert read_labels(p)[0]["document"] == "d\xe9"
+
+
+@pytest.mark.parametrize("body, message", [
+    ("doc,label,start_frame,end_frame\n", r"l\.csv:1: expected a header .* missing document"),
+    ("document,label,start_frame,end_frame\nd,a,1\n", r"l\.csv:2: expected 4 fields, got 3"),
+    ("document,label,start_frame,end_frame\nd,a,1,2\nd,a,x,2\n",
+     r"l\.csv:3: start_frame must be an integer frame number, got 'x'"),
+    ("document,label,start_frame,end_frame\n\nd,a,0,2\n", r"l\.csv:3: start_frame must be >= 1"),
+    ("document,label,start_frame,end_frame\nd,a,9,2\n", r"l\.csv:2: end_frame 2 is before"),
+    ("document,label,start_frame,end_frame\n,a,1,2\n", r"l\.csv:2: empty document name"),
+    ("document,label,start_frame,end_frame\nd, ,1,2\n", r"l\.csv:2: empty label"),
+    ("document,label,start_frame,end_frame\nd,a,1,101\n",
+     r"l\.csv:2: end_frame 101 is beyond the last frame of document 'd' \(100 frames"),
+    ("", r"l\.csv: empty file"),
+])
+def test_bad_label_files_name_file_and_line(tmp_path, body, message):
+    p = tmp_path / "l.csv"
+    p.write_text(body)
+    with pytest.raises(ParseError, match=message):
+        read_labels(p, n_frames={"d": 100})
+
+
+def test_missing_file_is_a_parse_error(tmp_path):
+    with pytest.raises(ParseError, match=r"nope\.csv: cannot read"):
+        read_labels(tmp_path / "nope.csv")
+
+
+def test_shipped_hdm05_mapping_is_the_data_readme_table():
+    table = {}
+    for line in (DATA / "README.md").read_text().splitlines():
+        m = re.match(r"\|\s*([A-Za-z0-9]+)\s*\|\s*\d+\s*\|\s*\d+\s*\|\s*([A-Za-z]+)", line)
+        if m:
+            table[m.group(1)] = m.group(2)
+    mapping = class_labels("hdm05")
+    assert mapping == table and len(mapping) == 11
+    assert set(mapping) == {p.name for p in (DATA / "hdm05_cut").iterdir() if p.is_dir()}
+    assert mapping["squat1Reps"] == "exercise" and mapping["throwBasketball"] == "throwR"
+    # the row order is the label order of the toolbox oracle's annotation
+    assert tuple(dict.fromkeys(mapping.values())) == (
+        "move", "sitLieDown", "jump", "kick", "rotateArms", "throwR", "grabDepR", "exercise")
+
+
+def test_shipped_cmu_mappings_name_real_actions():
+    actions = {line.split("\t")[1].strip() for line in
+               (DATA / "labels" / "cmu_mocap6" / "action_names.txt").read_text().splitlines()
+               if line and not line.startswith("#")}
+    m6 = class_labels("cmu_mocap6")
+    assert set(m6) <= actions and set(m6.values()) <= set(class_labels("hdm05").values())
+    assert m6 == {"Squat": "exercise", "Jog": "move", "JumpJack": "jump",
+                  "ArmCircle": "rotateArms"}
+    assert class_labels("cmu86") == {"walk": "move"}
+    assert {lab for _, lab, _, _ in _rows_86()} >= set(class_labels("cmu86"))
+    with pytest.raises(ParameterError, match="name must be one of"):
+        class_labels("nope")
+
+
+def test_class_label_files(tmp_path):
+    p = tmp_path / "m.csv"
+    write_class_labels(p, {"squat1Reps": "exercise", "kickLFront1Reps": "kick"})
+    assert list(read_class_labels(p).items()) == [("squat1Reps", "exercise"),
+                                                  ("kickLFront1Reps", "kick")]
+    p.write_text("class,label\na,x\nb,y\na,z\n")
+    with pytest.raises(ParseError, match=r"m\.csv:4: class 'a' is listed twice"):
+        read_class_labels(p)
+    p.write_text("klass,label\n")
+    with pytest.raises(ParseError, match=r"m\.csv:1: .*missing class"):
+        read_class_labels(p)
+
+
+def test_map_labels_keeps_unmapped_and_segments_to_rows():
+    rows = label_rows("86_09", ["walk", "clap", "walk"], [1, 100, 200], [50, 150, 300])
+    mapped = map_labels(rows, class_labels("cmu86"))
+    assert list(mapped["label"]) == ["move", "clap", "move"] and list(rows["label"])[0] == "walk"
+    seg = np.array([("move", 1, 3, 9, 0.1)], dtype=[("label", "U64"), ("doc", np.int64),
+                                                   ("start", np.int64), ("end", np.int64),
+                                                   ("cost", np.float64)])
+    assert [tuple(r) for r in segments_to_rows(seg, ["x", "y"])] == [("y", "move", 3, 9)]
+    with pytest.raises(ParameterError, match="document names"):
+        segments_to_rows(seg, ["x"])
