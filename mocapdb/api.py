@@ -236,4 +236,63 @@ def train(con, *, model, folder=None, label_csv=None, class_labels=None, delta=0
     return trained
 
 
-__all__ = ["annotate_motions", "train", "documents_by_name", "default_class_labels", "segments_of_documents", "motion_words", "store_annotations", "SEGMENT_COLUMNS"]
+def read_truth(path, *, label_map=None, n_frames=None):
+    """A ground-truth CSV (native frames, 1-based) on the 30 Hz grid, labels mapped.
+
+    ``label_map`` (CSV ``class,label`` path or dict) renames truth labels to the
+    model's (e.g. 86_09's ``walk`` → ``move``); unmapped labels are kept.
+    """
+    from .labels import map_labels, read_class_labels, read_labels, to_feature_grid
+
+    rows = to_feature_grid(read_labels(path, n_frames=n_frames))
+    if label_map is not None:
+        rows = map_labels(rows, label_map if isinstance(label_map, dict) else read_class_labels(label_map))
+    return rows
+
+
+def evaluate(con, truth_csv, *, model=DEFAULT_MODEL, tau=None, keyframes=None, label_map=None, taus=None):
+    """Annotate the documents of a ground-truth CSV and score the result (paper Eq. 5–8).
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    truth_csv : str or Path
+        ``document,label,start_frame,end_frame`` (native frames, 1-based);
+        documents are motion names in the database.
+    model : str, keyword-only
+    tau, keyframes
+        As :func:`annotate_motions`.
+    label_map : str, Path or dict, optional
+        Truth label → model label (e.g. the shipped ``cmu86_labels.csv``).
+    taus : sequence of float, optional
+        Score every τ of the sweep (paper Fig. 8) instead of one τ.
+
+    Returns
+    -------
+    mocapdb.metrics.Scores, or list of (τ, Scores) with ``taus``
+        Truth labels the model cannot produce are dropped (``Scores.dropped_truth``).
+    """
+    from .labels import segments_to_rows
+    from .metrics import evaluate_annotation, sweep_tau
+
+    m = load_model(con, model)
+    names = sorted(set(read_truth(truth_csv)["document"]))
+    words_by_doc = documents_by_name(con, names)
+    native = dict(con.execute(f"SELECT name, n_source_frames FROM motions WHERE name IN "
+                              f"({', '.join('?' * len(names))})", names).fetchall())
+    truth = read_truth(truth_csv, label_map=label_map, n_frames=native)
+    words = np.concatenate([words_by_doc[n] for n in names])
+    lengths = np.array([len(words_by_doc[n]) for n in names], dtype=np.int64)
+    use_kf = any(c.keyframe_query is not None for c in m.classes) if keyframes is None else keyframes
+    pre = None
+    if use_kf:
+        from .preselection import keyframe_preselection
+
+        pre = keyframe_preselection(words, lengths, m)
+    if taus is not None:
+        return sweep_tau(words, m, truth, taus, documents=names, doc_lengths=lengths, preselection=pre)
+    segs = annotate_words(words, m, doc_lengths=lengths, preselection=pre, tau=tau).segments
+    return evaluate_annotation(truth, segments_to_rows(segs, names), labels=m.labels)
+
+
+__all__ = ["annotate_motions", "train", "evaluate", "read_truth", "documents_by_name", "default_class_labels", "segments_of_documents", "motion_words", "store_annotations", "SEGMENT_COLUMNS"]

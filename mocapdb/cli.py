@@ -267,6 +267,72 @@ def annotate(ctx, motions, model, tau, keyframes, fmt, out):
     write_relation(rows, cols, fmt, out)
 
 
+def _print_scores(rows):
+    """rows: (setting, Scores) pairs → a table of the paper's six measures."""
+    cols = ["", "P1", "R1", "F1", "P2", "R2", "F2", "frames M/A", "segments M/A"]
+    out = [[str(name), *(f"{getattr(sc, k):.3f}" for k in ("p1", "r1", "f1", "p2", "r2", "f2")),
+            f"{sc.truth_frames}/{sc.auto_frames}", f"{sc.truth_segments}/{sc.auto_segments}"]
+           for name, sc in rows]
+    write_relation(out, cols, "table")
+    dropped = rows[0][1].dropped_truth if rows else {}
+    if dropped:
+        click.echo("truth labels the model cannot produce (not scored): "
+                   + ", ".join(f"{k} ({v})" for k, v in sorted(dropped.items())))
+
+
+@main.command("eval")
+@click.option("--truth", required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Ground truth CSV document,label,start_frame,end_frame (native frames, 1-based).")
+@click.option("--pred", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Predictions CSV as written by `annotate --format csv` (30 Hz frames); "
+                   "without it the truth's documents are annotated from the database.")
+@click.option("--map", "label_map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="CSV class,label renaming truth labels to model labels (e.g. walk -> move).")
+@click.option("--labels", "vocabulary", help="Comma-separated labels to score (with --pred; default: "
+                                             "every truth label). With a database: the model's labels.")
+@click.option("--model", default="default", show_default=True)
+@click.option("--tau", type=float, help="Hit threshold τ for every class (default: each class's).")
+@click.option("--keyframes/--no-keyframes", default=None, help="Keyframe preselection (default: model's).")
+@click.option("--sweep-tau", help="START:STOP:STEP, e.g. 0.05:0.25:0.01 — P/R/F per τ (paper Fig. 8).")
+@click.pass_context
+def eval_cmd(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, sweep_tau):
+    """Frame-level P1/R1/F1 and segment-level P2/R2/F2 against ground truth (paper Eq. 5-8).
+
+    All documents are concatenated, as in the paper; truth frames are
+    converted to the 30 Hz feature grid.
+
+    \b
+    Examples:
+      mocapdb eval --truth truth.csv --pred segments.csv
+      mocapdb --db a.duckdb eval --truth truth.csv --map walk_is_move.csv --sweep-tau 0.05:0.25:0.01
+    """
+    from .api import evaluate, read_truth
+    from .labels import read_segments
+    from .metrics import evaluate_annotation, parse_tau_grid
+
+    try:
+        if pred is not None:
+            if sweep_tau:
+                raise click.UsageError("--sweep-tau re-annotates: use it with --db, not with --pred")
+            vocab = [v.strip() for v in vocabulary.split(",")] if vocabulary else None
+            scores = evaluate_annotation(read_truth(truth, label_map=label_map), read_segments(pred),
+                                         labels=vocab)
+            _print_scores([("all", scores)])
+            return
+        if ctx.obj.get("db") is None:
+            raise click.UsageError("give --pred FILE, or a database (mocapdb --db FILE eval …) to annotate")
+        con = _open(ctx)
+        if sweep_tau:
+            result = evaluate(con, truth, model=model, keyframes=keyframes, label_map=label_map,
+                              taus=parse_tau_grid(sweep_tau))
+            _print_scores([(f"tau={t:.3f}", sc) for t, sc in result])
+        else:
+            _print_scores([("all", evaluate(con, truth, model=model, tau=tau, keyframes=keyframes,
+                                            label_map=label_map))])
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+
+
 @main.command("export-features")
 @click.argument("directory", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--overwrite", is_flag=True, help="Write into a non-empty directory.")

@@ -46,7 +46,8 @@ from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import DOWNSAMPLING_FACTOR
 
 __all__ = [
-    "LABEL_COLUMNS", "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "write_labels",
+    "LABEL_COLUMNS", "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "read_segments",
+    "write_labels",
     "native_to_feature_frames", "feature_to_native_frames", "to_feature_grid",
     "to_native_grid", "segments_to_rows", "map_labels", "read_class_labels",
     "write_class_labels", "class_labels", "read_text", "SHIPPED_CLASS_LABELS",
@@ -243,6 +244,32 @@ def read_labels(path, *, n_frames=None):
             raise ParseError(path, line, f"end_frame {e} is beyond the last frame of document "
                              f"{doc!r} ({int(n_frames[doc])} frames at the native rate)")
         out.append((doc, lab, s, e))
+    return as_label_rows(out)
+
+
+def read_segments(path):
+    """Read an annotation CSV as written by ``mocapdb annotate --format csv``.
+
+    Columns ``document,label,start_frame,end_frame`` (others ignored) with
+    frames on the 30 Hz feature grid, 1-based inclusive.
+
+    Returns
+    -------
+    ndarray of LABEL_DTYPE
+        On the 30 Hz grid, 0-based inclusive (ready for :mod:`mocapdb.metrics`).
+
+    Raises
+    ------
+    ParseError
+        ``file:line: …`` as :func:`read_labels`.
+    """
+    out = []
+    for line, rec in _csv_records(path, LABEL_COLUMNS):
+        s = _int_field(path, line, "start_frame", rec["start_frame"])
+        e = _int_field(path, line, "end_frame", rec["end_frame"])
+        if s < 1 or e < s:
+            raise ParseError(path, line, f"need 1 <= start_frame <= end_frame, got {s}, {e}")
+        out.append((rec["document"], rec["label"], s - 1, e - 1))
     return as_label_rows(out)
 
 

@@ -114,3 +114,57 @@ def test_annotate_unknown_model(run):
     run("ingest", DATA / "cmu" / "86", "--silent")
     r = run("annotate", "--model", "nope")
     assert r.exit_code == 1 and "no model 'nope'" in r.output
+
+
+def _truth_86_09(path):
+    rows = list(csv.DictReader((DATA / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv").open()))
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["document", "label", "start_frame", "end_frame"])
+        for r in rows:
+            w.writerow([r["trial"], r["label"], r["start_frame"], r["end_frame"]])
+    return path
+
+
+def _scores(output):
+    line = next(ln for ln in output.splitlines() if ln.startswith("all "))
+    return [float(x) for x in line.split()[1:7]]
+
+
+def test_eval_from_database_equals_eval_of_the_written_predictions(run, tmp_path):
+    from importlib import resources
+
+    truth = _truth_86_09(tmp_path / "truth.csv")
+    walk_is_move = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
+    run("ingest", DATA / "cmu" / "86", "--silent")
+    pred = tmp_path / "pred.csv"
+    run("annotate", "--no-keyframes", "--format", "csv", "--out", pred)
+    from_db = run("eval", "--truth", truth, "--map", walk_is_move, "--no-keyframes")
+    assert from_db.exit_code == 0, from_db.output
+    assert "look_around (1)" in from_db.output  # labels the model cannot produce are reported
+    labels = "move,sitLieDown,jump,kick,rotateArms,throwR,grabDepR,exercise"
+    from_files = CliRunner().invoke(main, ["eval", "--truth", str(truth), "--pred", str(pred),
+                                           "--map", str(walk_is_move), "--labels", labels])
+    assert from_files.exit_code == 0, from_files.output
+    p1, r1, f1, p2, r2, f2 = _scores(from_db.output)
+    assert _scores(from_files.output) == [p1, r1, f1, p2, r2, f2]
+    assert r1 > 0.9 and p1 < 0.5  # walking is found, and so are the toolbox's false kicks
+    sweep = run("eval", "--truth", truth, "--map", walk_is_move, "--no-keyframes", "--sweep-tau", "0.05:0.15:0.05")
+    taus = [ln.split()[0] for ln in sweep.output.splitlines() if ln.startswith("tau=")]
+    assert taus == ["tau=0.050", "tau=0.100", "tau=0.150"]
+
+
+def test_eval_of_the_truth_itself_is_perfect(tmp_path):
+    truth = _truth_86_09(tmp_path / "truth.csv")
+    # the truth on the 30 Hz grid, written as predictions
+    from mocapdb.labels import read_labels, to_feature_grid
+
+    rows = to_feature_grid(read_labels(truth))
+    pred = tmp_path / "pred.csv"
+    with pred.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["document", "label", "start_frame", "end_frame"])
+        for r in rows:
+            w.writerow([r["document"], r["label"], r["start"] + 1, r["end"] + 1])
+    r = CliRunner().invoke(main, ["eval", "--truth", str(truth), "--pred", str(pred)])
+    assert r.exit_code == 0 and _scores(r.output) == [1.0] * 6
