@@ -117,6 +117,18 @@ def column_layout(skeleton: Skeleton):
 # kernels
 
 @jit
+def _close_frame(seen, ref, nb, frame):  # pragma: no cover
+    """Whether a finished frame lists the same bones as frame 1 (frame 0 sets the reference)."""
+    ok = True
+    for b in range(nb):
+        if frame == 0:
+            ref[b] = seen[b]
+        elif seen[b] != ref[b]:
+            ok = False
+    return ok
+
+
+@jit
 def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, out,
                       fb_index, fb_start, fb_end, seen, ref, status):  # pragma: no cover
     """Scan AMC frames from byte ``start`` into ``out`` (zero-initialised).
@@ -179,13 +191,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
                     status[5] = num
                     break
                 # close the previous frame: same bones as frame 1
-                bad = False
-                for b in range(nb):
-                    if frame == 0:
-                        ref[b] = seen[b]
-                    elif seen[b] != ref[b]:
-                        bad = True
-                if bad:
+                if not _close_frame(seen, ref, nb, frame):
                     status[0] = 7  # _E_INCOMPLETE
                     status[1] = last_line
                     status[2] = frame
@@ -293,13 +299,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
             break
     if status[0] == 0 and frame >= 0:
         # close the last frame
-        bad = False
-        for b in range(nb):
-            if frame == 0:
-                ref[b] = seen[b]
-            elif seen[b] != ref[b]:
-                bad = True
-        if bad:
+        if not _close_frame(seen, ref, nb, frame):
             status[0] = 7  # _E_INCOMPLETE
             status[1] = last_line
             status[2] = frame
