@@ -1,0 +1,77 @@
+"""Plotting helpers (optional dependency: ``pip install mocapdb[plot]``).
+
+matplotlib is imported lazily, so ``import mocapdb.plots`` works without it;
+the functions raise ImportError with the install hint when it is missing.
+No function shows a window: they return the Figure and optionally save it.
+"""
+from __future__ import annotations
+
+from mocapdb.errors import ParameterError
+
+__all__ = ["plot_ga_statistics"]
+
+
+def _pyplot():
+    try:
+        import matplotlib
+        if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg", "cairo"):
+            matplotlib.use("Agg")  # no display needed; figures are written to files
+        import matplotlib.pyplot as plt
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError("plotting needs matplotlib: pip install 'mocapdb[plot]'") from e
+    return plt
+
+
+def plot_ga_statistics(statistics, path=None, *, title=None, show_best=True, dpi=150):
+    """Average precision, recall and fitness over the GA generations (paper Fig. 5).
+
+    Parameters
+    ----------
+    statistics : GAStatistics
+        E.g. :func:`mocapdb.ga.average_statistics` of the results of all
+        classes (averages over the individuals of a population and over
+        classes and runs, as in the paper).
+    path : str or Path, optional
+        Write the figure there (format from the suffix, e.g. ``.png``).
+    title : str, optional
+    show_best : bool, default True
+        Also draw the fitness of the best individual (dashed).
+    dpi : int, default 150
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    References
+    ----------
+    Paper Sect. 7, Fig. 5: precision (black), recall (red), fitness (green).
+    """
+    from mocapdb.ga import GAStatistics
+
+    if not isinstance(statistics, GAStatistics):
+        raise ParameterError(f"statistics must be a GAStatistics (see "
+                             f"mocapdb.ga.average_statistics), got {type(statistics).__name__}")
+    plt = _pyplot()
+    import numpy as np
+
+    g = np.arange(statistics.generations + 1)
+    fig, ax = plt.subplots(figsize=(6.0, 3.6))
+    ax.plot(g, statistics.mean_precision, color="black", label="precision")
+    ax.plot(g, statistics.mean_recall, color="red", label="recall")
+    ax.plot(g, statistics.mean_fitness, color="green", label="fitness (F$_2$)")
+    if show_best:
+        ax.plot(g, statistics.best_fitness, color="green", linestyle="--", linewidth=0.8,
+                label="best fitness")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("population average")
+    ax.set_xlim(0, max(1, statistics.generations))
+    lo = min(statistics.mean_precision.min(), statistics.mean_recall.min())
+    ax.set_ylim(max(0.0, np.floor(lo * 10) / 10 - 0.05), 1.01)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=dpi)
+    return fig
