@@ -218,6 +218,9 @@ def register(con) -> None:
                          T.BIGINT, T.BIGINT],
                         hit_type, type="arrow", null_handling="special", side_effects=False)
     con.execute(sql_text("macros.sql"))
+    from mocapdb.postings import index_exists
+
+    con.execute(sql_text("keyframe_macros.sql" if index_exists(con) else "keyframe_macros_missing.sql"))
 
 
 def _payload_type(con, which) -> str:

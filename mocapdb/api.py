@@ -181,6 +181,26 @@ def default_class_labels(classes) -> dict | None:
     return shipped if all(c in shipped for c in classes) else None
 
 
+def training_clips(con, *, folder=None, label_csv=None, progress=None):
+    """Labelled clips from a class-folder tree or from a label CSV over ingested documents.
+
+    Returns
+    -------
+    clips : dict of str to list of (name, words)
+    source : str
+        A description for the model's ``source``.
+    """
+    from .labels import read_labels, to_feature_grid
+    from .training import clips_from_folders, clips_from_segments
+
+    if (folder is None) == (label_csv is None):
+        raise ParameterError("give exactly one of folder (--folder) and label_csv (--labels)")
+    if folder is not None:
+        return clips_from_folders(folder, progress=progress), f"folder {folder}"
+    rows = to_feature_grid(read_labels(label_csv))
+    return clips_from_segments(documents_by_name(con, set(rows["document"])), rows), f"label CSV {label_csv}"
+
+
 def train(con, *, model, folder=None, label_csv=None, class_labels=None, delta=0.05, tau=0.13,
           replace=False, description=None, progress=None):
     """Learn a model from labelled clips and store it.
@@ -211,19 +231,11 @@ def train(con, *, model, folder=None, label_csv=None, class_labels=None, delta=0
     -------
     mocapdb.model.Model
     """
-    from .labels import read_class_labels, read_labels, to_feature_grid
+    from .labels import read_class_labels
     from .modelstore import save_model
-    from .training import clips_from_folders, clips_from_segments, train_model
+    from .training import train_model
 
-    if (folder is None) == (label_csv is None):
-        raise ParameterError("give exactly one of folder (--folder) and label_csv (--labels)")
-    if folder is not None:
-        clips = clips_from_folders(folder, progress=progress)
-        source = f"folder {folder}"
-    else:
-        rows = to_feature_grid(read_labels(label_csv))
-        clips = clips_from_segments(documents_by_name(con, set(rows["document"])), rows)
-        source = f"label CSV {label_csv}"
+    clips, source = training_clips(con, folder=folder, label_csv=label_csv, progress=progress)
     if isinstance(class_labels, dict):
         mapping = class_labels
     elif class_labels is not None:
@@ -295,4 +307,119 @@ def evaluate(con, truth_csv, *, model=DEFAULT_MODEL, tau=None, keyframes=None, l
     return evaluate_annotation(truth, segments_to_rows(segs, names), labels=m.labels)
 
 
-__all__ = ["annotate_motions", "train", "evaluate", "read_truth", "documents_by_name", "default_class_labels", "segments_of_documents", "motion_words", "store_annotations", "SEGMENT_COLUMNS"]
+def learn_keyframes(con, *, model=DEFAULT_MODEL, folder=None, label_csv=None, classes=None, runs=20, seed=0,
+                    n_jobs=None, progress=None, **ga_params):
+    """Learn a keyframe query per class with the genetic algorithm (paper Sect. 6) and store it.
+
+    The training clips (``folder`` or ``label_csv``, as :func:`train`) give
+    T+ for each class and T− = the clips of every other class; the model's
+    stored real-valued templates seed the initial populations (δ = 0).
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    model : str, keyword-only
+        A stored model (its classes must be the clips' classes).
+    folder, label_csv : keyword-only
+        As :func:`train`.
+    classes : sequence of str, optional
+        Classes to learn (default: all of the model's).
+    runs : int, default 20
+        Independent GA runs per class (paper: 100–500); the consensus is kept.
+    seed : int, default 0
+        Reproducible: the same seed gives the same queries.
+    n_jobs : int, optional
+        Worker processes (default: all cores).
+    progress : callable, optional
+        ``progress(class_name, runs_done, runs)``.
+    **ga_params
+        GA parameters (:data:`mocapdb.ga.GA_DEFAULTS`: population_size=50,
+        n_parents=5, generations=100, beta=2, …).
+
+    Returns
+    -------
+    dict of str to mocapdb.ga.LearnedQuery
+    """
+    import dataclasses
+
+    from .ga import learn_keyframe_queries
+    from .modelstore import keyframe_query_stats, save_model
+
+    m = load_model(con, model)
+    clips, source = training_clips(con, folder=folder, label_csv=label_csv)
+    unknown = sorted(set(clips) - set(m.class_names))
+    if unknown:
+        raise ParameterError(f"the clips hold classes {unknown} that model {model!r} does not have")
+    classes = list(m.class_names if classes is None else classes)
+    missing = [c for c in classes if c not in clips]
+    if missing:
+        raise ParameterError(f"no training clips for classes {missing}")
+    templates = {c.name: c.template for c in m.classes if c.template is not None}
+    learned = learn_keyframe_queries(clips, classes=classes, runs=runs, random_state=seed, n_jobs=n_jobs,
+                                     templates=templates or None, progress=progress, **ga_params)
+    stats = keyframe_query_stats(con, model)
+    rows = [r[1:] for r in con.execute(
+        "SELECT * FROM ga_statistics WHERE model = ? ORDER BY class, run, generation", [model]).fetchall()
+        if r[1] not in learned]
+    new_classes = []
+    for c in m.classes:
+        lq = learned.get(c.name)
+        if lq is not None:
+            c = dataclasses.replace(c, keyframe_query=lq.query)
+            stats[c.name] = {"source": f"ga (runs={runs}, seed={seed})", "fitness": lq.fitness,
+                             "precision": lq.precision, "recall": lq.recall}
+            for r, res in enumerate(lq.runs):
+                st = res.statistics
+                rows += [(c.name, r, g, st.mean_precision[g], st.mean_recall[g], st.mean_fitness[g],
+                          st.best_fitness[g], st.mean_keyframes[g]) for g in range(st.generations + 1)]
+        new_classes.append(c)
+    meta = con.execute("SELECT description, source FROM models WHERE model = ?", [model]).fetchall()[0]
+    save_model(con, dataclasses.replace(m, classes=tuple(new_classes)), description=meta[0],
+               source=f"{meta[1]}; keyframe queries: GA from {source}", replace=True, keyframe_stats=stats,
+               ga_statistics=rows)
+    return learned
+
+
+def plot_figure(con, figure, path, *, model=DEFAULT_MODEL, motion=None, keyframes=None):
+    """Write a figure: ``"ga"`` (paper Fig. 5 from the model's stored GA statistics) or
+    ``"annotation"`` (one motion's labels over time with Δ̄^τ per label, paper Fig. 6)."""
+    from . import plots
+    from .ga import GAStatistics
+
+    if figure == "ga":
+        load_model(con, model)  # the default model is loaded on first use
+        rows = con.execute("""SELECT generation, avg(mean_precision), avg(mean_recall), avg(mean_fitness),
+                                     avg(best_fitness), avg(mean_keyframes)
+                              FROM ga_statistics WHERE model = ? GROUP BY generation ORDER BY generation""",
+                           [model]).fetchnumpy()
+        if len(rows["generation"]) == 0:
+            raise SchemaError(f"model {model!r} has no GA statistics; learn its keyframe queries with "
+                              "`mocapdb learn-keyframes`")
+        cols = [np.asarray(rows[k]) for k in list(rows)[1:]]
+        stats = GAStatistics(cols[0], cols[1], cols[2], cols[3], np.full_like(cols[0], np.nan),
+                             np.full_like(cols[0], np.nan), cols[4])
+        n_runs = con.execute("SELECT count(DISTINCT (class, run)) FROM ga_statistics WHERE model = ?",
+                             [model]).fetchall()[0][0]
+        plots.plot_ga_statistics(stats, path, title=f"model {model}: averages over {n_runs} GA runs")
+        return
+    if figure != "annotation":
+        raise ParameterError(f"figure must be 'ga' or 'annotation', got {figure!r}")
+    if motion is None:
+        raise ParameterError("the annotation figure needs a motion (--motion ID or NAME)")
+    from .database import motion_ids
+
+    ids = motion_ids(con, [motion])
+    m = load_model(con, model)
+    _, names, fps, words, lengths = motion_words(con, ids[:1])
+    use_kf = any(c.keyframe_query is not None for c in m.classes) if keyframes is None else keyframes
+    pre = None
+    if use_kf:
+        from .preselection import keyframe_preselection
+
+        pre = keyframe_preselection(words, lengths, m)
+    ann = annotate_words(words, m, doc_lengths=lengths, preselection=pre, keep_deltas=True)
+    plots.plot_annotation(ann.segments, m.labels, int(lengths[0]), label_delta=ann.label_delta, fps=float(fps[0]),
+                          path=path, title=f"{names[0]} — model {model}{' with keyframes' if use_kf else ''}")
+
+
+__all__ = ["annotate_motions", "train", "learn_keyframes", "plot_figure", "training_clips", "evaluate", "read_truth", "documents_by_name", "default_class_labels", "segments_of_documents", "motion_words", "store_annotations", "SEGMENT_COLUMNS"]

@@ -233,6 +233,56 @@ def train(ctx, model, folder, label_csv, class_labels, delta, tau, replace, sile
     click.echo(f"model {model!r}: {len(m.classes)} classes, {len(m.labels)} labels")
 
 
+@main.command("learn-keyframes")
+@click.option("--model", default="default", show_default=True, help="The stored model whose classes get queries.")
+@click.option("--folder", type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="Training clips, one folder per class (HDM05 cut layout).")
+@click.option("--labels", "label_csv", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Label CSV cutting training clips out of ingested documents.")
+@click.option("--classes", help="Comma-separated classes to learn (default: all of the model's).")
+@click.option("--runs", type=int, default=20, show_default=True, help="GA runs per class (paper: 100-500).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed: same seed, same queries.")
+@click.option("--generations", type=int, default=100, show_default=True, help="Generations per run (paper: 100).")
+@click.option("--jobs", "n_jobs", type=int, help="Worker processes (default: all cores).")
+@click.option("--silent", is_flag=True, help="No progress bar.")
+@click.pass_context
+def learn_keyframes_cmd(ctx, model, folder, label_csv, classes, runs, seed, generations, n_jobs, silent):
+    """Learn one keyframe query per class with the genetic algorithm (paper Sect. 6).
+
+    T+ = the class's clips, T- = the clips of every other class; the query with
+    the consensus of the runs is stored in keyframe_queries with its fitness,
+    precision and recall on the training clips.
+
+    \b
+    Example:
+      mocapdb --db a.duckdb learn-keyframes --model hdm05 --folder ../shared/data/hdm05_cut --runs 20
+    """
+    from tqdm import tqdm
+
+    from .api import learn_keyframes
+
+    con = _open(ctx)
+    bar = tqdm(desc="learn-keyframes", unit="run", disable=silent, file=sys.stderr, leave=False)
+    done_by_class = {}
+
+    def progress(cls, done, total):
+        done_by_class[cls] = done
+        bar.set_description(cls[:28])
+        bar.update(sum(done_by_class.values()) - bar.n)
+
+    try:
+        learned = learn_keyframes(con, model=model, folder=folder, label_csv=label_csv,
+                                  classes=classes.split(",") if classes else None, runs=runs, seed=seed,
+                                  n_jobs=n_jobs, progress=progress, generations=generations)
+    except MocapdbError as exc:
+        raise click.ClickException(str(exc)) from exc
+    finally:
+        bar.close()
+    rows = [(name, lq.query.n_keyframes, f"{lq.fitness:.3f}", f"{lq.precision:.3f}", f"{lq.recall:.3f}")
+            for name, lq in learned.items()]
+    write_relation(rows, ["class", "keyframes", "fitness", "precision", "recall"], "table")
+
+
 @main.command()
 @click.argument("motions", nargs=-1)
 @click.option("--model", default="default", show_default=True,
@@ -331,6 +381,53 @@ def eval_cmd(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, swe
                                             label_map=label_map))])
     except MocapdbError as exc:
         raise click.ClickException(str(exc)) from exc
+
+
+@main.command()
+@click.option("--figure", type=click.Choice(["ga", "annotation"]), required=True,
+              help="ga: GA precision/recall/fitness over generations (paper Fig. 5); "
+                   "annotation: the labels of one motion over time (paper Fig. 6).")
+@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Image file (format from the suffix: .png, .pdf, .svg).")
+@click.option("--model", default="default", show_default=True)
+@click.option("--motion", help="Motion id or name (for --figure annotation).")
+@click.option("--keyframes/--no-keyframes", default=None, help="Keyframe preselection (annotation figure).")
+@click.pass_context
+def report(ctx, figure, out, model, motion, keyframes):
+    """Draw a figure from the database (needs the 'plot' extra: pip install 'mocapdb[plot]').
+
+    \b
+    Examples:
+      mocapdb --db a.duckdb report --figure ga --out fig5.png
+      mocapdb --db a.duckdb report --figure annotation --motion 86_09 --out 86_09.png
+    """
+    from .api import plot_figure
+
+    con = _open(ctx)
+    try:
+        plot_figure(con, figure, out, model=model, motion=motion, keyframes=keyframes)
+    except (MocapdbError, ImportError) as exc:
+        raise click.ClickException(str(exc)) from exc
+    click.echo(f"written {out}")
+
+
+@main.command()
+@click.option("--drop", is_flag=True, help="Remove the index instead (DROP SCHEMA mocap_index CASCADE).")
+@click.pass_context
+def index(ctx, drop):
+    """(Re)build the keyframe index (schema mocap_index) from the features, or drop it.
+
+    A new database has the index; ingest and delete keep it up to date while it exists.
+    """
+    from .postings import create_index, drop_index
+
+    con = _open(ctx)
+    if drop:
+        drop_index(con)
+        click.echo("keyframe index dropped")
+        return
+    n = create_index(con)
+    click.echo(f"keyframe index built: {n} postings")
 
 
 @main.command("export-features")

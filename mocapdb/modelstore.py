@@ -20,7 +20,7 @@ from .model import ClassModel, Model
 from .templates import MotionTemplate, QuantizedTemplate
 
 DEFAULT_MODEL = "default"
-MODEL_TABLES = ("models", "classes", "templates", "keyframe_queries", "keyframes")
+MODEL_TABLES = ("models", "classes", "templates", "keyframe_queries", "keyframes", "ga_statistics")
 
 
 def fingerprint(model: Model) -> str:
@@ -52,7 +52,7 @@ def drop_model(con, name: str) -> None:
 
 
 def save_model(con, model: Model, *, description=None, source=None, replace=False,
-               keyframe_stats=None) -> str:
+               keyframe_stats=None, ga_statistics=None) -> str:
     """Store a model (one transaction).
 
     Parameters
@@ -66,6 +66,9 @@ def save_model(con, model: Model, *, description=None, source=None, replace=Fals
     keyframe_stats : dict, optional, keyword-only
         class name -> dict(source=…, fitness=…, precision=…, recall=…) kept in
         ``keyframe_queries`` (default source ``"manual"``).
+    ga_statistics : list of tuple, optional, keyword-only
+        Rows ``(class, run, generation, mean_precision, mean_recall,
+        mean_fitness, best_fitness, mean_keyframes)`` for ``ga_statistics``.
 
     Returns
     -------
@@ -108,6 +111,7 @@ def save_model(con, model: Model, *, description=None, source=None, replace=Fals
         _insert(con, "templates", templates)
         _insert(con, "keyframe_queries", queries)
         _insert(con, "keyframes", keyframes)
+        _insert(con, "ga_statistics", [(model.name, *r) for r in (ga_statistics or [])])
         con.commit()
     except BaseException:
         con.rollback()
@@ -120,6 +124,8 @@ _COLUMNS = {
     "templates": "model, class, col, mask, value, weight, real, real_weight",
     "keyframe_queries": "model, class, n_keyframes, template_length, source, fitness, precision, recall",
     "keyframes": "model, class, k, feature_set, mask, value, position, d_min, d_max",
+    "ga_statistics": "model, class, run, generation, mean_precision, mean_recall, mean_fitness, best_fitness, "
+                     "mean_keyframes",
 }
 
 
@@ -167,6 +173,13 @@ def load_model(con, name: str = DEFAULT_MODEL) -> Model:
         classes.append(ClassModel(cname, label, template=template, quantized=quantized, delta=delta, tau=tau,
                                   keyframe_query=_load_query(con, name, cname)))
     return Model(name, tuple(classes), labels=tuple(labels))
+
+
+def keyframe_query_stats(con, name: str) -> dict:
+    """class -> dict(source, fitness, precision, recall) of a stored model's keyframe queries."""
+    rows = con.execute("SELECT class, source, fitness, precision, recall FROM keyframe_queries WHERE model = ?",
+                       [name]).fetchall()
+    return {r[0]: dict(zip(("source", "fitness", "precision", "recall"), r[1:])) for r in rows}
 
 
 def _load_query(con, model, cname):
@@ -227,6 +240,8 @@ def load_packaged_model(con, name: str = DEFAULT_MODEL) -> None:
     try:
         drop_model(con, name)
         for table in MODEL_TABLES:
+            if not d.joinpath(f"{table}.parquet").is_file():
+                continue  # e.g. a model without GA statistics
             path = str(d.joinpath(f"{table}.parquet")).replace("'", "''")
             cols = "model, description, source, fingerprint" if table == "models" else _COLUMNS[table]
             con.execute(f"INSERT INTO {table} ({cols}) SELECT {cols} FROM read_parquet('{path}')")
@@ -244,12 +259,13 @@ def export_model(con, name: str, directory) -> Path:
     for table in MODEL_TABLES:
         cols = "model, description, source, fingerprint" if table == "models" else _COLUMNS[table]
         order = {"models": "model", "classes": "class_id", "templates": "class, col",
-                 "keyframe_queries": "class", "keyframes": "class, k"}[table]
+                 "keyframe_queries": "class", "keyframes": "class, k",
+                 "ga_statistics": "class, run, generation"}[table]
         path = str(d / f"{table}.parquet").replace("'", "''")
         con.execute(f"COPY (SELECT {cols} FROM {table} WHERE model = ? ORDER BY {order}) TO '{path}' "
                     f"(FORMAT parquet)", [name])
     return d
 
 
-__all__ = ["DEFAULT_MODEL", "save_model", "model_from_payload", "load_model", "ensure_model", "model_names", "drop_model",
+__all__ = ["DEFAULT_MODEL", "save_model", "model_from_payload", "keyframe_query_stats", "load_model", "ensure_model", "model_names", "drop_model",
            "fingerprint", "load_packaged_model", "export_model", "query_from_rows"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from mocapdb.errors import ParameterError
 
-__all__ = ["plot_ga_statistics"]
+__all__ = ["plot_ga_statistics", "plot_annotation"]
 
 
 def _pyplot():
@@ -69,6 +69,67 @@ def plot_ga_statistics(statistics, path=None, *, title=None, show_best=True, dpi
     ax.set_ylim(max(0.0, np.floor(lo * 10) / 10 - 0.05), 1.01)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=dpi)
+    return fig
+
+
+def plot_annotation(segments, labels, n_frames, *, label_delta=None, fps=30.0, truth=None, path=None,
+                    title=None, dpi=150):
+    """An annotated motion as a timeline (paper Fig. 6): one row per label.
+
+    Parameters
+    ----------
+    segments : ndarray of mocapdb.annotation.SEGMENT_DTYPE
+        Segments of one document (0-based inclusive 30 Hz frames).
+    labels : sequence of str
+        Row order (the model's labels).
+    n_frames : int
+        Length of the motion in 30 Hz frames.
+    label_delta : (n_labels, n_frames) float, optional
+        Δ̄^τ per label (the segmenter's input, ``annotate(..., keep_deltas=True).label_delta``),
+        drawn as a curve in each row (inf = not drawn).
+    fps : float, default 30
+        Feature frame rate, for the time axis in seconds.
+    truth : ndarray of LABEL_DTYPE, optional
+        Ground truth on the same grid, drawn as grey bars under the segments.
+    path : str or Path, optional
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import numpy as np
+
+    plt = _pyplot()
+    labels = list(labels)
+    n = len(labels)
+    fig, ax = plt.subplots(figsize=(8.0, 0.45 * n + 1.2))
+    t = np.arange(n_frames) / fps
+    colors = plt.get_cmap("tab10")
+    for k, lab in enumerate(labels):
+        y = n - 1 - k
+        if truth is not None:
+            for r in truth[truth["label"] == lab]:
+                ax.barh(y, (r["end"] - r["start"] + 1) / fps, left=r["start"] / fps, height=0.8,
+                        color="0.85", edgecolor="none")
+        for s in segments[segments["label"] == lab]:
+            ax.barh(y, (s["end"] - s["start"] + 1) / fps, left=s["start"] / fps, height=0.45,
+                    color=colors(k % 10), edgecolor="none")
+        if label_delta is not None:
+            d = np.asarray(label_delta[k], dtype=np.float64)
+            top = np.nanmax(np.where(np.isfinite(d), d, np.nan)) if np.isfinite(d).any() else 1.0
+            ax.plot(t, y - 0.4 + 0.8 * np.where(np.isfinite(d), d / max(top, 1e-9), np.nan), color="black",
+                    linewidth=0.6)
+    ax.set_yticks(range(n))
+    ax.set_yticklabels(labels[::-1])
+    ax.set_xlim(0, max(n_frames / fps, 1e-3))
+    ax.set_ylim(-0.6, n - 0.4)
+    ax.set_xlabel("time [s]")
     if title:
         ax.set_title(title)
     fig.tight_layout()

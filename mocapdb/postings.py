@@ -102,12 +102,25 @@ def create_index(con, *, batch_frames: int = 4_000_000) -> int:
     except BaseException:
         con.rollback()
         raise
+    _refresh_macros(con)
     return n
+
+
+def _refresh_macros(con):
+    """Re-install the keyframe search macros after the index appeared or vanished
+    (on connections where the extension is registered; schema setup runs before)."""
+    from .database import sql_text
+
+    registered = con.execute("SELECT count(*) FROM duckdb_functions() "
+                             "WHERE function_name = 'mocap_keyframe_search'").fetchall()[0][0]
+    if registered:
+        con.execute(sql_text("keyframe_macros.sql" if index_exists(con) else "keyframe_macros_missing.sql"))
 
 
 def drop_index(con) -> None:
     """Remove the keyframe index (``DROP SCHEMA mocap_index CASCADE``)."""
     con.execute(f"DROP SCHEMA IF EXISTS {INDEX_SCHEMA} CASCADE")
+    _refresh_macros(con)
 
 
 def load_index(con, motion_ids=None, *, parts=STORED_PARTS) -> tuple[Index, list]:

@@ -93,6 +93,21 @@ CREATE TABLE IF NOT EXISTS keyframes (
     PRIMARY KEY (model, class, k)
 );
 
+-- Per-generation statistics of the GA runs that learned a model's keyframe
+-- queries (population averages: paper Fig. 5; `mocapdb report --figure ga`).
+CREATE TABLE IF NOT EXISTS ga_statistics (
+    model           VARCHAR NOT NULL,
+    class           VARCHAR NOT NULL,
+    run             INTEGER NOT NULL,
+    generation      INTEGER NOT NULL,
+    mean_precision  DOUBLE NOT NULL,
+    mean_recall     DOUBLE NOT NULL,
+    mean_fitness    DOUBLE NOT NULL,
+    best_fitness    DOUBLE NOT NULL,
+    mean_keyframes  DOUBLE NOT NULL,
+    PRIMARY KEY (model, class, run, generation)
+);
+
 -- Materialised annotation results (frames 1-based, inclusive, 30 Hz).
 CREATE TABLE IF NOT EXISTS annotations (
     motion_id    INTEGER NOT NULL,

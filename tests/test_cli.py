@@ -168,3 +168,46 @@ def test_eval_of_the_truth_itself_is_perfect(tmp_path):
             w.writerow([r["document"], r["label"], r["start"] + 1, r["end"] + 1])
     r = CliRunner().invoke(main, ["eval", "--truth", str(truth), "--pred", str(pred)])
     assert r.exit_code == 0 and _scores(r.output) == [1.0] * 6
+
+
+def test_learn_keyframes_is_reproducible_and_searchable(run, tmp_path):
+    root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps", "rotateArmsBothBackward1Reps"])
+    run("train", "--model", "three", "--folder", root, "--silent")
+    args = ("learn-keyframes", "--model", "three", "--folder", root, "--runs", "2", "--generations", "8",
+            "--jobs", "1", "--seed", "3", "--silent")
+    r = run(*args)
+    assert r.exit_code == 0, r.output
+    assert "squat1Reps" in r.output and "precision" in r.output
+    query = "SELECT class, k, mask, value, position, d_min, d_max FROM keyframes WHERE model = 'three' ORDER BY ALL"
+    first = run("sql", query, "--format", "csv").output
+    run(*args)
+    assert run("sql", query, "--format", "csv").output == first
+    stats = run("sql", "SELECT count(*) FROM ga_statistics WHERE model = 'three'", "--format", "csv").output
+    assert int(stats.splitlines()[1]) == 3 * 2 * 9  # classes x runs x (generations + 1)
+    run("ingest", root / "squat1Reps", "--silent")
+    hits = run("sql", "SELECT count(DISTINCT motion_id) FROM keyframe_search('squat1Reps', model := 'three')",
+               "--format", "csv").output
+    assert int(hits.splitlines()[1]) >= 30  # of the 40 squat clips it was trained on
+
+
+def test_index_drop_and_rebuild(run):
+    run("ingest", DATA / "hdm05_cut" / "kickLFront1Reps", "--silent")
+    before = run("sql", "SELECT count(*) FROM mocap_index.postings", "--format", "csv").output
+    assert "keyframe index dropped" in run("index", "--drop").output
+    assert run("sql", "SELECT count(*) FROM mocap_index.postings").exit_code == 1
+    r = run("index")
+    assert r.exit_code == 0 and f"{before.splitlines()[1]} postings" in r.output
+
+
+def test_report_figures(run, tmp_path):
+    pytest.importorskip("matplotlib", reason="figures need the 'plot' extra")
+    out = tmp_path / "fig5.png"
+    r = run("report", "--figure", "ga", "--out", out)
+    assert r.exit_code == 0, r.output
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    run("ingest", DATA / "cmu" / "86", "--silent")
+    out = tmp_path / "86_09.png"
+    r = run("report", "--figure", "annotation", "--motion", "86_09", "--out", out)
+    assert r.exit_code == 0 and out.stat().st_size > 10_000
+    r = run("report", "--figure", "annotation", "--out", out)
+    assert r.exit_code == 1 and "needs a motion" in r.output
