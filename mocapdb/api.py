@@ -76,7 +76,8 @@ def segments_of_documents(words, lengths, model, *, tau=None, keyframes=None):
         from .preselection import keyframe_preselection
 
         preselection = keyframe_preselection(words, lengths, model)
-    return annotate_words(words, model, doc_lengths=lengths, preselection=preselection, tau=tau).segments
+    return annotate_words(words, model, doc_lengths=lengths, preselection=preselection, tau=tau,
+                          keep_hits=False).segments
 
 
 def annotate_motions(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True):
@@ -340,8 +341,6 @@ def learn_keyframes(con, *, model=DEFAULT_MODEL, folder=None, label_csv=None, cl
     -------
     dict of str to mocapdb.ga.LearnedQuery
     """
-    import dataclasses
-
     from .ga import learn_keyframe_queries
     from .modelstore import keyframe_query_stats, save_model
 
@@ -361,20 +360,15 @@ def learn_keyframes(con, *, model=DEFAULT_MODEL, folder=None, label_csv=None, cl
     rows = [r[1:] for r in con.execute(
         "SELECT * FROM ga_statistics WHERE model = ? ORDER BY class, run, generation", [model]).fetchall()
         if r[1] not in learned]
-    new_classes = []
-    for c in m.classes:
-        lq = learned.get(c.name)
-        if lq is not None:
-            c = dataclasses.replace(c, keyframe_query=lq.query)
-            stats[c.name] = {"source": f"ga (runs={runs}, seed={seed})", "fitness": lq.fitness,
-                             "precision": lq.precision, "recall": lq.recall}
-            for r, res in enumerate(lq.runs):
-                st = res.statistics
-                rows += [(c.name, r, g, st.mean_precision[g], st.mean_recall[g], st.mean_fitness[g],
-                          st.best_fitness[g], st.mean_keyframes[g]) for g in range(st.generations + 1)]
-        new_classes.append(c)
+    for name, lq in learned.items():
+        stats[name] = {"source": f"ga (runs={runs}, seed={seed})", "fitness": lq.fitness,
+                       "precision": lq.precision, "recall": lq.recall}
+        for r, res in enumerate(lq.runs):
+            st = res.statistics
+            rows += [(name, r, g, st.mean_precision[g], st.mean_recall[g], st.mean_fitness[g],
+                      st.best_fitness[g], st.mean_keyframes[g]) for g in range(st.generations + 1)]
     meta = con.execute("SELECT description, source FROM models WHERE model = ?", [model]).fetchall()[0]
-    save_model(con, dataclasses.replace(m, classes=tuple(new_classes)), description=meta[0],
+    save_model(con, m.with_keyframe_queries({n: lq.query for n, lq in learned.items()}), description=meta[0],
                source=f"{meta[1]}; keyframe queries: GA from {source}", replace=True, keyframe_stats=stats,
                ga_statistics=rows)
     return learned

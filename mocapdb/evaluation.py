@@ -429,7 +429,13 @@ class DevelopmentEvaluation:
 
 
 def _preselect(preselection, model, docs):
-    return None if preselection is None else preselection(model, docs.words, docs.doc_lengths)
+    if preselection is not None:
+        return preselection(model, docs.words, docs.doc_lengths)
+    if any(c.keyframe_query is not None for c in model.classes):
+        from mocapdb.preselection import keyframe_preselection
+
+        return keyframe_preselection(docs.words, docs.doc_lengths, model)
+    return None
 
 
 def _annotate_rows(docs, model, tau, pre):
@@ -440,7 +446,7 @@ def _annotate_rows(docs, model, tau, pre):
 def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_DELTA,
                            clips_per_document=CLIPS_PER_DOCUMENT, held_out=None, classes=None,
                            class_labels=None, real_documents=True, preselection=None,
-                           sweep_taus=None, progress=None):
+                           keyframes=None, sweep_taus=None, progress=None):
     """Leave-one-actor-out and real-document evaluation of the annotation.
 
     For each held-out actor: train every class on the other actors' clips
@@ -472,7 +478,15 @@ def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_D
     preselection : callable, optional
         ``preselection(model, words, doc_lengths)`` → the ``preselection``
         argument of :func:`mocapdb.annotation.annotate` (per class a list of
-        (start, end) slices, e.g. from a keyframe search), or None.
+        (start, end) slices, e.g. from a keyframe search), or None. Default:
+        the keyframe preselection of :mod:`mocapdb.preselection` when the
+        model has keyframe queries, else none.
+    keyframes : callable, optional
+        ``keyframes(model, clips)`` → the model with keyframe queries, given
+        the clips it was trained on (class → list of (name, words)); e.g.
+        learned by the GA on them (:func:`mocapdb.ga.learn_keyframe_queries`)
+        or the toolbox's (:func:`mocapdb.toolbox_queries.toolbox_keyframe_queries`).
+        Default: no keyframe queries.
     sweep_taus : sequence of float, optional
         Also score the LOAO setting for each of these τ (Δ computed once per
         held-out actor; :func:`mocapdb.metrics.annotate_sweep`).
@@ -512,6 +526,8 @@ def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_D
         train = {c: [(n, w) for n, a, w in cl if a != actor] for c, cl in clip_words.items()}
         train = {c: v for c, v in train.items() if v}
         model = train_model(train, name=f"without_{actor}", labels=labels, delta=delta, tau=tau)
+        if keyframes is not None:
+            model = keyframes(model, train)
         models[model.name] = model
         timings["train"] += time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -540,8 +556,10 @@ def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_D
         vocab["loao"] = tuple(dict.fromkeys(lab for m in models.values() for lab in m.labels))
     if real_documents:
         t0 = time.perf_counter()
-        full = train_model({c: [(n, w) for n, _, w in cl] for c, cl in clip_words.items()},
-                           name="all", labels=labels, delta=delta, tau=tau)
+        everything = {c: [(n, w) for n, _, w in cl] for c, cl in clip_words.items()}
+        full = train_model(everything, name="all", labels=labels, delta=delta, tau=tau)
+        if keyframes is not None:
+            full = keyframes(full, everything)
         models["all"] = full
         timings["train"] += time.perf_counter() - t0
         t0 = time.perf_counter()

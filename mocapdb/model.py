@@ -5,6 +5,7 @@ A :class:`Model` is an ordered set of :class:`ClassModel` (fine classes, e.g.
 label order breaks ties in Δarg (TEMPLATES.md §10.2–§10.3, paper Sect. 4).
 Storage (DuckDB / Parquet) lives elsewhere.
 """
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -130,3 +131,18 @@ class Model:
 
     def __len__(self):
         return len(self.classes)
+
+    def with_keyframe_queries(self, queries):
+        """A copy whose classes carry the given keyframe queries.
+
+        Parameters
+        ----------
+        queries : mapping of str to KeyframeQuery
+            Class name → query; classes not in it keep theirs.
+        """
+        unknown = sorted(set(queries) - set(self.class_names))
+        if unknown:
+            raise ParameterError(f"queries name classes {unknown} that the model does not have")
+        classes = tuple(dataclasses.replace(c, keyframe_query=queries[c.name]) if c.name in queries else c
+                        for c in self.classes)
+        return Model(self.name, classes, labels=self.labels)

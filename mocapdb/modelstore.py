@@ -227,6 +227,7 @@ def model_from_payload(payload: dict) -> Model:
 # -- the shipped default model ------------------------------------------------
 
 def packaged_model_dir(name: str = DEFAULT_MODEL):
+    """Where a model shipped with the package keeps its Parquet files."""
     return resources.files("mocapdb.models").joinpath(name)
 
 

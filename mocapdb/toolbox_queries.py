@@ -12,7 +12,6 @@ keyframes" model used by the benchmarks and by comparisons with learned
 from __future__ import annotations
 
 import csv
-import dataclasses
 from pathlib import Path
 
 from .errors import ParameterError, ParseError
@@ -147,14 +146,13 @@ def toolbox_keyframe_queries(model: Model, *, queries_dir) -> Model:
         raise ParameterError(f"model must be a mocapdb.model.Model, got {type(model).__name__}")
     if not Path(queries_dir).is_dir():
         raise ParameterError(f"queries_dir={str(queries_dir)!r} is not a folder")
-    classes = []
+    queries = {}
     for c in model.classes:
         if has_toolbox_query(queries_dir, c.name):
-            q = read_toolbox_query(queries_dir, c.name)
+            queries[c.name] = read_toolbox_query(queries_dir, c.name)
         else:
             try:
-                q = choose_keyframes_equally_distributed(c.quantized.mask, c.quantized.value)
+                queries[c.name] = choose_keyframes_equally_distributed(c.quantized.mask, c.quantized.value)
             except ParameterError as e:
                 raise ParameterError(f"class {c.name!r}: {e}") from None
-        classes.append(dataclasses.replace(c, keyframe_query=q))
-    return Model(model.name, tuple(classes), labels=model.labels)
+    return model.with_keyframe_queries(queries)
