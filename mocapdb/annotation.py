@@ -16,12 +16,13 @@ of the document within the call.
 """
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from mocapdb._numba import jit, pjit, prange
 from mocapdb.errors import ParameterError
 from mocapdb.model import DEFAULT_TAU, Model
-from mocapdb.sdtw import ANNOTATION_STEPS, DEFAULT_CHUNK, mt_distance_slices
+from mocapdb.sdtw import ANNOTATION_STEPS, DEFAULT_CHUNK, _as_words, mt_distance_slices
 
 __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotate",
            "extract_hits", "combine_by_label", "frame_labels", "form_segments"]
@@ -34,8 +35,11 @@ SEGMENT_DTYPE = np.dtype([("label", "U64"), ("doc", np.int64), ("start", np.int6
 #: hits: ``class_id`` indexes :attr:`Annotation.class_names` (hits are many)
 HIT_DTYPE = np.dtype([("class_id", np.int64), ("doc", np.int64), ("start", np.int64),
                       ("end", np.int64), ("cost", np.float64)])
-#: documents per internal batch of :func:`annotate` (bounds memory on archives)
-BATCH_FRAMES = 1 << 20
+#: class × frame cells per internal batch of :func:`annotate`: bounds the
+#: memory on archives and keeps every per-class float64 array (16 MiB) below
+#: glibc's largest mmap threshold (32 MiB), so a batch reuses the heap pages
+#: of the one before instead of faulting in fresh ones
+BATCH_CELLS = 1 << 21
 
 
 # ---------------------------------------------------------------------------
@@ -53,52 +57,93 @@ def _count_candidates_kernel(delta, offsets, tau, out):  # pragma: no cover
         out[q] = n
 
 
+@jit
+def _sort_by_key(idx, tmp, n, key, a):  # pragma: no cover
+    """Stable sort of idx[:n] by key[a + idx[k]], in place (tmp: n scratch slots).
+
+    Insertion sort of runs of 16, then bottom-up merges (ties keep the
+    earlier element): the order of ``np.argsort(kind="mergesort")`` without
+    allocating. Keys must not be NaN.
+    """
+    run = 16
+    for lo in range(0, n, run):
+        hi = min(lo + run, n)
+        for i in range(lo + 1, hi):
+            x = idx[i]
+            v = key[a + x]
+            k = i - 1
+            while k >= lo and key[a + idx[k]] > v:
+                idx[k + 1] = idx[k]
+                k -= 1
+            idx[k + 1] = x
+    src, dst = idx, tmp
+    in_tmp = False
+    width = run
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid = min(lo + width, n)
+            hi = min(lo + 2 * width, n)
+            i, j = lo, mid
+            for k in range(lo, hi):
+                if j >= hi or (i < mid and key[a + src[i]] <= key[a + src[j]]):
+                    dst[k] = src[i]
+                    i += 1
+                else:
+                    dst[k] = src[j]
+                    j += 1
+        src, dst = dst, src
+        in_tmp = not in_tmp
+        width *= 2
+    if in_tmp:
+        for k in range(n):
+            idx[k] = tmp[k]
+
+
 @pjit
-def _extract_hits_kernel(delta, starts, offsets, task_first, tau, limit, cap_off,
-                         cd, hit_start, hit_end, hit_cost, n_hits):  # pragma: no cover
+def _extract_hits_kernel(delta, starts, offsets, task_first, tau, limit, cap_off, want_hits,
+                         cd, hit_start, hit_end, hit_cost, n_hits, cand_buf,
+                         tmp_buf):  # pragma: no cover
     """Hit extraction (§9.1) for many tasks (slices of the flat Δ) in parallel.
 
     Task q owns delta[offsets[q]:offsets[q+1]]; starts are word indices,
     task_first[q] the word index of its first frame. Repeatedly taking the
     first minimum of Δ over the frames not yet excluded equals walking the
     frames with Δ <= τ in (Δ, frame) order and skipping excluded ones, since
-    exclusion only raises values to +inf. Writes cd (Δ̄^τ) over the task and
-    at most min(#candidates, limit) hits at cap_off[q]...; n_hits[q] = count,
-    or -1 if the limit was reached (the toolbox raises an error then).
+    exclusion only raises values to +inf. A frame is excluded once a hit
+    covers it, i.e. once its cd is no longer +inf (hit costs are <= τ, never
+    +inf). Writes cd (Δ̄^τ) over the task and, if want_hits, at most
+    min(#candidates, limit) hits at cap_off[q]...; n_hits[q] = count, or -1
+    if the limit was reached (the toolbox raises an error then).
+    cand_buf, tmp_buf: one row of scratch per worker thread
+    (numba.get_thread_id()), at least as long as any task's candidate count.
     """
     for q in prange(offsets.shape[0] - 1):
+        tid = numba.get_thread_id()
+        cand = cand_buf[tid]
         a = offsets[q]
         n = offsets[q + 1] - a
         ncand = 0
         for j in range(n):
             cd[a + j] = np.inf
             if delta[a + j] <= tau[q]:
+                cand[ncand] = j
                 ncand += 1
-        cand = np.empty(ncand, dtype=np.int64)
-        vals = np.empty(ncand)
-        k = 0
-        for j in range(n):
-            if delta[a + j] <= tau[q]:
-                cand[k] = j
-                vals[k] = delta[a + j]
-                k += 1
-        order = np.argsort(vals, kind="mergesort")  # stable: ties by frame
-        excluded = np.zeros(n, dtype=np.bool_)
+        _sort_by_key(cand, tmp_buf[tid], ncand, delta, a)
         h = 0
         o = cap_off[q]
         for k in range(ncand):
-            e = cand[order[k]]
-            if excluded[e]:
+            e = cand[k]
+            if cd[a + e] < np.inf:
                 continue
-            cost = vals[order[k]]
+            cost = delta[a + e]
             s = starts[a + e] - task_first[q]
             for f in range(s, e + 1):
-                excluded[f] = True
                 if cd[a + f] == np.inf:
                     cd[a + f] = cost
-            hit_start[o + h] = s
-            hit_end[o + h] = e
-            hit_cost[o + h] = cost
+            if want_hits:
+                hit_start[o + h] = s
+                hit_end[o + h] = e
+                hit_cost[o + h] = cost
             h += 1
             if h == limit:
                 h = -1
@@ -213,22 +258,33 @@ def _check_limit(match_num_max):
     return int(match_num_max)
 
 
-def _run_hits(delta, starts, offsets, task_first, taus, limit):
-    """Allocate and run :func:`_extract_hits_kernel` over the tasks of a flat Δ."""
+def _run_hits(delta, starts, offsets, task_first, taus, limit, *, want_hits=True):
+    """Allocate and run :func:`_extract_hits_kernel` over the tasks of a flat Δ.
+
+    Without ``want_hits`` only cd and the hit counts are produced (the hit
+    arrays are empty and cap_off is None).
+    """
     n_tasks = offsets.shape[0] - 1
-    cap = np.empty(n_tasks, np.int64)
-    _count_candidates_kernel(delta, offsets, taus, cap)
-    if limit > 0:
-        cap = np.minimum(cap, limit)
-    cap_off = np.concatenate(([0], np.cumsum(cap))).astype(np.int64)
+    ncand = np.empty(n_tasks, np.int64)
+    _count_candidates_kernel(delta, offsets, taus, ncand)
+    cap = np.minimum(ncand, limit) if limit > 0 else ncand
+    if want_hits:
+        cap_off = np.concatenate(([0], np.cumsum(cap))).astype(np.int64)
+    else:
+        cap_off = np.zeros(n_tasks + 1, np.int64)
+    n_out = int(cap_off[-1])
+    hs = np.empty(n_out, np.int64)
+    he = np.empty(n_out, np.int64)
+    hc = np.empty(n_out)
     cd = np.empty_like(delta)
-    hs = np.empty(cap_off[-1], np.int64)
-    he = np.empty(cap_off[-1], np.int64)
-    hc = np.empty(cap_off[-1])
     n_hits = np.empty(n_tasks, np.int64)
+    # per-thread scratch for the candidates of one task and the sort
+    width = int(ncand.max(initial=0))
+    nthr = numba.config.NUMBA_NUM_THREADS
     _extract_hits_kernel(delta, starts, offsets, task_first, taus, limit, cap_off,
-                         cd, hs, he, hc, n_hits)
-    return cd, hs, he, hc, cap_off, n_hits
+                         bool(want_hits), cd, hs, he, hc, n_hits,
+                         np.empty((nthr, width), np.int64), np.empty((nthr, width), np.int64))
+    return cd, hs, he, hc, (cap_off if want_hits else None), n_hits
 
 
 def extract_hits(delta, starts, *, tau=DEFAULT_TAU, match_num_max=MATCH_NUM_MAX):
@@ -419,7 +475,7 @@ class Annotation:
     hits : ndarray of HIT_DTYPE
         Every hit (class_id, doc, start, end, cost) per class in model order,
         then document / slice order, then extraction order; ``class_id``
-        indexes ``class_names``.
+        indexes ``class_names``. Empty if annotated with ``keep_hits=False``.
     labels : tuple of str
     class_names : tuple of str
     delta : ndarray, shape (n_classes, N), or None
@@ -509,9 +565,69 @@ def _preselection_tasks(preselection, model, bounds):
     return tuple(np.concatenate(x).astype(np.int64) for x in (tc, ta, tb))
 
 
+def _batches(bounds, n_frames):
+    """Batches (first doc, end doc) of whole documents of about ``n_frames`` frames.
+
+    A batch takes the documents that start within one window of
+    ``n_frames`` frames (a longer document makes a batch of its own).
+    """
+    n_doc = bounds.size - 1
+    if n_doc == 0:
+        return [(0, 0)]
+    window = bounds[:-1] // n_frames
+    edges = np.concatenate(([0], np.flatnonzero(np.diff(window)) + 1, [n_doc]))
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+
+
+def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max, steps, rule,
+                    *, tiled, keep_hits, keep_deltas):
+    """:func:`annotate` on documents g0..g1-1: (segments, hits or None, deltas or None).
+
+    One function per batch so that its arrays are freed before the next.
+    ``hits``: (task, class_id, doc, start, end, cost) arrays in task, then
+    extraction order (``task`` indexes ``tasks``).
+    """
+    tc, ta, tb, task_doc = tasks
+    f0, f1 = int(bounds[g0]), int(bounds[g1])
+    sel = np.flatnonzero((task_doc >= g0) & (task_doc < g1))
+    tc, ta, tb, task_doc = tc[sel], ta[sel], tb[sel], task_doc[sel]
+    n_cls, labels = len(model.classes), model.labels
+    delta, offsets, starts = mt_distance_slices(
+        w, [c.quantized for c in model.classes], tc, ta, tb,
+        steps=steps, rule=rule, return_starts=True, chunk_size=DEFAULT_CHUNK)
+    cd, hs, he, hc, cap_off, n_hits = _run_hits(delta, starts, offsets, ta, taus[tc], limit,
+                                                want_hits=keep_hits)
+    del starts
+    if (n_hits < 0).any():
+        q = int(np.flatnonzero(n_hits < 0)[0])
+        raise ParameterError(
+            f"class {model.classes[tc[q]].name!r}: match_num_max={match_num_max} "
+            f"hits reached in document {task_doc[q]} (the toolbox stops with an "
+            "error here); raise match_num_max, pass None, or use keyframe preselection")
+    hits = None
+    if keep_hits:
+        # class, doc, start/end within the document
+        tot = int(n_hits.sum())
+        qq = np.repeat(np.arange(n_hits.size), n_hits)
+        idx = cap_off[:-1][qq] + (np.arange(tot) - (np.cumsum(n_hits) - n_hits)[qq])
+        hdoc = task_doc[qq]
+        first_in_doc = ta[qq] - bounds[hdoc]
+        hits = (sel[qq], tc[qq], hdoc, hs[idx] + first_in_doc, he[idx] + first_in_doc, hc[idx])
+    # per-class arrays over the batch, +inf outside the tasks
+    full_cd = _per_class(cd, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
+    label_cd = combine_by_label(full_cd, model.label_index, len(labels))
+    segs = form_segments(label_cd, doc_lengths=np.diff(bounds[g0:g1 + 1]), labels=labels)
+    segs["doc"] += g0
+    kept = None
+    if keep_deltas:
+        full_delta = _per_class(delta, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
+        kept = (full_delta, full_cd, label_cd)
+    return segs, hits, kept
+
+
 def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
              match_num_max=MATCH_NUM_MAX, steps=ANNOTATION_STEPS, rule="toolbox",
-             keep_deltas=False):
+             keep_deltas=False, keep_hits=True):
     """Annotate documents with a model of motion templates (the whole chain).
 
     For every class: Δ of its quantized template on every document (or only
@@ -540,6 +656,10 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
     keep_deltas : bool, default False
         Keep Δ, Δ̄^τ per class and per label in the result (memory: 3 float64
         arrays of n_classes × N).
+    keep_hits : bool, default True
+        Collect the hits (40 bytes each; on the real data about 0.8 per
+        frame with 15 classes). False leaves ``Annotation.hits`` empty; the
+        segments are the same.
 
     Returns
     -------
@@ -556,73 +676,46 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
     """
     if not isinstance(model, Model):
         raise ParameterError(f"model must be a mocapdb.model.Model, got {type(model).__name__}")
-    w = np.asarray(words)
-    if w.ndim != 1:
-        raise ParameterError(f"words must be a 1-D array of uint64 words, got shape {w.shape}")
+    w = _as_words(words)
     bounds = _doc_bounds(doc_lengths, w.shape[0])
     limit = _check_limit(match_num_max)
     taus = np.array([_check_tau(c.tau if tau is None else tau) for c in model.classes])
     tc, ta, tb = _preselection_tasks(preselection, model, bounds)
+    tasks = (tc, ta, tb, np.searchsorted(bounds, ta, side="right") - 1)
     labels = model.labels
-    n_cls, n_lab = len(model.classes), len(labels)
+    n_cls = len(model.classes)
     # batches of whole documents bound the memory of the per-class arrays
     if keep_deltas:
         groups = [(0, bounds.size - 1)]
     else:
-        groups = []
-        d0 = 0
-        for d in range(1, bounds.size):
-            if bounds[d] - bounds[d0] >= BATCH_FRAMES or d == bounds.size - 1:
-                groups.append((d0, d))
-                d0 = d
-        groups = groups or [(0, 0)]
-    task_doc = np.searchsorted(bounds, ta, side="right") - 1
+        groups = _batches(bounds, max(1, BATCH_CELLS // max(1, n_cls)))
     seg_parts, hit_parts = [], []
     kept = None
     for g0, g1 in groups:
-        f0, f1 = int(bounds[g0]), int(bounds[g1])
-        sel = np.flatnonzero((task_doc >= g0) & (task_doc < g1))
-        delta, offsets, starts = mt_distance_slices(
-            w, [c.quantized for c in model.classes], tc[sel], ta[sel], tb[sel],
-            steps=steps, rule=rule, return_starts=True, chunk_size=DEFAULT_CHUNK)
-        cd, hs, he, hc, cap_off, n_hits = _run_hits(
-            delta, starts, offsets, ta[sel], taus[tc[sel]], limit)
-        if (n_hits < 0).any():
-            q = int(np.flatnonzero(n_hits < 0)[0])
-            raise ParameterError(
-                f"class {model.classes[tc[sel][q]].name!r}: match_num_max={match_num_max} "
-                f"hits reached in document {task_doc[sel][q]} (the toolbox stops with an "
-                "error here); raise match_num_max, pass None, or use keyframe preselection")
-        # hits: class, doc, start/end within the document
-        tot = int(n_hits.sum())
-        qq = np.repeat(np.arange(n_hits.size), n_hits)
-        idx = cap_off[:-1][qq] + (np.arange(tot) - (np.cumsum(n_hits) - n_hits)[qq])
-        hdoc = task_doc[sel][qq]
-        first_in_doc = ta[sel][qq] - bounds[hdoc]
-        hit_parts.append((tc[sel][qq], hdoc, hs[idx] + first_in_doc, he[idx] + first_in_doc,
-                          hc[idx]))
-        # per-class arrays over the batch, +inf outside the tasks
-        full_cd = _per_class(cd, offsets, tc[sel], ta[sel] - f0, (n_cls, f1 - f0),
-                             tiled=preselection is None)
-        label_cd = combine_by_label(full_cd, model.label_index, n_lab)
-        segs = form_segments(label_cd, doc_lengths=np.diff(bounds[g0:g1 + 1]), labels=labels)
-        segs["doc"] += g0
+        segs, hits, kept = _annotate_batch(
+            w, model, bounds, g0, g1, tasks, taus, limit, match_num_max, steps, rule,
+            tiled=preselection is None, keep_hits=keep_hits, keep_deltas=keep_deltas)
         seg_parts.append(segs)
-        if keep_deltas:
-            full_delta = _per_class(delta, offsets, tc[sel], ta[sel] - f0, (n_cls, f1 - f0),
-                                    tiled=preselection is None)
-            kept = (full_delta, full_cd, label_cd)
+        if keep_hits:
+            hit_parts.append(hits)
     segments = np.concatenate(seg_parts)
     if len(seg_parts) > 1:
+        # each batch is sorted by (label, doc, start) and batches follow in
+        # document order: a stable sort by label order finishes the job
         li = {lab: k for k, lab in enumerate(labels)}
-        segments = segments[np.lexsort((segments["start"], segments["doc"],
-                                        [li[x] for x in segments["label"]]))]
-    # hits per class in model order, then document / slice, then extraction order
-    hc_, hd_, hs_, he_, hcost = (np.concatenate(x) for x in zip(*hit_parts))
-    order = np.argsort(hc_, kind="stable")
-    hits = np.empty(order.size, dtype=HIT_DTYPE)
-    hits["class_id"], hits["doc"], hits["start"], hits["end"], hits["cost"] = (
-        hc_[order], hd_[order], hs_[order], he_[order], hcost[order])
+        names, inv = np.unique(segments["label"], return_inverse=True)
+        rank = np.array([li[x] for x in names], dtype=np.int64)[inv]
+        segments = segments[np.argsort(rank, kind="stable")]
+    hits = np.empty(0, dtype=HIT_DTYPE)
+    if keep_hits:
+        # tasks are class-major, then document / slice order (the preselection's);
+        # batches took them by document: order by task, then extraction order
+        htask, *cols = (np.concatenate(x) for x in zip(*hit_parts))
+        del hit_parts
+        order = np.argsort(htask, kind="stable")
+        hits = np.empty(order.size, dtype=HIT_DTYPE)
+        for name, x in zip(HIT_DTYPE.names, cols):
+            hits[name] = x[order]
     if kept is None:
         return Annotation(segments, hits, labels, model.class_names)
     return Annotation(segments, hits, labels, model.class_names, *kept)

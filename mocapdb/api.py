@@ -304,7 +304,7 @@ def evaluate(con, truth_csv, *, model=DEFAULT_MODEL, tau=None, keyframes=None, l
         pre = keyframe_preselection(words, lengths, m)
     if taus is not None:
         return sweep_tau(words, m, truth, taus, documents=names, doc_lengths=lengths, preselection=pre)
-    segs = annotate_words(words, m, doc_lengths=lengths, preselection=pre, tau=tau).segments
+    segs = annotate_words(words, m, doc_lengths=lengths, preselection=pre, tau=tau, keep_hits=False).segments
     return evaluate_annotation(truth, segments_to_rows(segs, names), labels=m.labels)
 
 
@@ -411,7 +411,7 @@ def plot_figure(con, figure, path, *, model=DEFAULT_MODEL, motion=None, keyframe
         from .preselection import keyframe_preselection
 
         pre = keyframe_preselection(words, lengths, m)
-    ann = annotate_words(words, m, doc_lengths=lengths, preselection=pre, keep_deltas=True)
+    ann = annotate_words(words, m, doc_lengths=lengths, preselection=pre, keep_deltas=True, keep_hits=False)
     plots.plot_annotation(ann.segments, m.labels, int(lengths[0]), label_delta=ann.label_delta, fps=float(fps[0]),
                           path=path, title=f"{names[0]} — model {model}{' with keyframes' if use_kf else ''}")
 

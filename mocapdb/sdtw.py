@@ -79,118 +79,160 @@ _popcount = _popcount_python if numba.config.DISABLE_JIT else _popcount_intrinsi
 
 
 @jit
-def _dp_column(c, K, jj, D, S, pb, R1, pad, di, dj, sw, rule, want_starts):  # pragma: no cover
-    """Advance the subsequence DP by one document frame.
+def _pred_base(jj, di, dj, R1, L, pad):  # pragma: no cover
+    """Ring index of the predecessor of row 0 along step (di, dj) at DP frame jj.
 
-    c (>=K,) local costs of the frame against the K template columns; jj the
-    frame's index relative to the first frame of the DP. D (float64), S
-    (int32) flat ring buffers of R1 + 1 slots of pad + K rows (accumulated
-    cost, start frame relative to the DP's first frame): slots 0..R1-1 rotate
-    over frames, slot R1 stays +inf / -1 and stands for frames before the
-    DP's first frame; rows 0..pad-1 of a slot are +inf padding for
-    predecessors above row 0. pb (n_steps,) int64 scratch. di, dj, sw are
-    tuples (the kernels specialise on their length).
-
-    Selection is written as branch-free selects over the steps in order with
-    strict "<" (first step wins ties); +inf (no path) never wins against a
-    finite value and inf + w·c stays inf, so no special case is needed.
-    Returns the offset of row 0 in the slot written.
+    Frames before the DP's first frame map to the all-+inf slot R1; row
+    ``-di`` lands in the slot's +inf padding.
     """
-    L = pad + K
-    nS = len(di)
-    cur = (jj % R1) * L + pad
-    for s in range(nS):
-        q = jj - dj[s]
-        pb[s] = ((q % R1) if q >= 0 else R1) * L + pad - di[s]
-    # row 0: free start
-    d0 = c[0]
-    if rule == 1:
-        # librosa also relaxes row 0 along steps with di = 0
-        for s in range(nS):
-            if di[s] == 0:
-                v = D[pb[s]] + sw[s] * c[0]
-                if v < d0:
-                    d0 = v
-    D[cur] = d0
-    if want_starts:
-        S[cur] = jj
-    if nS == 3:
-        # the annotation case: step offsets and weights in registers
-        k0, k1, k2 = 0, 1, 2
-        b0, b1, b2 = pb[k0], pb[k1], pb[k2]
-        w0, w1, w2 = sw[k0], sw[k1], sw[k2]
-        if rule == 0:
-            # toolbox: choose by predecessor value alone, then add weight * C
-            for i in range(1, K):
-                v0 = D[b0 + i]
-                v1 = D[b1 + i]
-                v2 = D[b2 + i]
-                m1 = v1 < v0
-                best = v1 if m1 else v0
-                bw = w1 if m1 else w0
-                m2 = v2 < best
-                best = v2 if m2 else best
-                bw = w2 if m2 else bw
-                best = best + bw * c[i]
-                D[cur + i] = best
-                if want_starts:
-                    # unconditional loads, then selects: no data-dependent branch
-                    s0 = S[b0 + i]
-                    s1 = S[b1 + i]
-                    s2 = S[b2 + i]
-                    st = s1 if m1 else s0
-                    st = s2 if m2 else st
-                    S[cur + i] = st if best < np.inf else -1
-        else:
-            # textbook: minimise predecessor + weight * C
-            for i in range(1, K):
-                ci = c[i]
-                v0 = D[b0 + i] + w0 * ci
-                v1 = D[b1 + i] + w1 * ci
-                v2 = D[b2 + i] + w2 * ci
-                m1 = v1 < v0
-                best = v1 if m1 else v0
-                m2 = v2 < best
-                best = v2 if m2 else best
-                D[cur + i] = best
-                if want_starts:
-                    s0 = S[b0 + i]
-                    s1 = S[b1 + i]
-                    s2 = S[b2 + i]
-                    st = s1 if m1 else s0
-                    st = s2 if m2 else st
-                    S[cur + i] = st if best < np.inf else -1
-        return cur
-    for i in range(1, K):
-        ci = c[i]
-        best = D[pb[0] + i] if rule == 0 else D[pb[0] + i] + sw[0] * ci
-        bw = sw[0]
-        bb = pb[0]
-        for s in range(1, nS):
-            v = D[pb[s] + i] if rule == 0 else D[pb[s] + i] + sw[s] * ci
-            m = v < best
-            best = v if m else best
-            bw = sw[s] if m else bw
-            bb = pb[s] if m else bb
-        if rule == 0:
-            best = best + bw * ci
-        D[cur + i] = best
-        if want_starts:
-            S[cur + i] = S[bb + i] if best < np.inf else -1
-    return cur
+    q = jj - dj
+    return ((q % R1) if q >= 0 else R1) * L + pad - di
 
 
 @jit
-def _reset_ring(D, S, n):  # pragma: no cover
-    for k in range(n):
+def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, di, dj, sw, rule,
+             want_starts, delta, starts, o):  # pragma: no cover
+    """Subsequence DP of one template over frames a0..hi-1 of a document or slice.
+
+    Local costs of frame j: from the packed word ``words[j]`` against the K
+    template columns (masks, values (K,) uint64; tables (K, 41)), or, if C
+    has rows, the dense column ``C[:, j]``. Writes Δ of frames lo..hi-1 to
+    ``delta[o + j]`` and, if want_starts, their start frames (frame indices,
+    -1 where Δ is +inf) to ``starts[o + j]``; frames a0..lo-1 only warm the
+    DP up (chunking, §12).
+
+    Scratch: D (float64), S (int32) flat ring buffers of R1 + 1 slots of
+    pad + K rows (accumulated cost; start frame relative to a0): slots
+    0..R1-1 rotate over frames, slot R1 stays +inf / -1 and stands for frames
+    before a0; rows 0..pad-1 of a slot are +inf padding for predecessors
+    above row 0. c (>= K,) float64 the frame's costs. di, dj, sw are tuples
+    of >= 3 steps (the kernels specialise on their length; _check_steps pads
+    shorter step sets).
+
+    Selection uses selects over the steps in order with strict "<" (first
+    step wins ties); +inf (no path) never wins against a finite value and
+    inf + w·c stays inf, so no special case is needed. The whole frame loop
+    is one function: a call per frame would cost as much as a column.
+    """
+    L = pad + K
+    nS = len(di)
+    dense = C.shape[0] > 0
+    for k in range((R1 + 1) * L):
         D[k] = np.inf
         S[k] = -1
+    w0, w1, w2 = sw[0], sw[1], sw[2]
+    for j in range(a0, hi):
+        if dense:
+            for i in range(K):
+                c[i] = C[i, j]
+        else:
+            wd = words[j]
+            for i in range(K):
+                c[i] = tables[i, _popcount((values[i] ^ wd) & masks[i])]
+        jj = j - a0
+        cur = (jj % R1) * L + pad
+        # row 0: free start
+        d0 = c[0]
+        if rule == 1:
+            # librosa also relaxes row 0 along steps with di = 0
+            for s in range(nS):
+                if di[s] == 0:
+                    v = D[_pred_base(jj, 0, dj[s], R1, L, pad)] + sw[s] * c[0]
+                    if v < d0:
+                        d0 = v
+        D[cur] = d0
+        S[cur] = jj
+        if nS == 3:
+            # Three steps (the annotation and retrieval steps; fewer are
+            # padded): column views whose element i is row i's predecessor,
+            # so every index is the loop counter — no negative-index
+            # wraparound, no data-dependent branch — and LLVM vectorises the
+            # Δ loop (its runtime overlap check falls back to the sequential
+            # loop for steps with dj = 0, which read the column being
+            # written). The starts, if wanted, take a second loop repeating
+            # the selection: cheaper than one loop doing both.
+            b0 = _pred_base(jj, di[0], dj[0], R1, L, pad)
+            b1 = _pred_base(jj, di[1], dj[1], R1, L, pad)
+            b2 = _pred_base(jj, di[2], dj[2], R1, L, pad)
+            Dc = D[cur:cur + K]
+            P0 = D[b0:b0 + K]
+            P1 = D[b1:b1 + K]
+            P2 = D[b2:b2 + K]
+            if rule == 0:
+                # toolbox: choose by predecessor value alone, then add weight * C
+                for i in range(1, K):
+                    v0 = P0[i]
+                    v1 = P1[i]
+                    v2 = P2[i]
+                    m1 = v1 < v0
+                    best = v1 if m1 else v0
+                    bw = w1 if m1 else w0
+                    m2 = v2 < best
+                    best = v2 if m2 else best
+                    bw = w2 if m2 else bw
+                    Dc[i] = best + bw * c[i]
+            else:
+                # textbook: minimise predecessor + weight * C
+                for i in range(1, K):
+                    ci = c[i]
+                    v0 = P0[i] + w0 * ci
+                    v1 = P1[i] + w1 * ci
+                    v2 = P2[i] + w2 * ci
+                    best = v1 if v1 < v0 else v0
+                    Dc[i] = v2 if v2 < best else best
+            if want_starts:
+                Sc = S[cur:cur + K]
+                T0 = S[b0:b0 + K]
+                T1 = S[b1:b1 + K]
+                T2 = S[b2:b2 + K]
+                for i in range(1, K):
+                    v0 = P0[i]
+                    v1 = P1[i]
+                    v2 = P2[i]
+                    if rule == 1:  # textbook: compare predecessor + weight * C
+                        ci = c[i]
+                        v0 = v0 + w0 * ci
+                        v1 = v1 + w1 * ci
+                        v2 = v2 + w2 * ci
+                    m1 = v1 < v0
+                    best = v1 if m1 else v0
+                    m2 = v2 < best
+                    # unconditional loads, then selects: no data-dependent branch
+                    s0 = T0[i]
+                    s1 = T1[i]
+                    s2 = T2[i]
+                    st = s1 if m1 else s0
+                    st = s2 if m2 else st
+                    Sc[i] = st if Dc[i] < np.inf else np.int32(-1)
+        else:
+            # more steps: one scalar loop over rows and steps
+            for i in range(1, K):
+                ci = c[i]
+                bb = _pred_base(jj, di[0], dj[0], R1, L, pad)
+                best = D[bb + i] if rule == 0 else D[bb + i] + sw[0] * ci
+                bw = sw[0]
+                for s in range(1, nS):
+                    b = _pred_base(jj, di[s], dj[s], R1, L, pad)
+                    v = D[b + i] if rule == 0 else D[b + i] + sw[s] * ci
+                    m = v < best
+                    best = v if m else best
+                    bw = sw[s] if m else bw
+                    bb = b if m else bb
+                if rule == 0:
+                    best = best + bw * ci
+                D[cur + i] = best
+                S[cur + i] = S[bb + i] if best < np.inf else -1
+        if j >= lo:
+            delta[o + j] = D[cur + K - 1]
+            if want_starts:
+                st = S[cur + K - 1]
+                starts[o + j] = st + a0 if st >= 0 else -1
 
 
 @pjit
 def _mt_distance_kernel(words, masks, values, tables, toff, overlap, di, dj, sw, rule, R1, pad,
                         it, iseg, ilo, ihi, iout, delta, starts, want_starts,
-                        Dbuf, Sbuf, cbuf, pbuf):  # pragma: no cover
+                        Dbuf, Sbuf, cbuf):  # pragma: no cover
     """Δ for many (template, document slice, chunk) work items, in parallel.
 
     words (N,) uint64; masks, values (ΣK,) uint64 and tables (ΣK, 41) of all
@@ -199,33 +241,21 @@ def _mt_distance_kernel(words, masks, values, tables, toff, overlap, di, dj, sw,
     the slice of words starting at iseg[q], output frames ilo[q]:ihi[q]
     written to delta[iout[q] + (j - ilo[q])] (and starts, word indices, if
     want_starts). Every item writes only its own output range. Dbuf, Sbuf,
-    cbuf, pbuf: one row of scratch per worker thread (numba.get_thread_id()).
+    cbuf: one row of scratch per worker thread (numba.get_thread_id()).
     """
+    no_dense = np.empty((0, 0))
     for q in prange(it.shape[0]):
         tid = numba.get_thread_id()
-        D = Dbuf[tid]
-        S = Sbuf[tid]
-        c = cbuf[tid]
-        pb = pbuf[tid]
         t = it[q]
-        base = toff[t]
-        K = toff[t + 1] - base
+        a = toff[t]
+        b = toff[t + 1]
         lo = ilo[q]
         a0 = iseg[q]
         if overlap[t] >= 0:
             a0 = max(a0, lo - overlap[t])
-        _reset_ring(D, S, (R1 + 1) * (pad + K))
-        o = iout[q] - lo
-        for j in range(a0, ihi[q]):
-            wd = words[j]
-            for i in range(K):
-                c[i] = tables[base + i, _popcount((values[base + i] ^ wd) & masks[base + i])]
-            cur = _dp_column(c, K, j - a0, D, S, pb, R1, pad, di, dj, sw, rule, want_starts)
-            if j >= lo:
-                delta[o + j] = D[cur + K - 1]
-                if want_starts:
-                    st = S[cur + K - 1]
-                    starts[o + j] = st + a0 if st >= 0 else -1
+        _dp_task(words, masks[a:b], values[a:b], tables[a:b], no_dense, b - a, a0, lo, ihi[q],
+                 Dbuf[tid], Sbuf[tid], cbuf[tid], R1, pad, di, dj, sw, rule, want_starts,
+                 delta, starts, iout[q] - lo)
 
 
 @jit
@@ -233,18 +263,10 @@ def _dense_dtw_kernel(C, di, dj, sw, rule, R1, pad, delta, starts,
                       want_starts):  # pragma: no cover
     """The DP of :func:`_mt_distance_kernel` on a dense cost matrix C (K, n)."""
     K = C.shape[0]
-    D = np.empty((R1 + 1) * (pad + K))
-    S = np.empty((R1 + 1) * (pad + K), dtype=np.int32)
-    _reset_ring(D, S, D.shape[0])
-    c = np.empty(K)
-    pb = np.empty(len(di), dtype=np.int64)
-    for j in range(C.shape[1]):
-        for i in range(K):
-            c[i] = C[i, j]
-        cur = _dp_column(c, K, j, D, S, pb, R1, pad, di, dj, sw, rule, want_starts)
-        delta[j] = D[cur + K - 1]
-        if want_starts:
-            starts[j] = S[cur + K - 1]
+    _dp_task(np.empty(0, np.uint64), np.empty(0, np.uint64), np.empty(0, np.uint64),
+             np.empty((0, _N_COST)), C, K, 0, 0, C.shape[1],
+             np.empty((R1 + 1) * (pad + K)), np.empty((R1 + 1) * (pad + K), np.int32),
+             np.empty(K), R1, pad, di, dj, sw, rule, want_starts, delta, starts, 0)
 
 
 def _ring_shape(di, dj):
@@ -280,7 +302,12 @@ def _check_steps(steps):
             f"steps must have non-negative integer (di, dj), not both 0, got {steps!r}")
     if not np.isfinite(w).all() or (w <= 0).any():
         raise ParameterError(f"step weights must be positive and finite, got {steps!r}")
-    # tuples: the kernels specialise on the number of steps (see _dp_column)
+    # Tuples: the kernels specialise on the number of steps (see _dp_task).
+    # One or two steps are padded to three by repeating the last one: a copy
+    # ties with its original and ties go to the first step, so it is never
+    # chosen and the fast three-step path serves these step sets too.
+    n_pad = max(0, 3 - len(a))
+    di, dj, w = (np.concatenate([x, np.repeat(x[-1:], n_pad)]) for x in (di, dj, w))
     return (tuple(int(x) for x in di), tuple(int(x) for x in dj), tuple(float(x) for x in w))
 
 
@@ -450,7 +477,7 @@ def mt_distance_slices(words, templates, task_template, task_start, task_stop, *
         starts if return_starts else np.empty(1, np.int64), bool(return_starts),
         np.empty((nthr, (R1 + 1) * (pad + Kmax))),
         np.empty((nthr, (R1 + 1) * (pad + Kmax)), np.int32),
-        np.empty((nthr, Kmax)), np.empty((nthr, len(di)), np.int64))
+        np.empty((nthr, Kmax)))
     return (delta, offsets, starts) if return_starts else (delta, offsets)
 
 

@@ -72,15 +72,84 @@ def test_concatenated_documents_reproduce_toolbox(model):
                                   np.array(db)[r.segments["doc"]] + r.segments["start"])
 
 
-def test_batched_annotation_equals_one_batch(model, monkeypatch):
+def _archive():
+    """The oracle documents, three times over (15 documents)."""
+    ws = [words(d) for d in DOCS] * 3
+    return np.concatenate(ws), [len(w) for w in ws]
+
+
+@pytest.mark.parametrize("cells", [1, 1500 * 11, 4000 * 11])
+def test_batched_annotation_equals_one_batch(model, monkeypatch, cells):
     import mocapdb.annotation as ann
-    ws = [words(d) for d in DOCS]
-    lens = [len(w) for w in ws]
-    full = annotate(np.concatenate(ws), model, doc_lengths=lens)
-    monkeypatch.setattr(ann, "BATCH_FRAMES", 100)
-    small = annotate(np.concatenate(ws), model, doc_lengths=lens)
+    w, lens = _archive()
+    full = annotate(w, model, doc_lengths=lens, keep_deltas=True)  # keep_deltas: one batch
+    # 1 cell: every document a batch of its own; then batches of 1-2 and 3-4 documents
+    monkeypatch.setattr(ann, "BATCH_CELLS", cells)
+    assert len(ann._batches(np.concatenate(([0], np.cumsum(lens))),
+                            max(1, cells // len(model.classes)))) > 1
+    small = annotate(w, model, doc_lengths=lens)
     np.testing.assert_array_equal(small.segments, full.segments)
     np.testing.assert_array_equal(small.hits, full.hits)
+    # slices out of document order: hits stay in slice order across batches
+    pre = {"kickLFront1Reps": [(len(w) - lens[-1], len(w) - 1), (500, 700), (650, 900)],
+           "squat1Reps": [(len(w) - lens[-1], len(w) - 1), (0, lens[0] - 1)]}
+    small = annotate(w, model, doc_lengths=lens, preselection=pre)
+    full = annotate(w, model, doc_lengths=lens, preselection=pre, keep_deltas=True)
+    assert (full.hits["doc"] == len(lens) - 1).any() and (full.hits["doc"] == 0).any()
+    np.testing.assert_array_equal(small.segments, full.segments)
+    np.testing.assert_array_equal(small.hits, full.hits)
+
+
+def test_batches_cover_the_documents_in_order():
+    from mocapdb.annotation import _batches
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        lens = rng.integers(0, 50, int(rng.integers(1, 30)))
+        bounds = np.concatenate(([0], np.cumsum(lens)))
+        size = int(rng.integers(1, 120))
+        groups = _batches(bounds, size)
+        assert groups[0][0] == 0 and groups[-1][1] == lens.size
+        assert all(a < b for a, b in groups)
+        assert all(b == c for (_, b), (c, _) in zip(groups[:-1], groups[1:]))
+        # a batch holds at most `size` frames plus its last document
+        assert all(bounds[b - 1] - bounds[a] < size for a, b in groups)
+    assert _batches(np.zeros(1, np.int64), 10) == [(0, 0)]
+
+
+def test_keep_hits_false_gives_the_same_segments(model):
+    w, lens = _archive()
+    full = annotate(w, model, doc_lengths=lens)
+    bare = annotate(w, model, doc_lengths=lens, keep_hits=False)
+    assert len(full.hits) > 1000
+    assert bare.hits.dtype == full.hits.dtype and bare.hits.size == 0
+    np.testing.assert_array_equal(bare.segments, full.segments)
+    with pytest.raises(ParameterError, match="match_num_max=5"):
+        annotate(words("86_09"), model, match_num_max=5, keep_hits=False)
+
+
+def test_hits_of_many_tasks_equal_one_task_at_a_time(model):
+    """annotate extracts the hits of every (class, document) task in one parallel
+    kernel whose threads reuse one scratch row across tasks (one thread: a
+    single row for all 165); each must equal a fresh extraction of that task."""
+    import numba
+    w, lens = _archive()
+    bounds = np.concatenate(([0], np.cumsum(lens)))
+    old = numba.get_num_threads()
+    try:
+        for threads in {1, old}:
+            numba.set_num_threads(threads)
+            r = annotate(w, model, doc_lengths=lens)
+            for c, cls in enumerate(model.classes):
+                for d in range(len(lens)):
+                    delta, starts = mt_distance(w[bounds[d]:bounds[d + 1]], cls.quantized,
+                                                return_starts=True)
+                    hits, _ = extract_hits(delta, starts, tau=cls.tau)
+                    mine = r.hits[(r.hits["class_id"] == c) & (r.hits["doc"] == d)]
+                    np.testing.assert_array_equal(mine["start"], hits["start"])
+                    np.testing.assert_array_equal(mine["end"], hits["end"])
+                    np.testing.assert_array_equal(mine["cost"], hits["cost"])
+    finally:
+        numba.set_num_threads(old)
 
 
 # --- hit extraction ---------------------------------------------------------
@@ -99,8 +168,8 @@ def test_extract_hits_matches_toolbox_loop_on_real_delta():
 
 def test_extract_hits_matches_toolbox_loop_on_random_ties():
     rng = np.random.default_rng(4)
-    for _ in range(100):
-        n = int(rng.integers(1, 60))
+    for trial in range(100):
+        n = int(rng.integers(1, 60 if trial % 4 else 700))
         d = rng.integers(0, 6, n) / 20.0
         d[rng.random(n) < 0.2] = np.inf
         s = np.maximum(0, np.arange(n) - rng.integers(0, 8, n))
@@ -121,6 +190,19 @@ def test_match_num_max_raises():
         TEMPLATES / "kickLFront1Reps"))])
     with pytest.raises(ParameterError, match="'kick'.*match_num_max=5.*document 0"):
         annotate(words("86_09"), model, match_num_max=5)
+
+
+def test_sort_kernel_equals_stable_argsort():
+    from mocapdb.annotation import _sort_by_key
+    rng = np.random.default_rng(6)
+    for n in [0, 1, 2, 15, 16, 17, 31, 33, 64, 100, 257, 1000]:
+        key = np.concatenate([rng.random(5), rng.integers(0, 7, n + 3) / 7.0])
+        key[5:][rng.random(n + 3) < 0.1] = -np.inf
+        idx = rng.permutation(n + 3)[:n].astype(np.int64)  # any indices, here unordered
+        ref = idx[np.argsort(key[5 + idx], kind="stable")]
+        got = idx.copy()
+        _sort_by_key(got, np.full(n, -7, np.int64), n, key, 5)
+        np.testing.assert_array_equal(got, ref)
 
 
 # --- segments ---------------------------------------------------------------

@@ -62,9 +62,14 @@ def _naive(q, w, steps, rule):
 
 @pytest.mark.parametrize("rule", ["toolbox", "textbook"])
 @pytest.mark.parametrize("steps", [ANNOTATION_STEPS, RETRIEVAL_STEPS,
-                                   ((1, 1, 1.0), (2, 3, 0.5), (1, 2, 3.0), (3, 1, 1.5))])
+                                   ((1, 1, 1.0), (2, 3, 0.5), (1, 2, 3.0), (3, 1, 1.5)),
+                                   # 1 and 2 steps run the 3-step path, padded
+                                   ((1, 1, 1.0),), ((1, 2, 1.0), (0, 1, 0.5)),
+                                   # dj = 0 twice, dj up to 3: the ring's other shapes
+                                   ((1, 0, 1.0), (1, 1, 2.0), (2, 0, 0.5)),
+                                   ((1, 3, 1.0), (1, 1, 1.0), (2, 1, 2.0))])
 def test_kernel_matches_naive_on_random_data(rule, steps):
-    rng = np.random.default_rng([len(rule), len(steps), int(steps[1][1])])
+    rng = np.random.default_rng([len(rule), len(steps), int(sum(s[1] for s in steps))])
     for trial in range(40):
         K = int(rng.choice([1, 2, 3, 5, 8, 13]))
         m = int(rng.integers(0, 40))  # includes documents shorter than the template
