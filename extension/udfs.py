@@ -20,6 +20,7 @@ from mocapdb.database import sql_text
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.keyframes import KeyframeQuery, chain_search, intervals_from_runs
 from mocapdb.modelstore import model_from_payload
+from mocapdb.postings import motion_positions
 from mocapdb.sdtw import mt_distance
 
 #: SQL type of one annotation segment (frames 1-based at 30 Hz)
@@ -178,7 +179,7 @@ def keyframe_search_udf(n_keyframes, gap_min, gap_max, runs, motions, extend_lef
         rr = _column(runs)[r]
         if rr.is_valid and len(rr.values):
             v = rr.values
-            doc = np.searchsorted(ids, np.asarray(v.field("motion_id"), dtype=np.int64))
+            doc = motion_positions(ids, v.field("motion_id"))
             iv = intervals_from_runs(np.asarray(v.field("k")), doc, np.asarray(v.field("start_frame")) - 1,
                                      np.asarray(v.field("n_frames")))
             segs = chain_search(iv, query, lens, extend_left=_column(extend_left)[r].as_py() or 0,

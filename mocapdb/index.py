@@ -22,7 +22,13 @@ document after document):
 
 A fuzzy keyframe ``(mask, value)`` is answered without enumerating the 2^w
 wildcard words: the index's distinct words are tested with
-``word & mask == value``.
+``word & mask == value``.  Its frame intervals come from the union of the
+matching posting lists (heap merge or bitset) or, in a few documents, from
+a forward scan of their segments (the keyframe search's document filter,
+mocapdb.keyframes); all give the same intervals.
+
+Building (and loading from the ``postings`` table) is O(segments): word ids
+by hashing, posting lists by a counting sort -- no sort of the segments.
 
 Public functions
 ----------------
@@ -172,7 +178,7 @@ def _sift_down(hkey, hsrc, n, i):  # pragma: no cover
 
 @jit
 def _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo, lst_hi, n_words,
-                            hkey, hsrc, hpos, out_doc, out_start, out_end,
+                            alive, hkey, hsrc, hpos, out_doc, out_start, out_end,
                             want_union, u_doc, u_seg):  # pragma: no cover
     """Union of posting lists and its frame intervals (§3).
 
@@ -184,10 +190,14 @@ def _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo, ls
     disjoint, so nothing needs de-duplicating).  Each posting carries its
     frames, so the re-segmentation (convertKeyframeList) runs on the fly: a
     posting that continues the previous one (same doc, seg + 1) extends the
-    last interval.  ``hkey``/``hsrc``/``hpos`` are scratch of length >=
-    n_words; ``out_*`` and (with ``want_union``) ``u_doc``/``u_seg`` need room
-    for all postings.  Returns (#intervals, #postings).
+    last interval.  A non-empty ``alive`` (uint8 per document) drops the
+    postings of documents d with ``alive[d] == 0`` (they cannot end a
+    continuation: a document is all alive or all dropped).  ``hkey``/``hsrc``/
+    ``hpos`` are scratch of length >= n_words; ``out_*`` and (with
+    ``want_union``) ``u_doc``/``u_seg`` need room for all postings.  Returns
+    (#intervals, #postings kept).
     """
+    filtered = len(alive) > 0
     n = 0
     for i in range(n_words):
         a = lst_lo[i]
@@ -210,6 +220,9 @@ def _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo, ls
         j_end = stop if n == 1 else j + 1
         while j < j_end:
             d = list_doc[j]
+            if filtered and alive[d] == 0:
+                j += 1
+                continue
             sg = list_seg[j]
             if d == last_doc and sg == last_seg + 1:
                 out_end[n_iv - 1] = list_end[j]
@@ -238,19 +251,24 @@ def _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo, ls
 
 @jit
 def _bitset_intervals_kernel(list_doc, list_seg, lst_lo, lst_hi, n_words, seg_start, seg_len,
-                             doc_seg_offset, d0, d1, bitset, out_doc, out_start, out_end,
+                             doc_seg_offset, d0, d1, alive, bitset, out_doc, out_start, out_end,
                              want_union, u_doc, u_seg):  # pragma: no cover
     """Same result as :func:`_union_intervals_kernel`, for many lists.
 
     Marks the postings' global segment ids in ``bitset`` (zeroed, one bit per
     segment of documents d0 <= d < d1 of the part; ``doc_seg_offset``: the
     part's row), then sweeps it in (doc, seg) order: O(postings + segments/64
-    + documents) whatever the number of lists.  Returns (#intervals, #postings).
+    + documents) whatever the number of lists.  ``alive`` as there.  Returns
+    (#intervals, #postings kept).
     """
+    filtered = len(alive) > 0
     g0 = doc_seg_offset[d0]
     for i in range(n_words):
         for j in range(lst_lo[i], lst_hi[i]):
-            g = doc_seg_offset[list_doc[j]] + list_seg[j] - g0
+            dj = list_doc[j]
+            if filtered and alive[dj] == 0:
+                continue
+            g = doc_seg_offset[dj] + list_seg[j] - g0
             bitset[g >> 6] |= np.uint64(1) << np.uint64(g & 63)
     n_iv = 0
     n_u = 0
@@ -280,8 +298,112 @@ def _bitset_intervals_kernel(list_doc, list_seg, lst_lo, lst_hi, n_words, seg_st
 
 
 @jit
+def _forward_intervals_kernel(seg_start, seg_len, seg_wid, doc_seg_offset, match, docs, n_docs,
+                              out_doc, out_start, out_end):  # pragma: no cover
+    """Intervals of a fuzzy keyframe in the documents ``docs[:n_docs]``, from the segment table.
+
+    The forward twin of the posting-list union: walks each document's
+    segments and tests their word (``match[seg_wid[g]]``, one flag per
+    part-local word id); consecutive matching segments form one interval,
+    exactly the re-segmentation of the union list.  O(segments of those
+    documents), independent of the number of postings.  Returns #intervals.
+    """
+    n_iv = 0
+    for i in range(n_docs):
+        d = docs[i]
+        prev = False
+        for g in range(doc_seg_offset[d], doc_seg_offset[d + 1]):
+            if match[seg_wid[g]]:
+                end = seg_start[g] + seg_len[g] - 1
+                if prev:
+                    out_end[n_iv - 1] = end
+                else:
+                    out_doc[n_iv] = d
+                    out_start[n_iv] = seg_start[g]
+                    out_end[n_iv] = end
+                    n_iv += 1
+                prev = True
+            else:
+                prev = False
+    return n_iv
+
+
+@jit
+def _match_lists_kernel(words, list_offset, list_doc, part_word_offset, n_docs, part, mask, value,
+                        d0, d1, out_idx, out_lo, out_hi):  # pragma: no cover
+    """Index words of ``part`` matching ``(mask, value)`` and their lists cut to d0 <= d < d1.
+
+    Writes the word indices and each list's range ``out_lo[i]:out_hi[i]``
+    (room for all words of the part).  Returns (#words, total postings).
+    """
+    word_lo = part_word_offset[part]
+    nw = _match_words_kernel(words, word_lo, part_word_offset[part + 1], mask, value, out_idx)
+    total = 0
+    for i in range(nw):
+        a = list_offset[out_idx[i]]
+        b = list_offset[out_idx[i] + 1]
+        if d0 > 0:  # lists are sorted by doc: cut them to the document range
+            a += np.searchsorted(list_doc[a:b], d0)
+        if d1 < n_docs:
+            b = a + np.searchsorted(list_doc[a:b], d1)
+        out_lo[i] = a
+        out_hi[i] = b
+        total += b - a
+    return nw, total
+
+
+@jit
+def _heap_cost(n_postings, n_lists):  # pragma: no cover
+    """Cost (ns, measured on 100 h) of the heap merge: ~4 per posting + ~6 per heap level."""
+    log_nw = 0
+    while (1 << log_nw) < n_lists:
+        log_nw += 1
+    return n_postings * (4 + 6 * max(log_nw - 1, 0))
+
+
+@jit
+def _bitset_cost(n_postings, n_segs, n_docs):  # pragma: no cover
+    """Cost (ns, measured on 100 h) of the bitset union: ~5 per posting + the sweep."""
+    return 5 * n_postings + n_segs // 16 + 3 * n_docs
+
+
+@jit
+def _union_kernel(list_doc, list_seg, list_start, list_end, seg_start, seg_len, offsets,
+                  lst_lo, lst_hi, total, d0, d1, alive, want_union, strategy):  # pragma: no cover
+    """Union + intervals of the cut lists (``offsets``: the part's doc_seg_offset row).
+
+    ``strategy``: 0 = by the cost model, 1 = heap, 2 = bitset (same result).
+    Allocates outputs sized to the postings (data dependent).  Returns
+    (intervals doc/start/end, union doc/seg).
+    """
+    nw = len(lst_lo)
+    o_doc = np.empty(total, np.int64)
+    o_s = np.empty(total, np.int64)
+    o_e = np.empty(total, np.int64)
+    nu = total if want_union else 0
+    u_doc = np.empty(nu, np.int64)
+    u_seg = np.empty(nu, np.int64)
+    n_segs = offsets[d1] - offsets[d0]
+    if strategy == 0:
+        strategy = 2 if _bitset_cost(total, n_segs, d1 - d0) < _heap_cost(total, nw) else 1
+    if strategy == 2:
+        bitset = np.zeros((n_segs >> 6) + 1, np.uint64)
+        n_iv, n_u = _bitset_intervals_kernel(list_doc, list_seg, lst_lo, lst_hi, nw, seg_start,
+                                             seg_len, offsets, d0, d1, alive, bitset, o_doc, o_s,
+                                             o_e, want_union, u_doc, u_seg)
+    else:
+        hkey = np.empty(nw, np.int64)
+        hsrc = np.empty(nw, np.int64)
+        hpos = np.empty(nw, np.int64)
+        n_iv, n_u = _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo,
+                                            lst_hi, nw, alive, hkey, hsrc, hpos, o_doc, o_s, o_e,
+                                            want_union, u_doc, u_seg)
+    return o_doc[:n_iv], o_s[:n_iv], o_e[:n_iv], u_doc[:n_u], u_seg[:n_u]
+
+
+@jit
 def _fuzzy_kernel(words, list_offset, list_doc, list_seg, list_start, list_end,
-                  seg_start, seg_len, part_word_offset, doc_seg_offset,
+                  seg_start, seg_len, seg_wid, part_word_offset, doc_seg_offset,
                   part, mask, value, d0, d1, want_union, strategy):  # pragma: no cover
     """Fuzzy keyframe ``(mask, value)`` on one part, documents ``d0 <= d < d1``.
 
@@ -289,55 +411,160 @@ def _fuzzy_kernel(words, list_offset, list_doc, list_seg, list_start, list_end,
     a heap (:func:`_union_intervals_kernel`) or, when the lists are many,
     through a bitset over the part's segments (:func:`_bitset_intervals_kernel`);
     both give the same result.  ``strategy``: 0 = by the cost model, 1 = heap,
-    2 = bitset.  Allocates outputs sized to the matching postings (data
-    dependent).  Returns (word_idx, intervals doc/start/end, union doc/seg).
+    2 = bitset.  Returns (word_idx, intervals doc/start/end, union doc/seg).
     """
-    word_lo = part_word_offset[part]
-    word_hi = part_word_offset[part + 1]
-    idx = np.empty(word_hi - word_lo, np.int64)
-    nw = _match_words_kernel(words, word_lo, word_hi, mask, value, idx)
-    lst_lo = np.empty(nw, np.int64)
-    lst_hi = np.empty(nw, np.int64)
-    n_docs = len(doc_seg_offset[part]) - 1
-    total = 0
-    for i in range(nw):
-        a = list_offset[idx[i]]
-        b = list_offset[idx[i] + 1]
-        if d0 > 0:  # lists are sorted by doc: cut them to the document range
-            a += np.searchsorted(list_doc[a:b], d0)
-        if d1 < n_docs:
-            b = a + np.searchsorted(list_doc[a:b], d1)
-        lst_lo[i] = a
-        lst_hi[i] = b
-        total += b - a
-    o_doc = np.empty(total, np.int64)
-    o_s = np.empty(total, np.int64)
-    o_e = np.empty(total, np.int64)
-    nu = total if want_union else 0
-    u_doc = np.empty(nu, np.int64)
-    u_seg = np.empty(nu, np.int64)
     offsets = doc_seg_offset[part]
-    n_segs = offsets[d1] - offsets[d0]
-    # cost model (measured): heap merge ~ 3-7 ns per posting and heap level;
-    # bitset ~ 5 ns per posting + 1 ns per 64 segments
-    log_nw = 0
-    while (1 << log_nw) < nw:
-        log_nw += 1
-    if strategy == 0:
-        strategy = 2 if total * (log_nw - 1) * 5 > n_segs // 64 else 1
-    if strategy == 2:
-        bitset = np.zeros((n_segs >> 6) + 1, np.uint64)
-        n_iv, _ = _bitset_intervals_kernel(list_doc, list_seg, lst_lo, lst_hi, nw, seg_start,
-                                           seg_len, offsets, d0, d1, bitset, o_doc, o_s, o_e,
-                                           want_union, u_doc, u_seg)
-    else:
-        hkey = np.empty(nw, np.int64)
-        hsrc = np.empty(nw, np.int64)
-        hpos = np.empty(nw, np.int64)
-        n_iv, _ = _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo, lst_hi,
-                                          nw, hkey, hsrc, hpos, o_doc, o_s, o_e,
-                                          want_union, u_doc, u_seg)
-    return idx[:nw], o_doc[:n_iv], o_s[:n_iv], o_e[:n_iv], u_doc, u_seg
+    n_words = part_word_offset[part + 1] - part_word_offset[part]
+    idx = np.empty(n_words, np.int64)
+    lst_lo = np.empty(n_words, np.int64)
+    lst_hi = np.empty(n_words, np.int64)
+    nw, total = _match_lists_kernel(words, list_offset, list_doc, part_word_offset,
+                                    len(offsets) - 1, part, mask, value, d0, d1, idx, lst_lo,
+                                    lst_hi)
+    o_doc, o_s, o_e, u_doc, u_seg = _union_kernel(list_doc, list_seg, list_start, list_end,
+                                                  seg_start, seg_len, offsets, lst_lo[:nw],
+                                                  lst_hi[:nw], total, d0, d1,
+                                                  np.zeros(0, np.uint8), want_union, strategy)
+    return idx[:nw], o_doc, o_s, o_e, u_doc, u_seg
+
+
+_FIB = 0x9E3779B97F4A7C15  # 2^64 / golden ratio: multiplicative (Fibonacci) hashing
+
+
+@jit
+def _hash_words_kernel(word, i, lo, hi, keys, ids, distinct, counts, nd, bits,
+                       out_id):  # pragma: no cover
+    """Insert/look up ``word[i:hi]`` in an open-addressing table of ``2^bits`` slots.
+
+    Writes ``out_id[i - lo]`` (first-seen id) and counts; stops early, before a
+    new word would push the load factor above 1/2.  Returns (next i, #distinct).
+    A separate kernel because arrays re-bound inside a hot loop cost numba a
+    reference count per iteration (20x slower).
+    """
+    mask = len(keys) - 1
+    shift = np.uint64(64 - bits)
+    limit = len(keys) // 2
+    while i < hi:
+        w = word[i]
+        h = np.int64((w * np.uint64(_FIB)) >> shift)
+        j = ids[h]
+        while j >= 0 and keys[h] != w:
+            h = (h + 1) & mask
+            j = ids[h]
+        if j < 0:
+            if nd >= limit:
+                return i, nd
+            j = nd
+            keys[h] = w
+            ids[h] = j
+            distinct[j] = w
+            nd += 1
+        out_id[i - lo] = j
+        counts[j] += 1
+        i += 1
+    return i, nd
+
+
+@jit
+def _distinct_words_kernel(word, lo, hi, out_id):  # pragma: no cover
+    """Distinct words of ``word[lo:hi]`` in first-seen order (hashing, O(n)).
+
+    Writes ``out_id[i - lo]`` = first-seen id of ``word[i]``; returns the
+    distinct words and their counts in first-seen order.  Replaces a sort of
+    millions of 40-bit words; the table doubles when half full.
+    """
+    bits = 10
+    nd = 0
+    i = lo
+    distinct = np.empty(0, np.uint64)
+    counts = np.zeros(0, np.int64)
+    while True:
+        cap = 1 << bits
+        keys = np.empty(cap, np.uint64)
+        ids = np.full(cap, -1, np.int64)
+        grown = np.empty(cap // 2, np.uint64)
+        grown[:nd] = distinct[:nd]
+        distinct = grown
+        grown_counts = np.zeros(cap // 2, np.int64)
+        grown_counts[:nd] = counts[:nd]
+        counts = grown_counts
+        shift = np.uint64(64 - bits)
+        for t in range(nd):  # re-insert the words seen so far
+            x = distinct[t]
+            h = np.int64((x * np.uint64(_FIB)) >> shift)
+            while ids[h] >= 0:
+                h = (h + 1) & (cap - 1)
+            keys[h] = x
+            ids[h] = t
+        i, nd = _hash_words_kernel(word, i, lo, hi, keys, ids, distinct, counts, nd, bits,
+                                   out_id)
+        if i == hi:
+            return distinct[:nd], counts[:nd]
+        bits += 1
+
+
+@jit
+def _fill_postings_kernel(seg_wid, doc_seg_offset, seg_start, seg_len, cursor,
+                          list_doc, list_seg, list_start, list_end):  # pragma: no cover
+    """Scatter one part's segments into its posting lists (counting sort by word id).
+
+    Segments are visited in (doc, seg) order, so every list comes out in the
+    toolbox's order.  ``cursor[w]`` = next free entry of word w's list (advanced).
+    """
+    for d in range(len(doc_seg_offset) - 1):
+        a = doc_seg_offset[d]
+        for g in range(a, doc_seg_offset[d + 1]):
+            w = seg_wid[g]
+            j = cursor[w]
+            cursor[w] = j + 1
+            list_doc[j] = d
+            list_seg[j] = g - a
+            list_start[j] = seg_start[g]
+            list_end[j] = seg_start[g] + seg_len[g] - 1
+
+
+@jit
+def _group_count_kernel(part_pos, fs, doc, n_docs, out_count):  # pragma: no cover
+    """Rows per (part, document) group: ``out_count[part_pos[fs]·n_docs + doc + 1] += 1``."""
+    for i in range(len(fs)):
+        out_count[part_pos[fs[i]] * n_docs + doc[i] + 1] += 1
+
+
+@jit
+def _scatter_rows_kernel(part_pos, fs, doc, seg, start, length, word, n_docs, group_offset,
+                         filled, out_start, out_len, out_word):  # pragma: no cover
+    """Put table rows in (part, doc, seg) order: row -> group offset + seg.
+
+    Returns False at a seg number outside its group or used twice (then the
+    rows do not number each group's segments 0, 1, ...).
+    """
+    for i in range(len(fs)):
+        g = part_pos[fs[i]] * n_docs + doc[i]
+        s = seg[i]
+        if s < 0 or s >= group_offset[g + 1] - group_offset[g]:
+            return False
+        j = group_offset[g] + s
+        if filled[j]:
+            return False
+        filled[j] = True
+        out_start[j] = start[i]
+        out_len[j] = length[i]
+        out_word[j] = word[i]
+    return True
+
+
+@jit
+def _tiling_error_kernel(doc_seg_offset, seg_start, seg_len, doc_lengths):  # pragma: no cover
+    """First document whose segments do not tile ``0..doc_lengths[d]-1`` in order, or -1."""
+    for d in range(len(doc_seg_offset) - 1):
+        t = 0
+        for g in range(doc_seg_offset[d], doc_seg_offset[d + 1]):
+            if seg_start[g] != t or seg_len[g] <= 0:
+                return d
+            t += seg_len[g]
+        if t != doc_lengths[d]:
+            return d
+    return -1
 
 
 # --------------------------------------------------------------------------
@@ -354,6 +581,16 @@ def _as_u64(x, name):
             raise ParameterError(f"{name} holds negative words; pass packed uint64 feature words")
         a = a.astype(np.uint64)
     return np.ascontiguousarray(a)
+
+
+def _as_int(x, name):
+    """A 1-D integer column, kept in its dtype when it is a signed or small one."""
+    a = np.asarray(x)
+    if a.dtype.kind == "f" and a.size and not np.all(a == np.floor(a)):
+        raise ParameterError(f"column {name} must hold integers, got dtype {a.dtype}")
+    if a.dtype.kind not in "iu" or a.dtype == np.uint64:  # uint64 + int64 would be float
+        a = a.astype(np.int64)
+    return np.ascontiguousarray(a.ravel())
 
 
 def _part_names(feature_sets) -> tuple:
@@ -518,7 +755,7 @@ class Index:
     def kernel_arrays(self) -> tuple:
         """The arrays the search kernels take, in their argument order."""
         return (self.words, self.list_offset, self.list_doc, self.list_seg, self.list_start,
-                self.list_end, self.seg_start, self.seg_len, self.part_word_offset,
+                self.list_end, self.seg_start, self.seg_len, self.seg_wid, self.part_word_offset,
                 self.doc_seg_offset)
 
     # ---- columns <-> index -------------------------------------------------
@@ -564,7 +801,8 @@ class Index:
             0-based document position, segment id within (part, document),
             first frame and run length.
         feature_set : (n,) int or str
-            Part code (position in :data:`INDEX_PARTS`) or part name.
+            Part code (position in :data:`INDEX_PARTS`) or part name; codes
+            are much faster (no per-row strings).
         word : (n,) uint64
         doc_lengths : (n_docs,) int
             Frames per document, in document-position order (documents without
@@ -576,22 +814,20 @@ class Index:
             Columns of different lengths, unknown part, or segments that do not
             tile each document exactly (gaps, overlaps, wrong seg numbering).
         """
-        doc = np.asarray(doc, dtype=np.int64)
         n = len(doc)
         fs = np.asarray(feature_set)
-        if fs.dtype.kind in "UOS":
-            lut = {name: i for i, name in enumerate(INDEX_PARTS)}
-            try:
-                fs = np.array([lut[x.decode() if isinstance(x, bytes) else str(x)] for x in fs],
-                              dtype=np.int64)
-            except KeyError as e:
-                raise ParameterError(f"feature_set holds unknown part {e.args[0]!r}; "
-                                     f"allowed: {', '.join(INDEX_PARTS)}") from None
-        fs = fs.astype(np.int64)
-        seg = np.asarray(seg, dtype=np.int64)
+        if fs.dtype.kind in "UOS":  # names: map the few distinct ones, not every row
+            names, inverse = np.unique(fs.astype(str), return_inverse=True)
+            unknown = [x for x in names.tolist() if x not in INDEX_PARTS]
+            if unknown:
+                raise ParameterError(f"feature_set holds unknown part {unknown[0]!r}; "
+                                     f"allowed: {', '.join(INDEX_PARTS)}")
+            fs = np.array([INDEX_PARTS.index(x) for x in names.tolist()], np.int64)[inverse]
+        # integer columns keep their dtype (no copies of millions of rows)
+        doc, fs, seg, start, length = (_as_int(c, name) for c, name in (
+            (doc, "doc"), (fs, "feature_set"), (seg, "seg"), (start_frame, "start_frame"),
+            (n_frames, "n_frames")))
         word = _as_u64(word, "word")
-        start = np.asarray(start_frame, dtype=np.int64)
-        length = np.asarray(n_frames, dtype=np.int64)
         lengths = _doc_lengths(doc_lengths)
         for name, col in (("feature_set", fs), ("seg", seg), ("word", word),
                           ("start_frame", start), ("n_frames", length)):
@@ -602,35 +838,40 @@ class Index:
         if n and (doc.min() < 0 or doc.max() >= len(lengths)):
             raise ParameterError(f"doc ids must be in 0..{len(lengths) - 1} (len(doc_lengths)); "
                                  f"got {doc.min()}..{doc.max()}")
-        order = np.lexsort((seg, doc, fs))
-        if not np.all(order[1:] > order[:-1]):
-            fs, doc, seg, word, start, length = (c[order]
-                                                 for c in (fs, doc, seg, word, start, length))
-        present = np.unique(fs)
+        present = np.flatnonzero(np.bincount(fs, minlength=len(INDEX_PARTS)))
         if len(present) == 0:
             raise ParameterError("no postings rows: cannot tell which parts the index has")
         parts = tuple(INDEX_PARTS[c] for c in present)
-        part_seg_offset = np.searchsorted(fs, np.append(present, len(INDEX_PARTS))).astype(np.int64)
-        doc_seg_offset = np.empty((len(parts), len(lengths) + 1), np.int64)
+        # row position in (part, doc, seg) order without sorting: groups (part,
+        # doc) are counted, a row goes to its group's offset + seg
+        n_docs = len(lengths)
+        part_pos = np.full(len(INDEX_PARTS), -1, np.int64)
+        part_pos[present] = np.arange(len(present))
+        group_offset = np.zeros(len(parts) * n_docs + 1, np.int64)
+        _group_count_kernel(part_pos, fs, doc, n_docs, group_offset)
+        np.cumsum(group_offset, out=group_offset)
+        ok = n == 0 or (start.min() >= 0 and length.min() > 0 and
+                        max(start.max(), length.max()) <= _I32_MAX)
+        seg_start = np.empty(n, np.int32)
+        seg_len = np.empty(n, np.int32)
+        seg_word = np.empty(n, np.uint64)
+        if ok:
+            ok = _scatter_rows_kernel(part_pos, fs, doc, seg, start, length, word, n_docs,
+                                      group_offset, np.zeros(n, np.bool_), seg_start, seg_len,
+                                      seg_word)
+        doc_seg_offset = np.stack([group_offset[p * n_docs:(p + 1) * n_docs + 1]
+                                   for p in range(len(parts))])
         for p in range(len(parts)):
-            a, b = part_seg_offset[p], part_seg_offset[p + 1]
-            doc_seg_offset[p] = a + np.searchsorted(doc[a:b], np.arange(len(lengths) + 1))
-            cnt = np.diff(doc_seg_offset[p])
-            first = np.repeat(doc_seg_offset[p, :-1], cnt)
-            ok = np.array_equal(seg[a:b], np.arange(a, b) - first)
             if ok:  # the runs must tile every document exactly
-                total = np.zeros(len(lengths), np.int64)
-                np.add.at(total, doc[a:b], length[a:b])
-                ok = np.array_equal(total, lengths) and bool(np.all(length[a:b] > 0))
-            if ok and b > a:
-                cum = np.cumsum(length[a:b]) - length[a:b]  # exclusive running sum
-                ok = np.array_equal(start[a:b], cum - cum[first - a])
+                ok = _tiling_error_kernel(doc_seg_offset[p], seg_start, seg_len, lengths) < 0
             if not ok:
                 raise ParameterError(
                     f"part {parts[p]!r}: segments do not tile the documents given by doc_lengths "
                     "(seg numbering, start_frame or n_frames inconsistent); rebuild the postings "
                     "with build_index")
-        return cls._assemble(parts, lengths, part_seg_offset, doc_seg_offset, start, length, word)
+        part_seg_offset = group_offset[np.arange(len(parts) + 1) * n_docs]
+        return cls._assemble(parts, lengths, part_seg_offset, doc_seg_offset, seg_start, seg_len,
+                             seg_word)
 
     @classmethod
     def _assemble(cls, parts, lengths, part_seg_offset, doc_seg_offset, start, length, word):
@@ -638,45 +879,39 @@ class Index:
         if len(lengths) > _I32_MAX:
             raise ParameterError(f"at most {_I32_MAX} documents per index")
         n = len(start)
+        seg_start = start.astype(np.int32, copy=False)
+        seg_len = length.astype(np.int32, copy=False)
         seg_wid = np.empty(n, np.int32)
-        words_all, order_all, counts_all, wofs = [], [], [], [0]
-        for p, name in enumerate(parts):
+        words_all, counts_all, wofs = [], [], [0]
+        for p in range(len(parts)):
             a, b = part_seg_offset[p], part_seg_offset[p + 1]
-            w = word[a:b]
-            # a stable sort keeps each posting list in (doc, seg) order; narrow
-            # keys let numpy use its radix sort for the per-set parts
-            key = w.astype(np.uint16) if PART_BITS[name][1] <= 16 else w
-            order = np.argsort(key, kind="stable")
-            sw = w[order]
-            new_word = np.empty(len(sw), np.bool_)
-            new_word[:1] = True
-            np.not_equal(sw[1:], sw[:-1], out=new_word[1:])
-            seg_wid[a + order] = np.cumsum(new_word) - 1
-            heads = np.flatnonzero(new_word)
-            words_all.append(sw[heads])
-            counts_all.append(np.diff(np.append(heads, len(sw))).astype(np.int64))
-            order_all.append(order.astype(np.int64) + a)
-            wofs.append(wofs[-1] + len(heads))
+            first_seen = np.empty(b - a, np.int64)
+            distinct, counts = _distinct_words_kernel(word, a, b, first_seen)
+            order = np.argsort(distinct)  # few distinct words: word ids ascending by word
+            rank = np.empty(len(order), np.int32)
+            rank[order] = np.arange(len(order), dtype=np.int32)
+            seg_wid[a:b] = rank[first_seen]
+            words_all.append(distinct[order])
+            counts_all.append(counts[order])
+            wofs.append(wofs[-1] + len(order))
         words = np.concatenate(words_all)
         list_offset = np.zeros(len(words) + 1, np.int64)
         np.cumsum(np.concatenate(counts_all), out=list_offset[1:])
-        g = np.concatenate(order_all)
-        seg_doc = np.empty(n, np.int64)
-        seg_in_doc = np.empty(n, np.int64)
+        list_doc = np.empty(n, np.int32)
+        list_seg = np.empty(n, np.int32)
+        list_start = np.empty(n, np.int32)
+        list_end = np.empty(n, np.int32)
         for p in range(len(parts)):
-            a, b = part_seg_offset[p], part_seg_offset[p + 1]
-            counts = np.diff(doc_seg_offset[p])
-            seg_doc[a:b] = np.repeat(np.arange(len(lengths)), counts)
-            seg_in_doc[a:b] = np.arange(a, b) - np.repeat(doc_seg_offset[p, :-1], counts)
+            cursor = list_offset[wofs[p]:wofs[p + 1]].copy()
+            _fill_postings_kernel(seg_wid, doc_seg_offset[p], seg_start, seg_len, cursor,
+                                  list_doc, list_seg, list_start, list_end)
         return cls(parts=tuple(parts), doc_lengths=lengths,
                    part_seg_offset=np.asarray(part_seg_offset, np.int64),
                    doc_seg_offset=np.ascontiguousarray(doc_seg_offset, np.int64),
-                   seg_start=start.astype(np.int32), seg_len=length.astype(np.int32),
-                   seg_wid=seg_wid, words=words,
+                   seg_start=seg_start, seg_len=seg_len, seg_wid=seg_wid, words=words,
                    part_word_offset=np.asarray(wofs, np.int64), list_offset=list_offset,
-                   list_doc=seg_doc[g].astype(np.int32), list_seg=seg_in_doc[g].astype(np.int32),
-                   list_start=start[g].astype(np.int32),
-                   list_end=(start[g] + length[g] - 1).astype(np.int32))
+                   list_doc=list_doc, list_seg=list_seg, list_start=list_start,
+                   list_end=list_end)
 
 
 def _flatten_docs(words_per_doc, doc_lengths):

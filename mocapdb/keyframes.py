@@ -17,9 +17,11 @@ keyframe_search_batch                  many queries on one index -> segments per
 keyframe_hit_documents                 many queries -> (n_queries, n_docs) "has a hit" (GA fitness)
 keyframe_intervals, keyframe_postings  the per-keyframe intermediate results (§3)
 annot_margins                          extension margins used by annotation (TEMPLATES.md §10)
+intervals_from_runs, chain_search      the search on matching runs from SQL
 choose_keyframes_equally_distributed   the toolbox's heuristic chooser (§8.1)
 
-Frames, template positions and documents are 0-based, segment ends inclusive.
+The numba kernels live in :mod:`mocapdb.keyframe_kernels`.  Frames, template
+positions and documents are 0-based, segment ends inclusive.
 ``d_max = +inf`` is stored as :data:`UNBOUNDED`.
 """
 from __future__ import annotations
@@ -32,10 +34,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 from mocapdb.features import FEATURE_SETS, N_FEATURES
-from mocapdb.index import SET_PARTS, Index, Segments, _fuzzy_kernel, fuzzy_postings
+from mocapdb.index import SET_PARTS, Index, Segments, fuzzy_postings
+from mocapdb.keyframe_kernels import (_AUTO, _chain_batch_kernel, _hit_documents_kernel,
+                                      _keyframe_intervals_kernel, _runs_intervals_kernel,
+                                      _search_kernel)
 
 #: d_max value meaning "+inf" (large enough never to bind, small enough that
 #: frame + UNBOUNDED and frame - UNBOUNDED cannot overflow int64)
@@ -339,322 +343,6 @@ def annot_margins(query: KeyframeQuery) -> tuple[int, int]:
 
 
 # --------------------------------------------------------------------------
-# kernels
-
-
-@jit
-def _intersect_kernel(a_doc, a_s, a_e, na, b_doc, b_s, b_e, nb,
-                      o_doc, o_s, o_e):  # pragma: no cover
-    """Intersection of two sorted interval lists (frames matching both); returns the count."""
-    i = 0
-    j = 0
-    n = 0
-    while i < na and j < nb:
-        if a_doc[i] < b_doc[j]:
-            i += 1
-        elif b_doc[j] < a_doc[i]:
-            j += 1
-        else:
-            s = max(a_s[i], b_s[j])
-            e = min(a_e[i], b_e[j])
-            if s <= e:
-                o_doc[n] = a_doc[i]
-                o_s[n] = s
-                o_e[n] = e
-                n += 1
-            if a_e[i] < b_e[j]:
-                i += 1
-            else:
-                j += 1
-    return n
-
-
-@jit
-def _keyframe_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, list_end,
-                               seg_start, seg_len, part_word_offset, doc_seg_offset,
-                               sub_part, sub_mask, sub_value, kf_sub_offset,
-                               d0, d1):  # pragma: no cover
-    """Per-keyframe interval lists B[k] for many keyframes, documents d0 <= d < d1 (§3).
-
-    The first 10 arguments are :meth:`Index.kernel_arrays`.  A keyframe is
-    the conjunction of one or more single-part sub-keyframes (its constraints
-    on each feature set); its intervals are the intersection of theirs.
-    Returns flat ``(doc, start, end)`` and ``kf_offset`` (n_kf+1,).  Output
-    sizes are data dependent, hence the allocation here.
-    """
-    n_kf = len(kf_sub_offset) - 1
-    kf_offset = np.zeros(n_kf + 1, np.int64)
-    cap = 256
-    out_doc = np.empty(cap, np.int64)
-    out_s = np.empty(cap, np.int64)
-    out_e = np.empty(cap, np.int64)
-    n_out = 0
-    for k in range(n_kf):
-        nc = -1
-        c_doc = out_doc[:0]
-        c_s = out_s[:0]
-        c_e = out_e[:0]
-        for j in range(kf_sub_offset[k], kf_sub_offset[k + 1]):
-            if nc == 0:
-                break
-            _, b_doc, b_s, b_e, _, _ = _fuzzy_kernel(words, list_offset, list_doc, list_seg,
-                                                     list_start, list_end, seg_start, seg_len,
-                                                     part_word_offset, doc_seg_offset,
-                                                     sub_part[j], sub_mask[j], sub_value[j],
-                                                     d0, d1, False, 0)
-            nb = len(b_doc)
-            if nc < 0:
-                c_doc, c_s, c_e, nc = b_doc, b_s, b_e, nb
-                continue
-            t_doc = np.empty(nc + nb, np.int64)
-            t_s = np.empty(nc + nb, np.int64)
-            t_e = np.empty(nc + nb, np.int64)
-            nc = _intersect_kernel(c_doc, c_s, c_e, nc, b_doc, b_s, b_e, nb, t_doc, t_s, t_e)
-            c_doc, c_s, c_e = t_doc, t_s, t_e
-        if nc < 0:
-            nc = 0
-        if n_out + nc > cap:
-            cap = max(2 * cap, n_out + nc)
-            out_doc = _grow1(out_doc, n_out, cap)
-            out_s = _grow1(out_s, n_out, cap)
-            out_e = _grow1(out_e, n_out, cap)
-        out_doc[n_out:n_out + nc] = c_doc[:nc]
-        out_s[n_out:n_out + nc] = c_s[:nc]
-        out_e[n_out:n_out + nc] = c_e[:nc]
-        n_out += nc
-        kf_offset[k + 1] = n_out
-    return out_doc[:n_out], out_s[:n_out], out_e[:n_out], kf_offset
-
-
-@jit
-def _grow1(a, n, cap):  # pragma: no cover
-    b = np.empty(cap, a.dtype)
-    b[:n] = a[:n]
-    return b
-
-
-@jit
-def _grow_rows(a, n, need):  # pragma: no cover
-    if need <= a.shape[0]:
-        return a
-    b = np.empty((max(need, 2 * a.shape[0]), 3), np.int64)
-    b[:n] = a[:n]
-    return b
-
-
-@jit
-def _chain_query_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min, d_max, doc_lengths,
-                        ext_l, ext_r, mode, seg_base, segs, n_segs, hits, n_hits,
-                        doc_hit):  # pragma: no cover
-    """Chain search of one query (C_KeyframeSearch.c, KEYFRAMES.md §5).
-
-    Keyframe k's intervals are ``iv_*[kf_lo[k]:kf_hi[k]]`` sorted by (doc,
-    start).  The toolbox's recursion runs here as an explicit stack with the
-    same per-keyframe pointers (reset per document only; moved back by one
-    interval after a scan that found something), so hits come out in the
-    toolbox's order.  mode 0: segments; 1: segments and raw hits; 2: only set
-    ``doc_hit[d]`` at the first hit of each document.  Segments from
-    ``seg_base`` on belong to this query (merging never looks further back).
-    Returns the (possibly reallocated) ``segs``, ``n_segs``, ``hits``,
-    ``n_hits``.  Everything on the hot path is inlined: helper calls that pass
-    or return arrays cost reference counting per hit.
-    """
-    K = len(kf_lo)
-    cur = kf_lo.copy()
-    re = np.empty(K, np.int64)
-    ptr = np.empty(K, np.int64)
-    xs = np.empty(K, np.int64)
-    xe = np.empty(K, np.int64)
-    lo = np.empty(K, np.int64)
-    hi = np.empty(K, np.int64)
-    found = np.zeros(K, np.bool_)
-    i0 = kf_lo[0]
-    end0 = kf_hi[0]
-    while i0 < end0:
-        d = iv_doc[i0]
-        e0 = i0 + 1
-        while e0 < end0 and iv_doc[e0] == d:
-            e0 += 1
-        ok = True
-        for k in range(1, K):  # locate document d in every other keyframe's list
-            c = cur[k]
-            hk = kf_hi[k]
-            while c < hk and iv_doc[c] < d:
-                c += 1
-            e = c
-            while e < hk and iv_doc[e] == d:
-                e += 1
-            cur[k] = e
-            ptr[k] = c
-            re[k] = e
-            if e == c:  # keyframe k has no interval in d: skip the document
-                ok = False
-                break
-        if ok:
-            last = doc_lengths[d] - 1
-            done = False
-            for p0 in range(i0, e0):
-                xs[0] = iv_start[p0]
-                xe[0] = iv_end[p0]
-                level = 0
-                if K > 1:  # enter level 1 with the range allowed by X_1
-                    lo[1] = xs[0] + d_min[0]
-                    hi[1] = xe[0] + d_max[0]
-                    q = ptr[1]
-                    while q < re[1] and lo[1] > iv_end[q]:
-                        q += 1
-                    ptr[1] = q
-                    found[1] = False
-                    level = 1
-                while True:
-                    if level == 0:
-                        # K = 1 (not defined by the toolbox): every interval is a hit
-                        h_s = xs[0]
-                        h_e = xe[0]
-                    else:
-                        k = level
-                        p = ptr[k]
-                        if p < re[k] and hi[k] >= iv_start[p] and lo[k] <= iv_end[p]:
-                            found[k] = True
-                            xs[k] = max(iv_start[p], lo[k])
-                            xe[k] = min(iv_end[p], hi[k])
-                            if k < K - 1:  # recurse into level k+1
-                                nk = k + 1
-                                lo[nk] = xs[k] + d_min[k]
-                                hi[nk] = xe[k] + d_max[k]
-                                q = ptr[nk]
-                                while q < re[nk] and lo[nk] > iv_end[q]:
-                                    q += 1
-                                ptr[nk] = q
-                                found[nk] = False
-                                level = nk
-                                continue
-                            # last keyframe: reconstruct the hit from the left end of X_K
-                            ptr[k] = p + 1
-                            h_s = xs[k]
-                            for g in range(K - 2, -1, -1):
-                                js = max(h_s - d_max[g], xs[g])
-                                if js > min(h_s - d_min[g], xe[g]):
-                                    raise RuntimeError("keyframe search: illegal interval in the "
-                                                       "reconstruction of hits")
-                                h_s = js
-                            h_e = xe[k]
-                        else:
-                            # scan of level k done: step back onto the last intersecting
-                            # interval (reusable by the next, later range) and return
-                            # to level k-1, which moves on to its next interval
-                            if found[k]:
-                                ptr[k] -= 1
-                            level -= 1
-                            if level == 0:
-                                break
-                            ptr[level] += 1
-                            continue
-                    # a hit [h_s, h_e]
-                    if mode == 2:
-                        doc_hit[d] = True
-                        done = True
-                        break
-                    if mode == 1:
-                        if n_hits == hits.shape[0]:
-                            hits = _grow_rows(hits, n_hits, n_hits + 1)
-                        hits[n_hits, 0] = d
-                        hits[n_hits, 1] = h_s
-                        hits[n_hits, 2] = h_e
-                        n_hits += 1
-                    s = max(h_s - ext_l, 0)
-                    e = min(h_e + ext_r, last)
-                    if n_segs > seg_base and segs[n_segs - 1, 0] == d and s <= segs[n_segs - 1, 2]:
-                        # overlap: the toolbox overwrites the end; max is the same for
-                        # non-decreasing hit ends (§5, proposed) and never shrinks
-                        if e > segs[n_segs - 1, 2]:
-                            segs[n_segs - 1, 2] = e
-                    else:
-                        if n_segs == segs.shape[0]:
-                            segs = _grow_rows(segs, n_segs, n_segs + 1)
-                        segs[n_segs, 0] = d
-                        segs[n_segs, 1] = s
-                        segs[n_segs, 2] = e
-                        n_segs += 1
-                    if level == 0:
-                        break
-                if done:
-                    break
-        i0 = e0
-    return segs, n_segs, hits, n_hits
-
-
-@jit
-def _chain_batch_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset, d_min, d_max,
-                        doc_lengths, ext_l, ext_r, want_hits):  # pragma: no cover
-    """Segments (and hits) of many queries, concatenated; per-query offsets."""
-    n_q = len(q_kf_offset) - 1
-    segs = np.empty((64, 3), np.int64)
-    hits = np.empty((64 if want_hits else 0, 3), np.int64)
-    seg_q = np.zeros(n_q + 1, np.int64)
-    hit_q = np.zeros(n_q + 1, np.int64)
-    dummy = np.zeros(0, np.bool_)
-    n_segs = 0
-    n_hits = 0
-    mode = 1 if want_hits else 0
-    for q in range(n_q):
-        a = q_kf_offset[q]
-        b = q_kf_offset[q + 1]
-        kfs = q_kf[a:b]
-        g0 = a - q  # gaps of query q start here
-        segs, n_segs, hits, n_hits = _chain_query_kernel(
-            iv_doc, iv_start, iv_end, kf_offset[kfs], kf_offset[kfs + 1],
-            d_min[g0:g0 + b - a - 1], d_max[g0:g0 + b - a - 1], doc_lengths,
-            ext_l[q], ext_r[q], mode, n_segs, segs, n_segs, hits, n_hits, dummy)
-        seg_q[q + 1] = n_segs
-        hit_q[q + 1] = n_hits
-    return segs[:n_segs], seg_q, hits[:n_hits], hit_q
-
-
-@jit
-def _search_kernel(words, list_offset, list_doc, list_seg, list_start, list_end, seg_start,
-                   seg_len, part_word_offset, doc_seg_offset,
-                   sub_part, sub_mask, sub_value, kf_sub_offset,
-                   q_kf, q_kf_offset, d_min, d_max, doc_lengths, ext_l, ext_r, want_hits,
-                   d0, d1):  # pragma: no cover
-    """Intervals + chain search of many queries on documents ``d0 <= d < d1``.
-
-    Documents are independent (merging never crosses them), so a search can
-    be split into document ranges that run on separate threads.
-    """
-    iv_doc, iv_start, iv_end, kf_offset = _keyframe_intervals_kernel(
-        words, list_offset, list_doc, list_seg, list_start, list_end, seg_start, seg_len,
-        part_word_offset, doc_seg_offset, sub_part, sub_mask, sub_value,
-        kf_sub_offset, d0, d1)
-    return _chain_batch_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset, d_min,
-                               d_max, doc_lengths, ext_l, ext_r, want_hits)
-
-
-@jit
-def _hit_documents_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset, d_min, d_max,
-                          doc_lengths, out):  # pragma: no cover
-    """``out[q, d]`` = query q has at least one hit in document d (first hit ends the document).
-
-    Serial on purpose: the GA calls this thousands of times on a small index,
-    where a parallel region's wake-up costs more than the work (and stalls for
-    milliseconds when another process holds a core); run independent GA runs
-    on separate threads instead (the kernel releases the GIL).
-    """
-    n_q = len(q_kf_offset) - 1
-    for q in range(n_q):
-        a = q_kf_offset[q]
-        b = q_kf_offset[q + 1]
-        kfs = q_kf[a:b]
-        kf_lo = kf_offset[kfs]
-        kf_hi = kf_offset[kfs + 1]
-        g0 = a - q
-        empty = np.empty((0, 3), np.int64)
-        _chain_query_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min[g0:g0 + b - a - 1],
-                            d_max[g0:g0 + b - a - 1], doc_lengths, 0, 0, 2, 0,
-                            empty, 0, empty, 0, out[q])
-
-
-# --------------------------------------------------------------------------
 # planning: keyframes -> single-part sub-keyframes
 
 
@@ -773,7 +461,8 @@ def _shards(index: Index, n_threads):
     return list(zip(bounds[:-1].tolist(), bounds[1:].tolist()))
 
 
-def _search(index: Index, queries, ext_l, ext_r, want_hits, layout, n_threads, cache=None):
+def _search(index: Index, queries, ext_l, ext_r, want_hits, layout, n_threads, cache=None,
+            strategy=_AUTO):
     """Segments (and hits) per query: lists of (n, 3) int64 row arrays."""
     keys, q_kf, q_kf_offset, d_min, d_max = _plan(index, queries, layout)
     n_q = len(queries)
@@ -785,12 +474,18 @@ def _search(index: Index, queries, ext_l, ext_r, want_hits, layout, n_threads, c
         return ([segs[seg_q[i]:seg_q[i + 1]] for i in range(n_q)],
                 [hits[hit_q[i]:hit_q[i + 1]] for i in range(n_q)])
     args = (*index.kernel_arrays(), *_sub_arrays(keys), q_kf, q_kf_offset, d_min, d_max,
-            index.doc_lengths, ext_l, ext_r, bool(want_hits))
+            index.doc_lengths, ext_l, ext_r, 1 if want_hits else 0)
+    no_hit_docs = np.zeros((0, 0), np.bool_)
     shards = _shards(index, n_threads)
     if len(shards) == 1:
-        parts = [_search_kernel(*args, *shards[0])]
+        parts = [_search_kernel(*args, *shards[0], strategy, no_hit_docs)]
     else:  # documents are independent and the kernel releases the GIL
-        parts = list(_pool().map(lambda sh: _search_kernel(*args, *sh), shards))
+        parts = list(_pool().map(lambda sh: _search_kernel(*args, *sh, strategy, no_hit_docs),
+                                 shards))
+    if len(parts) == 1:
+        s, s_q, h, h_q = parts[0]
+        return ([s[s_q[i]:s_q[i + 1]] for i in range(n_q)],
+                [h[h_q[i]:h_q[i + 1]] for i in range(n_q)])
     segs = [np.concatenate([s[s_q[i]:s_q[i + 1]] for s, s_q, _, _ in parts]) for i in range(n_q)]
     hits = [np.concatenate([h[h_q[i]:h_q[i + 1]] for _, _, h, h_q in parts]) for i in range(n_q)]
     return segs, hits
@@ -893,7 +588,10 @@ def keyframe_search(index: Index, query: KeyframeQuery, *, extend_left=0, extend
     Notes
     -----
     With K = 1 (not defined by the toolbox) every interval of the keyframe is
-    a hit.  A document is searched only if every keyframe matches in it.
+    a hit.  A document is searched only if every keyframe matches in it; so
+    the keyframes' posting lists first filter the documents (from the fewest
+    postings up) and intervals are computed only in the documents left --
+    the result is the same as with every keyframe's full intervals.
 
     References
     ----------
@@ -911,11 +609,13 @@ def keyframe_search_batch(index: Index, queries, *, extend_left=0, extend_right=
                           layout=None, n_threads=None, cache=None) -> list:
     """:func:`keyframe_search` for many queries on one index.
 
-    Keyframes shared between queries (frequent in a GA population) are
-    matched once.  ``extend_left``/``extend_right`` are ints or one int per
-    query.  ``cache``: a dict owned by the caller, used with this index (and
-    layout) only and by one thread at a time, that keeps every keyframe's
-    intervals across calls (the search then runs on the calling thread).
+    Each query is searched with its own document filter (as
+    :func:`keyframe_search`).  ``extend_left``/``extend_right`` are ints or
+    one int per query.  ``cache``: a dict owned by the caller, used with this
+    index (and layout) only and by one thread at a time, that keeps every
+    keyframe's full intervals across calls, so keyframes shared between
+    queries (frequent in a GA population) are matched once (the search then
+    runs on the calling thread, without the document filter).
 
     Returns
     -------
@@ -956,6 +656,11 @@ def keyframe_hit_documents(index: Index, queries, *, layout=None, cache=None) ->
     if not queries:
         return out
     keys, q_kf, q_kf_offset, d_min, d_max = _plan(index, queries, layout)
+    if cache is None:  # each query's intervals only where all its keyframes match
+        zeros = np.zeros(len(queries), np.int64)
+        _search_kernel(*index.kernel_arrays(), *_sub_arrays(keys), q_kf, q_kf_offset, d_min,
+                       d_max, index.doc_lengths, zeros, zeros, 2, 0, index.n_docs, _AUTO, out)
+        return out
     iv = _intervals(index, keys, cache)
     _hit_documents_kernel(*iv, q_kf, q_kf_offset, d_min, d_max, index.doc_lengths, out)
     return out
@@ -967,23 +672,28 @@ def intervals_from_runs(keyframe, doc, start, length):
     Parameters
     ----------
     keyframe, doc, start, length : (n,) int
-        Runs of constant word that match keyframe ``keyframe`` (any order):
-        document, first frame (0-based) and number of frames — e.g. the rows
-        of a postings table filtered by ``word & mask = value``.
+        Runs of constant word that match keyframe ``keyframe`` (any order;
+        already sorted by (keyframe, doc, start) is detected and costs no
+        sort): document, first frame (0-based) and number of frames — e.g.
+        the rows of a postings table filtered by ``word & mask = value``.
 
     Returns
     -------
     keyframe, doc, start, end : (m,) int64
         Maximal intervals (adjacent runs merged), sorted by (keyframe, doc, start).
     """
-    k, d, s, n = (np.asarray(x, dtype=np.int64) for x in (keyframe, doc, start, length))
-    order = np.lexsort((s, d, k))
-    k, d, s, e = k[order], d[order], s[order], s[order] + n[order] - 1
-    new = np.ones(len(k), bool)
-    new[1:] = (k[1:] != k[:-1]) | (d[1:] != d[:-1]) | (s[1:] != e[:-1] + 1)
-    first = np.flatnonzero(new)
-    last = np.append(first[1:], len(k)) - 1
-    return k[first], d[first], s[first], e[last]
+    k, d, s, n = (np.ascontiguousarray(x, dtype=np.int64) for x in (keyframe, doc, start, length))
+    if not (len(k) == len(d) == len(s) == len(n)):
+        raise ParameterError(f"keyframe, doc, start, length have lengths {len(k)}, {len(d)}, "
+                             f"{len(s)}, {len(n)}; they must be equal")
+    order = np.empty(0, np.int64)
+    n_docs = n_groups = 0
+    if len(k):
+        n_docs = int(d.max()) + 1
+        n_groups = (int(k.max()) + 1) * n_docs
+        if k.min() < 0 or d.min() < 0 or n_groups > 4 * len(k) + (1 << 20):
+            order = np.lexsort((s, d, k))  # too many (keyframe, doc) groups to count
+    return _runs_intervals_kernel(k, d, s, n, n_docs, n_groups, order)
 
 
 def chain_search(intervals, query: KeyframeQuery, doc_lengths, *, extend_left=0, extend_right=0):

@@ -53,8 +53,10 @@ def postings_table(words_by_motion: dict) -> pa.Table:
     motion = np.asarray(ids, dtype=np.int32)[cols["doc"]] if ids else np.zeros(0, np.int32)
     return pa.table({
         "motion_id": pa.array(motion, pa.int32()),
-        "feature_set": pa.array(np.asarray(INDEX_PARTS, dtype=object)[cols["feature_set"]].tolist()
-                                if len(motion) else [], pa.string()),
+        # part names decoded by Arrow from the codes (not millions of Python strings)
+        "feature_set": pa.DictionaryArray.from_arrays(
+            pa.array(cols["feature_set"], pa.int8()), pa.array(INDEX_PARTS, pa.string())
+        ).dictionary_decode(),
         "seg": pa.array(cols["seg"] + 1, pa.int32()),
         "word": pa.array(cols["word"], pa.uint64()),
         "start_frame": pa.array(cols["start_frame"] + 1, pa.int32()),
@@ -123,6 +125,21 @@ def drop_index(con) -> None:
     _refresh_macros(con)
 
 
+def motion_positions(ids, motion_id) -> np.ndarray:
+    """Position of every ``motion_id`` in the ascending id list ``ids`` (all must occur).
+
+    A lookup table when the ids are dense enough (millions of rows: ~20x
+    faster than a binary search each), else a binary search.
+    """
+    ids = np.asarray(ids, dtype=np.int64)
+    motion_id = np.asarray(motion_id, dtype=np.int64)
+    if len(ids) and 0 <= ids[0] and ids[-1] < 4 * len(ids) + (1 << 20):
+        lut = np.zeros(int(ids[-1]) + 1, np.int64)
+        lut[ids] = np.arange(len(ids))
+        return lut[motion_id]
+    return np.searchsorted(ids, motion_id)
+
+
 def load_index(con, motion_ids=None, *, parts=STORED_PARTS) -> tuple[Index, list]:
     """The stored postings as a searchable :class:`~mocapdb.index.Index`.
 
@@ -139,16 +156,19 @@ def load_index(con, motion_ids=None, *, parts=STORED_PARTS) -> tuple[Index, list
     meta = con.execute(f"SELECT motion_id, n_frames FROM motions {where} ORDER BY motion_id", params).fetchall()
     ids = [m[0] for m in meta]
     marks = ", ".join("?" * len(parts))
+    # the part as its integer code, computed by DuckDB: millions of Python
+    # strings would cost more than the rest of the load together
+    names = "[" + ", ".join(f"'{name}'" for name in INDEX_PARTS) + "]"
     rows = con.execute(
-        f"SELECT motion_id, feature_set, seg, word, start_frame, n_frames FROM {INDEX_SCHEMA}.postings "
+        f"SELECT motion_id, coalesce(list_position({names}, feature_set), 0)::TINYINT - 1 AS part, "
+        f"seg - 1 AS seg, word, start_frame - 1 AS start_frame, n_frames FROM {INDEX_SCHEMA}.postings "
         f"WHERE feature_set IN ({marks}) {('AND ' + where[6:]) if where else ''}",
         [*parts, *params]).fetchnumpy()
-    doc = np.searchsorted(np.asarray(ids, dtype=np.int64), rows["motion_id"].astype(np.int64))
-    index = Index.from_columns(doc, np.asarray(rows["feature_set"], dtype=object), rows["seg"] - 1,
-                               rows["word"], rows["start_frame"] - 1, rows["n_frames"],
-                               doc_lengths=[m[1] for m in meta])
+    doc = motion_positions(ids, rows["motion_id"])
+    index = Index.from_columns(doc, rows["part"], rows["seg"], rows["word"], rows["start_frame"],
+                               rows["n_frames"], doc_lengths=[m[1] for m in meta])
     return index, ids
 
 
 __all__ = ["INDEX_SCHEMA", "index_exists", "create_index", "drop_index", "insert_postings", "load_index",
-           "postings_table"]
+           "motion_positions", "postings_table"]

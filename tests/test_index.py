@@ -120,13 +120,17 @@ def test_flat_input_equals_list_input():
             np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
 
 
-def test_columns_round_trip_any_order():
+@pytest.mark.parametrize("names", [False, True])
+@pytest.mark.parametrize("order", ["sorted", "shuffled"])
+def test_columns_round_trip_any_order(names, order):
     docs = random_docs(np.random.default_rng(5), 20, 50)
     index = build_index(docs, feature_sets=("upper", "mix", "full"))
     cols = index.to_columns()
     perm = np.random.default_rng(1).permutation(len(cols["doc"]))
-    shuffled = {k: v[perm] for k, v in cols.items()}
-    shuffled["feature_set"] = np.array([INDEX_PARTS[c] for c in shuffled["feature_set"]])
+    shuffled = {k: v[perm] if order == "shuffled" else v for k, v in cols.items()}
+    if names:  # part names instead of codes
+        shuffled["feature_set"] = np.array([INDEX_PARTS[c] for c in shuffled["feature_set"]],
+                                           dtype=object)
     back = Index.from_columns(**shuffled, doc_lengths=index.doc_lengths)
     assert back.parts == ("upper", "mix", "full")
     for f in Index.__dataclass_fields__:
@@ -145,6 +149,15 @@ def test_from_columns_rejects_inconsistent_tables():
 
     with pytest.raises(ParameterError, match="tile|seg"):
         Index.from_columns(**without(3), doc_lengths=lengths)
+    twice = {k: v.copy() for k, v in cols.items()}
+    twice["seg"][4] = twice["seg"][3]  # a seg number twice, one missing
+    with pytest.raises(ParameterError, match="tile|seg"):
+        Index.from_columns(**twice, doc_lengths=lengths)
+    bad = {k: v.copy() for k, v in cols.items()}
+    bad["n_frames"][0] += 1
+    bad["start_frame"][1:int(np.diff(index.doc_seg_offset[0])[0])] += 1  # shifted, too long
+    with pytest.raises(ParameterError, match="tile"):
+        Index.from_columns(**bad, doc_lengths=lengths)
     bad = {k: v.copy() for k, v in cols.items()}
     bad["start_frame"][2] += 1
     with pytest.raises(ParameterError, match="tile"):

@@ -14,10 +14,13 @@ import pytest
 from mocapdb.errors import ParameterError
 from mocapdb.features import FEATURE_SETS
 from mocapdb.index import INDEX_PARTS, build_index
-from mocapdb.keyframes import (UNBOUNDED, KeyframeQuery, annot_margins,
-                               choose_keyframes_equally_distributed, keyframe_hit_documents,
-                               keyframe_intervals, keyframe_mask_value, keyframe_postings,
-                               keyframe_search, keyframe_search_batch, stiffness_bounds)
+from mocapdb.keyframe_kernels import (_AUTO, _BITSET, _FORWARD, _HEAP, _chain_batch_kernel,
+                                      _query_intervals_kernel)
+from mocapdb.keyframes import (UNBOUNDED, KeyframeQuery, _intervals, _plan, _search, _sub_arrays,
+                               annot_margins, choose_keyframes_equally_distributed,
+                               intervals_from_runs, keyframe_hit_documents, keyframe_intervals,
+                               keyframe_mask_value, keyframe_postings, keyframe_search,
+                               keyframe_search_batch, stiffness_bounds)
 from naive_keyframes import (int_table, load_feat30_words, load_toolbox_query,
                              naive_choose_equally_distributed, naive_fuzzy_words,
                              naive_keyframe_search, naive_reachable_last, read_rows,
@@ -308,6 +311,165 @@ def test_single_keyframe_hits_are_its_intervals(oracle_dir, oracle_index):
     iv = keyframe_intervals(oracle_index, one)[0]
     assert hits.as_array().tolist() == iv.as_array().tolist()
     assert segs.as_array().tolist() == iv.as_array().tolist()  # runs never overlap
+
+
+# ---- the document filter (keyframes from the fewest postings up) -------------------
+
+STRATEGIES = (_AUTO, _HEAP, _BITSET, _FORWARD)
+
+
+def _unfiltered(index, q, el, er, layout=None):
+    """Segments and raw hits from every keyframe's intervals in every document (no filter)."""
+    keys, q_kf, q_kf_offset, d_min, d_max = _plan(index, [q], layout)
+    segs, _, hits, _ = _chain_batch_kernel(*_intervals(index, keys), q_kf, q_kf_offset, d_min,
+                                           d_max, index.doc_lengths, np.array([el]),
+                                           np.array([er]), True)
+    return segs.tolist(), hits.tolist()
+
+
+def check_document_filter(index, q, el, er, layout=None):
+    """The filtered search equals the unfiltered one, for every method and document split.
+
+    Also checks the invariant behind it: each keyframe's filtered intervals are
+    its full intervals in a set of documents that contains every document
+    where all keyframes match -- exactly those when every keyframe is answered
+    by one index part (else a keyframe's parts are filtered one by one).
+    Returns (#documents where some keyframe matches, #documents where all do).
+    """
+    segs, hits = _unfiltered(index, q, el, er, layout)
+    keys, *_ = _plan(index, [q], layout)
+    full = keyframe_intervals(index, q, layout=layout)
+    both = set(range(index.n_docs))
+    for iv in full:
+        both &= set(iv.doc.tolist())
+    kf_ids = np.arange(len(keys))
+    for strategy in STRATEGIES:
+        for n_threads in (1, 3):
+            s, h = _search(index, [q], np.array([el]), np.array([er]), True, layout, n_threads,
+                           strategy=strategy)
+            assert s[0].tolist() == segs and h[0].tolist() == hits, (strategy, n_threads)
+        doc, start, end, off = _query_intervals_kernel(*index.kernel_arrays(), *_sub_arrays(keys),
+                                                       kf_ids, 0, index.n_docs, strategy)
+        _, q_kf, _, _, _ = _plan(index, [q], layout)
+        for k, iv in enumerate(full):
+            a, b = off[q_kf[k]], off[q_kf[k] + 1]
+            kept = set(doc[a:b].tolist())
+            if all(len(subs) == 1 for subs in keys):
+                assert kept == both
+            keep = np.isin(iv.doc, list(both | kept))
+            np.testing.assert_array_equal(
+                np.stack([doc[a:b], start[a:b], end[a:b]]),
+                np.stack([iv.doc[keep], iv.start[keep], iv.end[keep]]))
+    assert keyframe_hit_documents(index, [q], layout=layout)[0].tolist() == \
+        [d in {r[0] for r in segs} for d in range(index.n_docs)]
+    some = set()
+    for iv in full:
+        some |= set(iv.doc.tolist())
+    return len(some), len(both)
+
+
+def _rare_case(rng):
+    """Many documents; one keyframe needs a bit that only a few documents have."""
+    bits = np.array([0, 1, 2, 14, 15, 26, 27, 39])
+    rare = 1 << 20
+    n_docs = int(rng.integers(20, 60))
+    rare_docs = set(rng.choice(n_docs, size=int(rng.integers(0, 4)), replace=False).tolist())
+    docs = []
+    for d in range(n_docs):
+        n = int(rng.integers(0, 70))
+        out = []
+        while len(out) < n:
+            w = sum(1 << int(b) for b in bits if rng.random() < 0.5)
+            if d in rare_docs and rng.random() < 0.4:
+                w |= rare
+            out.extend([w] * int(rng.integers(1, 6)))
+        docs.append(np.array(out[:n], dtype=np.uint64))
+    K = int(rng.integers(2, 6))
+    mask, value = [], []
+    for _ in range(K):
+        chosen = rng.choice(bits, size=int(rng.integers(0, 3)), replace=False)
+        m = sum(1 << int(b) for b in chosen)
+        mask.append(m)
+        value.append(int(rng.integers(0, 1 << 40)) & m)
+    r = int(rng.integers(K))
+    mask[r] |= rare
+    value[r] |= rare
+    d_min = [int(x) for x in rng.integers(0, 4, K - 1)]
+    d_max = [lo + int(rng.integers(0, 12)) if rng.random() < 0.8 else UNBOUNDED for lo in d_min]
+    q = KeyframeQuery(np.array(mask, np.uint64), np.array(value, np.uint64), np.arange(K),
+                      d_min, d_max, K)
+    return docs, q, int(rng.integers(0, 4)), int(rng.integers(0, 4))
+
+
+def test_document_filter_changes_nothing_random():
+    rng = np.random.default_rng(31)
+    removed = 0
+    for case in range(60):
+        docs, q, el, er = _rare_case(rng)
+        expected, path_hits = naive_keyframe_search(docs, q.mask, q.value, q.d_min, q.d_max,
+                                                    extend_left=el, extend_right=er,
+                                                    return_hits=True)
+        for parts in (("upper", "lower", "mix"), ("full",)):
+            index = build_index(docs, feature_sets=parts)
+            some, kept = check_document_filter(index, q, el, er)
+            removed += some - kept
+            got = keyframe_search(index, q, extend_left=el, extend_right=er)
+            assert [tuple(r) for r in rows(got, False).tolist()] == expected, case
+    assert removed > 500  # the filter did remove documents
+
+
+@pytest.mark.parametrize("name", QUERIES)
+def test_document_filter_changes_nothing_on_oracle_documents(oracle_dir, oracle_index,
+                                                             query_table, name):
+    """Toolbox queries as they are, and with one keyframe narrowed to the exact set word of a
+    hit's first frame (it then matches in few documents, and that hit survives)."""
+    q = toolbox_query(oracle_dir, name)
+    el, er = margins(query_table, name, "annot")
+    for layout in (None, "full"):
+        check_document_filter(oracle_index, q, el, er, layout)
+    _, hits = keyframe_search(oracle_index, q, return_hits=True)
+    for i in range(0, len(hits), max(1, len(hits) // 3)):
+        d, t = int(hits.doc[i]), int(hits.start[i])
+        first, n = FEATURE_SETS[q.feature_sets[0]]
+        sel = ((1 << n) - 1) << first
+        word = int(oracle_index.segments("full", d)[2][
+            np.searchsorted(oracle_index.segments("full", d)[0], t, side="right") - 1])
+        mask, value = q.mask.copy(), q.value.copy()
+        mask[0], value[0] = sel, word & sel
+        rare = KeyframeQuery(mask, value, q.positions, q.d_min, q.d_max, q.template_length,
+                             q.feature_sets)
+        for layout in (None, "full"):
+            some, kept = check_document_filter(oracle_index, rare, el, er, layout)
+            assert 1 <= kept < oracle_index.n_docs
+        segs = keyframe_search(oracle_index, rare, extend_left=el, extend_right=er)
+        assert d in segs.doc
+
+
+def test_intervals_from_runs_equals_naive():
+    """Matching runs (in any order, or already sorted) -> maximal intervals."""
+    rng = np.random.default_rng(5)
+    for case in range(200):
+        runs = []  # segments of documents, some of which match keyframe k
+        for k in range(int(rng.integers(1, 4))):
+            for d in range(int(rng.integers(1, 5))):
+                t = 0
+                for _ in range(int(rng.integers(0, 12))):
+                    n = int(rng.integers(1, 4))
+                    if rng.random() < 0.6:
+                        runs.append((k - 1 if case % 5 == 0 else k,  # ids may be negative
+                                     d * (1 if case % 4 else 10**7), t, n))
+                    t += n
+        expected = []
+        for k, d, t, n in sorted(runs):  # adjacent runs of one keyframe and document merge
+            if expected and expected[-1][:2] == [k, d] and t == expected[-1][3] + 1:
+                expected[-1][3] = t + n - 1
+            else:
+                expected.append([k, d, t, t + n - 1])
+        if case % 3:
+            runs = [runs[i] for i in rng.permutation(len(runs))]
+        cols = np.array(runs, dtype=np.int64).reshape(-1, 4).T
+        got = intervals_from_runs(*cols)
+        assert np.stack(got, 1).reshape(-1, 4).tolist() == expected, case
 
 
 # ---- building queries -----------------------------------------------------------

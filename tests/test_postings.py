@@ -5,7 +5,8 @@ import pytest
 import mocapdb
 from mocapdb.index import build_index
 from mocapdb.ingest import delete_motions, ingest
-from mocapdb.postings import INDEX_SCHEMA, create_index, drop_index, index_exists, load_index
+from mocapdb.postings import (INDEX_SCHEMA, create_index, drop_index, index_exists, load_index,
+                              motion_positions)
 
 from conftest import DATA
 
@@ -92,3 +93,11 @@ def test_load_index_parts(tmp_path, parts):
         assert sub_ids == ids[3:7] and sub.n_frames == int(index.doc_lengths[3:7].sum())
     finally:
         con.close()
+
+
+@pytest.mark.parametrize("ids", [[1, 2, 3, 7, 9], [0, 5, 3_000_000_000]])  # dense, sparse
+def test_motion_positions(ids):
+    rng = np.random.default_rng(3)
+    rows = rng.integers(0, len(ids), 50)
+    got = motion_positions(ids, np.asarray(ids)[rows].astype(np.int32 if max(ids) < 2**31 else np.int64))
+    assert got.tolist() == rows.tolist()
