@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from timing import best_of  # benchmarks/timing.py
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 DATA = SHARED / "data"
@@ -157,14 +159,8 @@ def synthetic_db(path, words, lengths, *, fps=30.0):
 
 def timed(fn, repeat):
     """(first call seconds, best of ``repeat`` further calls, result of the last call)."""
-    t = time.perf_counter()
-    res = fn()
-    first = time.perf_counter() - t
-    best = np.inf
-    for _ in range(repeat):
-        t = time.perf_counter()
-        res = fn()
-        best = min(best, time.perf_counter() - t)
+    first, _ = best_of(fn, 1)
+    best, res = best_of(fn, repeat)
     return first, best, res
 
 

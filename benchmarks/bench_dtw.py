@@ -25,6 +25,8 @@ from mocapdb.model import ClassModel, Model
 from mocapdb.sdtw import ANNOTATION_STEPS, cost_table, mt_distance
 from mocapdb.templates import QuantizedTemplate, learn_template
 
+from timing import best_of  # benchmarks/timing.py
+
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", Path(__file__).resolve().parents[2] / "shared"))
 ORACLE = SHARED / "oracle"
 
@@ -43,15 +45,6 @@ def load_templates():
             np.loadtxt(d / "template_quantized_weights.csv", delimiter=",", ndmin=1))
         out.append((d.name, q))
     return out
-
-
-def best_of(fn, repeat=3):
-    ts = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        res = fn()
-        ts.append(time.perf_counter() - t)
-    return min(ts), res
 
 
 def main():

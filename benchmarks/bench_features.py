@@ -15,6 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from timing import best_seconds  # benchmarks/timing.py
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared")).resolve()
 DATA = SHARED / "data"
@@ -57,15 +59,6 @@ def load_clips():
     return clips
 
 
-def best_time(fn, repeat):
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
@@ -101,11 +94,11 @@ def main():
     for label, fn in (("relational_features", features_all),
                       ("relational_features, #40 from hip axis", hip_axis_all),
                       ("motion_features (to 30 Hz words)", pipeline_all)):
-        t = best_time(fn, args.repeat)
+        t = best_seconds(fn, args.repeat)
         print(f"{label:40s}: {t * 1000:8.1f} ms, {n_frames / t:12,.0f} frames/s")
 
     long = max(clips, key=lambda c: c.n_frames)
-    t = best_time(lambda: F.relational_features(long.joints, long.root_rotation, long.fps),
+    t = best_seconds(lambda: F.relational_features(long.joints, long.root_rotation, long.fps),
                   args.repeat * 4)
     print(f"{'longest clip (' + str(long.n_frames) + ' frames)':40s}: {t * 1000:8.2f} ms, "
           f"{long.n_frames / t:12,.0f} frames/s")

@@ -19,6 +19,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from timing import best_seconds  # benchmarks/timing.py
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 DATA = SHARED / "data"
@@ -33,15 +35,6 @@ def inputs():
     for amc in sorted((DATA / "hdm05_cut").rglob("*.amc")) + sorted((DATA / "cmu").rglob("*.amc")):
         out.append((amc, find_skeleton(amc) or DATA / "cmu" / "02" / "02.asf"))
     return out
-
-
-def best(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def cold_start_seconds():
@@ -81,9 +74,9 @@ def main():
     words = [pack_words(downsample(f)) for f in feats]
     n = sum(m.n_frames for m in amcs)
 
-    t_parse = best(lambda: [read_amc(amc, skels[asf]) for amc, asf in pairs], args.repeat)
-    t_fk = best(lambda: [asf_forward_kinematics(skels[asf], m) for (_, asf), m in zip(pairs, amcs)], args.repeat)
-    t_feat = best(lambda: [pack_words(downsample(relational_features(j, r, m.fps)))
+    t_parse = best_seconds(lambda: [read_amc(amc, skels[asf]) for amc, asf in pairs], args.repeat)
+    t_fk = best_seconds(lambda: [asf_forward_kinematics(skels[asf], m) for (_, asf), m in zip(pairs, amcs)], args.repeat)
+    t_feat = best_seconds(lambda: [pack_words(downsample(relational_features(j, r, m.fps)))
                            for (j, r), m in zip(fk, amcs)], args.repeat)
     motions = [mocapdb.read_motion(amc, asf=asf) for amc, asf in pairs]
 

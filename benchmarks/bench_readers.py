@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from timing import best_seconds  # benchmarks/timing.py
+
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
@@ -32,15 +34,6 @@ from mocapdb.readers import read_motion  # noqa: E402
 
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 CUT = SHARED / "data" / "hdm05_cut"
-
-
-def best(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main():
@@ -57,11 +50,11 @@ def main():
     n = sum(m.n_frames for _, m in motions)
     mb = sum(len(b) for b, _ in blobs) / 1e6
 
-    t_parse = best(lambda: [parse_amc(b, s) for b, s in blobs], args.repeat)
-    t_io = best(lambda: [read_amc(f, s) for f, s in pairs], args.repeat)
-    t_fk = best(lambda: [asf_forward_kinematics(s, m) for s, m in motions], args.repeat)
+    t_parse = best_seconds(lambda: [parse_amc(b, s) for b, s in blobs], args.repeat)
+    t_io = best_seconds(lambda: [read_amc(f, s) for f, s in pairs], args.repeat)
+    t_fk = best_seconds(lambda: [asf_forward_kinematics(s, m) for s, m in motions], args.repeat)
     [read_motion(f) for f in files[:3]]
-    t_all = best(lambda: [read_motion(f) for f in files], args.repeat)
+    t_all = best_seconds(lambda: [read_motion(f) for f in files], args.repeat)
 
     print(f"hdm05_cut: {len(files)} clips, {n} frames, {mb:.1f} MB of AMC text")
     print(f"AMC parse (bytes in memory): {n / t_parse:12,.0f} frames/s  ({t_parse:.3f} s, "
@@ -75,7 +68,7 @@ def main():
         for (f, s), (_, m) in zip(pairs, motions):
             paths.append(write_bvh(Path(tmp) / (f.stem + ".bvh"), s, m, precision=9))
         read_bvh(paths[0])
-        t_bvh = best(lambda: [read_bvh(p) for p in paths], args.repeat)
+        t_bvh = best_seconds(lambda: [read_bvh(p) for p in paths], args.repeat)
         bmb = sum(p.stat().st_size for p in paths) / 1e6
         print(f"BVH read (parse+FK, 9 digits): {n / t_bvh:10,.0f} frames/s  ({t_bvh:.3f} s, "
               f"{bmb:.1f} MB)")

@@ -22,6 +22,15 @@ def _pyplot():
     return plt
 
 
+def _finish(fig, ax, title, path, dpi):
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=dpi)
+    return fig
+
+
 def plot_ga_statistics(statistics, path=None, *, title=None, show_best=True, dpi=150):
     """Average precision, recall and fitness over the GA generations (paper Fig. 5).
 
@@ -69,12 +78,7 @@ def plot_ga_statistics(statistics, path=None, *, title=None, show_best=True, dpi
     ax.set_ylim(max(0.0, np.floor(lo * 10) / 10 - 0.05), 1.01)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=dpi)
-    return fig
+    return _finish(fig, ax, title, path, dpi)
 
 
 def plot_annotation(segments, labels, n_frames, *, label_delta=None, fps=30.0, truth=None, path=None,
@@ -130,9 +134,4 @@ def plot_annotation(segments, labels, n_frames, *, label_delta=None, fps=30.0, t
     ax.set_xlim(0, max(n_frames / fps, 1e-3))
     ax.set_ylim(-0.6, n - 0.4)
     ax.set_xlabel("time [s]")
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=dpi)
-    return fig
+    return _finish(fig, ax, title, path, dpi)
