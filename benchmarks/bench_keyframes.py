@@ -121,14 +121,17 @@ def bench_archive(name, con, queries, reps, sql_reps, words, lengths, note=""):
     return max(py_med)
 
 
-def bench_preselection(name, words, lengths, model, repeat):
-    """(c) annotation with and without keyframe preselection on the same data and model."""
+def bench_preselection(name, words, lengths, model, repeat, *, queries="toolbox"):
+    """(c) annotation with and without keyframe preselection on the same data and model.
+
+    ``queries``: "toolbox" (hand-made + heuristic) or "ga" (the shipped default model's)."""
     from mocapdb.api import segments_of_documents
     from mocapdb.preselection import keyframe_preselection
 
     n = int(lengths.sum())
-    print(f"\n## (c) {name}: {len(lengths):,} documents, {n:,} frames; model = default templates + toolbox "
-          f"keyframes; best of {repeat}; {load_now()}")
+    what = "toolbox keyframes" if queries == "toolbox" else "its GA keyframe queries (shipped)"
+    print(f"\n## (c) {name}: {len(lengths):,} documents, {n:,} frames; model = default templates + {what}; "
+          f"best of {repeat}; {load_now()}")
     _, t_off, segs_off = timed(lambda: segments_of_documents(words, lengths, model, keyframes=False), repeat)
     _, t_on, segs_on = timed(lambda: segments_of_documents(words, lengths, model, keyframes=True), repeat)
     _, t_pre, pre = timed(lambda: keyframe_preselection(words, lengths, model), repeat)
@@ -144,7 +147,8 @@ def bench_preselection(name, words, lengths, model, repeat):
         kept = int((sl[:, 1] - sl[:, 0] + 1).sum()) if sl is not None else n
         total += kept
         cells += kept * len(c.quantized)
-        kind = "hand-made" if c.keyframe_query.feature_sets[0] is not None else "heuristic"
+        kind = ("ga" if queries == "ga" else
+                "hand-made" if c.keyframe_query.feature_sets[0] is not None else "heuristic")
         print(f"{c.name:30s} {kind:9s} {kept:12,} {100 * kept / n:8.1f}% {len(sl) if sl is not None else 0:8,}")
     sum_k = sum(len(c.quantized) for c in model.classes)
     print(f"all classes: {100 * total / (n * len(model.classes)):.1f}% of (frames x classes), "
@@ -199,10 +203,11 @@ def main():
           + (f", <= 20 ms on 100 h ({'met' if worst['100 h'] <= 20 else 'NOT met'})" if '100 h' in worst else "")
           + f"; paper {PAPER_QUERY_MS:.0f} ms on 74 min")
 
-    bench_preselection("all ingested data", words, lengths, model, 3 if args.quick else 10)
     hours = 1 if args.quick else 10
     w, lens = repeat_documents(words, lengths, hours * FRAMES_PER_HOUR)
-    bench_preselection(f"synthetic {hours} h", w, lens, model, 1 if args.quick else 2)
+    for queries, m in (("toolbox", model), ("ga", load_model(con, "default"))):
+        bench_preselection("all ingested data", words, lengths, m, 3 if args.quick else 10, queries=queries)
+        bench_preselection(f"synthetic {hours} h", w, lens, m, 1 if args.quick else 2, queries=queries)
     con.close()
     tmp.cleanup()
 
