@@ -211,3 +211,19 @@ def test_report_figures(run, tmp_path):
     assert r.exit_code == 0 and out.stat().st_size > 10_000
     r = run("report", "--figure", "annotation", "--out", out)
     assert r.exit_code == 1 and "needs a motion" in r.output
+
+
+def test_train_from_a_label_csv_over_ingested_documents(run, tmp_path):
+    """Classes cut out of ingested documents by a label CSV (native frames); the model finds them again."""
+    truth = _truth_86_09(tmp_path / "truth.csv")
+    run("ingest", DATA / "cmu" / "86", "--silent")
+    r = run("train", "--model", "cmu86", "--labels", truth, "--silent")
+    assert r.exit_code == 0, r.output
+    assert "model 'cmu86': 4 classes, 4 labels" in r.output  # walk, look_around, clap, stand_and_clap
+    r = run("eval", "--truth", truth, "--model", "cmu86", "--no-keyframes")
+    p1, r1, f1, p2, r2, f2 = _scores(r.output)
+    assert r1 > 0.8 and r2 == 1.0  # every labelled segment is found again by its own template
+    bad = tmp_path / "bad.csv"
+    bad.write_text("document,label,start_frame,end_frame\n86_09,walk,10,5\n")
+    r = run("train", "--model", "bad", "--labels", bad, "--silent")
+    assert r.exit_code == 1 and f"{bad}:2" in r.output and "before start_frame" in r.output
