@@ -22,6 +22,7 @@ from mocapdb.keyframes import KeyframeQuery, chain_search, intervals_from_runs
 from mocapdb.modelstore import model_from_payload
 from mocapdb.postings import motion_positions
 from mocapdb.sdtw import mt_distance
+from mocapdb.templates import QuantizedTemplate
 
 #: SQL type of one annotation segment (frames 1-based at 30 Hz)
 SEGMENT_TYPE = duckdb.struct_type({
@@ -93,22 +94,17 @@ def annotate_udf(words, fps, payload, model_name, tau, keyframes):
             continue
         sel = np.concatenate([np.arange(starts[r], starts[r + 1]) for r in rows]) if rows else np.zeros(0, int)
         segs = segments_of_documents(flat[sel], lengths[rows], model, tau=t, keyframes=kf)
+        segs = segs[np.lexsort((segs["label"], segs["start"], segs["doc"]))]
+        cut = np.searchsorted(segs["doc"], np.arange(len(rows) + 1))
         for k, r in enumerate(rows):
-            per_row[r] = segs[segs["doc"] == k]
-    # flatten to one struct array + offsets
-    out_offsets = np.zeros(len(per_row) + 1, np.int32)
-    parts = []
-    for r, s in enumerate(per_row):
-        n = 0 if s is None else len(s)
-        out_offsets[r + 1] = out_offsets[r] + n
-        if n:
-            s = s[np.lexsort((s["label"], s["start"]))]
-            parts.append((s, fps[r]))
-    if parts:
-        seg = np.concatenate([s for s, _ in parts])
-        seg_fps = np.concatenate([np.full(len(s), f) for s, f in parts])
-    else:
-        seg, seg_fps = np.zeros(0, dtype=[("label", "U1"), ("start", int), ("end", int), ("cost", float)]), np.zeros(0)
+            per_row[r] = segs[cut[k]:cut[k + 1]]
+    # one struct array for all rows + list offsets
+    counts = np.array([0 if s is None else len(s) for s in per_row], dtype=np.int64)
+    out_offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+    parts = [s for s in per_row if s is not None and len(s)]
+    seg = np.concatenate(parts) if parts else np.zeros(0, dtype=[("label", "U1"), ("start", int), ("end", int),
+                                                                  ("cost", float)])
+    seg_fps = np.repeat(fps, counts)
     values = pa.StructArray.from_arrays(
         [pa.array(seg["label"].tolist(), pa.string()), pa.array(seg["start"] + 1, pa.int32()),
          pa.array(seg["end"] + 1, pa.int32()), pa.array(seg["cost"], pa.float64()),
@@ -119,30 +115,28 @@ def annotate_udf(words, fps, payload, model_name, tau, keyframes):
 
 def mt_distance_udf(words, template, cls, model_name):
     """``mocap_mt_distance(words, class_payload, class, model)`` → DOUBLE[] per row (Δ, inf where undefined)."""
-    from mocapdb.templates import QuantizedTemplate
-
     flat, lengths, nulls = _lists(words)
-    template = _column(template)
+    template, cls, model_name = _column(template), _column(cls), _column(model_name)
     starts = np.concatenate(([0], np.cumsum(lengths)))
     out = []
-    cache = {}
+    templates = {}  # (model, class) -> QuantizedTemplate, parsed once per call
     for r in range(len(lengths)):
         if nulls[r]:
             out.append(None)
             continue
-        if not template[r].is_valid:
-            raise SchemaError(f"model {_column(model_name)[r].as_py()!r} has no class "
-                              f"{_column(cls)[r].as_py()!r} (see: SELECT class FROM classes WHERE model = …)")
-        t = template[r].as_py()
-        key = (t["class"], id(t["mask"]) if False else tuple(t["mask"]))
-        q = cache.get(key)
+        key = (model_name[r].as_py(), cls[r].as_py())
+        q = templates.get(key)
         if q is None:
-            q = cache[key] = QuantizedTemplate(np.array(t["mask"], np.uint64), np.array(t["value"], np.uint64),
-                                               np.array(t["weights"], np.float64))
+            if not template[r].is_valid:
+                raise SchemaError(f"model {key[0]!r} has no class {key[1]!r} "
+                                  "(see: SELECT class FROM classes WHERE model = …)")
+            t = template[r].as_py()
+            q = templates[key] = QuantizedTemplate(np.array(t["mask"], np.uint64), np.array(t["value"], np.uint64),
+                                                   np.array(t["weights"], np.float64))
         out.append(mt_distance(flat[starts[r]:starts[r + 1]], q))
-    offsets = np.zeros(len(out) + 1, np.int32)
-    offsets[1:] = np.cumsum([0 if d is None else len(d) for d in out])
-    values = np.concatenate([d for d in out if d is not None]) if any(d is not None for d in out) else np.zeros(0)
+    counts = np.array([0 if d is None else len(d) for d in out], dtype=np.int64)
+    offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+    values = np.concatenate([d for d in out if d is not None]) if counts.any() else np.zeros(0)
     return pa.ListArray.from_arrays(pa.array(offsets), pa.array(values, pa.float64()), mask=pa.array(nulls))
 
 
