@@ -808,13 +808,11 @@ def feature_runs(words):
     ----------
     FEATURES.md §1 (run-length encoding); KEYFRAMES.md (inverted index).
     """
+    from .index import segment_runs  # the inverted index is built from these same runs
+
     w = _as_words(words)
-    n = w.shape[0]
-    if n == 0:
-        return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.uint64))
-    starts = np.concatenate(([0], np.flatnonzero(w[1:] != w[:-1]) + 1)).astype(np.int64)
-    lengths = np.diff(np.append(starts, n)).astype(np.int64)
-    return starts, lengths, w[starts].copy()
+    starts, lengths, values, _ = segment_runs(w, [w.shape[0]], feature_set="full")
+    return starts, lengths, values
 
 
 def mirror_words(words):
