@@ -14,6 +14,7 @@ import pyarrow as pa
 from .annotation import annotate as annotate_words
 from .errors import ParameterError, SchemaError
 from .modelstore import DEFAULT_MODEL, load_model
+from .preselection import preselection_for, uses_keyframes
 
 log = logging.getLogger("mocapdb")
 
@@ -70,14 +71,8 @@ def segments_of_documents(words, lengths, model, *, tau=None, keyframes=None):
     ndarray of mocapdb.annotation.SEGMENT_DTYPE
         (label, doc, start, end, cost), ``doc`` indexing ``lengths``.
     """
-    use_kf = any(c.keyframe_query is not None for c in model.classes) if keyframes is None else bool(keyframes)
-    preselection = None
-    if use_kf:
-        from .preselection import keyframe_preselection
-
-        preselection = keyframe_preselection(words, lengths, model)
-    return annotate_words(words, model, doc_lengths=lengths, preselection=preselection, tau=tau,
-                          keep_hits=False).segments
+    pre = preselection_for(words, lengths, model, keyframes)
+    return annotate_words(words, model, doc_lengths=lengths, preselection=pre, tau=tau, keep_hits=False).segments
 
 
 def annotate_motions(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True):
@@ -296,12 +291,7 @@ def evaluate(con, truth_csv, *, model=DEFAULT_MODEL, tau=None, keyframes=None, l
     truth = read_truth(truth_csv, label_map=label_map, n_frames=native)
     words = np.concatenate([words_by_doc[n] for n in names])
     lengths = np.array([len(words_by_doc[n]) for n in names], dtype=np.int64)
-    use_kf = any(c.keyframe_query is not None for c in m.classes) if keyframes is None else keyframes
-    pre = None
-    if use_kf:
-        from .preselection import keyframe_preselection
-
-        pre = keyframe_preselection(words, lengths, m)
+    pre = preselection_for(words, lengths, m, keyframes)
     if taus is not None:
         return sweep_tau(words, m, truth, taus, documents=names, doc_lengths=lengths, preselection=pre)
     segs = annotate_words(words, m, doc_lengths=lengths, preselection=pre, tau=tau, keep_hits=False).segments
@@ -405,12 +395,8 @@ def plot_figure(con, figure, path, *, model=DEFAULT_MODEL, motion=None, keyframe
     ids = motion_ids(con, [motion])
     m = load_model(con, model)
     _, names, fps, words, lengths = motion_words(con, ids[:1])
-    use_kf = any(c.keyframe_query is not None for c in m.classes) if keyframes is None else keyframes
-    pre = None
-    if use_kf:
-        from .preselection import keyframe_preselection
-
-        pre = keyframe_preselection(words, lengths, m)
+    use_kf = uses_keyframes(m, keyframes)
+    pre = preselection_for(words, lengths, m, use_kf)
     ann = annotate_words(words, m, doc_lengths=lengths, preselection=pre, keep_deltas=True, keep_hits=False)
     plots.plot_annotation(ann.segments, m.labels, int(lengths[0]), label_delta=ann.label_delta, fps=float(fps[0]),
                           path=path, title=f"{names[0]} — model {model}{' with keyframes' if use_kf else ''}")

@@ -62,6 +62,7 @@ from mocapdb.labels import (
 from mocapdb.metrics import annotate_sweep, evaluate_annotation
 from mocapdb.model import DEFAULT_DELTA, DEFAULT_TAU
 from mocapdb.motion import Motion
+from mocapdb.preselection import preselection_for
 from mocapdb.readers import read_motion
 from mocapdb.training import clip_actor, clip_files, train_model
 
@@ -431,11 +432,7 @@ class DevelopmentEvaluation:
 def _preselect(preselection, model, docs):
     if preselection is not None:
         return preselection(model, docs.words, docs.doc_lengths)
-    if any(c.keyframe_query is not None for c in model.classes):
-        from mocapdb.preselection import keyframe_preselection
-
-        return keyframe_preselection(docs.words, docs.doc_lengths, model)
-    return None
+    return preselection_for(docs.words, docs.doc_lengths, model)
 
 
 def _annotate_rows(docs, model, tau, pre):

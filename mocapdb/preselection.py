@@ -59,4 +59,15 @@ def keyframe_preselection(words, lengths, model):
     return out
 
 
-__all__ = ["keyframe_preselection", "index_parts"]
+def uses_keyframes(model, keyframes=None) -> bool:
+    """Whether annotation preselects: ``keyframes`` if given, else whether the model has queries."""
+    return any(c.keyframe_query is not None for c in model.classes) if keyframes is None else bool(keyframes)
+
+
+def preselection_for(words, lengths, model, keyframes=None):
+    """The ``preselection`` argument of :func:`mocapdb.annotation.annotate`: the keyframe
+    preselection when :func:`uses_keyframes`, else None (whole documents)."""
+    return keyframe_preselection(words, lengths, model) if uses_keyframes(model, keyframes) else None
+
+
+__all__ = ["keyframe_preselection", "preselection_for", "uses_keyframes", "index_parts"]
