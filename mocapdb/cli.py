@@ -183,6 +183,9 @@ def sql(ctx, query, sql_file, fmt):
         rows = rel.fetchall()
     except duckdb.Error as exc:
         raise click.ClickException(str(exc)) from exc
+    if rel.columns == ["Count"] and fmt == "table":  # DDL/DML: DuckDB reports the rows changed
+        click.echo(f"ok, {rows[0][0]} row(s) changed" if rows else "ok")
+        return
     write_relation(rows, rel.columns, fmt)
 
 
