@@ -22,6 +22,14 @@ from mocapdb.index import (_bitset_cost, _forward_intervals_kernel, _fuzzy_kerne
 
 
 @jit
+def _rewind(cur, ptr0, K):  # pragma: no cover
+    """Put the per-keyframe list pointers back to the start of the current document
+    (its search is repeated with bigger output buffers)."""
+    for k in range(1, K):
+        cur[k] = ptr0[k]
+
+
+@jit
 def _intersect_kernel(a_doc, a_s, a_e, na, b_doc, b_s, b_e, nb,
                       o_doc, o_s, o_e):  # pragma: no cover
     """Intersection of two sorted interval lists (frames matching both); returns the count."""
@@ -428,8 +436,7 @@ def _chain_scan_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min, d_max, doc
                         break
                     if mode == 1:
                         if n_hits == hits.shape[0]:  # full: redo this document
-                            for k in range(1, K):
-                                cur[k] = ptr0[k]
+                            _rewind(cur, ptr0, K)
                             return False, i0, segs0, hits0
                         hits[n_hits, 0] = d
                         hits[n_hits, 1] = h_s
@@ -443,9 +450,8 @@ def _chain_scan_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min, d_max, doc
                         if e > segs[n_segs - 1, 2]:
                             segs[n_segs - 1, 2] = e
                     else:
-                        if n_segs == segs.shape[0]:
-                            for k in range(1, K):
-                                cur[k] = ptr0[k]
+                        if n_segs == segs.shape[0]:  # full: redo this document
+                            _rewind(cur, ptr0, K)
                             return False, i0, segs0, hits0
                         segs[n_segs, 0] = d
                         segs[n_segs, 1] = s
