@@ -169,7 +169,7 @@ def mirrored_model(model, classes=MIRRORED, name="mirror15"):
     import dataclasses
 
     from mocapdb.features import mirror_words
-    from mocapdb.model import ClassModel, Model
+    from mocapdb.annotation.model import ClassModel, Model
     from mocapdb.templates import QuantizedTemplate
 
     extra = []
@@ -236,7 +236,7 @@ def scale_child(npz, n_frames, n_classes):
     t0 = time.perf_counter()
     import mocapdb
     from mocapdb.api import segments_of_documents
-    from mocapdb.modelstore import load_model
+    from mocapdb.storage.models import load_model
 
     con = mocapdb.connect()
     model = load_model(con, "default")
@@ -259,7 +259,7 @@ def librosa_compare(words, templates, n_threads_list):
     import librosa
     import numba
 
-    from mocapdb.sdtw import ANNOTATION_STEPS, cost_table, mt_distance
+    from mocapdb.templates import ANNOTATION_STEPS, cost_table, mt_distance
 
     sigma = np.array([[s[0], s[1]] for s in ANNOTATION_STEPS])
     wmul = np.array([s[2] for s in ANNOTATION_STEPS])
@@ -311,7 +311,7 @@ def main():
 
     import mocapdb  # noqa: F401
     from mocapdb.api import annotate_motions, motion_words, segments_of_documents
-    from mocapdb.modelstore import load_model, save_model
+    from mocapdb.storage.models import load_model, save_model
 
     hours = 1 if args.quick else 10
     scale_hours = 10 if args.quick else 100

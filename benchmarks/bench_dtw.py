@@ -21,8 +21,8 @@ import numpy as np
 
 from mocapdb.annotation import annotate
 from mocapdb.features import pack_words
-from mocapdb.model import ClassModel, Model
-from mocapdb.sdtw import ANNOTATION_STEPS, cost_table, mt_distance
+from mocapdb.annotation.model import ClassModel, Model
+from mocapdb.templates import ANNOTATION_STEPS, cost_table, mt_distance
 from mocapdb.templates import QuantizedTemplate, learn_template
 
 from timing import best_of  # benchmarks/timing.py

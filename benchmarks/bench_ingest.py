@@ -60,10 +60,10 @@ def main():
     import numpy as np
 
     import mocapdb
-    from mocapdb.amc import read_amc
+    from mocapdb.readers.amc import read_amc
     from mocapdb.features import downsample, pack_words, relational_features
-    from mocapdb.ingest import _Prepared, store_motions
-    from mocapdb.kinematics import asf_forward_kinematics
+    from mocapdb.storage.ingest import _Prepared, store_motions
+    from mocapdb.readers.kinematics import asf_forward_kinematics
     from mocapdb.readers import load_skeleton
 
     pairs = inputs()

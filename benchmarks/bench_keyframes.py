@@ -72,9 +72,9 @@ def sql_query(q, el, er):
 
 def bench_archive(name, con, queries, reps, sql_reps, words, lengths, note=""):
     """(b) index build and (a) latency on one database; returns the slowest query's median ms."""
-    from mocapdb.index import INDEX_PARTS, SET_PARTS, build_index
+    from mocapdb.keyframes import INDEX_PARTS, SET_PARTS, build_index
     from mocapdb.keyframes import PARALLEL_MIN_FRAMES, keyframe_search
-    from mocapdb.postings import create_index, load_index
+    from mocapdb.storage.postings import create_index, load_index
 
     n = int(lengths.sum())
     print(f"\n## {name}: {len(lengths):,} documents, {n:,} frames ({n / 1800:.1f} min){note}; {load_now()}")
@@ -126,7 +126,7 @@ def bench_preselection(name, words, lengths, model, repeat, *, queries="toolbox"
 
     ``queries``: "toolbox" (hand-made + heuristic) or "ga" (the shipped default model's)."""
     from mocapdb.api import segments_of_documents
-    from mocapdb.preselection import keyframe_preselection
+    from mocapdb.annotation.preselection import keyframe_preselection
 
     n = int(lengths.sum())
     what = "toolbox keyframes" if queries == "toolbox" else "its GA keyframe queries (shipped)"
@@ -165,8 +165,8 @@ def main():
     import mocapdb  # noqa: F401
     from mocapdb.api import motion_words
     from mocapdb.keyframes import annot_margins
-    from mocapdb.modelstore import load_model
-    from mocapdb.toolbox_queries import has_toolbox_query, toolbox_keyframe_queries
+    from mocapdb.storage.models import load_model
+    from mocapdb.learning.toolbox_queries import has_toolbox_query, toolbox_keyframe_queries
 
     machine_header("bench_keyframes" + (" --quick" if args.quick else ""))
     tmp = tempfile.TemporaryDirectory(prefix="bench_keyframes_")

@@ -37,7 +37,7 @@ import numba
 import numpy as np
 
 from mocapdb.features import pack_words
-from mocapdb.index import build_index
+from mocapdb.keyframes import build_index
 from mocapdb.keyframes import (KeyframeQuery, annot_margins, keyframe_hit_documents,
                                keyframe_search)
 

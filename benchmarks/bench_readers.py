@@ -26,10 +26,10 @@ from timing import best_seconds  # benchmarks/timing.py
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from mocapdb.amc import parse_amc, read_amc  # noqa: E402
-from mocapdb.asf import read_asf  # noqa: E402
-from mocapdb.bvh import read_bvh, write_bvh  # noqa: E402
-from mocapdb.kinematics import asf_forward_kinematics  # noqa: E402
+from mocapdb.readers.amc import parse_amc, read_amc  # noqa: E402
+from mocapdb.readers.asf import read_asf  # noqa: E402
+from mocapdb.readers.bvh import read_bvh, write_bvh  # noqa: E402
+from mocapdb.readers.kinematics import asf_forward_kinematics  # noqa: E402
 from mocapdb.readers import read_motion  # noqa: E402
 
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))

@@ -28,9 +28,9 @@ from pathlib import Path
 import numba
 
 from mocapdb.evaluation import SETTINGS, development_evaluation
-from mocapdb.ga import learn_keyframe_queries
-from mocapdb.metrics import evaluate_by_label, parse_tau_grid
-from mocapdb.toolbox_queries import toolbox_keyframe_queries
+from mocapdb.learning import learn_keyframe_queries
+from mocapdb.evaluation.metrics import evaluate_by_label, parse_tau_grid
+from mocapdb.learning.toolbox_queries import toolbox_keyframe_queries
 
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", Path(__file__).resolve().parents[2] / "shared"))
 DATA = SHARED / "data"

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import mocapdb
 from mocapdb.api import train
-from mocapdb.modelstore import export_model
+from mocapdb.storage.models import export_model
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))

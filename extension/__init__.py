@@ -7,6 +7,6 @@ the user-facing names and defaults. Nothing here is persisted in the database
 file: a persisted macro that calls a Python UDF would fail after reopening the
 file without mocapdb, so every connection gets its own temporary copies.
 """
-from .udfs import register
+from mocapdb.extension.udfs import MAX_GAP, MAX_KEYFRAMES, register
 
-__all__ = ["register"]
+__all__ = ["register", "MAX_KEYFRAMES", "MAX_GAP"]

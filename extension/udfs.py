@@ -1,58 +1,54 @@
 """Python UDFs behind the SQL functions, and their registration.
 
 Each UDF is Arrow in / Arrow out and a thin call of the library function of
-the same job; a UDF never queries its connection — the temporary macros of
-``sql/macros.sql`` pass everything in (the motion's words as a list, the model
-as one struct from the ``model_payload`` view). DuckDB calls a Python UDF from
-one thread with up to 2048 rows; the numba kernels underneath parallelise.
+the same job. A UDF never queries its connection for data: the temporary
+macros of ``sql/macros.sql`` pass the motion's words, the model's fingerprint
+and the keyframe index version in, and the connection's
+:class:`~mocapdb.storage.cache.ConnectionCache` holds the parsed model and
+the loaded index (re-read only when a fingerprint or version changed).
+DuckDB calls a Python UDF from one thread with up to 2048 rows; the numba
+kernels underneath parallelise.
 """
 from __future__ import annotations
-
-from collections import OrderedDict
 
 import duckdb
 import numpy as np
 import pyarrow as pa
 from duckdb import sqltypes as T
 
-from mocapdb.api import segments_of_documents
-from mocapdb.database import sql_text
+from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.keyframes import KeyframeQuery, chain_search, intervals_from_runs
-from mocapdb.modelstore import model_from_payload
-from mocapdb.postings import motion_positions
-from mocapdb.sdtw import mt_distance
-from mocapdb.templates import QuantizedTemplate
+from mocapdb.features import N_FEATURES
+from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins, keyframe_search
+from mocapdb.storage.annotations import annotate_documents
+from mocapdb.storage.cache import connection_cache
+from mocapdb.storage.sqltext import sql_text
+from mocapdb.templates import mt_distance
+
+#: limits of an inline keyframe query (keyframe_search_words): they bound the
+#: memory of a search (one interval list per keyframe) and the chain search
+MAX_KEYFRAMES = 32
+#: largest finite gap bound, in 30 Hz frames (one hour)
+MAX_GAP = 30 * 3600
 
 #: SQL type of one annotation segment (frames 1-based at 30 Hz)
 SEGMENT_TYPE = duckdb.struct_type({
     "label": T.VARCHAR, "start_frame": T.INTEGER, "end_frame": T.INTEGER, "cost": T.DOUBLE,
     "start_s": T.DOUBLE, "end_s": T.DOUBLE})
+_SEGMENT_FIELDS = ("label", "start_frame", "end_frame", "cost", "start_s", "end_s")
 _SEGMENT_ARROW = pa.struct([("label", pa.string()), ("start_frame", pa.int32()), ("end_frame", pa.int32()),
                             ("cost", pa.float64()), ("start_s", pa.float64()), ("end_s", pa.float64())])
-
-# Models parsed from payloads, keyed by fingerprint (a content hash, so an
-# entry never goes stale); small because a database holds few models.
-_MODELS: OrderedDict = OrderedDict()
-_MODEL_CACHE_SIZE = 8
+HIT_TYPE = duckdb.struct_type({"motion_id": T.INTEGER, "start_frame": T.INTEGER, "end_frame": T.INTEGER})
+_HIT_ARROW = pa.struct([("motion_id", pa.int32()), ("start_frame", pa.int32()), ("end_frame", pa.int32())])
 
 
-def _model(payload_row: dict):
-    fp = payload_row["fingerprint"]
-    m = _MODELS.get(fp)
-    if m is None:
-        m = model_from_payload(payload_row)
-        _MODELS[fp] = m
-        while len(_MODELS) > _MODEL_CACHE_SIZE:
-            _MODELS.popitem(last=False)
-    else:
-        _MODELS.move_to_end(fp)
-    return m
+def _column(arr):
+    return arr.combine_chunks() if isinstance(arr, pa.ChunkedArray) else arr
 
 
 def _lists(arr):
     """A LIST(UBIGINT) Arrow column as (flat words, lengths, null mask)."""
-    arr = arr.combine_chunks() if isinstance(arr, pa.ChunkedArray) else arr
+    arr = _column(arr)
     nulls = arr.is_null().to_numpy(zero_copy_only=False)
     offsets = arr.offsets.to_numpy()
     lengths = np.diff(offsets).astype(np.int64)
@@ -61,171 +57,172 @@ def _lists(arr):
     return flat, lengths, nulls
 
 
-def _column(arr):
-    arr = arr.combine_chunks() if isinstance(arr, pa.ChunkedArray) else arr
-    return arr
-
-
 def _groups(*columns):
     """Row indices grouped by the values of small per-row parameters."""
-    keys = list(zip(*[c.to_pylist() for c in columns]))
     out = {}
-    for i, k in enumerate(keys):
+    for i, k in enumerate(zip(*[_column(c).to_pylist() for c in columns])):
         out.setdefault(k, []).append(i)
     return out
 
 
-def annotate_udf(words, fps, payload, model_name, tau, keyframes):
-    """``mocap_annotate(words, fps, payload, model, tau, keyframes)`` → LIST(segment) per row."""
-    flat, lengths, nulls = _lists(words)
-    fps = _column(fps).to_numpy(zero_copy_only=False)
-    payload = _column(payload)
-    fingerprints = payload.field("fingerprint") if len(payload) else pa.array([], pa.string())
-    starts = np.concatenate(([0], np.cumsum(lengths)))
-    per_row = [None] * len(lengths)
-    for (fp, name, t, kf), rows in _groups(fingerprints, _column(model_name), _column(tau),
-                                           _column(keyframes)).items():
-        if fp is None:
-            raise SchemaError(f"no model {name!r} in the database; train one with `mocapdb train` "
-                              "or use the default model")
-        model = _model(payload[rows[0]].as_py())
-        rows = [r for r in rows if not nulls[r]]
-        if not rows:
-            continue
-        sel = np.concatenate([np.arange(starts[r], starts[r + 1]) for r in rows]) if rows else np.zeros(0, int)
-        segs = segments_of_documents(flat[sel], lengths[rows], model, tau=t, keyframes=kf)
-        segs = segs[np.lexsort((segs["label"], segs["start"], segs["doc"]))]
-        cut = np.searchsorted(segs["doc"], np.arange(len(rows) + 1))
-        for k, r in enumerate(rows):
-            per_row[r] = segs[cut[k]:cut[k + 1]]
-    # one struct array for all rows + list offsets
-    counts = np.array([0 if s is None else len(s) for s in per_row], dtype=np.int64)
-    out_offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
-    parts = [s for s in per_row if s is not None and len(s)]
-    seg = np.concatenate(parts) if parts else np.zeros(0, dtype=[("label", "U1"), ("start", int), ("end", int),
-                                                                  ("cost", float)])
-    seg_fps = np.repeat(fps, counts)
-    values = pa.StructArray.from_arrays(
-        [pa.array(seg["label"].tolist(), pa.string()), pa.array(seg["start"] + 1, pa.int32()),
-         pa.array(seg["end"] + 1, pa.int32()), pa.array(seg["cost"], pa.float64()),
-         pa.array(seg["start"] / seg_fps, pa.float64()), pa.array((seg["end"] + 1) / seg_fps, pa.float64())],
-        fields=list(_SEGMENT_ARROW))
-    return pa.ListArray.from_arrays(pa.array(out_offsets), values, mask=pa.array(nulls))
+def _list_array(per_row, nulls, values_type):
+    """Per-row Arrow arrays (None for NULL rows) as one ListArray."""
+    counts = np.array([0 if v is None else len(v) for v in per_row], dtype=np.int64)
+    offsets = pa.array(np.concatenate(([0], np.cumsum(counts))).astype(np.int32))
+    parts = [v for v in per_row if v is not None and len(v)]
+    values = pa.concat_arrays(parts) if parts else pa.array([], values_type)
+    return pa.ListArray.from_arrays(offsets, values, mask=pa.array(np.asarray(nulls, bool)))
 
 
-def mt_distance_udf(words, template, cls, model_name):
-    """``mocap_mt_distance(words, class_payload, class, model)`` → DOUBLE[] per row (Δ, inf where undefined)."""
-    flat, lengths, nulls = _lists(words)
-    template, cls, model_name = _column(template), _column(cls), _column(model_name)
-    starts = np.concatenate(([0], np.cumsum(lengths)))
-    out = []
-    templates = {}  # (model, class) -> QuantizedTemplate, parsed once per call
-    for r in range(len(lengths)):
-        if nulls[r]:
-            out.append(None)
-            continue
-        key = (model_name[r].as_py(), cls[r].as_py())
-        q = templates.get(key)
-        if q is None:
-            if not template[r].is_valid:
-                raise SchemaError(f"model {key[0]!r} has no class {key[1]!r} "
-                                  "(see: SELECT class FROM classes WHERE model = …)")
-            t = template[r].as_py()
-            q = templates[key] = QuantizedTemplate(np.array(t["mask"], np.uint64), np.array(t["value"], np.uint64),
-                                                   np.array(t["weights"], np.float64))
-        out.append(mt_distance(flat[starts[r]:starts[r + 1]], q))
-    counts = np.array([0 if d is None else len(d) for d in out], dtype=np.int64)
-    offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
-    values = np.concatenate([d for d in out if d is not None]) if counts.any() else np.zeros(0)
-    return pa.ListArray.from_arrays(pa.array(offsets), pa.array(values, pa.float64()), mask=pa.array(nulls))
+def _check_tau(tau):
+    if tau is not None and not (np.isfinite(tau) and tau >= 0):
+        raise ParameterError(f"tau must be a non-negative number or NULL (each class's τ), got {tau!r}")
 
 
-_HIT_ARROW = pa.struct([("motion_id", pa.int32()), ("start_frame", pa.int32()), ("end_frame", pa.int32())])
+def make_udfs(cache):
+    """The UDFs of one connection, bound to its cache."""
+
+    def annotate_udf(words, motion, fps, model_name, fingerprint, tau, keyframes, index_version):
+        """``mocap_annotate(...)`` → LIST(segment) per row (see sql/macros.sql)."""
+        flat, lengths, nulls = _lists(words)
+        motion = _column(motion).to_numpy(zero_copy_only=False)
+        fps = _column(fps).to_numpy(zero_copy_only=False)
+        starts = np.concatenate(([0], np.cumsum(lengths)))
+        per_row = [None] * len(lengths)
+        for (name, fp, t, kf, version), rows in _groups(model_name, fingerprint, tau, keyframes,
+                                                       index_version).items():
+            key, model = cache.model(name, fp)
+            _check_tau(t)
+            rows = [r for r in rows if not nulls[r]]
+            if not rows:
+                continue
+            rows = np.array(rows, dtype=np.int64)
+            sel = np.concatenate([np.arange(starts[r], starts[r + 1]) for r in rows])
+            segs = annotate_documents(cache, key, model, flat[sel], lengths[rows], motion[rows], tau=t,
+                                      keyframes=kf, index_version=version)
+            table = segment_table(segs, motion_ids=motion[rows], names=[""] * len(rows), fps=fps[rows])
+            values = pa.StructArray.from_arrays([_column(table.column(c)) for c in _SEGMENT_FIELDS],
+                                                fields=list(_SEGMENT_ARROW))
+            # the table is sorted by document (= position in rows) first
+            cut = np.concatenate(([0], np.cumsum(np.bincount(segs["doc"], minlength=len(rows)))))
+            for k, r in enumerate(rows):
+                per_row[r] = values.slice(cut[k], cut[k + 1] - cut[k])
+        return _list_array(per_row, nulls, _SEGMENT_ARROW)
+
+    def mt_distance_udf(words, model_name, fingerprint, cls):
+        """``mocap_mt_distance(words, model, fingerprint, class)`` → DOUBLE[] per row (Δ, inf where undefined)."""
+        flat, lengths, nulls = _lists(words)
+        starts = np.concatenate(([0], np.cumsum(lengths)))
+        per_row = [None] * len(lengths)
+        for (name, fp, c), rows in _groups(model_name, fingerprint, cls).items():
+            _, model = cache.model(name, fp)
+            q = _class(model, c).quantized
+            for r in rows:
+                if not nulls[r]:
+                    per_row[r] = pa.array(mt_distance(flat[starts[r]:starts[r + 1]], q), pa.float64())
+        return _list_array(per_row, nulls, pa.float64())
+
+    def keyframe_search_udf(model_name, fingerprint, cls, extend, index_version):
+        """``mocap_keyframe_search(model, fingerprint, class, extend, version)`` → LIST(hit) per row."""
+        per_row = []
+        for name, fp, c, ext, version in zip(*[_column(x).to_pylist() for x in
+                                               (model_name, fingerprint, cls, extend, index_version)]):
+            _, model = cache.model(name, fp)
+            query = _class(model, c).keyframe_query
+            if query is None:
+                raise SchemaError(f"class {c!r} of model {name!r} has no keyframe query; learn one with "
+                                  "`mocapdb learn-keyframes`")
+            left, right = annot_margins(query) if ext else (0, 0)
+            per_row.append(_search(cache, query, left, right, version))
+        return _list_array(per_row, [False] * len(per_row), _HIT_ARROW)
+
+    def keyframe_search_words_udf(masks, vals, gap_min, gap_max, extend_left, extend_right, index_version):
+        """``mocap_keyframe_search_words(masks, values, d_min, d_max, left, right, version)`` → LIST(hit)."""
+        per_row = []
+        for m, v, lo, hi, left, right, version in zip(*[_column(x).to_pylist() for x in
+                                                        (masks, vals, gap_min, gap_max, extend_left,
+                                                         extend_right, index_version)]):
+            query = inline_query(m, v, lo, hi)
+            for name, x in (("extend_left", left), ("extend_right", right)):
+                if x is None or not 0 <= x <= MAX_GAP:
+                    raise ParameterError(f"keyframe_search_words: {name} must be in 0..{MAX_GAP} frames, got {x}")
+            per_row.append(_search(cache, query, left, right, version))
+        return _list_array(per_row, [False] * len(per_row), _HIT_ARROW)
+
+    return annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf
 
 
-def keyframe_search_udf(n_keyframes, gap_min, gap_max, runs, motions, extend_left, extend_right):
-    """``mocap_keyframe_search(K, d_min[], d_max[], matching runs, motion lengths, margins)``.
+def _class(model, name):
+    if name is None:
+        raise SchemaError(f"class is NULL; model {model.name!r} has the classes {', '.join(model.class_names)}")
+    for c in model.classes:
+        if c.name == name:
+            return c
+    raise SchemaError(f"model {model.name!r} has no class {name!r}; its classes: {', '.join(model.class_names)}")
 
-    ``runs`` are the postings rows (keyframe k, motion, 1-based start, length)
-    whose word matches keyframe k; the chain search of KEYFRAMES.md §5 turns
-    them into segments. One row per call (the macro aggregates).
+
+def _search(cache, query, left, right, version):
+    """Hits of a keyframe query on the stored index as an Arrow struct array."""
+    _, index, ids = cache.index(version)
+    segs = keyframe_search(index, query, extend_left=int(left), extend_right=int(right))
+    return pa.StructArray.from_arrays(
+        [pa.array(ids[segs.doc], pa.int32()), pa.array(segs.start + 1, pa.int32()),
+         pa.array(segs.end + 1, pa.int32())], fields=list(_HIT_ARROW))
+
+
+def inline_query(masks, values, gap_min, gap_max) -> KeyframeQuery:
+    """Validate an inline keyframe query of ``keyframe_search_words`` (limits: :data:`MAX_KEYFRAMES`,
+    :data:`MAX_GAP`).
+
+    Raises
+    ------
+    ParameterError
+        Naming what is malformed.
     """
-    out_offsets, values, nulls = [0], [], []
-    for r in range(len(n_keyframes)):
-        K = _column(n_keyframes)[r].as_py()
-        if K is None:
-            nulls.append(True)
-            out_offsets.append(out_offsets[-1])
-            continue
-        d_min = np.array(_column(gap_min)[r].as_py() or [], np.float64)
-        d_max = np.array([np.inf if x is None or x < 0 else x for x in (_column(gap_max)[r].as_py() or [])],
-                         np.float64)
-        if len(d_min) != K - 1 or len(d_max) != K - 1:
-            raise ParameterError(f"a query of {K} keyframes needs {K - 1} gap bounds, "
-                                 f"got {len(d_min)} d_min and {len(d_max)} d_max")
-        query = KeyframeQuery(np.zeros(K, np.uint64), np.zeros(K, np.uint64), np.zeros(K, np.int64),
-                              d_min, d_max, 1)
-        mot = _column(motions)[r]
-        ids = np.asarray(mot.values.field("motion_id"), dtype=np.int64) if mot.is_valid else np.zeros(0, np.int64)
-        lens = np.asarray(mot.values.field("n_frames"), dtype=np.int64) if mot.is_valid else np.zeros(0, np.int64)
-        order = np.argsort(ids)
-        ids, lens = ids[order], lens[order]
-        rr = _column(runs)[r]
-        if rr.is_valid and len(rr.values):
-            v = rr.values
-            doc = motion_positions(ids, v.field("motion_id"))
-            iv = intervals_from_runs(np.asarray(v.field("k")), doc, np.asarray(v.field("start_frame")) - 1,
-                                     np.asarray(v.field("n_frames")))
-            segs = chain_search(iv, query, lens, extend_left=_column(extend_left)[r].as_py() or 0,
-                                extend_right=_column(extend_right)[r].as_py() or 0)
-            values.append(pa.StructArray.from_arrays(
-                [pa.array(ids[segs.doc], pa.int32()), pa.array(segs.start + 1, pa.int32()),
-                 pa.array(segs.end + 1, pa.int32())], fields=list(_HIT_ARROW)))
-            out_offsets.append(out_offsets[-1] + len(segs.doc))
-        else:
-            out_offsets.append(out_offsets[-1])
-        nulls.append(False)
-    flat = pa.concat_arrays(values) if values else pa.array([], _HIT_ARROW)
-    return pa.ListArray.from_arrays(pa.array(out_offsets, pa.int32()), flat, mask=pa.array(nulls))
+    what = "keyframe_search_words"
+    if masks is None or values is None:
+        raise ParameterError(f"{what}: masks and values must not be NULL")
+    K = len(masks)
+    if not 1 <= K <= MAX_KEYFRAMES:
+        raise ParameterError(f"{what}: a query has 1..{MAX_KEYFRAMES} keyframes, got {K}")
+    if len(values) != K:
+        raise ParameterError(f"{what}: {K} masks but {len(values)} values; give one value per mask")
+    gap_min, gap_max = list(gap_min or []), list(gap_max or [])
+    if len(gap_min) != K - 1 or len(gap_max) != K - 1:
+        raise ParameterError(f"{what}: a query of {K} keyframes needs {K - 1} gap bounds, "
+                             f"got {len(gap_min)} d_min and {len(gap_max)} d_max")
+    full = (1 << N_FEATURES) - 1
+    for k, (m, v) in enumerate(zip(masks, values)):
+        if m is None or v is None or m & ~full or v & ~m:
+            raise ParameterError(f"{what}: keyframe {k + 1} (mask {m}, value {v}) must be 40-bit words "
+                                 "with value bits only where the mask has bits")
+    for g, (lo, hi) in enumerate(zip(gap_min, gap_max)):
+        if lo is None or not 0 <= lo <= MAX_GAP or (hi is not None and not lo <= hi <= MAX_GAP):
+            raise ParameterError(f"{what}: gap {g + 1} must have 0 <= d_min <= d_max <= {MAX_GAP} frames "
+                                 f"(d_max NULL = unbounded), got d_min={lo}, d_max={hi}")
+    return KeyframeQuery(np.array(masks, np.uint64), np.array(values, np.uint64), np.arange(K, dtype=np.int64),
+                         np.array(gap_min, np.float64),
+                         np.array([UNBOUNDED if x is None else x for x in gap_max], np.float64), K)
 
 
 def register(con) -> None:
     """Register the mocapdb UDFs and temporary macros on a connection."""
-    ubigint_list = duckdb.list_type(T.UBIGINT)
-    # The payload types are whatever the views produce; read them from the catalog.
-    payload_type = duckdb.sqltype(_payload_type(con, "model"))
-    class_type = duckdb.sqltype(_payload_type(con, "class"))
+    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf = make_udfs(connection_cache(con))
+    words = duckdb.list_type(T.UBIGINT)
+    common = {"type": "arrow", "null_handling": "special", "side_effects": False}
     con.create_function("mocap_annotate", annotate_udf,
-                        [ubigint_list, T.DOUBLE, payload_type, T.VARCHAR, T.DOUBLE, T.BOOLEAN],
-                        duckdb.list_type(SEGMENT_TYPE), type="arrow", null_handling="special",
-                        side_effects=False)
-    con.create_function("mocap_mt_distance", mt_distance_udf,
-                        [ubigint_list, class_type, T.VARCHAR, T.VARCHAR],
-                        duckdb.list_type(T.DOUBLE), type="arrow", null_handling="special",
-                        side_effects=False)
-    run_type = duckdb.list_type(duckdb.struct_type(
-        {"k": T.BIGINT, "motion_id": T.INTEGER, "start_frame": T.INTEGER, "n_frames": T.INTEGER}))
-    length_type = duckdb.list_type(duckdb.struct_type({"motion_id": T.INTEGER, "n_frames": T.INTEGER}))
-    hit_type = duckdb.list_type(duckdb.struct_type(
-        {"motion_id": T.INTEGER, "start_frame": T.INTEGER, "end_frame": T.INTEGER}))
+                        [words, T.INTEGER, T.DOUBLE, T.VARCHAR, T.VARCHAR, T.DOUBLE, T.BOOLEAN, T.BIGINT],
+                        duckdb.list_type(SEGMENT_TYPE), **common)
+    con.create_function("mocap_mt_distance", mt_distance_udf, [words, T.VARCHAR, T.VARCHAR, T.VARCHAR],
+                        duckdb.list_type(T.DOUBLE), **common)
     con.create_function("mocap_keyframe_search", keyframe_search_udf,
-                        [T.BIGINT, duckdb.list_type(T.BIGINT), duckdb.list_type(T.BIGINT), run_type, length_type,
-                         T.BIGINT, T.BIGINT],
-                        hit_type, type="arrow", null_handling="special", side_effects=False)
+                        [T.VARCHAR, T.VARCHAR, T.VARCHAR, T.BOOLEAN, T.BIGINT], duckdb.list_type(HIT_TYPE),
+                        **common)
+    con.create_function("mocap_keyframe_search_words", keyframe_search_words_udf,
+                        [duckdb.list_type(T.UBIGINT), duckdb.list_type(T.UBIGINT), duckdb.list_type(T.BIGINT),
+                         duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
+                        duckdb.list_type(HIT_TYPE), **common)
     con.execute(sql_text("macros.sql"))
-    from mocapdb.postings import index_exists
-
-    con.execute(sql_text("keyframe_macros.sql" if index_exists(con) else "keyframe_macros_missing.sql"))
 
 
-def _payload_type(con, which) -> str:
-    """SQL type string of the model payload (``model``) or of one class entry (``class``)."""
-    cols = dict(con.execute(
-        "SELECT column_name, data_type FROM duckdb_columns() WHERE table_name = 'model_payload'").fetchall())
-    if which == "class":
-        return cols["classes"][:-2]  # STRUCT(...)[] -> STRUCT(...)
-    return (f"STRUCT(model_name {cols['model_name']}, fingerprint {cols['fingerprint']}, "
-            f"labels {cols['labels']}, classes {cols['classes']})")
-
-
-__all__ = ["register", "annotate_udf", "mt_distance_udf", "SEGMENT_TYPE"]
+__all__ = ["register", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "MAX_KEYFRAMES", "MAX_GAP"]

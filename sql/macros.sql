@@ -1,27 +1,52 @@
--- Temporary macros installed on every mocapdb.connect (they call Python UDFs,
--- which exist only on connections where Python registered them). Parameter
--- names differ from every column name the bodies read (DuckDB rejects the
--- clash), and table aliases inside are prefixed mocap_ so that an argument such
--- as m.motion_id cannot be captured by an alias of the body (macros expand
--- textually).
+-- The SQL functions: temporary macros installed on every mocapdb.connect,
+-- because they call Python UDFs, which exist only on connections where Python
+-- registered them. Each passes its data in — the motion's words, the model's
+-- fingerprint, the index version — and the UDF keeps models and the keyframe
+-- index parsed in memory per connection, re-reading one only when its
+-- fingerprint or version changed. Parameter names differ from every column
+-- the bodies read (DuckDB rejects the clash); table aliases are prefixed
+-- mocap_ so that an argument such as m.motion_id cannot be captured by an
+-- alias of the body (macros expand textually).
 
--- Δ of a class template against a motion: one DOUBLE per 30 Hz frame,
--- inf where no template match can end.
+-- Δ of a class template against a motion: one DOUBLE per 30 Hz frame, inf
+-- where no template match can end. NULL for a NULL or unknown motion.
 CREATE OR REPLACE TEMP MACRO mt_distance(motion, cls, model := 'default') AS
     mocap_mt_distance(
         (SELECT list(mocap_f.bits ORDER BY mocap_f.frame) FROM features mocap_f WHERE mocap_f.motion_id = motion),
-        (SELECT mocap_u.c FROM model_payload mocap_p, unnest(mocap_p.classes) AS mocap_u(c)
-         WHERE mocap_p.model_name = model AND mocap_u.c.class = cls),
-        cls, model);
+        model,
+        (SELECT mocap_v.fingerprint FROM model_fingerprints mocap_v WHERE mocap_v.model_name = model),
+        cls);
 
--- Labelled segments of a motion: LIST(STRUCT(label, start_frame, end_frame, cost, start_s, end_s)),
--- frames 1-based at 30 Hz. A NULL tau uses each class's τ; a NULL keyframes uses
--- the model's keyframe queries when it has them.
+-- Labelled segments of a motion: LIST(STRUCT(label, start_frame, end_frame,
+-- cost, start_s, end_s)), frames 1-based at 30 Hz. A NULL tau uses each
+-- class's τ; a NULL keyframes preselects when the model has keyframe queries.
 CREATE OR REPLACE TEMP MACRO annotate(motion, model := 'default', tau := NULL, keyframes := NULL) AS
     mocap_annotate(
         (SELECT list(mocap_f.bits ORDER BY mocap_f.frame) FROM features mocap_f WHERE mocap_f.motion_id = motion),
+        motion::INTEGER,
         (SELECT mocap_m.fps FROM motions mocap_m WHERE mocap_m.motion_id = motion),
-        (SELECT {model_name: mocap_p.model_name, fingerprint: mocap_p.fingerprint, labels: mocap_p.labels,
-                 classes: mocap_p.classes}
-         FROM model_payload mocap_p WHERE mocap_p.model_name = model),
-        model, tau::DOUBLE, keyframes::BOOLEAN);
+        model,
+        (SELECT mocap_v.fingerprint FROM model_fingerprints mocap_v WHERE mocap_v.model_name = model),
+        tau::DOUBLE, keyframes::BOOLEAN,
+        (SELECT mocap_s.version FROM %index_schema%.state mocap_s));
+
+-- Segments of every motion that contain a class's keyframe chain: rows
+-- (motion_id, start_frame, end_frame), 1-based inclusive 30 Hz frames.
+-- extend := true widens every hit by the annotation margins 2·(pos₁ − 1) and
+-- 2·(L − pos_K) (TEMPLATES.md §10).
+CREATE OR REPLACE TEMP MACRO keyframe_search(cls, model := 'default', extend := false) AS TABLE
+SELECT unnest(mocap_keyframe_search(
+    model,
+    (SELECT mocap_v.fingerprint FROM model_fingerprints mocap_v WHERE mocap_v.model_name = model),
+    cls, extend::BOOLEAN,
+    (SELECT mocap_s.version FROM %index_schema%.state mocap_s)), recursive := true);
+
+-- The same for an inline query: keyframes as 40-bit (mask, value) words (a
+-- frame matches iff bits & mask = value), gap bounds between consecutive
+-- keyframes in 30 Hz frames (a NULL d_max is unbounded). Limits: see README.
+CREATE OR REPLACE TEMP MACRO keyframe_search_words(masks, vals, gap_min, gap_max,
+                                                   extend_left := 0, extend_right := 0) AS TABLE
+SELECT unnest(mocap_keyframe_search_words(
+    masks::UBIGINT[], vals::UBIGINT[], gap_min::BIGINT[], gap_max::BIGINT[],
+    extend_left::BIGINT, extend_right::BIGINT,
+    (SELECT mocap_s.version FROM %index_schema%.state mocap_s)), recursive := true);

@@ -1,4 +1,5 @@
--- mocapdb schema: plain tables, created on every connect (IF NOT EXISTS).
+-- mocapdb schema: plain tables, created on every read-write connect (IF NOT
+-- EXISTS), so a database written by an older mocapdb gains new objects.
 -- Frames stored here are 1-based and inclusive, like the HDM05 annotations;
 -- `frame` in `features` counts 30 Hz frames (native frame 4·frame − 3).
 
@@ -35,8 +36,14 @@ CREATE TABLE IF NOT EXISTS models (
     description  VARCHAR,
     source       VARCHAR,                  -- how it was made (training data, command)
     fingerprint  VARCHAR NOT NULL,         -- changes whenever the model's rows change
-    created_at   TIMESTAMP NOT NULL DEFAULT current_timestamp
+    created_at   TIMESTAMP NOT NULL DEFAULT current_timestamp,
+    shipped      BOOLEAN NOT NULL DEFAULT false  -- installed from the package (kept up to date)
 );
+-- databases from before `shipped`: the packaged default model was loaded on
+-- first use and said so in its source
+ALTER TABLE models ADD COLUMN IF NOT EXISTS shipped BOOLEAN DEFAULT false;
+UPDATE models SET shipped = true
+WHERE NOT shipped AND model = 'default' AND source LIKE '%keyframe queries: GA from folder%hdm05_cut';
 
 -- One row per fine class: its coarse label (squat1Reps -> exercise), the
 -- quantization threshold δ of its template and its hit threshold τ.

@@ -45,43 +45,7 @@ SELECT
     (bits & 549755813888::UBIGINT) <> 0 AS root_high_ang_vel
 FROM features;
 
--- A model as one value per model, in the shape the annotate() UDF takes.
--- Every column reference is qualified: a macro parameter such as `model`
--- would otherwise clash with the columns of the same name read in here.
-CREATE OR REPLACE VIEW model_payload AS
-WITH cols AS (
-    SELECT t.model AS model_name, t.class AS class_name,
-           list(t.mask ORDER BY t.col) AS mask,
-           list(t.value ORDER BY t.col) AS value,
-           list(t.weight ORDER BY t.col) AS weights
-    FROM templates t GROUP BY t.model, t.class
-), kf AS (
-    SELECT k.model AS model_name, k.class AS class_name,
-           list(k.mask ORDER BY k.k) AS mask,
-           list(k.value ORDER BY k.k) AS value,
-           list(k.position ORDER BY k.k) AS positions,
-           list(coalesce(k.d_min, 0) ORDER BY k.k)[1:-2] AS d_min,
-           list(coalesce(k.d_max, -1) ORDER BY k.k)[1:-2] AS d_max,
-           list(k.feature_set ORDER BY k.k) AS feature_sets
-    FROM keyframes k GROUP BY k.model, k.class
-), labels AS (
-    SELECT l.model_name, list(l.label ORDER BY l.label_id) AS labels
-    FROM (SELECT DISTINCT c.model AS model_name, c.label, c.label_id FROM classes c) l
-    GROUP BY l.model_name
-)
-SELECT m.model AS model_name,
-       m.fingerprint,
-       any_value(lb.labels) AS labels,
-       list({class: c.class, label_id: c.label_id, delta: c.delta, tau: c.tau,
-             mask: t.mask, value: t.value, weights: t.weights,
-             keyframes: CASE WHEN q.class IS NULL THEN NULL ELSE
-                 {template_length: q.template_length, mask: k.mask, value: k.value, positions: k.positions,
-                  d_min: k.d_min, d_max: k.d_max, feature_sets: k.feature_sets} END}
-            ORDER BY c.class_id) AS classes
-FROM models m
-JOIN labels lb ON lb.model_name = m.model
-JOIN classes c ON c.model = m.model
-JOIN cols t ON t.model_name = c.model AND t.class_name = c.class
-LEFT JOIN keyframe_queries q ON q.model = c.model AND q.class = c.class
-LEFT JOIN kf k ON k.model_name = c.model AND k.class_name = c.class
-GROUP BY m.model, m.fingerprint;
+-- Model names and fingerprints, for the SQL functions: a macro parameter named
+-- `model` cannot read a column named `model` (DuckDB rejects the clash).
+CREATE OR REPLACE VIEW model_fingerprints AS
+SELECT m.model AS model_name, m.fingerprint FROM models m;

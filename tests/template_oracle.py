@@ -10,7 +10,7 @@ import numpy as np
 
 from conftest import ORACLE
 from mocapdb.features import pack_words
-from mocapdb.model import ClassModel, Model
+from mocapdb.annotation.model import ClassModel, Model
 from mocapdb.templates import QuantizedTemplate
 
 TEMPLATES = ORACLE / "templates"

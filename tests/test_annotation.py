@@ -5,8 +5,8 @@ import pytest
 from mocapdb.annotation import (
     annotate, combine_by_label, extract_hits, form_segments, frame_labels)
 from mocapdb.errors import ParameterError
-from mocapdb.model import ClassModel, Model
-from mocapdb.sdtw import mt_distance
+from mocapdb.annotation.model import ClassModel, Model
+from mocapdb.templates import mt_distance
 from naive_dtw import naive_hits, naive_segments
 from template_oracle import (
     ANNOTATION, CLASSES, COARSE, DOCS, TEMPLATES, csv_rows, csv_table, oracle_model,
@@ -80,7 +80,7 @@ def _archive():
 
 @pytest.mark.parametrize("cells", [1, 1500 * 11, 4000 * 11])
 def test_batched_annotation_equals_one_batch(model, monkeypatch, cells):
-    import mocapdb.annotation as ann
+    import mocapdb.annotation.chain as ann
     w, lens = _archive()
     full = annotate(w, model, doc_lengths=lens, keep_deltas=True)  # keep_deltas: one batch
     # 1 cell: every document a batch of its own; then batches of 1-2 and 3-4 documents
@@ -101,7 +101,7 @@ def test_batched_annotation_equals_one_batch(model, monkeypatch, cells):
 
 
 def test_batches_cover_the_documents_in_order():
-    from mocapdb.annotation import _batches
+    from mocapdb.annotation.chain import _batches
     rng = np.random.default_rng(3)
     for _ in range(50):
         lens = rng.integers(0, 50, int(rng.integers(1, 30)))
@@ -193,7 +193,7 @@ def test_match_num_max_raises():
 
 
 def test_sort_kernel_equals_stable_argsort():
-    from mocapdb.annotation import _sort_by_key
+    from mocapdb.annotation.chain import _sort_by_key
     rng = np.random.default_rng(6)
     for n in [0, 1, 2, 15, 16, 17, 31, 33, 64, 100, 257, 1000]:
         key = np.concatenate([rng.random(5), rng.integers(0, 7, n + 3) / 7.0])

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from conftest import DATA, ORACLE
-from mocapdb._textscan import NUM_BAD, NUM_OK, NUM_SLOW, parse_numbers
-from mocapdb.amc import column_layout, parse_amc, read_amc
-from mocapdb.asf import parse_asf, read_asf
-from mocapdb.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.kinematics import (asf_forward_kinematics, euler_matrix, node_positions,
+from mocapdb.readers.textscan import NUM_BAD, NUM_OK, NUM_SLOW, parse_numbers
+from mocapdb.readers.amc import column_layout, parse_amc, read_amc
+from mocapdb.readers.asf import parse_asf, read_asf
+from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.readers.kinematics import (asf_forward_kinematics, euler_matrix, node_positions,
                                 orientation_matrix, sincos)
 from mocapdb.readers import find_skeleton, read_motion
 from naive_kinematics import naive_amc_values, naive_asf_fk

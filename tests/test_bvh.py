@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 
 from conftest import DATA
-from mocapdb.amc import read_amc
-from mocapdb.asf import read_asf
-from mocapdb.bvh import (CMU_BONE_NAMES, FAMILIES, bvh_node_positions, euler_angles,
+from mocapdb.readers.amc import read_amc
+from mocapdb.readers.asf import read_asf
+from mocapdb.readers.bvh import (CMU_BONE_NAMES, FAMILIES, bvh_node_positions, euler_angles,
                          fps_from_frame_time, parse_bvh, read_bvh, write_bvh)
 from mocapdb.errors import ParseError
-from mocapdb.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.kinematics import asf_forward_kinematics, euler_matrix
-from mocapdb.motion import Motion
+from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.readers.kinematics import asf_forward_kinematics, euler_matrix
+from mocapdb.readers.motion import Motion
 from mocapdb.readers import read_motion
 from naive_kinematics import naive_bvh_fk
 

@@ -4,6 +4,7 @@ import io
 import json
 import shutil
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -139,35 +140,43 @@ def test_eval_from_database_equals_eval_of_the_written_predictions(run, tmp_path
     run("ingest", DATA / "cmu" / "86", "--silent")
     pred = tmp_path / "pred.csv"
     run("annotate", "--no-keyframes", "--format", "csv", "--out", pred)
-    from_db = run("eval", "--truth", truth, "--map", walk_is_move, "--no-keyframes")
+    from_db = run("evaluate", "--truth", truth, "--map", walk_is_move, "--no-keyframes")
     assert from_db.exit_code == 0, from_db.output
     assert "look_around (1)" in from_db.output  # labels the model cannot produce are reported
     labels = "move,sitLieDown,jump,kick,rotateArms,throwR,grabDepR,exercise"
-    from_files = CliRunner().invoke(main, ["eval", "--truth", str(truth), "--pred", str(pred),
-                                           "--map", str(walk_is_move), "--labels", labels])
+    from_files = CliRunner().invoke(main, ["evaluate", "--truth", str(truth), "--pred", str(pred),
+                                           "--map", str(walk_is_move), "--vocabulary", labels])
     assert from_files.exit_code == 0, from_files.output
     p1, r1, f1, p2, r2, f2 = _scores(from_db.output)
     assert _scores(from_files.output) == [p1, r1, f1, p2, r2, f2]
     assert r1 > 0.9 and p1 < 0.5  # walking is found, and so are the toolbox's false kicks
-    sweep = run("eval", "--truth", truth, "--map", walk_is_move, "--no-keyframes", "--sweep-tau", "0.05:0.15:0.05")
+    sweep = run("evaluate", "--truth", truth, "--map", walk_is_move, "--no-keyframes", "--sweep-tau", "0.05:0.15:0.05")
     taus = [ln.split()[0] for ln in sweep.output.splitlines() if ln.startswith("tau=")]
     assert taus == ["tau=0.050", "tau=0.100", "tau=0.150"]
 
 
-def test_eval_of_the_truth_itself_is_perfect(tmp_path):
+def test_eval_counts_a_missing_segment(tmp_path):
+    """Predictions = the truth on the 30 Hz grid minus its longest segment: P1 = P2 = 1 and
+    R2 = (n − 1)/n exactly; R1 = the frames kept over all truth frames."""
     truth = _truth_86_09(tmp_path / "truth.csv")
-    # the truth on the 30 Hz grid, written as predictions
-    from mocapdb.labels import read_labels, to_feature_grid
+    from mocapdb.annotation.labels import read_labels, to_feature_grid
 
     rows = to_feature_grid(read_labels(truth))
+    longest = int(np.argmax(rows["end"] - rows["start"]))
     pred = tmp_path / "pred.csv"
     with pred.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["document", "label", "start_frame", "end_frame"])
-        for r in rows:
-            w.writerow([r["document"], r["label"], r["start"] + 1, r["end"] + 1])
-    r = CliRunner().invoke(main, ["eval", "--truth", str(truth), "--pred", str(pred)])
-    assert r.exit_code == 0 and _scores(r.output) == [1.0] * 6
+        for k, r in enumerate(rows):
+            if k != longest:
+                w.writerow([r["document"], r["label"], r["start"] + 1, r["end"] + 1])
+    r = CliRunner().invoke(main, ["evaluate", "--truth", str(truth), "--pred", str(pred)])
+    assert r.exit_code == 0, r.output
+    p1, r1, f1, p2, r2, f2 = _scores(r.output)
+    frames = rows["end"] - rows["start"] + 1
+    assert p1 == 1.0 and p2 == 1.0
+    assert r2 == round((len(rows) - 1) / len(rows), 3)
+    assert r1 == round(1 - frames[longest] / frames.sum(), 3)
 
 
 def test_learn_keyframes_is_reproducible_and_searchable(run, tmp_path):
@@ -193,9 +202,9 @@ def test_learn_keyframes_is_reproducible_and_searchable(run, tmp_path):
 def test_index_drop_and_rebuild(run):
     run("ingest", DATA / "hdm05_cut" / "kickLFront1Reps", "--silent")
     before = run("sql", "SELECT count(*) FROM mocap_index.postings", "--format", "csv").output
-    assert "keyframe index dropped" in run("index", "--drop").output
+    assert "keyframe index dropped" in run("drop-index").output
     assert run("sql", "SELECT count(*) FROM mocap_index.postings").exit_code == 1
-    r = run("index")
+    r = run("create-index")
     assert r.exit_code == 0 and f"{before.splitlines()[1]} postings" in r.output
 
 
@@ -220,7 +229,7 @@ def test_train_from_a_label_csv_over_ingested_documents(run, tmp_path):
     r = run("train", "--model", "cmu86", "--labels", truth, "--silent")
     assert r.exit_code == 0, r.output
     assert "model 'cmu86': 4 classes, 4 labels" in r.output  # walk, look_around, clap, stand_and_clap
-    r = run("eval", "--truth", truth, "--model", "cmu86", "--no-keyframes")
+    r = run("evaluate", "--truth", truth, "--model", "cmu86", "--no-keyframes")
     p1, r1, f1, p2, r2, f2 = _scores(r.output)
     assert r1 > 0.8 and r2 == 1.0  # every labelled segment is found again by its own template
     bad = tmp_path / "bad.csv"

@@ -8,7 +8,8 @@ import pytest
 
 import mocapdb
 from mocapdb.features import FEATURE_NAMES, motion_features
-from mocapdb.ingest import ingest, motion_files
+from mocapdb import ingest
+from mocapdb.storage.ingest import motion_files
 from mocapdb.readers import read_motion
 
 from conftest import DATA, amc_frame_count
@@ -86,7 +87,7 @@ def test_feature_flags_view_names_every_bit(archive):
 
 
 def test_parquet_export_import_round_trip(archive, tmp_path):
-    from mocapdb.parquet import export_features, features_sql, import_features
+    from mocapdb.storage.parquet import export_features, features_sql, import_features
 
     con = archive[0]
     n = export_features(con, tmp_path / "export")
@@ -149,7 +150,7 @@ def test_failed_files_change_nothing_and_others_go_in(tmp_path):
 
 
 def test_delete_removes_everything_of_a_motion(tmp_path):
-    from mocapdb.ingest import delete_motions
+    from mocapdb.storage.ingest import delete_motions
 
     con = mocapdb.connect(tmp_path / "t.duckdb")
     try:

@@ -7,10 +7,10 @@ from mocapdb.errors import ParameterError
 from mocapdb.evaluation import (
     CLIPS_PER_DOCUMENT, cmu86_documents, concatenate_motions, development_evaluation,
     loao_documents, mocap6_documents)
-from mocapdb.labels import class_labels
-from mocapdb.metrics import evaluate_by_label
+from mocapdb.annotation.labels import class_labels
+from mocapdb.evaluation.metrics import evaluate_by_label
 from mocapdb.readers import read_motion
-from mocapdb.training import clip_files
+from mocapdb.learning.training import clip_files
 
 from conftest import DATA, amc_frame_count
 

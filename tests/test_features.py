@@ -15,8 +15,8 @@ import naive_features as naive
 from conftest import DATA, ORACLE
 from mocapdb import features as F
 from mocapdb.errors import ParameterError
-from mocapdb.joints import JOINT_INDEX, MIRROR_JOINTS
-from mocapdb.motion import Motion
+from mocapdb.readers.joints import JOINT_INDEX, MIRROR_JOINTS
+from mocapdb.readers.motion import Motion
 from mocapdb.readers import read_motion
 
 J = JOINT_INDEX

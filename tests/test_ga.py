@@ -7,13 +7,14 @@ file fast; the full-size figures are in benchmarks/bench_ga.py.
 import numpy as np
 import pytest
 
-from mocapdb import ga
+from mocapdb import learning as ga
+from mocapdb.learning import ga_operators
 from mocapdb.errors import ParameterError
 from mocapdb.features import N_FEATURES
-from mocapdb.index import build_index
+from mocapdb.keyframes import build_index
 from mocapdb.keyframes import KeyframeQuery, keyframe_search
 from mocapdb.templates import learn_template
-from mocapdb.training import clips_from_folders
+from mocapdb.learning.training import clips_from_folders
 
 CLASSES = ["hopBothLegs1hops", "jogLeftCircle4StepsRstart", "kickLFront1Reps",
            "sneak2StepsLStart"]
@@ -327,7 +328,7 @@ def test_mutations_keep_invariants_and_do_one_thing(quantized):
         q = ga.random_query(strict, random_state=rng)
         m = ga.mutate(q, strict, loose, random_state=rng)
         check_valid(m, L)
-        for op in ga._applicable(ga._genome(q)):
+        for op in ga_operators._applicable(ga_operators._genome(q)):
             m = ga.mutate(q, strict, loose, random_state=rng, operation=op)
             check_valid(m, L)
             seen.add(op)
@@ -437,7 +438,7 @@ def test_average_statistics_and_plot(train, tmp_path):
     with pytest.raises(ParameterError, match="generations"):
         ga.average_statistics([a, run(train, "sneak2StepsLStart", seed=1, generations=3)])
     pytest.importorskip("matplotlib")
-    from mocapdb.plots import plot_ga_statistics
+    from mocapdb.evaluation.figures import plot_ga_statistics
 
     out = tmp_path / "fig5.png"
     fig = plot_ga_statistics(st, out)

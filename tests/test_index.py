@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from mocapdb.errors import ParameterError
-from mocapdb.index import (INDEX_PARTS, PART_BITS, Index, build_index, fuzzy_intervals,
-                           fuzzy_postings, _fuzzy)
+from mocapdb.keyframes import INDEX_PARTS, PART_BITS, Index, build_index, fuzzy_intervals, fuzzy_postings
+from mocapdb.keyframes.index import _fuzzy
 from naive_keyframes import (int_table, load_feat30_words, naive_fuzzy_words, naive_match,
                              naive_postings, naive_runs, naive_segments, naive_union, read_rows)
 

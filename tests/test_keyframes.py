@@ -13,10 +13,11 @@ import pytest
 
 from mocapdb.errors import ParameterError
 from mocapdb.features import FEATURE_SETS
-from mocapdb.index import INDEX_PARTS, build_index
-from mocapdb.keyframe_kernels import (_AUTO, _BITSET, _FORWARD, _HEAP, _chain_batch_kernel,
+from mocapdb.keyframes import INDEX_PARTS, build_index
+from mocapdb.keyframes.search_kernels import (_AUTO, _BITSET, _FORWARD, _HEAP, _chain_batch_kernel,
                                       _query_intervals_kernel)
-from mocapdb.keyframes import (UNBOUNDED, KeyframeQuery, _intervals, _plan, _search, _sub_arrays,
+from mocapdb.keyframes.search import _intervals, _plan, _search, _sub_arrays
+from mocapdb.keyframes import (UNBOUNDED, KeyframeQuery,
                                annot_margins, choose_keyframes_equally_distributed,
                                intervals_from_runs, keyframe_hit_documents, keyframe_intervals,
                                keyframe_mask_value, keyframe_postings, keyframe_search,

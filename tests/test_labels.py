@@ -7,7 +7,7 @@ import pytest
 
 from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import motion_features
-from mocapdb.labels import (
+from mocapdb.annotation.labels import (
     LABEL_DTYPE, class_labels, feature_to_native_frames, label_rows, map_labels,
     native_to_feature_frames, read_class_labels, read_labels, segments_to_rows,
     to_feature_grid, to_native_grid, write_class_labels, write_labels)

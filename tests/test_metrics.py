@@ -4,8 +4,8 @@ import pytest
 
 from mocapdb.annotation import annotate
 from mocapdb.errors import ParameterError
-from mocapdb.labels import label_rows, segments_to_rows
-from mocapdb.metrics import (
+from mocapdb.annotation.labels import label_rows, segments_to_rows
+from mocapdb.evaluation.metrics import (
     annotate_sweep, evaluate_annotation, evaluate_by_label, f_measure, frame_measures,
     segment_measures, parse_tau_grid, sweep_tau, tau_grid)
 from naive_metrics import naive_frame_measures, naive_segment_measures

@@ -11,9 +11,9 @@ from dataclasses import replace
 import pytest
 
 from conftest import DATA
-from mocapdb.amc import read_amc
-from mocapdb.asf import read_asf
-from mocapdb.bvh import read_bvh, write_bvh
+from mocapdb.readers.amc import read_amc
+from mocapdb.readers.asf import read_asf
+from mocapdb.readers.bvh import read_bvh, write_bvh
 from mocapdb.errors import MocapdbError, ParseError
 from mocapdb.readers import find_skeleton, read_motion
 

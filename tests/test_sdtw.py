@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mocapdb.errors import ParameterError
-from mocapdb.sdtw import (
+from mocapdb.templates import (
     ANNOTATION_STEPS, RETRIEVAL_STEPS, cost_table, mt_distance, mt_distance_slices,
     subsequence_dtw)
 from mocapdb.templates import QuantizedTemplate

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import mocapdb
-from mocapdb.api import annotate_motions
-from mocapdb.ingest import ingest
-from mocapdb.modelstore import load_model, save_model
+from mocapdb import ingest
+from mocapdb.api import annotate as annotate_motions
+from mocapdb.storage.models import load_model, save_model
 
 from conftest import DATA, ORACLE
 from template_oracle import DOCS, oracle_model, quantized_template

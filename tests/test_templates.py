@@ -181,7 +181,7 @@ def test_weighted_dtw_matches_naive():
 def test_every_reference_of_an_iteration_matches_naive():
     # one iteration runs each pair's DP once and reads it in both orientations;
     # quarter values and equal weights make ties in both orientations frequent
-    from mocapdb.templates import _averaging_iteration, _pack_sequences
+    from mocapdb.templates.averaging import _averaging_iteration, _pack_sequences
     rng = np.random.default_rng(13)
     for _ in range(6):
         seqs = [rng.integers(0, 3, (int(rng.integers(1, 8)), 40)) / 2 for _ in range(4)]

@@ -1,0 +1,596 @@
+"""The development evaluation: annotation quality on data the model was not trained on.
+
+data/README.md fixes what the project's own evaluation reports:
+
+* **leave-one-actor-out (LOAO)** on ``hdm05_cut`` (four actors bd, bk, dg,
+  mm; 11 classes): train on three actors, annotate documents built from the
+  fourth actor's clips (:func:`loao_documents`), ground truth = the clip
+  boundaries with the coarse labels of ``mocapdb/models/hdm05_labels.csv``;
+* **real documents** (:func:`cmu86_documents`, :func:`mocap6_documents`),
+  annotated with the model trained on all four actors: CMU 86_09 with its
+  segment ground truth, and the CMU exercise routines 13_29–13_31, 14_14,
+  14_20 with the mocap6 labels.
+
+:func:`development_evaluation` runs all of it and scores every setting with
+the paper's P1/R1/F1 and P2/R2/F2 (:mod:`mocapdb.metrics`), each restricted
+to the model's label vocabulary (ground-truth labels the model cannot
+produce are dropped and reported).
+
+Judgement calls (documented here, data not code where possible):
+
+* LOAO documents hold ``clips_per_document = 15`` clips (default): 44–65
+  clips per actor give 3–5 documents of ≈ 30–45 s each, close to the
+  paper's evaluation documents (109 documents averaging 40 s). Unlike those,
+  every frame of a LOAO document belongs to a labelled clip (no unlabelled
+  transitions), and the joins are abrupt pose changes.
+* Joining clips: each clip's joints are translated in the floor plane (x, z)
+  so that its first-frame root lies where the previous clip's last-frame
+  root was; height, heading and the recorded root rotation are kept. The
+  features are computed on the joined document (so velocities and the root
+  turn rate see the joins), not clip by clip.
+* CMU 86_09 (``labels/cmu86_segmentation``, 120 Hz frames): only ``walk``
+  has a counterpart in the model (→ ``move``, ``mocapdb/models/cmu86_labels.csv``);
+  ``look_around``, ``clap``, ``stand_and_clap`` are dropped and reported.
+  The unlabelled transition windows are not ground truth of any label.
+* mocap6 (``labels/cmu_mocap6/<trial>.txt``, one action id per block of 12
+  native frames): Squat → exercise, Jog → move, JumpJack → jump,
+  ArmCircle → rotateArms (``mocapdb/models/cmu_mocap6_labels.csv``), all
+  other actions dropped and reported. Block k (1-based) covers native frames
+  12k − 11 … 12k, clipped to the recording (the label files run up to 12
+  frames past the end of some takes); the takes are read with the skeleton
+  ``cmu/02/02.asf`` (their own ASF files were not published).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import time
+import zlib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from mocapdb.annotation import annotate, annotate_sweep
+from mocapdb.errors import ParameterError, ParseError
+from mocapdb.features import DOWNSAMPLING_FACTOR, motion_features
+from mocapdb.readers.joints import JOINT_INDEX
+from mocapdb.annotation.labels import (
+    LABEL_DTYPE, read_text, class_labels as shipped_class_labels, label_rows,
+    map_labels, segments_to_rows, to_feature_grid)
+from mocapdb.evaluation.metrics import evaluate_annotation
+from mocapdb.annotation.model import DEFAULT_DELTA, DEFAULT_TAU
+from mocapdb.readers.motion import Motion
+from mocapdb.annotation.preselection import preselection_for
+from mocapdb.readers import read_motion
+from mocapdb.learning.training import clip_actor, clip_files, train_model
+
+__all__ = ["DocumentSet", "DevelopmentEvaluation", "concatenate_motions", "loao_documents",
+           "cmu86_documents", "mocap6_documents", "development_evaluation",
+           "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS"]
+
+log = logging.getLogger("mocapdb")
+
+#: clips per LOAO document (3–5 documents of ≈ 30–45 s per actor)
+CLIPS_PER_DOCUMENT = 15
+#: the CMU exercise takes with mocap6 labels in the development data
+MOCAP6_TRIALS = ("13_29", "13_30", "13_31", "14_14", "14_20")
+#: native frames per mocap6 label (10 labels per second at 120 Hz)
+MOCAP6_BLOCK = 12
+#: the settings :func:`development_evaluation` scores, in report order
+SETTINGS = ("loao", "cmu86_09", "mocap6", "cmu", "all")
+
+_ROOT = JOINT_INDEX["root"]
+_FLOOR = [0, 2]  # x and z: the floor plane (Y is up)
+
+
+# ---------------------------------------------------------------------------
+# documents
+
+
+@dataclass(frozen=True, eq=False)
+class DocumentSet:
+    """Documents to annotate, with their ground truth.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Document names, in order.
+    words : ndarray, shape (N,), uint64
+        Packed 30 Hz feature words of all documents concatenated.
+    doc_lengths : ndarray, shape (n_docs,), int64
+        30 Hz frames per document (sum N).
+    native_lengths : ndarray, shape (n_docs,), int64
+        Native (120 Hz) frames per document.
+    truth_native : ndarray of LABEL_DTYPE
+        Ground truth as a label CSV holds it: native frames, 1-based inclusive.
+    truth : ndarray of LABEL_DTYPE
+        The same on the 30 Hz grid, 0-based inclusive (:func:`mocapdb.labels.to_feature_grid`).
+    clips : tuple of tuple of str
+        LOAO documents: the clip names of each document in order (else empty).
+    """
+
+    names: tuple
+    words: np.ndarray
+    doc_lengths: np.ndarray
+    native_lengths: np.ndarray
+    truth_native: np.ndarray
+    truth: np.ndarray
+    clips: tuple = ()
+
+    @classmethod
+    def concat(cls, sets):
+        """One DocumentSet of several (documents appended in order)."""
+        sets = list(sets)
+        if not sets:
+            return cls((), np.zeros(0, np.uint64), np.zeros(0, np.int64),
+                       np.zeros(0, np.int64), np.empty(0, LABEL_DTYPE),
+                       np.empty(0, LABEL_DTYPE))
+        return cls(tuple(n for s in sets for n in s.names),
+                   np.concatenate([s.words for s in sets]),
+                   np.concatenate([s.doc_lengths for s in sets]),
+                   np.concatenate([s.native_lengths for s in sets]),
+                   np.concatenate([s.truth_native for s in sets]),
+                   np.concatenate([s.truth for s in sets]),
+                   tuple(c for s in sets for c in s.clips))
+
+
+def _document_set(names, motions, truth_native, clips=()):
+    """Features of each document motion + ground truth on both grids."""
+    words = [motion_features(m) for m in motions]
+    return DocumentSet(tuple(names), np.concatenate(words) if words else np.zeros(0, np.uint64),
+                       np.array([w.size for w in words], dtype=np.int64),
+                       np.array([m.n_frames for m in motions], dtype=np.int64),
+                       truth_native, to_feature_grid(truth_native, factor=DOWNSAMPLING_FACTOR),
+                       tuple(clips))
+
+
+def concatenate_motions(motions, *, name=""):
+    """Join clips into one document, each clip's root re-placed where the previous ended.
+
+    Clip k+1 is translated in the floor plane (x, z) so that its first-frame
+    root is at clip k's last-frame root (after clip k's own translation);
+    heights, headings and the recorded root rotations are unchanged. The first
+    clip stays where it was recorded.
+
+    Parameters
+    ----------
+    motions : sequence of Motion
+        Same native rate; root rotations all present or all absent.
+    name : str
+
+    Returns
+    -------
+    motion : Motion
+        The document (``meta["clips"]`` = the clip names).
+    lengths : ndarray, shape (n_clips,), int64
+        Native frames of each clip, in order.
+
+    Raises
+    ------
+    ParameterError
+        No motions, different rates, mixed root rotations, or an empty clip.
+    """
+    motions = list(motions)
+    if not motions:
+        raise ParameterError("motions must hold at least one clip")
+    fps = {float(m.fps) for m in motions}
+    if len(fps) != 1:
+        raise ParameterError(f"clips must share one native rate to be joined, got {sorted(fps)}")
+    has_rot = {m.root_rotation is not None for m in motions}
+    if len(has_rot) != 1:
+        raise ParameterError("clips must all have root rotations or all lack them")
+    if any(m.n_frames == 0 for m in motions):
+        raise ParameterError("cannot join a clip without frames")
+    parts = []
+    end = None
+    for m in motions:
+        j = np.array(m.joints, dtype=np.float64, copy=True)
+        if end is not None:
+            j[:, :, _FLOOR] += end - j[0, _ROOT, _FLOOR]
+        end = j[-1, _ROOT, _FLOOR].copy()
+        parts.append(j)
+    rot = (np.concatenate([m.root_rotation for m in motions]) if has_rot == {True} else None)
+    first = motions[0]
+    doc = Motion(joints=np.concatenate(parts), root_rotation=rot, fps=first.fps, name=name,
+                 skeleton=first.skeleton, source_format=first.source_format,
+                 meta={"clips": [m.name for m in motions]})
+    return doc, np.array([m.n_frames for m in motions], dtype=np.int64)
+
+
+def _actor_rng(seed, actor):
+    """A generator per (seed, actor): independent shuffles for different actors."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
+    return np.random.default_rng([int(seed), zlib.crc32(str(actor).encode())])
+
+
+def _loao_from_clips(items, actor, *, seed, clips_per_document, class_labels):
+    """LOAO documents from (class, Motion) items of one actor (file-name order)."""
+    if (isinstance(clips_per_document, bool)
+            or not isinstance(clips_per_document, (int, np.integer)) or clips_per_document < 1):
+        raise ParameterError(
+            f"clips_per_document must be a positive integer, got {clips_per_document!r}")
+    if not items:
+        raise ParameterError(f"actor {actor!r} has no clips")
+    perm = _actor_rng(seed, actor).permutation(len(items))
+    n_docs = -(-len(items) // int(clips_per_document))
+    names, motions, truth, clips = [], [], [], []
+    for k, part in enumerate(np.array_split(perm, n_docs)):
+        doc_name = f"loao_{actor}_{k:02d}"
+        chosen = [items[i] for i in part]
+        doc, lengths = concatenate_motions([m for _, m in chosen], name=doc_name)
+        ends = np.cumsum(lengths)
+        truth.append(label_rows(doc_name, [class_labels.get(c, c) for c, _ in chosen],
+                                ends - lengths + 1, ends))
+        names.append(doc_name)
+        motions.append(doc)
+        clips.append(tuple(m.name for _, m in chosen))
+    return _document_set(names, motions, np.concatenate(truth), clips)
+
+
+def loao_documents(root, actor, *, seed=0, clips_per_document=CLIPS_PER_DOCUMENT, classes=None,
+                   class_labels=None):
+    """Documents for leave-one-actor-out evaluation built from one actor's clips.
+
+    The actor's clips (all classes, or ``classes``) are shuffled by a
+    generator seeded with (``seed``, actor), split into ⌈n / clips_per_document⌉
+    documents of nearly equal clip counts and joined by
+    :func:`concatenate_motions`; features are computed on each joined
+    document. The ground truth is one row per clip with its coarse label.
+
+    Parameters
+    ----------
+    root : str or Path
+        The HDM05 "cut" folder (``data/hdm05_cut``).
+    actor : str
+        E.g. ``"bd"``.
+    seed : int, default 0
+    clips_per_document : int, default 15
+    classes : sequence of str, optional
+        Only these classes (default all).
+    class_labels : mapping of str to str, optional
+        Class → coarse label; default the shipped ``hdm05`` mapping. Classes
+        not in it keep their name.
+
+    Returns
+    -------
+    DocumentSet
+        Names ``loao_<actor>_<k>``; ``clips`` lists each document's clips.
+
+    Raises
+    ------
+    ParameterError
+        Unknown classes, an actor without clips, or bad parameters.
+    """
+    files = clip_files(root, classes=classes, actors=[actor])
+    items = [(c, read_motion(p)) for c, ps in files.items() for p in ps]
+    labels = shipped_class_labels("hdm05") if class_labels is None else class_labels
+    return _loao_from_clips(items, actor, seed=seed, clips_per_document=clips_per_document,
+                            class_labels=labels)
+
+
+def _read_cmu86_segments(path, document):
+    """Rows of labels/cmu86_segmentation (trial,segment,label,start_frame,end_frame,…)."""
+    text = read_text(path)
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    need = {"trial", "label", "start_frame", "end_frame"}
+    if reader.fieldnames is None or not need <= {f.strip() for f in reader.fieldnames}:
+        raise ParseError(path, 1, f"expected the columns {sorted(need)}, "
+                         f"got {reader.fieldnames}")
+    rows = []
+    for rec in reader:
+        rec = {k.strip(): (v or "").strip() for k, v in rec.items() if k}
+        if rec["trial"] != document:
+            continue
+        try:
+            s, e = int(rec["start_frame"]), int(rec["end_frame"])
+        except ValueError:
+            raise ParseError(path, reader.line_num, "start_frame and end_frame must be "
+                             "integers") from None
+        if not 1 <= s <= e:
+            raise ParseError(path, reader.line_num, f"need 1 <= start_frame <= end_frame, "
+                             f"got {s}, {e}")
+        rows.append((document, rec["label"], s, e))
+    if not rows:
+        raise ParseError(path, None, f"no segments of trial {document!r}")
+    d, lab, s, e = zip(*rows)
+    return label_rows(list(d), list(lab), s, e)
+
+
+def cmu86_documents(data_dir, *, class_labels=None):
+    """CMU 86_09 (a continuous document) with its segment ground truth.
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        The development data folder (``cmu/86/86_09.amc``,
+        ``labels/cmu86_segmentation/cmu86_09_segments.csv``).
+    class_labels : mapping of str to str, optional
+        Ground-truth action → model label; default the shipped ``cmu86``
+        mapping (walk → move; the other actions keep their names).
+
+    Returns
+    -------
+    DocumentSet
+    """
+    data_dir = Path(data_dir)
+    motion = read_motion(data_dir / "cmu" / "86" / "86_09.amc")
+    truth = _read_cmu86_segments(
+        data_dir / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv", "86_09")
+    if (truth["end"] > motion.n_frames).any():
+        raise ParseError(data_dir / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv",
+                         None, f"segments end beyond the document's {motion.n_frames} frames")
+    mapping = shipped_class_labels("cmu86") if class_labels is None else class_labels
+    return _document_set(["86_09"], [motion], map_labels(truth, mapping))
+
+
+def _action_names(path):
+    """{id: name} of labels/cmu_mocap6/action_names.txt (``id<TAB>name``, # comments)."""
+    out = {}
+    for k, line in enumerate(read_text(path).splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.split(None, 1)
+        if len(parts) != 2 or not parts[0].isdigit():
+            raise ParseError(path, k, f"expected '<id> <name>', got {line!r}")
+        out[int(parts[0])] = parts[1].strip()
+    return out
+
+
+def _block_labels(path, names, document, n_frames, block):
+    """Runs of equal block labels as native 1-based rows, clipped to n_frames."""
+    text = read_text(path)
+    try:
+        ids = np.array([int(t) for t in text.split()], dtype=np.int64)
+    except ValueError:
+        raise ParseError(path, None, "expected whitespace-separated integer labels") from None
+    unknown = sorted(set(ids.tolist()) - set(names))
+    if unknown:
+        raise ParseError(path, None, f"label ids {unknown} are not in action_names.txt")
+    n_blocks = min(ids.size, -(-n_frames // block))  # blocks past the recording are dropped
+    ids = ids[:n_blocks]
+    if ids.size == 0:
+        return np.empty(0, LABEL_DTYPE)
+    cut = np.flatnonzero(np.diff(ids)) + 1
+    first = np.concatenate(([0], cut))
+    last = np.concatenate((cut, [ids.size])) - 1
+    return label_rows(document, [names[i] for i in ids[first]], first * block + 1,
+                      np.minimum((last + 1) * block, n_frames))
+
+
+def mocap6_documents(data_dir, *, trials=MOCAP6_TRIALS, asf=None, class_labels=None):
+    """The CMU exercise takes with mocap6 labels (one action per 12 native frames).
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        The development data folder (``cmu/<subject>/<trial>.amc``,
+        ``labels/cmu_mocap6/<trial>.txt`` and ``action_names.txt``).
+    trials : sequence of str, default MOCAP6_TRIALS
+    asf : str or Path, optional
+        Skeleton for the takes; default ``cmu/02/02.asf`` (their own ASF files
+        were not published; the bone names and order are the standard CMU ones).
+    class_labels : mapping of str to str, optional
+        Action name → model label; default the shipped ``cmu_mocap6`` mapping.
+
+    Returns
+    -------
+    DocumentSet
+    """
+    data_dir = Path(data_dir)
+    asf = data_dir / "cmu" / "02" / "02.asf" if asf is None else Path(asf)
+    lab_dir = data_dir / "labels" / "cmu_mocap6"
+    names = _action_names(lab_dir / "action_names.txt")
+    mapping = shipped_class_labels("cmu_mocap6") if class_labels is None else class_labels
+    motions, truth = [], []
+    for t in trials:
+        m = read_motion(data_dir / "cmu" / t.split("_")[0] / f"{t}.amc", asf=asf)
+        motions.append(replace(m, name=t))
+        truth.append(_block_labels(lab_dir / f"{t}.txt", names, t, m.n_frames, MOCAP6_BLOCK))
+    return _document_set(list(trials), motions, map_labels(np.concatenate(truth), mapping))
+
+
+# ---------------------------------------------------------------------------
+# the whole evaluation
+
+
+@dataclass(frozen=True, eq=False)
+class DevelopmentEvaluation:
+    """Result of :func:`development_evaluation`.
+
+    Attributes
+    ----------
+    scores : dict of str to Scores
+        Per setting of :data:`SETTINGS` present: ``loao`` (all held-out
+        actors' documents concatenated), ``cmu86_09``, ``mocap6``, ``cmu``
+        (both CMU sets) and ``all``.
+    truth, auto : dict of str to ndarray of LABEL_DTYPE
+        Ground truth and annotation per setting (30 Hz, 0-based inclusive,
+        documents by name).
+    models : dict of str to Model
+        ``"without_<actor>"`` per held-out actor, ``"all"`` if trained.
+    documents : dict of str to DocumentSet
+    sweep : list of (float, Scores) or None
+        LOAO scores per τ (paper Fig. 8), if requested.
+    timings : dict of str to float
+        Seconds: ``read`` (clips and documents incl. features), ``train``,
+        ``annotate``, ``sweep``, ``total``.
+    """
+
+    scores: dict
+    truth: dict
+    auto: dict
+    models: dict
+    documents: dict
+    sweep: list | None = None
+    timings: dict = field(default_factory=dict)
+
+
+def _preselect(preselection, model, docs):
+    if preselection is not None:
+        return preselection(model, docs.words, docs.doc_lengths)
+    return preselection_for(docs.words, docs.doc_lengths, model)
+
+
+def _annotate_rows(docs, model, tau, pre):
+    ann = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre, tau=tau)
+    return segments_to_rows(ann.segments, docs.names)
+
+
+def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_DELTA,
+                           clips_per_document=CLIPS_PER_DOCUMENT, held_out=None, classes=None,
+                           class_labels=None, real_documents=True, preselection=None,
+                           keyframes=None, sweep_taus=None, progress=None):
+    """Leave-one-actor-out and real-document evaluation of the annotation.
+
+    For each held-out actor: train every class on the other actors' clips
+    (:func:`mocapdb.training.train_model`, file-name order), annotate that
+    actor's LOAO documents. Then (``real_documents``) train on all actors and
+    annotate CMU 86_09 and the mocap6 takes. Score each setting with the
+    paper's measures restricted to the model's labels.
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        The development data folder (``hdm05_cut/``, ``cmu/``, ``labels/``).
+    seed : int, default 0
+        Seed of the LOAO document composition.
+    tau : float, default 0.13
+        Hit threshold τ for every class.
+    delta : float, default 0.05
+        Quantization threshold δ.
+    clips_per_document : int, default 15
+    held_out : sequence of str, optional
+        Actors to hold out in turn (default: every actor of ``hdm05_cut``).
+        Training always uses all other actors.
+    classes : sequence of str, optional
+        Only these HDM05 classes (default all 11).
+    class_labels : mapping of str to str, optional
+        Class → coarse label (default the shipped ``hdm05`` mapping).
+    real_documents : bool, default True
+        Also train on all actors and evaluate CMU 86_09 and mocap6.
+    preselection : callable, optional
+        ``preselection(model, words, doc_lengths)`` → the ``preselection``
+        argument of :func:`mocapdb.annotation.annotate` (per class a list of
+        (start, end) slices, e.g. from a keyframe search), or None. Default:
+        the keyframe preselection of :mod:`mocapdb.preselection` when the
+        model has keyframe queries, else none.
+    keyframes : callable, optional
+        ``keyframes(model, clips)`` → the model with keyframe queries, given
+        the clips it was trained on (class → list of (name, words)); e.g.
+        learned by the GA on them (:func:`mocapdb.ga.learn_keyframe_queries`)
+        or the toolbox's (:func:`mocapdb.toolbox_queries.toolbox_keyframe_queries`).
+        Default: no keyframe queries.
+    sweep_taus : sequence of float, optional
+        Also score the LOAO setting for each of these τ (Δ computed once per
+        held-out actor; :func:`mocapdb.annotation.annotate_sweep`).
+    progress : callable, optional
+        ``progress(n_done, n_steps, what)`` after each training + annotation step.
+
+    Returns
+    -------
+    DevelopmentEvaluation
+
+    References
+    ----------
+    data/README.md (development evaluation); paper Sect. 7, Table 2, Fig. 8.
+    """
+    t_start = time.perf_counter()
+    timings = {"read": 0.0, "train": 0.0, "annotate": 0.0, "sweep": 0.0}
+    root = Path(data_dir) / "hdm05_cut"
+    labels = shipped_class_labels("hdm05") if class_labels is None else dict(class_labels)
+    t0 = time.perf_counter()
+    files = clip_files(root, classes=classes)
+    # every clip is read once: its own features for training, its motion for
+    # the held-out actor's joined documents
+    clips = {c: [(p.stem, clip_actor(p.stem), read_motion(p)) for p in ps]
+             for c, ps in files.items()}
+    clip_words = {c: [(n, a, motion_features(m)) for n, a, m in cl] for c, cl in clips.items()}
+    actors = sorted({a for cl in clips.values() for _, a, _ in cl if a is not None})
+    held_out = actors if held_out is None else [str(a) for a in held_out]
+    unknown = sorted(set(held_out) - set(actors))
+    if unknown:
+        raise ParameterError(f"held_out actors {unknown} have no clips; available: {actors}")
+    timings["read"] += time.perf_counter() - t0
+    n_steps = len(held_out) + bool(real_documents)
+    models, documents, truth, auto = {}, {}, {}, {}
+    loao_docs, loao_auto, sweep_parts = [], [], []
+    for k, actor in enumerate(held_out):
+        t0 = time.perf_counter()
+        train = {c: [(n, w) for n, a, w in cl if a != actor] for c, cl in clip_words.items()}
+        train = {c: v for c, v in train.items() if v}
+        model = train_model(train, name=f"without_{actor}", labels=labels, delta=delta, tau=tau)
+        if keyframes is not None:
+            model = keyframes(model, train)
+        models[model.name] = model
+        timings["train"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        items = [(c, m) for c, cl in clips.items() for n, a, m in cl if a == actor]
+        docs = _loao_from_clips(items, actor, seed=seed, clips_per_document=clips_per_document,
+                                class_labels=labels)
+        timings["read"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        loao_docs.append(docs)
+        pre = _preselect(preselection, model, docs)
+        loao_auto.append(_annotate_rows(docs, model, tau, pre))
+        timings["annotate"] += time.perf_counter() - t0
+        if sweep_taus is not None:
+            t0 = time.perf_counter()
+            segs = annotate_sweep(docs.words, model, sweep_taus, doc_lengths=docs.doc_lengths,
+                                  preselection=pre)
+            sweep_parts.append([segments_to_rows(s, docs.names) for s in segs])
+            timings["sweep"] += time.perf_counter() - t0
+        if progress is not None:
+            progress(k + 1, n_steps, f"held out {actor}")
+    vocab = {}
+    if held_out:
+        documents["loao"] = DocumentSet.concat(loao_docs)
+        truth["loao"] = documents["loao"].truth
+        auto["loao"] = np.concatenate(loao_auto)
+        vocab["loao"] = tuple(dict.fromkeys(lab for m in models.values() for lab in m.labels))
+    if real_documents:
+        t0 = time.perf_counter()
+        everything = {c: [(n, w) for n, _, w in cl] for c, cl in clip_words.items()}
+        full = train_model(everything, name="all", labels=labels, delta=delta, tau=tau)
+        if keyframes is not None:
+            full = keyframes(full, everything)
+        models["all"] = full
+        timings["train"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        documents["cmu86_09"] = cmu86_documents(data_dir)
+        documents["mocap6"] = mocap6_documents(data_dir)
+        timings["read"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        for s in ("cmu86_09", "mocap6"):
+            truth[s] = documents[s].truth
+            auto[s] = _annotate_rows(documents[s], full, tau,
+                                     _preselect(preselection, full, documents[s]))
+            vocab[s] = full.labels
+        timings["annotate"] += time.perf_counter() - t0
+        documents["cmu"] = DocumentSet.concat([documents["cmu86_09"], documents["mocap6"]])
+        truth["cmu"] = documents["cmu"].truth
+        auto["cmu"] = np.concatenate([auto["cmu86_09"], auto["mocap6"]])
+        vocab["cmu"] = full.labels
+        if progress is not None:
+            progress(n_steps, n_steps, "all actors: CMU documents")
+    parts = [s for s in ("loao", "cmu") if s in truth]
+    if parts:
+        truth["all"] = np.concatenate([truth[s] for s in parts])
+        auto["all"] = np.concatenate([auto[s] for s in parts])
+        vocab["all"] = tuple(dict.fromkeys(lab for s in parts for lab in vocab[s]))
+    scores = {s: evaluate_annotation(truth[s], auto[s], labels=vocab[s])
+              for s in SETTINGS if s in truth}
+    sweep = None
+    if sweep_taus is not None and sweep_parts:
+        t0 = time.perf_counter()
+        sweep = [(float(t), evaluate_annotation(truth["loao"],
+                                                np.concatenate([p[i] for p in sweep_parts]),
+                                                labels=vocab["loao"]))
+                 for i, t in enumerate(np.atleast_1d(sweep_taus))]
+        timings["sweep"] += time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    log.info("development evaluation: %s", {s: round(v.f1, 3) for s, v in scores.items()})
+    return DevelopmentEvaluation(scores, truth, auto, models, documents, sweep, timings)

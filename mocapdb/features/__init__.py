@@ -1,0 +1,20 @@
+"""Relational features (paper Sect. 2, FEATURES.md): 24 joints → 40 booleans per frame → packed 30 Hz words.
+
+:mod:`~mocapdb.features.relational` computes the features at the native rate
+(body units, smoothed velocities, lenient/strict tests, hysteresis);
+:mod:`~mocapdb.features.words` holds everything on packed words (downsampling,
+packing, runs, mirroring).
+"""
+from mocapdb.features.relational import (FEATURE_THRESHOLDS, ROOT_ANG_VEL_THRESHOLDS_ALT, SMOOTHING_MS,
+                                         hysteresis, motion_features, relational_features, smoothing_window)
+from mocapdb.features.words import (DOWNSAMPLING_FACTOR, FEATURE_NAMES, FEATURE_SETS, MIRROR_FEATURES, N_FEATURES,
+                                    SET_BITS, as_doc_lengths, as_words, downsample, feature_runs, mirror_words,
+                                    pack_words, segment_runs, unpack_words)
+
+__all__ = [
+    "FEATURE_NAMES", "N_FEATURES", "FEATURE_SETS", "SET_BITS", "MIRROR_FEATURES", "DOWNSAMPLING_FACTOR",
+    "FEATURE_THRESHOLDS", "SMOOTHING_MS", "ROOT_ANG_VEL_THRESHOLDS_ALT",
+    "relational_features", "hysteresis", "smoothing_window", "motion_features",
+    "downsample", "pack_words", "unpack_words", "feature_runs", "segment_runs", "mirror_words",
+    "as_words", "as_doc_lengths",
+]

@@ -1,0 +1,517 @@
+"""Acclaim motion (AMC) reader.
+
+:func:`read_amc` returns the raw DOF values of every frame as one
+``(n_frames, n_columns)`` float64 array plus the column of each bone
+(:class:`AmcMotion`); :mod:`mocapdb.kinematics` turns them into joint
+positions. Bone lines may come in any order (values are keyed by bone name,
+case-insensitively as in the toolbox); DOFs a file never lists stay 0.
+
+Parsing the text is the bottleneck of ingest, so the body is scanned by one
+numba kernel over the file's bytes (:func:`_parse_amc_kernel`); it stops at
+the first malformed token and reports its byte offset, and the Python side
+turns that into a :class:`~mocapdb.errors.ParseError` with file, line, frame
+and bone.
+
+Header keywords: ``:FULLY-SPECIFIED`` (accepted), ``:DEGREES``/``:RADIANS``
+(unit of the angles; without either, the ASF ``:units angle`` applies, as in
+the toolbox), ``:SAMPLES-PER-SECOND n`` (default 120 Hz). Every frame must
+list the same bones as frame 1, frame numbers must count up by one.
+
+References
+----------
+FEATURES.md §1, §2.2, §9; toolbox ``tools/parser/ASFAMCparser/readAMC.m``,
+``readFrames.m``.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mocapdb._numba import jit
+from mocapdb.readers.textscan import (_CLASS, _is_space, _scan_number, fix_slow_numbers, line_of,
+                        number_error, token_at, truncation_hint)
+from mocapdb.readers.asf import Skeleton
+from mocapdb.errors import ParseError
+
+__all__ = ["AmcMotion", "read_amc", "parse_amc", "DEFAULT_FPS"]
+
+log = logging.getLogger("mocapdb")
+
+#: toolbox default when an AMC has no ``:SAMPLES-PER-SECOND`` (readAMC.m)
+DEFAULT_FPS = 120.0
+
+# error codes reported by the kernel in status[0]
+_E_NONE, _E_NUMBER, _E_COUNT, _E_UNKNOWN_BONE, _E_DUPLICATE, _E_FRAME_SEQ, \
+    _E_FRAME_LINE, _E_INCOMPLETE, _E_OVERFLOW, _E_NO_FRAME = range(10)
+
+
+@dataclass(frozen=True)
+class AmcMotion:
+    """DOF values of an AMC file.
+
+    Attributes
+    ----------
+    values : ndarray, shape (n_frames, n_columns), float64
+        Raw values as written (angles in :attr:`angle_unit`, root translation
+        in ASF length units). Columns: root (in the ASF ``order``), then every
+        ASF bone with DOFs, in ASF file order, each in its ``dof`` order.
+    columns : dict str -> slice
+        Columns of each bone (``"root"`` included), keyed by ASF bone name.
+    dof_names : dict str -> tuple of str
+        DOF names of each bone's columns (``"tx"``, ..., ``"rz"``).
+    fps : float
+        ``:SAMPLES-PER-SECOND`` or 120.
+    angle_unit : str
+        ``"deg"`` or ``"rad"``.
+    first_frame : int
+        Frame number of the first frame in the file (1 in all files here).
+    path : str
+    """
+
+    values: np.ndarray
+    columns: dict
+    dof_names: dict
+    fps: float = DEFAULT_FPS
+    angle_unit: str = "deg"
+    first_frame: int = 1
+    path: str = ""
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.values.shape[0])
+
+    @property
+    def dofs(self) -> dict:
+        """bone name -> ``(n_frames, n_dofs)`` view of its values."""
+        return {name: self.values[:, sl] for name, sl in self.columns.items()}
+
+    def column(self, bone: str, dof: str) -> int:
+        """Column index of ``dof`` of ``bone``, or -1 when the bone lacks that DOF."""
+        names = self.dof_names.get(bone, ())
+        if dof not in names:
+            return -1
+        return self.columns[bone].start + names.index(dof)
+
+
+def column_layout(skeleton: Skeleton):
+    """Columns of the AMC value array for ``skeleton``.
+
+    Returns ``(names, ndof, col_start, columns, dof_names)``: index 0 is the
+    root, index k the (k-1)-th bone in file order.
+    """
+    names = ["root"] + [b.name for b in skeleton.bones]
+    dofs = [tuple(skeleton.root_order)] + [tuple(b.dof) for b in skeleton.bones]
+    ndof = np.array([len(d) for d in dofs], dtype=np.int64)
+    col_start = np.zeros(len(names), dtype=np.int64)
+    col_start[1:] = np.cumsum(ndof)[:-1]
+    columns = {n: slice(int(s), int(s + k)) for n, s, k in zip(names, col_start, ndof) if k}
+    dof_names = {n: d for n, d in zip(names, dofs) if d}
+    return names, ndof, col_start, columns, dof_names
+
+
+# ----------------------------------------------------------------------------
+# kernels
+
+@jit
+def _close_frame(seen, ref, nb, frame):  # pragma: no cover
+    """Whether a finished frame lists the same bones as frame 1 (frame 0 sets the reference)."""
+    ok = True
+    for b in range(nb):
+        if frame == 0:
+            ref[b] = seen[b]
+        elif seen[b] != ref[b]:
+            ok = False
+    return ok
+
+
+@jit
+def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, out,
+                      fb_index, fb_start, fb_end, seen, ref, status):  # pragma: no cover
+    """Scan AMC frames from byte ``start`` into ``out`` (zero-initialised).
+
+    ``names`` holds the lower-case bone names back to back (``name_start``,
+    ``name_len``; entry 0 = root). On the first error the scan stops and
+    ``status`` = [code, byte offset, frame index, bone index, expected,
+    found, n_slow_tokens, n_frames]. Tokens outside the exact fast path are
+    listed in ``fb_*`` (flat index into ``out``, byte range) for Python.
+    """
+    size = buf.shape[0]
+    nb = name_start.shape[0]
+    ncols = out.shape[1]
+    nrows = out.shape[0]
+    fb_cap = fb_index.shape[0]
+    # predicted next bone: after bone b comes nxt[b]; nxt[nb] = first bone of a frame
+    nxt = np.full(nb + 1, -1, dtype=np.int64)
+    last = nb
+    frame = -1
+    prev_num = 0
+    nfb = 0
+    last_line = start
+    i = start
+    while True:
+        # ---- start of a line
+        while i < size and _is_space(buf[i]):
+            i += 1
+        if i >= size:
+            break
+        c = buf[i]
+        if c == 10:
+            i += 1
+            continue
+        if c == 35:  # '#' comment line
+            while i < size and buf[i] != 10:
+                i += 1
+            continue
+        line_start = i
+        if 48 <= c <= 57:
+            # ---- frame number line
+            num = 0
+            while i < size and 48 <= buf[i] <= 57:
+                if num < 1000000000000:
+                    num = num * 10 + (int(buf[i]) - 48)
+                i += 1
+            j = i
+            while j < size and _is_space(buf[j]):
+                j += 1
+            if (j < size and buf[j] != 10) or (j == i and i < size and buf[i] != 10):
+                status[0] = 6  # _E_FRAME_LINE
+                status[1] = line_start
+                status[2] = frame + 1
+                break
+            if frame >= 0:
+                if num != prev_num + 1:
+                    status[0] = 5  # _E_FRAME_SEQ
+                    status[1] = line_start
+                    status[2] = frame + 1
+                    status[4] = prev_num + 1
+                    status[5] = num
+                    break
+                # close the previous frame: same bones as frame 1
+                if not _close_frame(seen, ref, nb, frame):
+                    status[0] = 7  # _E_INCOMPLETE
+                    status[1] = last_line
+                    status[2] = frame
+                    break
+            frame += 1
+            if frame >= nrows:
+                status[0] = 8  # _E_OVERFLOW
+                status[1] = line_start
+                status[2] = frame
+                break
+            prev_num = num
+            for b in range(nb):
+                seen[b] = 0
+            last = nb
+            last_line = line_start
+            i = j
+            continue
+        # ---- bone line: name
+        if frame < 0:
+            status[0] = 9  # _E_NO_FRAME
+            status[1] = line_start
+            break
+        s = i
+        while i < size and _CLASS[buf[i]] == 0:
+            i += 1
+        e = i
+        bone = -1
+        cand = nxt[last]
+        for attempt in range(nb + 1):
+            b = cand if attempt == 0 else attempt - 1
+            if b < 0 or (attempt > 0 and b == cand):
+                continue
+            ln = name_len[b]
+            if ln != e - s:
+                continue
+            o = name_start[b]
+            ok = True
+            for k in range(ln):
+                ch = int(buf[s + k])
+                if 65 <= ch <= 90:
+                    ch += 32
+                if ch != names[o + k]:
+                    ok = False
+                    break
+            if ok:
+                bone = b
+                break
+        if bone < 0:
+            status[0] = 3  # _E_UNKNOWN_BONE
+            status[1] = s
+            status[2] = frame
+            break
+        if seen[bone] != 0:
+            status[0] = 4  # _E_DUPLICATE
+            status[1] = s
+            status[2] = frame
+            status[3] = bone
+            break
+        seen[bone] = 1
+        if frame == 0:
+            nxt[last] = bone
+        last = bone
+        last_line = line_start
+        # ---- values
+        nd = ndof[bone]
+        col = col_start[bone]
+        count = 0
+        failed = False
+        while True:
+            while i < size and _is_space(buf[i]):
+                i += 1
+            if i >= size or buf[i] == 10:
+                break
+            s = i
+            if count >= nd:
+                while i < size and _CLASS[buf[i]] == 0:
+                    i += 1
+            else:
+                v, st, i = _scan_number(buf, i, size)
+                if st == 2:  # NUM_BAD
+                    status[0] = 1  # _E_NUMBER
+                    status[1] = s
+                    status[2] = frame
+                    status[3] = bone
+                    failed = True
+                    break
+                flat = frame * ncols + col + count
+                if st == 1:  # NUM_SLOW
+                    if nfb < fb_cap:
+                        fb_index[nfb] = flat
+                        fb_start[nfb] = s
+                        fb_end[nfb] = i
+                    nfb += 1
+                out[frame, col + count] = v
+            count += 1
+        if failed:
+            break
+        if count != nd:
+            status[0] = 2  # _E_COUNT
+            status[1] = line_start
+            status[2] = frame
+            status[3] = bone
+            status[4] = nd
+            status[5] = count
+            break
+    if status[0] == 0 and frame >= 0:
+        # close the last frame
+        if not _close_frame(seen, ref, nb, frame):
+            status[0] = 7  # _E_INCOMPLETE
+            status[1] = last_line
+            status[2] = frame
+    status[6] = nfb
+    status[7] = frame + 1
+
+
+# ----------------------------------------------------------------------------
+# public API
+
+def read_amc(path, skeleton: Skeleton) -> AmcMotion:
+    """Read an AMC motion file for ``skeleton``.
+
+    Parameters
+    ----------
+    path : str or Path
+    skeleton : Skeleton
+        From :func:`mocapdb.asf.read_asf`; gives each bone's DOFs.
+
+    Returns
+    -------
+    AmcMotion
+
+    Raises
+    ------
+    ParseError
+        Names the file, line, frame and bone, and what was expected vs found:
+        a bone not in the ASF, a wrong number of values, a non-numeric or
+        NaN/inf value, a frame that lacks bones of frame 1 (truncated file),
+        out-of-sequence frame numbers, no frames.
+
+    References
+    ----------
+    FEATURES.md §1, §2.2, §9.
+    """
+    path = Path(path)
+    return parse_amc(path.read_bytes(), skeleton, path=path)
+
+
+def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
+    """Parse the bytes of an AMC file. See :func:`read_amc`."""
+    path = str(path)
+    start, fps, unit = _parse_header(data, path)
+    if unit is None:
+        unit = skeleton.angle_unit
+    elif unit != skeleton.angle_unit:
+        log.warning("%s: AMC angles in %s but the ASF says %s; using the AMC's unit",
+                    path, unit, skeleton.angle_unit)
+    names, ndof, col_start, columns, dof_names = column_layout(skeleton)
+    lower = [n.lower() for n in names]
+    enc = [n.encode("latin-1") for n in lower]
+    name_len = np.array([len(n) for n in enc], dtype=np.int64)
+    name_start = np.zeros(len(enc), dtype=np.int64)
+    name_start[1:] = np.cumsum(name_len)[:-1]
+    name_buf = np.frombuffer(b"".join(enc), dtype=np.uint8)
+    buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
+
+    if start >= len(data):
+        raise ParseError(path, line_of(data, len(data)),
+                         "no frames (expected a frame number line followed by bone lines)")
+    # Upper bound on the frame count without a scan: every frame lists the
+    # bones of frame 1 (the kernel enforces it) with their values, so it has
+    # at least as many bytes as the shortest spelling of frame 1; +1 for a
+    # truncated last frame. np.zeros is lazy: untouched slack costs nothing.
+    ndof_of = {n: int(k) for n, k in zip(lower, ndof)}
+    n_rows = (len(data) - start) // _min_frame_bytes(data, start, ndof_of) + 1
+    ncols = int(ndof.sum())
+    cap = 1024
+    while True:
+        out = np.zeros((n_rows, ncols), dtype=np.float64)
+        fb_index = np.zeros(cap, dtype=np.int64)
+        fb_start = np.zeros(cap, dtype=np.int64)
+        fb_end = np.zeros(cap, dtype=np.int64)
+        seen = np.zeros(len(names), dtype=np.int8)
+        ref = np.zeros(len(names), dtype=np.int8)
+        status = np.zeros(8, dtype=np.int64)
+        _parse_amc_kernel(buf, start, name_buf, name_start, name_len, col_start, ndof, out,
+                          fb_index, fb_start, fb_end, seen, ref, status)
+        if status[0] == _E_OVERFLOW and n_rows <= len(data) // 2:
+            n_rows = len(data) // 2 + 1  # cannot happen (see above); be safe anyway
+            continue
+        if status[0] != _E_NONE or status[6] <= cap:
+            break
+        cap = int(status[6])
+    first = _first_frame_number(data, start)
+    if status[0] != _E_NONE:
+        raise _kernel_error(data, path, status, names, seen, ref, dof_names, first, skeleton)
+    nfb = int(status[6])
+    owner = np.repeat(np.arange(len(names)), ndof)  # column -> bone
+
+    def describe(flat):
+        return first + flat // ncols, f"bone {names[owner[flat % ncols]]!r}: "
+
+    fix_slow_numbers(data, out.reshape(-1), fb_index[:nfb], fb_start[:nfb], fb_end[:nfb], path,
+                     describe=describe)
+    out = out[:int(status[7])]
+    return AmcMotion(values=out, columns=columns, dof_names=dof_names, fps=fps,
+                     angle_unit=unit, first_frame=first, path=path)
+
+
+def _min_frame_bytes(data: bytes, start: int, ndof_of: dict) -> int:
+    """Fewest bytes any frame can take if it lists the bones of frame 1.
+
+    Frame number line >= 2 bytes; bone line >= name + (blank + digit) per
+    DOF + LF.
+    """
+    pos = data.find(b"\n", start) + 1
+    n = 2
+    while 0 < pos < len(data):
+        end = data.find(b"\n", pos)
+        s = data[pos:end if end >= 0 else len(data)].lstrip()
+        if s[:1].isdigit():
+            break
+        if s and not s.startswith(b"#"):
+            name = s.split()[0]
+            n += len(name) + 2 * ndof_of.get(name.decode("latin-1").lower(), 0) + 1
+        if end < 0:
+            break
+        pos = end + 1
+    return n
+
+
+def _first_frame_number(data: bytes, start: int) -> int:
+    end = data.find(b"\n", start)
+    return int(data[start:end if end >= 0 else len(data)].split()[0])
+
+
+def _parse_header(data: bytes, path: str):
+    """Header keywords up to the first frame number line.
+
+    Returns ``(byte offset of the first frame line, fps, angle unit or None)``.
+    """
+    fps = DEFAULT_FPS
+    unit = None
+    pos = 3 if data.startswith(b"\xef\xbb\xbf") else 0  # UTF-8 byte order mark
+    size = len(data)
+    line = 0
+    while pos < size:
+        end = data.find(b"\n", pos)
+        if end < 0:
+            end = size
+        line += 1
+        s = data[pos:end].strip()
+        if s and not s.startswith(b"#"):
+            if s.startswith(b":"):
+                tok = s[1:].split()
+                key = tok[0].upper() if tok else b""
+                if key == b"DEGREES":
+                    unit = "deg"
+                elif key == b"RADIANS":
+                    unit = "rad"
+                elif key == b"SAMPLES-PER-SECOND":
+                    try:
+                        fps = float(tok[1])
+                    except (IndexError, ValueError):
+                        raise ParseError(path, line, ":SAMPLES-PER-SECOND: expected a rate, found "
+                                         f"{b' '.join(tok[1:]).decode('latin-1')!r}") from None
+                    if not (np.isfinite(fps) and fps > 0):
+                        raise ParseError(path, line, f":SAMPLES-PER-SECOND: expected a positive "
+                                         f"rate, found {tok[1].decode('latin-1')!r}")
+                else:
+                    # :FULLY-SPECIFIED and unknown keywords carry no data we need
+                    pass
+            elif s[:1].isdigit():
+                return pos, fps, unit
+            else:
+                raise ParseError(path, line, "expected a frame number before the first bone line, "
+                                 f"found {s[:40].decode('latin-1')!r}")
+        pos = end + 1
+    return size, fps, unit
+
+
+def _kernel_error(data, path, status, names, seen, ref, dof_names, first, skeleton):
+    code, pos, frame_i, bone = (int(x) for x in status[:4])
+    line = line_of(data, pos)
+    frame = first + frame_i  # the file's own frame number
+    hint = truncation_hint(data, pos)
+    if code == _E_NUMBER:
+        return number_error(data, pos, path, frame=frame, where=f"bone {names[bone]!r}: ",
+                            hint=hint)
+    if code == _E_COUNT:
+        exp, found = int(status[4]), int(status[5])
+        dofs = " ".join(dof_names.get(names[bone], ())) or "none"
+        return ParseError(path, line, f"bone {names[bone]!r}: expected {exp} "
+                          f"value{'s' if exp != 1 else ''} (DOFs: {dofs}), found {found}" + hint,
+                          frame=frame)
+    if code == _E_UNKNOWN_BONE:
+        asf = Path(skeleton.path).name or skeleton.name
+        return ParseError(path, line, f"bone {token_at(data, pos)!r} is not in the skeleton "
+                          f"{asf} (its bones: {', '.join(names)})" + hint, frame=frame)
+    if code == _E_DUPLICATE:
+        return ParseError(path, line, f"bone {names[bone]!r} appears twice in one frame",
+                          frame=frame)
+    if code == _E_FRAME_SEQ:
+        return ParseError(path, line, f"expected frame number {int(status[4])}, "
+                          f"found {int(status[5])}", frame=None)
+    if code == _E_FRAME_LINE:
+        end = data.find(b"\n", pos)
+        text = data[pos:end if end >= 0 else len(data)].strip().decode("latin-1")
+        return ParseError(path, line, f"expected a frame number alone on its line, found {text!r}")
+    if code == _E_INCOMPLETE:
+        missing = [names[b] for b in range(len(names)) if ref[b] and not seen[b]]
+        extra = [names[b] for b in range(len(names)) if seen[b] and not ref[b]]
+        parts = []
+        if missing:
+            parts.append("missing " + ", ".join(missing))
+        if extra:
+            parts.append("not in frame 1: " + ", ".join(extra))
+        last = frame_i + 1 == int(status[7])
+        hint = " (the file may be truncated)" if last and missing else ""
+        return ParseError(path, line, "every frame must list the bones of frame 1; "
+                          + "; ".join(parts) + hint, frame=frame)
+    if code == _E_NO_FRAME:
+        return ParseError(path, line, "expected a frame number before the first bone line")
+    return ParseError(path, line, f"internal reader error (code {code})", frame=frame)

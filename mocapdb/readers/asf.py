@@ -1,0 +1,510 @@
+"""Acclaim skeleton (ASF) reader.
+
+:func:`read_asf` turns an ``.asf`` file into a :class:`Skeleton`: the root
+(DOF order, position, orientation), the bones in file order (unit direction,
+length, axis, DOFs, limits, parent) and the units. Lengths are converted to the
+toolbox's unit once, here, so that everything downstream (forward kinematics,
+BVH export) works in one unit.
+
+ASF files are small; this is plain Python. Files are read as bytes and decoded
+as Latin-1 (HDM05 headers carry Latin-1 bytes), with any mix of CRLF/LF line
+ends.
+
+References
+----------
+FEATURES.md §1 (units), §2.2 (skeleton nodes, direction re-normalisation, root
+position/orientation); toolbox ``tools/parser/ASFAMCparser/readASF.m``,
+``readBone.m``, ``readRootASF.m``, ``readUnits.m``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mocapdb.errors import ParseError
+
+__all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "INCH_TO_TOOLBOX",
+           "ROOT_DOFS", "BONE_DOFS"]
+
+#: the toolbox multiplies ASF lengths (after dividing by ``:units length``) by 2.54
+INCH_TO_TOOLBOX = 2.54
+
+#: DOF tokens of the root ``order`` line (lower case), in canonical column order
+ROOT_DOFS = ("tx", "ty", "tz", "rx", "ry", "rz")
+
+#: rotational DOFs a bone may have; Acclaim also allows tx/ty/tz/l on bones,
+#: which the toolbox ignores and we reject (they would silently change nothing)
+BONE_DOFS = ("rx", "ry", "rz")
+
+_ANGLE_UNITS = {"deg": "deg", "degree": "deg", "degrees": "deg",
+                "rad": "rad", "radian": "rad", "radians": "rad"}
+
+
+@dataclass(frozen=True)
+class Bone:
+    """One ASF bone (a skeleton node; its position is the bone's distal tip).
+
+    Attributes
+    ----------
+    name : str
+    id : int or None
+        The ``id`` field (informative only; bones are addressed by name).
+    direction : ndarray, shape (3,), float64
+        Unit direction in the global rest frame, re-normalised from the file
+        (files store 6 significant digits). Zero for a zero direction.
+    length : float
+        Length in toolbox units (file length / ``:units length`` · 2.54).
+    axis : ndarray, shape (3,), float64
+        ``axis`` angles as written, in the skeleton's angle unit.
+    axis_order : str
+        Order token of the ``axis`` line (only ``XYZ`` is accepted).
+    dof : tuple of str
+        Rotational DOFs in file order, subset of ``("rx", "ry", "rz")``.
+    limits : tuple of (float, float)
+        ``limits`` pairs as written (informative only).
+    parent : str
+        Parent bone name, or ``"root"``.
+    offset : ndarray, shape (3,), float64
+        Bone vector at rest, ``direction · length`` in toolbox units, rounded
+        as the toolbox does (``(unit · (length / L)) · 2.54``).
+    line : int
+        Line of the bone's ``begin`` (for error messages).
+    """
+
+    name: str
+    id: int | None
+    direction: np.ndarray
+    length: float
+    axis: np.ndarray
+    axis_order: str
+    dof: tuple
+    limits: tuple
+    parent: str
+    offset: np.ndarray
+    line: int = 0
+
+
+@dataclass(frozen=True)
+class Skeleton:
+    """An Acclaim skeleton as read from an ASF file.
+
+    Attributes
+    ----------
+    name : str
+        The ``:name`` field (``"VICON"`` in all CMU/HDM05 files), else the stem.
+    bones : tuple of Bone
+        In ``:bonedata`` file order (node k+1 = k-th bone, FEATURES.md §2.2).
+    root_order : tuple of str
+        AMC root value order, lower case, e.g. ``("tx","ty","tz","rx","ry","rz")``.
+    root_axis : str
+        ``axis`` token of the root (only ``XYZ`` is accepted).
+    root_position : ndarray, shape (3,)
+        Root ``position`` in toolbox units (added to every AMC translation).
+    root_orientation : ndarray, shape (3,)
+        Root ``orientation`` numbers in file order and the skeleton's angle unit;
+        applied as O = Rz(o1)·Rx(o2)·Ry(o3) (toolbox ``euler2quat`` default).
+    length_unit : float
+        ``:units length`` (file lengths are divided by it, then · 2.54).
+    mass_unit : float
+    angle_unit : str
+        ``"deg"`` or ``"rad"`` (``:units angle``): unit of axis, orientation
+        and — unless the AMC says otherwise — of AMC angles.
+    path : str
+    """
+
+    name: str
+    bones: tuple
+    root_order: tuple = ROOT_DOFS
+    root_axis: str = "XYZ"
+    root_position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    root_orientation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    length_unit: float = 1.0
+    mass_unit: float = 1.0
+    angle_unit: str = "deg"
+    path: str = ""
+
+    @property
+    def bone_names(self) -> tuple:
+        return tuple(b.name for b in self.bones)
+
+    @property
+    def bone_index(self) -> dict:
+        """bone name -> index in :attr:`bones` (exact spelling)."""
+        return {b.name: i for i, b in enumerate(self.bones)}
+
+    def bone(self, name: str) -> Bone:
+        """The bone called ``name`` (case-insensitive, as the toolbox matches)."""
+        key = name.lower()
+        for b in self.bones:
+            if b.name.lower() == key:
+                return b
+        raise KeyError(name)
+
+    def children(self, name: str) -> tuple:
+        """Names of the bones whose parent is ``name`` (file order)."""
+        return tuple(b.name for b in self.bones if b.parent == name)
+
+    def topological_order(self) -> np.ndarray:
+        """Bone indices ordered so that every parent precedes its children.
+
+        File order when it already is one (all files here), else a stable
+        breadth-first order from the root.
+        """
+        done = {"root"}
+        order: list[int] = []
+        pending = list(range(len(self.bones)))
+        while pending:
+            rest = []
+            for i in pending:
+                if self.bones[i].parent in done:
+                    order.append(i)
+                    done.add(self.bones[i].name)
+                else:
+                    rest.append(i)
+            if len(rest) == len(pending):  # pragma: no cover - read_asf rejects cycles
+                raise ValueError("skeleton hierarchy has a cycle: " + ", ".join(
+                    self.bones[i].name for i in rest))
+            pending = rest
+        return np.asarray(order, dtype=np.int64)
+
+
+# ----------------------------------------------------------------------------
+# parsing
+
+def read_asf(path) -> Skeleton:
+    """Read an ASF skeleton file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Skeleton
+
+    Raises
+    ------
+    ParseError
+        Malformed file: the message names the file, the line, what was
+        expected and what was found (unknown units, DOF or order tokens,
+        non-numeric values, bones missing from ``:hierarchy``, ...).
+    FileNotFoundError
+
+    References
+    ----------
+    FEATURES.md §1, §2.2.
+    """
+    path = Path(path)
+    return parse_asf(path.read_bytes(), path=path)
+
+
+def parse_asf(data: bytes | str, *, path="<asf>") -> Skeleton:
+    """Parse the text of an ASF file (bytes decoded as Latin-1). See :func:`read_asf`."""
+    if isinstance(data, (bytes, bytearray)):
+        data = bytes(data).removeprefix(b"\xef\xbb\xbf").decode("latin-1")  # BOM, Latin-1
+    text = data.lstrip("\ufeff")
+    return _AsfParser(text, str(path)).parse()
+
+
+class _AsfParser:
+    """Line-oriented recursive reader; keeps the line number for every error."""
+
+    def __init__(self, text: str, path: str):
+        self.path = path
+        # (line number, stripped content) of non-empty, non-comment lines
+        self.lines = []
+        for no, raw in enumerate(text.split("\n"), start=1):
+            s = raw.strip()
+            if s and not s.startswith("#"):
+                self.lines.append((no, s))
+        self.i = 0
+
+    # -- helpers -------------------------------------------------------------
+    def error(self, line, message):
+        return ParseError(self.path, line, message)
+
+    def floats(self, line, tokens, n, what):
+        if len(tokens) < n:
+            raise self.error(line, f"{what}: expected {n} numbers, found {len(tokens)}"
+                             f" ({' '.join(tokens) or 'nothing'})")
+        out = []
+        for t in tokens[:n]:
+            try:
+                v = float(t)
+            except ValueError:
+                raise self.error(line, f"{what}: expected a number, found {t!r}") from None
+            if not math.isfinite(v):
+                raise self.error(line, f"{what}: expected a finite number, found {t!r}")
+            out.append(v)
+        return out
+
+    def section_lines(self):
+        """Lines up to the next ``:keyword`` line (consumed)."""
+        out = []
+        while self.i < len(self.lines) and not self.lines[self.i][1].startswith(":"):
+            out.append(self.lines[self.i])
+            self.i += 1
+        return out
+
+    # -- top level -----------------------------------------------------------
+    def parse(self) -> Skeleton:
+        meta = {"name": None, "length": 1.0, "mass": 1.0, "angle": "deg"}
+        root = None
+        bones = None
+        hierarchy = None
+        hierarchy_line = None
+        while self.i < len(self.lines):
+            no, s = self.lines[self.i]
+            if not s.startswith(":"):
+                raise self.error(no, f"expected a ':keyword' section, found {s[:40]!r}")
+            key, _, rest = s[1:].partition(" ")
+            key = key.lower()
+            self.i += 1
+            if key == "version":
+                continue
+            if key == "name":
+                meta["name"] = rest.strip()
+            elif key == "units":
+                self.parse_units(no, rest, meta)
+            elif key == "documentation":
+                self.section_lines()
+            elif key == "root":
+                root = self.parse_root(meta)
+            elif key == "bonedata":
+                bones = self.parse_bonedata(meta)
+            elif key == "hierarchy":
+                hierarchy_line = no
+                hierarchy = self.parse_hierarchy()
+            else:
+                # e.g. :skin — not needed; skip its content
+                self.section_lines()
+        if root is None:
+            raise self.error(None, "no ':root' section")
+        if bones is None:
+            bones = []
+        if hierarchy is None and bones:
+            raise self.error(None, "no ':hierarchy' section (needed to connect the bones)")
+        return self.build(meta, root, bones, hierarchy or {}, hierarchy_line)
+
+    def parse_units(self, no, rest, meta):
+        items = [(no, rest.strip())] if rest.strip() else []
+        items += self.section_lines()
+        for line, s in items:
+            tok = s.split()
+            k = tok[0].lower()
+            if k in ("mass", "length"):
+                (v,) = self.floats(line, tok[1:], 1, f"units {k}")
+                if v <= 0:
+                    raise self.error(line, f"units {k}: expected a positive number, "
+                                     f"found {tok[1]!r}")
+                meta[k] = v
+            elif k == "angle":
+                unit = tok[1].lower() if len(tok) > 1 else ""
+                if unit not in _ANGLE_UNITS:
+                    raise self.error(line, "units angle: expected 'deg' or 'rad', found "
+                                     f"{(tok[1] if len(tok) > 1 else '')!r}")
+                meta["angle"] = _ANGLE_UNITS[unit]
+            else:
+                raise self.error(line, f"unsupported unit {tok[0]!r} "
+                                 "(expected mass, length or angle)")
+
+    def parse_root(self, meta):
+        root = {"order": ROOT_DOFS, "axis": "XYZ", "position": [0.0, 0.0, 0.0],
+                "orientation": [0.0, 0.0, 0.0], "line": None}
+        for line, s in self.section_lines():
+            tok = s.split()
+            k = tok[0].lower()
+            if k == "order":
+                order = []
+                for t in tok[1:]:
+                    d = t.lower()
+                    if d not in ROOT_DOFS:
+                        raise self.error(line, f"root order: unknown token {t!r} "
+                                         "(expected TX TY TZ RX RY RZ)")
+                    if d in order:
+                        raise self.error(line, f"root order: {t!r} appears twice")
+                    order.append(d)
+                root["order"] = tuple(order)
+            elif k == "axis":
+                root["axis"] = self.axis_order(line, tok[1] if len(tok) > 1 else "", "root axis")
+            elif k == "position":
+                root["position"] = self.floats(line, tok[1:], 3, "root position")
+            elif k == "orientation":
+                root["orientation"] = self.floats(line, tok[1:], 3, "root orientation")
+            else:
+                raise self.error(line, f"unknown root property {tok[0]!r} "
+                                 "(expected order, axis, position, orientation)")
+        return root
+
+    def axis_order(self, line, token, what):
+        if token.upper() != "XYZ":
+            raise self.error(line, f"{what}: unsupported rotation order {token!r} "
+                             "(only XYZ is supported, as in the toolbox)")
+        return "XYZ"
+
+    def parse_bonedata(self, meta):
+        bones = []
+        body = self.section_lines()
+        j = 0
+        while j < len(body):
+            line, s = body[j]
+            if s.lower() != "begin":
+                raise self.error(line, f"bonedata: expected 'begin', found {s[:40]!r}")
+            begin_line = line
+            bone = {"name": None, "id": None, "direction": None, "length": None,
+                    "axis": [0.0, 0.0, 0.0], "axis_order": "XYZ", "dof": (), "limits": [],
+                    "line": begin_line}
+            j += 1
+            while True:
+                if j >= len(body):
+                    raise self.error(begin_line, "bonedata: 'begin' without 'end'")
+                line, s = body[j]
+                j += 1
+                tok = s.split()
+                k = tok[0].lower()
+                if k == "end":
+                    break
+                if k == "begin":
+                    raise self.error(line, "bonedata: expected 'end' before the next 'begin'")
+                if k == "id":
+                    try:
+                        bone["id"] = int(tok[1])
+                    except (IndexError, ValueError):
+                        raise self.error(line, "bone id: expected an integer, found "
+                                         f"{' '.join(tok[1:])!r}") from None
+                elif k == "name":
+                    if len(tok) != 2:
+                        raise self.error(line, "bone name: expected one name, found "
+                                         f"{' '.join(tok[1:])!r}")
+                    bone["name"] = tok[1]
+                elif k == "direction":
+                    bone["direction"] = self.floats(line, tok[1:], 3, "bone direction")
+                elif k == "length":
+                    (bone["length"],) = self.floats(line, tok[1:], 1, "bone length")
+                    if bone["length"] < 0:
+                        raise self.error(line, "bone length: expected a length >= 0, "
+                                         f"found {tok[1]!r}")
+                elif k == "axis":
+                    bone["axis"] = self.floats(line, tok[1:], 3, "bone axis")
+                    bone["axis_order"] = self.axis_order(line, tok[4] if len(tok) > 4 else "",
+                                                         "bone axis")
+                elif k == "dof":
+                    dof = []
+                    for t in tok[1:]:
+                        d = t.lower()
+                        if d in ("tx", "ty", "tz", "l"):
+                            raise self.error(line, f"dof: unsupported translation/length DOF {t!r} "
+                                             "(only rx ry rz are supported, as in the toolbox)")
+                        if d not in BONE_DOFS:
+                            raise self.error(line, f"dof: unknown token {t!r} "
+                                             "(expected rx, ry, rz)")
+                        if d in dof:
+                            raise self.error(line, f"dof: {t!r} appears twice")
+                        dof.append(d)
+                    bone["dof"] = tuple(dof)
+                elif k == "limits":
+                    pairs = [s[len(tok[0]):]]
+                    # continuation lines: one "(lo hi)" per further DOF
+                    while j < len(body) and body[j][1].startswith("("):
+                        pairs.append(body[j][1])
+                        j += 1
+                    bone["limits"] = [self.limit_pair(line, p) for p in pairs]
+                elif k in ("bodymass", "cofmass"):
+                    pass
+                else:
+                    raise self.error(line, f"unknown bone property {tok[0]!r} (expected id, name, "
+                                     "direction, length, axis, dof, limits)")
+            for key in ("name", "direction", "length"):
+                if bone[key] is None:
+                    raise self.error(begin_line, f"bone without '{key}'")
+            bones.append(bone)
+        return bones
+
+    def limit_pair(self, line, text):
+        t = text.replace("(", " ").replace(")", " ").split()
+        if len(t) != 2:
+            raise self.error(line, f"limits: expected '(lo hi)', found {text.strip()!r}")
+        try:
+            return (float(t[0]), float(t[1]))
+        except ValueError:
+            raise self.error(line, f"limits: expected numbers, found {text.strip()!r}") from None
+
+    def parse_hierarchy(self):
+        body = self.section_lines()
+        parent = {}
+        lines = {}
+        for line, s in body:
+            tok = s.split()
+            if tok[0].lower() in ("begin", "end"):
+                continue
+            for child in tok[1:]:
+                if child in parent:
+                    raise self.error(line, f"hierarchy: bone {child!r} has two parents "
+                                     f"({parent[child]!r} and {tok[0]!r})")
+                parent[child] = tok[0]
+                lines[child] = line
+            lines.setdefault(tok[0], line)
+        parent["__lines__"] = lines
+        return parent
+
+    # -- assembly ------------------------------------------------------------
+    def build(self, meta, root, bones, hierarchy, hierarchy_line) -> Skeleton:
+        L = meta["length"]
+        lines = hierarchy.pop("__lines__", {})
+        seen = set()
+        for b in bones:
+            if b["name"] in seen:
+                raise self.error(b["line"], f"bone {b['name']!r} defined twice")
+            seen.add(b["name"])
+            if b["name"].lower() == "root":
+                raise self.error(b["line"], "a bone may not be called 'root'")
+        for child, par in hierarchy.items():
+            if child not in seen:
+                raise self.error(lines.get(child, hierarchy_line),
+                                 f"hierarchy: {child!r} is not a bone of :bonedata")
+            if par != "root" and par not in seen:
+                raise self.error(lines.get(child, hierarchy_line),
+                                 f"hierarchy: parent {par!r} is not a bone of :bonedata")
+        out = []
+        for b in bones:
+            if b["name"] not in hierarchy:
+                raise self.error(hierarchy_line, f"hierarchy: bone {b['name']!r} "
+                                 f"(line {b['line']}) is not the child of any bone or of root")
+            d = np.asarray(b["direction"], dtype=np.float64)
+            n = float(np.sqrt(d @ d))
+            # FEATURES.md §2.2: re-normalise (6-digit files are off by ~6e-7);
+            # toolbox readBone.m: offset = direction/norm(direction) * length
+            unit = d / n if n > 0 else np.zeros(3)
+            length = (b["length"] / L) * INCH_TO_TOOLBOX
+            out.append(Bone(name=b["name"], id=b["id"], direction=unit, length=length,
+                            axis=np.asarray(b["axis"], dtype=np.float64),
+                            axis_order=b["axis_order"], dof=b["dof"],
+                            limits=tuple(b["limits"]), parent=hierarchy[b["name"]],
+                            offset=(unit * (b["length"] / L)) * INCH_TO_TOOLBOX,
+                            line=b["line"]))
+        # reject cycles (bones not reachable from the root)
+        reach = {"root"}
+        grew = True
+        while grew:
+            grew = False
+            for b in out:
+                if b.name not in reach and b.parent in reach:
+                    reach.add(b.name)
+                    grew = True
+        lost = [b.name for b in out if b.name not in reach]
+        if lost:
+            raise self.error(hierarchy_line, "hierarchy: bones not connected to the root "
+                             f"(cycle?): {', '.join(lost)}")
+        pos = (np.asarray(root["position"], dtype=np.float64) / L) * INCH_TO_TOOLBOX
+        return Skeleton(
+            name=meta["name"] or Path(self.path).stem,
+            bones=tuple(out),
+            root_order=tuple(root["order"]),
+            root_axis=root["axis"],
+            root_position=pos,
+            root_orientation=np.asarray(root["orientation"], dtype=np.float64),
+            length_unit=L, mass_unit=meta["mass"], angle_unit=meta["angle"],
+            path=self.path)

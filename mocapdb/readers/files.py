@@ -1,0 +1,150 @@
+"""Read any supported motion file into a :class:`~mocapdb.motion.Motion`.
+
+:func:`read_motion` dispatches on the extension (``.amc`` with its ASF
+skeleton, ``.bvh``); :func:`find_skeleton` implements the dataset
+conventions for locating the ASF of an AMC file.
+
+References
+----------
+DESIGN.md §1, §6; data/README.md (file conventions).
+"""
+from __future__ import annotations
+
+import os
+import re
+import threading
+from pathlib import Path
+
+from mocapdb.readers.amc import read_amc
+from mocapdb.readers.asf import Skeleton, read_asf
+from mocapdb.readers.bvh import read_bvh
+from mocapdb.errors import ParseError
+from mocapdb.readers.kinematics import asf_forward_kinematics
+from mocapdb.readers.motion import Motion
+
+__all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates",
+           "load_skeleton", "SUPPORTED_EXTENSIONS"]
+
+SUPPORTED_EXTENSIONS = (".amc", ".bvh")
+
+_CMU_TAKE = re.compile(r"^(\d+)_\d+$")
+_HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
+
+
+def skeleton_candidates(amc_path) -> list:
+    """Where :func:`find_skeleton` looks, in order of preference.
+
+    1. the same stem: ``walk.amc`` -> ``walk.asf``;
+    2. a CMU take's subject skeleton in the same folder: ``02_01.amc`` -> ``02.asf``;
+    3. an HDM05 actor skeleton ``HDM_<actor>.asf`` in the same folder, then in
+       the parent folder (``hdm05_cut/<class>/HDM_bd_...amc`` ->
+       ``hdm05_cut/HDM_bd.asf``).
+    """
+    p = Path(amc_path)
+    d = p.parent
+    stem = p.stem
+    out = [d / f"{stem}.asf"]
+    m = _CMU_TAKE.match(stem)
+    if m:
+        out.append(d / f"{m.group(1)}.asf")
+    m = _HDM_TAKE.match(stem)
+    if m:
+        out.append(d / f"HDM_{m.group(1)}.asf")
+        out.append(d.parent / f"HDM_{m.group(1)}.asf")
+    return out
+
+
+def find_skeleton(amc_path) -> Path | None:
+    """The ASF skeleton of an AMC file by the dataset conventions, or None.
+
+    See :func:`skeleton_candidates` for the rules; ``.ASF`` in upper case is
+    accepted too.
+    """
+    for c in skeleton_candidates(amc_path):
+        for cand in (c, c.with_suffix(".ASF")):
+            if cand.is_file():
+                return cand
+    return None
+
+
+# Skeletons are re-read for every take of an actor during ingest; cache them by
+# file identity (path, size, mtime). Skeleton objects are immutable.
+_ASF_CACHE: dict = {}
+_ASF_LOCK = threading.Lock()
+
+
+def load_skeleton(asf) -> Skeleton:
+    """A :class:`Skeleton` from a path (cached by file identity) or a Skeleton."""
+    if isinstance(asf, Skeleton):
+        return asf
+    p = Path(asf)
+    st = os.stat(p)
+    key = (str(p.resolve()), st.st_size, st.st_mtime_ns)
+    with _ASF_LOCK:
+        hit = _ASF_CACHE.get(key)
+    if hit is None:
+        hit = read_asf(p)
+        with _ASF_LOCK:
+            if len(_ASF_CACHE) > 64:
+                _ASF_CACHE.clear()
+            _ASF_CACHE[key] = hit
+    return hit
+
+
+def read_asf_amc(amc_path, asf) -> Motion:
+    """Read an AMC file with an explicit skeleton (path or :class:`Skeleton`)."""
+    amc_path = Path(amc_path)
+    skel = load_skeleton(asf)
+    amc = read_amc(amc_path, skel)
+    joints, rot = asf_forward_kinematics(skel, amc)
+    asf_path = skel.path if isinstance(asf, Skeleton) else str(asf)
+    return Motion(joints=joints, root_rotation=rot, fps=amc.fps, name=amc_path.stem,
+                  skeleton=Path(asf_path).stem or skel.name, source_format="amc",
+                  meta={"asf": asf_path, "asf_name": skel.name})
+
+
+def read_motion(path, *, asf=None) -> Motion:
+    """Read a motion file (by extension) into the 24 canonical joints.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.amc`` (Acclaim motion; needs a skeleton) or ``.bvh``.
+    asf : str, Path or Skeleton, optional, keyword-only
+        Skeleton of an AMC file; default: :func:`find_skeleton`. Ignored for BVH.
+
+    Returns
+    -------
+    Motion
+        ``name`` = file stem; ``skeleton`` = the ASF file stem (e.g.
+        ``"HDM_bd"``, ``"02"``: the ASF ``:name`` is ``"VICON"`` in every CMU
+        and HDM05 file, so it would not tell skeletons apart; it is kept in
+        ``meta["asf_name"]``) or ``"bvh:<family>"``; ``meta["asf"]`` = the ASF path.
+
+    Raises
+    ------
+    ParseError
+        Malformed file (file, line and what was expected), an unsupported
+        extension, or an AMC whose skeleton cannot be found.
+    FileNotFoundError
+
+    References
+    ----------
+    DESIGN.md §1, §6; FEATURES.md §2.
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext == ".amc":
+        if asf is None:
+            asf = find_skeleton(path)
+            if asf is None:
+                looked = ", ".join(str(c) for c in skeleton_candidates(path))
+                raise ParseError(path, None, f"no ASF skeleton found (looked for {looked}); "
+                                 "pass one explicitly: read_motion(path, asf=FILE), or "
+                                 "--asf FILE on the command line. Any CMU ASF reads CMU takes "
+                                 "(cmu/13 and cmu/14 have no ASF; cmu/02/02.asf reads them).")
+        return read_asf_amc(path, asf)
+    if ext == ".bvh":
+        return read_bvh(path)
+    raise ParseError(path, None, f"unsupported file type {path.suffix!r} (expected "
+                     + " or ".join(SUPPORTED_EXTENSIONS) + ")")

@@ -1,0 +1,9 @@
+-- Statements of mocapdb.storage.annotations (materialised annotation results).
+
+-- name: delete
+DELETE FROM annotations WHERE model = $model AND motion_id IN (SELECT unnest($ids));
+
+-- name: insert
+INSERT INTO annotations (motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes)
+SELECT motion_id, $model, label, start_frame, end_frame, cost, start_s, end_s, $tau, $keyframes
+FROM mocap_new_annotations;

@@ -1,0 +1,40 @@
+-- Statements of mocapdb.storage.motions and mocapdb.storage.ingest.
+
+-- name: by_id
+SELECT motion_id FROM motions WHERE motion_id = $id;
+
+-- name: by_name
+SELECT motion_id FROM motions WHERE name = $name ORDER BY motion_id;
+
+-- name: meta
+SELECT motion_id, name, fps, n_frames, source_fps, n_source_frames FROM motions
+WHERE $ids IS NULL OR motion_id IN (SELECT unnest($ids)) ORDER BY motion_id;
+
+-- name: words
+SELECT bits FROM features WHERE $ids IS NULL OR motion_id IN (SELECT unnest($ids)) ORDER BY motion_id, frame;
+
+-- name: name_counts
+SELECT name, count(*) AS n FROM motions GROUP BY name;
+
+-- name: stored_keys
+SELECT motion_id, sha256, skeleton_sha256 FROM motions;
+
+-- name: insert_motions
+INSERT INTO motions (name, source_path, format, sha256, skeleton_sha256, source_fps, fps,
+                     n_source_frames, n_frames, skeleton, skeleton_path)
+SELECT name, source_path, format, sha256, skeleton_sha256, source_fps, fps, n_source_frames, n_frames,
+       skeleton, skeleton_path
+FROM mocap_new_motions ORDER BY ord
+RETURNING motion_id, sha256, skeleton_sha256;
+
+-- name: insert_features
+INSERT INTO features SELECT motion_id, frame, bits FROM mocap_new_features;
+
+-- name: delete_features
+DELETE FROM features WHERE motion_id IN (SELECT unnest($ids));
+
+-- name: delete_annotations
+DELETE FROM annotations WHERE motion_id IN (SELECT unnest($ids));
+
+-- name: delete_motions
+DELETE FROM motions WHERE motion_id IN (SELECT unnest($ids)) RETURNING motion_id;
