@@ -9,7 +9,7 @@ the cost; a 100 h archive in ≤ 60 s with peak RSS ≤ 2 GB).
     file (cmu/13 and cmu/14 with cmu/02/02.asf) and annotated with the
     default model (the toolbox's 11 HDM05 templates), no keyframes, through
     ``annotate_motions(store=False)``, the SQL ``annotate(motion_id)`` macro
-    and the in-memory core ``segments_of_documents``. Figures are warm (best
+    and the in-memory core ``annotate_words``. Figures are warm (best
     of N); the first call in this process is reported separately, and so is
     the first call in a fresh process with an empty numba cache (compile).
 (b) A synthetic 10 h archive (1.08 M frames at 30 Hz): the real documents'
@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from timing import best_of  # benchmarks/timing.py
+from timing import annotate_words, best_of, stored_words  # benchmarks/timing.py
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
@@ -208,11 +208,12 @@ def sql_annotate(con, model="default"):
 
 
 def cold_compile(npz):
-    """First ``segments_of_documents`` call in a fresh process: empty numba cache, then warm cache."""
-    code = ("import time, numpy as np, mocapdb; from mocapdb.api import segments_of_documents; "
-            "from mocapdb.modelstore import load_model; m = load_model(mocapdb.connect(), 'default'); "
+    """First ``annotate_words`` call in a fresh process: empty numba cache, then warm cache."""
+    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+            "import time, numpy as np, mocapdb; from timing import annotate_words; "
+            "from mocapdb.storage.models import load_model; m = load_model(mocapdb.connect(), 'default'); "
             f"z = np.load(r'{npz}'); t = time.perf_counter(); "
-            "segments_of_documents(z['words'], z['lengths'], m, keyframes=False); "
+            "annotate_words(z['words'], z['lengths'], m, keyframes=False); "
             "print(time.perf_counter() - t)")
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
@@ -235,7 +236,6 @@ def scale_child(npz, n_frames, n_classes):
     """Run in a fresh process: annotate ``n_frames`` repeated real frames, print JSON."""
     t0 = time.perf_counter()
     import mocapdb
-    from mocapdb.api import segments_of_documents
     from mocapdb.storage.models import load_model
 
     con = mocapdb.connect()
@@ -243,11 +243,11 @@ def scale_child(npz, n_frames, n_classes):
     if n_classes == 15:
         model = mirrored_model(model)
     z = np.load(npz)
-    segments_of_documents(z["words"], z["lengths"], model, keyframes=False)  # load the kernels
+    annotate_words(z["words"], z["lengths"], model, keyframes=False)  # load the kernels
     t1 = time.perf_counter()
     words, lengths = repeat_documents(z["words"], z["lengths"], n_frames)
     t2 = time.perf_counter()
-    segs = segments_of_documents(words, lengths, model, keyframes=False)
+    segs = annotate_words(words, lengths, model, keyframes=False)
     t3 = time.perf_counter()
     print(json.dumps({"setup_s": t1 - t0, "build_s": t2 - t1, "annotate_s": t3 - t2, "wall_s": t3 - t0,
                       "maxrss_mb": peak_rss_mb(),
@@ -310,7 +310,7 @@ def main():
     import numba
 
     import mocapdb  # noqa: F401
-    from mocapdb.api import annotate_motions, motion_words, segments_of_documents
+    from mocapdb.api import annotate as annotate_motions
     from mocapdb.storage.models import load_model, save_model
 
     hours = 1 if args.quick else 10
@@ -325,7 +325,7 @@ def main():
 
     # ---- (a) all ingested data -------------------------------------------------
     con, t_ingest = ingest_all(tmpdir / "all.duckdb")
-    _, _, _, words, lengths = motion_words(con)
+    words, lengths = stored_words(con)
     n_all = len(words)
     model = load_model(con, "default")
     print(f"\n## (a) all of ../shared/data ingested: {len(lengths)} motions, {n_all:,} frames at 30 Hz "
@@ -337,8 +337,8 @@ def main():
     row("Python annotate_motions(store=False)", n_all, first, best, tab.num_rows)
     first, best, sql = timed(lambda: sql_annotate(con), rep_small)
     row("SQL unnest(annotate(motion_id))", n_all, first, best, sql.num_rows)
-    first, best, segs = timed(lambda: segments_of_documents(words, lengths, model, keyframes=False), rep_small)
-    row("core segments_of_documents", n_all, first, best, len(segs))
+    first, best, segs = timed(lambda: annotate_words(words, lengths, model, keyframes=False), rep_small)
+    row("core annotate_words", n_all, first, best, len(segs))
     assert tab.num_rows == sql.num_rows == len(segs), "the three paths disagree"
     npz = tmpdir / "words.npz"
     np.savez(npz, words=words, lengths=lengths)
@@ -348,7 +348,7 @@ def main():
               f"{warm:.2f} s with the cache")
     model15 = mirrored_model(model)
     save_model(con, model15, description="benchmark: default + 4 mirrored templates")
-    first, best, segs15 = timed(lambda: segments_of_documents(words, lengths, model15, keyframes=False),
+    first, best, segs15 = timed(lambda: annotate_words(words, lengths, model15, keyframes=False),
                                 rep_small)
     row("core, 15-class model", n_all, first, best, len(segs15), TARGET_FPS)
     first, best, sql15 = timed(lambda: sql_annotate(con, "mirror15"), rep_small)
@@ -364,11 +364,11 @@ def main():
     print(f"\n## (b, c) synthetic {hours} h: the real documents repeated, {len(l_syn):,} documents, "
           f"{n_syn:,} frames (inserted via Arrow in {t_insert:.1f} s); warm = best of {rep_big}; {load_now()}")
     header()
-    first, best, segs = timed(lambda: segments_of_documents(w_syn, l_syn, model, keyframes=False), rep_big)
+    first, best, segs = timed(lambda: annotate_words(w_syn, l_syn, model, keyframes=False), rep_big)
     row("core, default model (11 classes)", n_syn, first, best, len(segs))
     first, best, sql = timed(lambda: sql_annotate(con), rep_big)
     row("SQL, default model (11 classes)", n_syn, first, best, sql.num_rows)
-    first, best, segs15 = timed(lambda: segments_of_documents(w_syn, l_syn, model15, keyframes=False),
+    first, best, segs15 = timed(lambda: annotate_words(w_syn, l_syn, model15, keyframes=False),
                                 rep_big)
     row("core, 15-class model", n_syn, first, best, len(segs15), TARGET_FPS)
     fps15 = n_syn / best

@@ -25,7 +25,7 @@ Arrow.
 (b) index build: ``build_index`` in memory (the 3 toolbox per-set parts, and
     all 4 parts as stored) and ``create_index`` into DuckDB (all 4 parts),
     plus ``load_index``;
-(c) ``segments_of_documents`` with and without keyframe preselection, same
+(c) ``annotate_words`` with and without keyframe preselection, same
     model (default templates + toolbox keyframes), and the frames each
     class's preselection keeps.
 """
@@ -40,6 +40,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_annotate import (FRAMES_PER_HOUR, QUERIES_DIR, PAPER_FRAMES, ingest_all,  # noqa: E402
                             load_now, machine_header, repeat_documents, synthetic_db, timed)
+from timing import annotate_words, stored_words  # noqa: E402
 
 PAPER_QUERY_MS, PAPER_INDEX_S = 4.0, 4.0
 PAPER_ANNOT_S, PAPER_KF_ANNOT_S = 305.0, 20.0
@@ -125,16 +126,15 @@ def bench_preselection(name, words, lengths, model, repeat, *, queries="toolbox"
     """(c) annotation with and without keyframe preselection on the same data and model.
 
     ``queries``: "toolbox" (hand-made + heuristic) or "ga" (the shipped default model's)."""
-    from mocapdb.api import segments_of_documents
-    from mocapdb.annotation.preselection import keyframe_preselection
+    from mocapdb.annotation import preselection_for
 
     n = int(lengths.sum())
     what = "toolbox keyframes" if queries == "toolbox" else "its GA keyframe queries (shipped)"
     print(f"\n## (c) {name}: {len(lengths):,} documents, {n:,} frames; model = default templates + {what}; "
           f"best of {repeat}; {load_now()}")
-    _, t_off, segs_off = timed(lambda: segments_of_documents(words, lengths, model, keyframes=False), repeat)
-    _, t_on, segs_on = timed(lambda: segments_of_documents(words, lengths, model, keyframes=True), repeat)
-    _, t_pre, pre = timed(lambda: keyframe_preselection(words, lengths, model), repeat)
+    _, t_off, segs_off = timed(lambda: annotate_words(words, lengths, model, keyframes=False), repeat)
+    _, t_on, segs_on = timed(lambda: annotate_words(words, lengths, model, keyframes=True), repeat)
+    _, t_pre, pre = timed(lambda: preselection_for(words, lengths, model, True), repeat)
     speedup = t_off / t_on
     print(f"without keyframes {t_off:.3f} s ({n / t_off:,.0f} frames/s, {len(segs_off):,} segments); "
           f"with keyframe preselection {t_on:.3f} s ({n / t_on:,.0f} frames/s, {len(segs_on):,} segments), "
@@ -163,7 +163,6 @@ def main():
     args = ap.parse_args()
 
     import mocapdb  # noqa: F401
-    from mocapdb.api import motion_words
     from mocapdb.keyframes import annot_margins
     from mocapdb.storage.models import load_model
     from mocapdb.learning.toolbox_queries import has_toolbox_query, toolbox_keyframe_queries
@@ -172,7 +171,7 @@ def main():
     tmp = tempfile.TemporaryDirectory(prefix="bench_keyframes_")
     tmpdir = Path(tmp.name)
     con, t_ingest = ingest_all(tmpdir / "all.duckdb")
-    _, _, _, words, lengths = motion_words(con)
+    words, lengths = stored_words(con)
     model = toolbox_keyframe_queries(load_model(con, "default"), queries_dir=QUERIES_DIR)
     queries = [(c.name, "hand-made" if has_toolbox_query(QUERIES_DIR, c.name) else "heuristic",
                 c.keyframe_query, *annot_margins(c.keyframe_query)) for c in model.classes]

@@ -16,3 +16,20 @@ def best_of(fn, repeat=3):
 def best_seconds(fn, repeat=3):
     """Best wall time of ``repeat`` calls of ``fn``, in seconds."""
     return best_of(fn, repeat)[0]
+
+
+def annotate_words(words, lengths, model, *, keyframes=None):
+    """Segments of concatenated documents, in memory: the keyframe preselection on an index of
+    just these documents when the model preselects (``keyframes``), then the annotation chain."""
+    from mocapdb.annotation import annotate, preselection_for
+
+    pre = preselection_for(words, lengths, model, keyframes)
+    return annotate(words, model, doc_lengths=lengths, preselection=pre, keep_hits=False).segments
+
+
+def stored_words(con):
+    """(words, lengths) of every motion of a database, in motion-id order."""
+    from mocapdb.storage.motions import motion_documents
+
+    docs = motion_documents(con)
+    return docs.words, docs.lengths

@@ -58,20 +58,50 @@ def _lists(arr):
 
 
 def _groups(*columns):
-    """Row indices grouped by the values of small per-row parameters."""
+    """Row indices grouped by the values of small per-row parameters.
+
+    Usually every row of a call has the same model, τ and keyframe setting:
+    that case is answered without converting the columns to Python objects.
+    """
+    columns = [_column(c) for c in columns]
+    n = len(columns[0]) if columns else 0
+    if n and all(c.null_count in (0, n) and len(c.unique()) == 1 for c in columns):
+        return {tuple(c[0].as_py() for c in columns): np.arange(n)}
     out = {}
-    for i, k in enumerate(zip(*[_column(c).to_pylist() for c in columns])):
+    for i, k in enumerate(zip(*[c.to_pylist() for c in columns])):
         out.setdefault(k, []).append(i)
-    return out
+    return {k: np.array(v, dtype=np.int64) for k, v in out.items()}
 
 
-def _list_array(per_row, nulls, values_type):
-    """Per-row Arrow arrays (None for NULL rows) as one ListArray."""
-    counts = np.array([0 if v is None else len(v) for v in per_row], dtype=np.int64)
-    offsets = pa.array(np.concatenate(([0], np.cumsum(counts))).astype(np.int32))
-    parts = [v for v in per_row if v is not None and len(v)]
-    values = pa.concat_arrays(parts) if parts else pa.array([], values_type)
-    return pa.ListArray.from_arrays(offsets, values, mask=pa.array(np.asarray(nulls, bool)))
+def _rows_of(lengths, rows):
+    """Positions in the flat words of the given rows (each row's words in order)."""
+    if len(rows) == len(lengths) and np.array_equal(rows, np.arange(len(lengths))):
+        return slice(None)
+    mask = np.zeros(len(lengths), bool)
+    mask[rows] = True
+    return np.repeat(mask, lengths)
+
+
+def _list_array(parts, n_rows, nulls, values_type):
+    """One ListArray from per-group results.
+
+    ``parts``: (rows, values, counts) per group — the group's rows, their
+    values concatenated in the rows' order and the number of values per row.
+    Rows in no group (NULL rows) are NULL.
+    """
+    counts = np.zeros(n_rows, np.int64)
+    start_in = np.zeros(n_rows, np.int64)  # position of a row's first value in the concatenation
+    base = 0
+    for rows, values, row_counts in parts:
+        counts[rows] = row_counts
+        start_in[rows] = base + np.concatenate(([0], np.cumsum(row_counts)[:-1]))
+        base += len(values)
+    offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int32)
+    values = pa.concat_arrays([v for _, v, _ in parts]) if parts else pa.array([], values_type)
+    if len(parts) > 1:  # rows of different groups interleave: gather the values in row order
+        order = np.repeat(start_in - offsets[:-1], counts) + np.arange(offsets[-1])
+        values = values.take(pa.array(order))
+    return pa.ListArray.from_arrays(pa.array(offsets), values, mask=pa.array(np.asarray(nulls, bool)))
 
 
 def _check_tau(tau):
@@ -87,40 +117,36 @@ def make_udfs(cache):
         flat, lengths, nulls = _lists(words)
         motion = _column(motion).to_numpy(zero_copy_only=False)
         fps = _column(fps).to_numpy(zero_copy_only=False)
-        starts = np.concatenate(([0], np.cumsum(lengths)))
-        per_row = [None] * len(lengths)
+        parts = []
         for (name, fp, t, kf, version), rows in _groups(model_name, fingerprint, tau, keyframes,
                                                        index_version).items():
             key, model = cache.model(name, fp)
             _check_tau(t)
-            rows = [r for r in rows if not nulls[r]]
-            if not rows:
+            rows = rows[~nulls[rows]]
+            if not len(rows):
                 continue
-            rows = np.array(rows, dtype=np.int64)
-            sel = np.concatenate([np.arange(starts[r], starts[r + 1]) for r in rows])
-            segs = annotate_documents(cache, key, model, flat[sel], lengths[rows], motion[rows], tau=t,
-                                      keyframes=kf, index_version=version)
+            segs = annotate_documents(cache, key, model, flat[_rows_of(lengths, rows)], lengths[rows], motion[rows],
+                                      tau=t, keyframes=kf, index_version=version)
             table = segment_table(segs, motion_ids=motion[rows], names=[""] * len(rows), fps=fps[rows])
             values = pa.StructArray.from_arrays([_column(table.column(c)) for c in _SEGMENT_FIELDS],
                                                 fields=list(_SEGMENT_ARROW))
             # the table is sorted by document (= position in rows) first
-            cut = np.concatenate(([0], np.cumsum(np.bincount(segs["doc"], minlength=len(rows)))))
-            for k, r in enumerate(rows):
-                per_row[r] = values.slice(cut[k], cut[k + 1] - cut[k])
-        return _list_array(per_row, nulls, _SEGMENT_ARROW)
+            parts.append((rows, values, np.bincount(segs["doc"], minlength=len(rows))))
+        return _list_array(parts, len(lengths), nulls, _SEGMENT_ARROW)
 
     def mt_distance_udf(words, model_name, fingerprint, cls):
         """``mocap_mt_distance(words, model, fingerprint, class)`` → DOUBLE[] per row (Δ, inf where undefined)."""
         flat, lengths, nulls = _lists(words)
         starts = np.concatenate(([0], np.cumsum(lengths)))
-        per_row = [None] * len(lengths)
+        parts = []
         for (name, fp, c), rows in _groups(model_name, fingerprint, cls).items():
             _, model = cache.model(name, fp)
             q = _class(model, c).quantized
-            for r in rows:
-                if not nulls[r]:
-                    per_row[r] = pa.array(mt_distance(flat[starts[r]:starts[r + 1]], q), pa.float64())
-        return _list_array(per_row, nulls, pa.float64())
+            rows = rows[~nulls[rows]]
+            if len(rows):
+                deltas = [mt_distance(flat[starts[r]:starts[r + 1]], q) for r in rows]
+                parts.append((rows, pa.array(np.concatenate(deltas), pa.float64()), lengths[rows]))
+        return _list_array(parts, len(lengths), nulls, pa.float64())
 
     def keyframe_search_udf(model_name, fingerprint, cls, extend, index_version):
         """``mocap_keyframe_search(model, fingerprint, class, extend, version)`` → LIST(hit) per row."""
@@ -134,7 +160,7 @@ def make_udfs(cache):
                                   "`mocapdb learn-keyframes`")
             left, right = annot_margins(query) if ext else (0, 0)
             per_row.append(_search(cache, query, left, right, version))
-        return _list_array(per_row, [False] * len(per_row), _HIT_ARROW)
+        return _hits_array(per_row)
 
     def keyframe_search_words_udf(masks, vals, gap_min, gap_max, extend_left, extend_right, index_version):
         """``mocap_keyframe_search_words(masks, values, d_min, d_max, left, right, version)`` → LIST(hit)."""
@@ -147,9 +173,15 @@ def make_udfs(cache):
                 if x is None or not 0 <= x <= MAX_GAP:
                     raise ParameterError(f"keyframe_search_words: {name} must be in 0..{MAX_GAP} frames, got {x}")
             per_row.append(_search(cache, query, left, right, version))
-        return _list_array(per_row, [False] * len(per_row), _HIT_ARROW)
+        return _hits_array(per_row)
 
     return annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf
+
+
+def _hits_array(per_row):
+    """A ListArray of hit structs, one list per row."""
+    parts = [(np.array([r]), hits, np.array([len(hits)])) for r, hits in enumerate(per_row)]
+    return _list_array(parts, len(per_row), np.zeros(len(per_row), bool), _HIT_ARROW)
 
 
 def _class(model, name):

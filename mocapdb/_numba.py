@@ -8,11 +8,11 @@ Python UDF from one thread; parallelism happens inside).
 import numba
 
 #: Serial kernel: compiled once, cached on disk, releases the GIL.
-jit = numba.njit(cache=True, nogil=True)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 #: Parallel kernel: as :data:`jit`, with ``prange`` loops over independent
 #: takes, templates or chunks (each iteration writes only its own slice).
-pjit = numba.njit(cache=True, nogil=True, parallel=True)
+pjit = numba.njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 
 prange = numba.prange
 

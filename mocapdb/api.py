@@ -32,7 +32,7 @@ from mocapdb.annotation import annotate as annotate_words
 from mocapdb.annotation import (as_label_rows, class_labels, map_labels, read_class_labels, read_labels,
                                 read_segments, segment_table, segments_to_rows, to_feature_grid)
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.evaluation import evaluate_annotation
+from mocapdb.evaluation import evaluate_annotation, parse_tau_grid
 from mocapdb.extension import register
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
 from mocapdb.storage import parquet, postings
@@ -294,7 +294,7 @@ def read_truth(path, *, label_map=None, n_frames=None):
 
 
 def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=None, label_map=None,
-             vocabulary=None, taus=None):
+             vocabulary=None, sweep_tau=None):
     """Score an annotation against ground truth with the paper's measures (Eq. 5–8).
 
     Parameters
@@ -314,14 +314,16 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
         Truth label → model label (e.g. the shipped ``cmu86_labels.csv``).
     vocabulary : sequence of str, optional
         Labels to score (default: the model's labels; with ``pred``: every truth label).
-    taus : sequence of float, optional
-        Score every τ of the sweep (paper Fig. 8) instead of one τ.
+    sweep_tau : str or sequence of float, optional
+        Score every τ of a sweep (paper Fig. 8) instead of one τ: the values,
+        or ``"start:stop:step"`` (e.g. ``"0.05:0.25:0.01"``).
 
     Returns
     -------
-    mocapdb.evaluation.Scores, or list of (τ, Scores) with ``taus``
+    mocapdb.evaluation.Scores, or list of (τ, Scores) with ``sweep_tau``
         Truth labels outside the vocabulary are dropped (``Scores.dropped_truth``).
     """
+    taus = parse_tau_grid(sweep_tau) if isinstance(sweep_tau, str) else sweep_tau
     if pred is not None:
         if taus is not None:
             raise ParameterError("a tau sweep re-annotates: use it with a database, not with pred")

@@ -12,6 +12,7 @@ import functools
 import io
 import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -42,6 +43,10 @@ labels_option = click.option("--labels", type=click.Path(exists=True, dir_okay=F
                                   "cutting clips out of ingested documents.")
 
 
+_UDF_WRAPPER = re.compile(r"^Invalid Input Error: Python exception occurred while executing the UDF: "
+                          r"(SchemaError|ParameterError|ParseError|MocapdbError): ")
+
+
 def _errors_as_one_line(fn):
     """Every error becomes ``Error: <first line>`` with exit 1; anything that is not a
     library, database or file error is reported as internal, with its type
@@ -58,6 +63,8 @@ def _errors_as_one_line(fn):
             if os.environ.get("MOCAPDB_DEBUG"):
                 raise
             text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            # a library error raised inside a SQL function reaches us wrapped by DuckDB
+            text = _UDF_WRAPPER.sub("", text)
             if not isinstance(exc, (MocapdbError, duckdb.Error, ImportError, OSError)):
                 text = f"internal error ({type(exc).__name__}: {text}); MOCAPDB_DEBUG=1 shows the traceback"
             raise click.ClickException(text or type(exc).__name__) from exc
@@ -92,10 +99,8 @@ def _progress(total, label, silent, unit="file"):
 
 def _say_when_compiling():
     """Say once that kernels compile when numba's cache is still empty (first run only)."""
-    import mocapdb
-
     cache = os.environ.get("NUMBA_CACHE_DIR")
-    root = Path(mocapdb.__file__).parent
+    root = Path(__file__).parent
     if cache:
         has_cache = any(Path(cache).rglob("*.nbi"))
     else:
@@ -383,14 +388,12 @@ def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, swe
       mocapdb --db a.duckdb evaluate --truth truth.csv --map walk_is_move.csv --sweep-tau 0.05:0.25:0.01
     """
     from mocapdb.api import evaluate as api_evaluate
-    from mocapdb.evaluation import parse_tau_grid
 
     con = None if pred is not None and ctx.obj.get("db") is None else _open(ctx)
     vocab = [v.strip() for v in vocabulary.split(",")] if vocabulary else None
-    taus = parse_tau_grid(sweep_tau) if sweep_tau else None
     result = api_evaluate(con, truth, pred=pred, model=model, tau=tau, keyframes=keyframes, label_map=label_map,
-                          vocabulary=vocab, taus=taus)
-    _print_scores([(f"tau={t:.3f}", sc) for t, sc in result] if taus is not None else [("all", result)])
+                          vocabulary=vocab, sweep_tau=sweep_tau)
+    _print_scores([(f"tau={t:.3f}", sc) for t, sc in result] if sweep_tau else [("all", result)])
 
 
 @command()

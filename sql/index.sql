@@ -50,3 +50,9 @@ SELECT p.motion_id,
        p.seg - 1 AS seg, p.word, p.start_frame - 1 AS start_frame, p.n_frames
 FROM %index_schema%.postings p
 WHERE list_contains($parts, p.feature_set);
+
+-- name: motion_lengths
+SELECT motion_id, n_frames FROM motions ORDER BY motion_id;
+
+-- name: count_postings
+SELECT count(*) FROM %index_schema%.postings;

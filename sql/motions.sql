@@ -38,3 +38,9 @@ DELETE FROM annotations WHERE motion_id IN (SELECT unnest($ids));
 
 -- name: delete_motions
 DELETE FROM motions WHERE motion_id IN (SELECT unnest($ids)) RETURNING motion_id;
+
+-- name: count
+SELECT count(*) FROM motions;
+
+-- name: schema_exists
+SELECT count(*) > 0 FROM duckdb_tables() WHERE schema_name = 'main' AND table_name = 'motions';

@@ -238,11 +238,10 @@ def test_motion_values_equal_python_float(hdm, tmp_path):
 
 
 def test_bvh_round_trip_gives_the_same_feature_words(cmu500, tmp_path):
-    features = pytest.importorskip("mocapdb.features")
-    if not hasattr(features, "motion_features"):
-        pytest.skip("mocapdb.features.motion_features not available yet")
+    from mocapdb.features import motion_features
+
     s, m, (joints, rot) = cmu500
-    amc_words = features.motion_features(Motion(joints=joints, root_rotation=rot, fps=120.0))
+    amc_words = motion_features(Motion(joints=joints, root_rotation=rot, fps=120.0))
     for layout in ("asf", "cmu"):
         p = write_bvh(tmp_path / f"{layout}.bvh", s, m, layout=layout, precision=17)
-        assert np.array_equal(features.motion_features(read_bvh(p)), amc_words)
+        assert np.array_equal(motion_features(read_bvh(p)), amc_words)

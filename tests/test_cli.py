@@ -76,6 +76,27 @@ def test_every_command_has_help_and_a_readme_entry():
         assert f"`{name}" in readme, f"README.md does not document the command {name!r}"
 
 
+#: CLI parameters that only shape the output or the terminal, with no API counterpart
+PRESENTATION = {"silent", "fmt", "out", "read_only", "query", "sql_file"}
+
+
+def test_the_cli_mirrors_the_api():
+    """Every command calls the mocapdb.api function of the same name, and every option is
+    one of its parameters (sqlite-utils style)."""
+    import inspect
+
+    from mocapdb import api
+
+    for name, cmd in main.commands.items():
+        if name == "sql":  # mocapdb.connect(...).sql(query)
+            continue
+        fn = getattr(api, name.replace("-", "_"), None)
+        assert fn is not None, f"command {name!r} has no mocapdb.api.{name.replace('-', '_')}"
+        params = set(inspect.signature(fn).parameters) - {"con"}
+        options = {p.name for p in cmd.params} - PRESENTATION
+        assert options <= params, f"{name}: options {sorted(options - params)} are not parameters of api.{fn.__name__}"
+
+
 def _class_folder(tmp_path, classes):
     """An HDM05-cut-layout folder with some real classes (symlinked, not copied)."""
     root = tmp_path / "cut"
@@ -115,6 +136,28 @@ def test_annotate_unknown_model(run):
     run("ingest", DATA / "cmu" / "86", "--silent")
     r = run("annotate", "--model", "nope")
     assert r.exit_code == 1 and "no model 'nope'" in r.output
+    r = run("sql", "SELECT annotate(motion_id, model := 'nope') FROM motions")
+    assert r.exit_code == 1 and r.output.startswith("Error: no model 'nope' in the database")
+    assert len(r.output.strip().splitlines()) == 1
+
+
+def test_a_locked_database_is_one_line_naming_the_process(tmp_path):
+    """Another process writing the file: `Error: … in use by another process (PID …)`, exit 1."""
+    import subprocess
+    import sys
+
+    db = tmp_path / "locked.duckdb"
+    holder = subprocess.Popen([sys.executable, "-c", f"import duckdb, sys, time; c = duckdb.connect({str(db)!r}); "
+                               "print('ready', flush=True); time.sleep(60)"], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "ready"
+        r = subprocess.run([sys.executable, "-m", "mocapdb.cli", "--db", str(db), "sql", "SELECT 1"],
+                           capture_output=True, text=True)
+        assert r.returncode == 1 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert r.stderr.startswith(f"Error: {db} is in use by another process (PID {holder.pid}, "), r.stderr
+    finally:
+        holder.kill()
+        holder.wait()
 
 
 def _truth_86_09(path):
@@ -209,7 +252,7 @@ def test_index_drop_and_rebuild(run):
 
 
 def test_report_figures(run, tmp_path):
-    pytest.importorskip("matplotlib", reason="figures need the 'plot' extra")
+    import matplotlib  # noqa: F401  (the test extra installs it)
     out = tmp_path / "fig5.png"
     r = run("report", "--figure", "ga", "--out", out)
     assert r.exit_code == 0, r.output

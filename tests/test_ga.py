@@ -437,7 +437,7 @@ def test_average_statistics_and_plot(train, tmp_path):
         ((a.statistics.mean_precision + b.statistics.mean_precision) / 2).tolist())
     with pytest.raises(ParameterError, match="generations"):
         ga.average_statistics([a, run(train, "sneak2StepsLStart", seed=1, generations=3)])
-    pytest.importorskip("matplotlib")
+    import matplotlib  # noqa: F401  (the test extra installs it)
     from mocapdb.evaluation.figures import plot_ga_statistics
 
     out = tmp_path / "fig5.png"

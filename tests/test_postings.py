@@ -6,8 +6,8 @@ import mocapdb
 from mocapdb.keyframes import build_index
 from mocapdb import ingest
 from mocapdb.storage.ingest import delete_motions
-from mocapdb.storage.postings import (INDEX_SCHEMA, create_index, drop_index, index_exists, load_index,
-                              motion_positions)
+from mocapdb.storage.postings import create_index, drop_index, index_exists, load_index, motion_positions
+from mocapdb.storage.sqltext import INDEX_SCHEMA
 
 from conftest import DATA
 

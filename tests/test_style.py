@@ -1,4 +1,5 @@
-"""House rules that keep the package as STYLE.md describes it (checked on the source text)."""
+"""House rules that keep the package as STYLE.md and docs/ARCHITECTURE.md describe it
+(checked on the source text)."""
 import ast
 import re
 
@@ -6,10 +7,48 @@ import pytest
 
 from conftest import REPO
 
-LIBRARY = sorted([*(REPO / "mocapdb").glob("*.py"), *(REPO / "extension").glob("*.py")])
+LIBRARY = sorted([*(REPO / "mocapdb").rglob("*.py"), *(REPO / "extension").glob("*.py")])
+
+#: the sub-packages in pipeline order (docs/ARCHITECTURE.md): each imports only from those before it
+LAYERS = ("errors", "_numba", "readers", "features", "templates", "keyframes", "annotation", "learning",
+          "evaluation", "storage", "extension", "api", "cli")
 
 
-@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: p.name)
+def _module(path):
+    rel = path.relative_to(REPO)
+    parts = list(rel.with_suffix("").parts)
+    if parts[0] == "extension":
+        parts = ["mocapdb", *parts]
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _layer(module):
+    """The sub-package (layer) of a module name under mocapdb, or None for mocapdb itself."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else None
+
+
+def _imports(path):
+    """(line, imported module, imported names) of every import statement, also inside functions."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    mod = _module(path)
+    package = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.extend((node.lineno, a.name, ()) for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join(anchor + ([node.module] if node.module else []))
+            out.append((node.lineno, base, tuple(a.name for a in node.names)))
+    return out
+
+
+@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_numba_options_live_in_one_place(path):
     """Kernels use mocapdb._numba.jit / pjit; no module sets numba options of its own."""
     if path.name == "_numba.py":
@@ -18,7 +57,7 @@ def test_numba_options_live_in_one_place(path):
     assert not re.search(r"\b(njit|numba\.jit|numba\.njit|nopython\s*=|fastmath\s*=)", text), path.name
 
 
-@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_the_library_never_prints(path):
     """Only the CLI writes to the terminal (through click)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
@@ -27,10 +66,54 @@ def test_the_library_never_prints(path):
     assert not calls, f"{path.name}: print() at lines {calls}"
 
 
-@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_public_functions_have_docstrings(path):
     tree = ast.parse(path.read_text(encoding="utf-8"))
     missing = [n.name for n in tree.body
                if isinstance(n, (ast.FunctionDef, ast.ClassDef)) and not n.name.startswith("_")
                and ast.get_docstring(n) is None and not (path.name == "cli.py")]
     assert not missing, f"{path.name}: no docstring for {missing}"
+
+
+@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
+def test_imports_follow_the_pipeline(path):
+    """A module imports only from its own sub-package and those before it (no cycles possible),
+    and no private name from another sub-package."""
+    mod = _module(path)
+    own = _layer(mod)
+    if own is None:  # mocapdb/__init__.py re-exports the API
+        return
+    for line, target, names in _imports(path):
+        if not target.startswith("mocapdb"):
+            continue
+        other = _layer(target)
+        if other is None:
+            pytest.fail(f"{mod}:{line} imports the top-level package mocapdb (import the sub-package)")
+        assert LAYERS.index(other) <= LAYERS.index(own), \
+            f"{mod}:{line} imports {target}: {other} comes after {own} in the pipeline"
+        if other != own:
+            private = [n for n in names if n.startswith("_")]
+            assert not private, f"{mod}:{line} imports private names {private} from another sub-package"
+
+
+@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
+def test_modules_stay_small(path):
+    n = len(path.read_text(encoding="utf-8").splitlines())
+    assert n <= 850, f"{path.relative_to(REPO)} has {n} lines; split it by what it holds"
+
+
+def test_the_tests_run_against_the_installed_package():
+    """CI installs the package (pip install .) and must test that, not the checkout
+    (the README's test command runs ``python -P -m pytest``: no checkout on sys.path)."""
+    import importlib.metadata
+    import json
+    from pathlib import Path
+
+    import mocapdb
+
+    direct = importlib.metadata.distribution("mocapdb").read_text("direct_url.json")
+    editable = bool(direct and json.loads(direct).get("dir_info", {}).get("editable"))
+    here = Path(mocapdb.__file__).resolve()
+    if not editable:
+        assert not here.is_relative_to(REPO / "mocapdb"), \
+            f"the tests import {here}, the checkout, instead of the installed package; run python -P -m pytest"

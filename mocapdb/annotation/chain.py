@@ -123,7 +123,7 @@ def _extract_hits_kernel(delta, starts, offsets, task_first, tau, limit, cap_off
         cand = cand_buf[tid]
         a = offsets[q]
         n = offsets[q + 1] - a
-        ncand = 0
+        ncand = np.int64(0)
         for j in range(n):
             cd[a + j] = np.inf
             if delta[a + j] <= tau[q]:
@@ -236,6 +236,25 @@ def _scatter_kernel(flat, offsets, row, first, out):  # pragma: no cover
         a = offsets[q]
         for j in range(offsets[q + 1] - a):
             out[row[q], first[q] + j] = flat[a + j]
+
+
+@jit
+def _label_scatter_kernel(flat, offsets, row, first, label, stamp, out):  # pragma: no cover
+    """Per label, the minimum over its classes of each class's tasks scattered as
+    :func:`_scatter_kernel` does (a later task of a class overwrites an earlier one):
+    tasks are visited last to first and a frame takes a class's value only once
+    (``stamp`` remembers the last class that wrote it). ``out`` starts at +inf."""
+    for q in range(row.shape[0] - 1, -1, -1):
+        c = row[q]
+        lab = label[c]
+        a = offsets[q]
+        for j in range(offsets[q + 1] - a):
+            f = first[q] + j
+            if stamp[f] != c:
+                stamp[f] = c
+                v = flat[a + j]
+                if v < out[lab, f]:
+                    out[lab, f] = v
 
 
 # ---------------------------------------------------------------------------
@@ -445,6 +464,11 @@ def form_segments(cd, *, doc_lengths=None, labels=None):
         labels = tuple(str(k) for k in range(cdl.shape[0]))
     elif len(labels) != cdl.shape[0]:
         raise ParameterError(f"labels must have {cdl.shape[0]} entries, got {len(labels)}")
+    return _form_segments(cdl, bounds, labels)
+
+
+def _form_segments(cdl, bounds, labels):
+    """:func:`form_segments` on checked input (C-contiguous float64, no NaN)."""
     n = cdl.shape[1]
     lab = np.empty(n, np.int64)
     doc = np.empty(n, np.int64)
@@ -620,15 +644,20 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
             hdoc = task_doc[qq]
             first_in_doc = ta[qq] - bounds[hdoc]
             hits = (sel[qq], tc[qq], hdoc, hs[idx] + first_in_doc, he[idx] + first_in_doc, hc[idx])
-        # per-class arrays over the batch, +inf outside the tasks
-        full_cd = _per_class(cd, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
-        label_cd = combine_by_label(full_cd, model.label_index, len(labels))
-        segs = form_segments(label_cd, doc_lengths=np.diff(bounds[g0:g1 + 1]), labels=labels)
-        segs["doc"] += g0
+        # Δ̄^τ per label over the batch, +inf outside the tasks
         kept = None
-        if keep_deltas:
-            full_delta = _per_class(delta, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
-            kept = (full_delta, full_cd, label_cd)
+        if keep_deltas or tiled:
+            full_cd = _per_class(cd, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
+            label_cd = combine_by_label(full_cd, model.label_index, len(labels))
+            if keep_deltas:
+                full_delta = _per_class(delta, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
+                kept = (full_delta, full_cd, label_cd)
+        else:  # preselected slices: straight into the label rows, no per-class arrays
+            label_cd = np.full((len(labels), f1 - f0), np.inf)
+            _label_scatter_kernel(cd, offsets, tc, ta - f0, model.label_index, np.full(f1 - f0, -1, np.int64),
+                                  label_cd)
+        segs = _form_segments(label_cd, bounds[g0:g1 + 1] - bounds[g0], labels)
+        segs["doc"] += g0
         out.append((segs, hits, kept))
     return out
 

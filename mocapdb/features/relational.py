@@ -66,28 +66,31 @@ SMOOTHING_MS = {"to_front": 250, "to_top": 250, "hands_together": 100,
 #: the alternative #40 thresholds of tools_intern/features/ (FEATURES.md §6)
 ROOT_ANG_VEL_THRESHOLDS_ALT = (100.0, 110.0)
 
-_ROOT = JOINT_INDEX["root"]
-_LHIP = JOINT_INDEX["lhip"]
-_LKNEE = JOINT_INDEX["lknee"]
-_LANKLE = JOINT_INDEX["lankle"]
-_LTOES = JOINT_INDEX["ltoes"]
-_RHIP = JOINT_INDEX["rhip"]
-_RKNEE = JOINT_INDEX["rknee"]
-_RANKLE = JOINT_INDEX["rankle"]
-_RTOES = JOINT_INDEX["rtoes"]
-_BELLY = JOINT_INDEX["belly"]
-_CHEST = JOINT_INDEX["chest"]
-_NECK = JOINT_INDEX["neck"]
-_HEAD = JOINT_INDEX["head"]
-_HEADTOP = JOINT_INDEX["headtop"]
-_LSHOULDER = JOINT_INDEX["lshoulder"]
-_LELBOW = JOINT_INDEX["lelbow"]
-_LWRIST = JOINT_INDEX["lwrist"]
-_LFINGERS = JOINT_INDEX["lfingers"]
-_RSHOULDER = JOINT_INDEX["rshoulder"]
-_RELBOW = JOINT_INDEX["relbow"]
-_RWRIST = JOINT_INDEX["rwrist"]
-_RFINGERS = JOINT_INDEX["rfingers"]
+# joint indices as int64 constants: a kernel passing a Python int constant to a
+# compiled helper gets one specialisation of the helper per distinct value
+# (numba types it as a literal), which multiplied the cold compile time
+_ROOT = np.int64(JOINT_INDEX["root"])
+_LHIP = np.int64(JOINT_INDEX["lhip"])
+_LKNEE = np.int64(JOINT_INDEX["lknee"])
+_LANKLE = np.int64(JOINT_INDEX["lankle"])
+_LTOES = np.int64(JOINT_INDEX["ltoes"])
+_RHIP = np.int64(JOINT_INDEX["rhip"])
+_RKNEE = np.int64(JOINT_INDEX["rknee"])
+_RANKLE = np.int64(JOINT_INDEX["rankle"])
+_RTOES = np.int64(JOINT_INDEX["rtoes"])
+_BELLY = np.int64(JOINT_INDEX["belly"])
+_CHEST = np.int64(JOINT_INDEX["chest"])
+_NECK = np.int64(JOINT_INDEX["neck"])
+_HEAD = np.int64(JOINT_INDEX["head"])
+_HEADTOP = np.int64(JOINT_INDEX["headtop"])
+_LSHOULDER = np.int64(JOINT_INDEX["lshoulder"])
+_LELBOW = np.int64(JOINT_INDEX["lelbow"])
+_LWRIST = np.int64(JOINT_INDEX["lwrist"])
+_LFINGERS = np.int64(JOINT_INDEX["lfingers"])
+_RSHOULDER = np.int64(JOINT_INDEX["rshoulder"])
+_RELBOW = np.int64(JOINT_INDEX["relbow"])
+_RWRIST = np.int64(JOINT_INDEX["rwrist"])
+_RFINGERS = np.int64(JOINT_INDEX["rfingers"])
 
 #: the smoothed velocity trajectories (P3) the features read: rows of
 #: (q, p, window key) meaning d/dt (P_q - P_p), p = -1 for a plain joint.
@@ -218,18 +221,18 @@ def _y_min(joints, t, skip1, skip2):  # pragma: no cover - compiled
 @jit
 def _body_units_kernel(joints, units):  # pragma: no cover - compiled
     """Body-scale units of FEATURES.md §3 from frame 0 into ``units`` (6,)."""
-    units[_HUM_R] = _norm(_sub(joints, 0, _RELBOW, _RSHOULDER))
-    units[_HUM_L] = _norm(_sub(joints, 0, _LSHOULDER, _LELBOW))
-    units[_CHEST_LEN] = _norm(_sub(joints, 0, _CHEST, _NECK))
-    units[_SHOULDER_W] = _norm(_sub(joints, 0, _RSHOULDER, _LSHOULDER))
-    units[_HIP_W] = _norm(_sub(joints, 0, _RHIP, _LHIP))
-    units[_BODY_LEN] = (_norm(_sub(joints, 0, _RANKLE, _RKNEE))
-                        + _norm(_sub(joints, 0, _RKNEE, _RHIP))
-                        + _norm(_sub(joints, 0, _ROOT, _BELLY))
-                        + _norm(_sub(joints, 0, _BELLY, _CHEST))
-                        + _norm(_sub(joints, 0, _CHEST, _NECK))
-                        + _norm(_sub(joints, 0, _NECK, _HEAD))
-                        + _norm(_sub(joints, 0, _HEAD, _HEADTOP)))
+    units[_HUM_R] = _norm(_sub(joints, np.int64(0), _RELBOW, _RSHOULDER))
+    units[_HUM_L] = _norm(_sub(joints, np.int64(0), _LSHOULDER, _LELBOW))
+    units[_CHEST_LEN] = _norm(_sub(joints, np.int64(0), _CHEST, _NECK))
+    units[_SHOULDER_W] = _norm(_sub(joints, np.int64(0), _RSHOULDER, _LSHOULDER))
+    units[_HIP_W] = _norm(_sub(joints, np.int64(0), _RHIP, _LHIP))
+    units[_BODY_LEN] = (_norm(_sub(joints, np.int64(0), _RANKLE, _RKNEE))
+                        + _norm(_sub(joints, np.int64(0), _RKNEE, _RHIP))
+                        + _norm(_sub(joints, np.int64(0), _ROOT, _BELLY))
+                        + _norm(_sub(joints, np.int64(0), _BELLY, _CHEST))
+                        + _norm(_sub(joints, np.int64(0), _CHEST, _NECK))
+                        + _norm(_sub(joints, np.int64(0), _NECK, _HEAD))
+                        + _norm(_sub(joints, np.int64(0), _HEAD, _HEADTOP)))
 
 
 @jit
@@ -315,7 +318,7 @@ def _upper_kernel(joints, vel, units, thr, fps, f1, f2):  # pragma: no cover
         f2[t, 8] = d >= thr[8, 1] * units[_SHOULDER_W]
         # 10: hands move together (P5, normal lwrist -> rwrist, 100 ms)
         nrm = _unit(_sub(joints, t, _RWRIST, _LWRIST))
-        x = _dot(nrm, _vel(vel, 4, t, fps))
+        x = _dot(nrm, _vel(vel, np.int64(4), t, fps))
         f1[t, 9] = x >= thr[9, 0] * hum_r
         f2[t, 9] = x >= thr[9, 1] * hum_r
         # 11, 12: hand moves away from the root (P5, no smoothing)
@@ -347,7 +350,7 @@ def _lower_kernel(joints, vel, units, thr, fps, f1, f2):  # pragma: no cover
         f1[t, 15] = d >= thr[15, 0] * hum_r
         f2[t, 15] = d >= thr[15, 1] * hum_r
         # 17, 18: foot raised above the lowest body point (P9)
-        ymin = _y_min(joints, t, -1, -1)
+        ymin = _y_min(joints, t, np.int64(-1), np.int64(-1))
         for col, j in ((16, _RTOES), (17, _LTOES)):
             f1[t, col] = joints[t, j, 1] - ymin - thr[col, 0] * hum_r >= 0.0
             f2[t, col] = joints[t, j, 1] - ymin - thr[col, 1] * hum_r >= 0.0
@@ -368,8 +371,8 @@ def _lower_kernel(joints, vel, units, thr, fps, f1, f2):  # pragma: no cover
         f1[t, 21] = x <= -thr[21, 0] * units[_HIP_W]
         f2[t, 21] = x <= -thr[21, 1] * units[_HIP_W]
         # 23, 24: feet move together / apart along the hip axis (P5, 100 ms)
-        vl = _dot(hip_axis, _vel(vel, 9, t, fps))
-        vr = _dot(hip_axis, _vel(vel, 10, t, fps))
+        vl = _dot(hip_axis, _vel(vel, np.int64(9), t, fps))
+        vr = _dot(hip_axis, _vel(vel, np.int64(10), t, fps))
         f1[t, 22] = vl - vr >= thr[22, 0] * hum_r
         f2[t, 22] = vl - vr >= thr[22, 1] * hum_r
         f1[t, 23] = vr - vl >= thr[23, 0] * hum_r
@@ -425,7 +428,7 @@ def _mix_kernel(joints, vel, units, thr, fps, f1, f2):  # pragma: no cover
         for j in range(joints.shape[1]):
             if joints[t, j, 1] > ymax:
                 ymax = joints[t, j, 1]
-        e = ymax - _y_min(joints, t, -1, -1)
+        e = ymax - _y_min(joints, t, np.int64(-1), np.int64(-1))
         f1[t, 36] = e <= thr[36, 0] * units[_BODY_LEN]
         f2[t, 36] = e <= thr[36, 1] * units[_BODY_LEN]
         # 38: extremities far apart in the floor plane (xz diameter of 6 points)
@@ -443,7 +446,7 @@ def _mix_kernel(joints, vel, units, thr, fps, f1, f2):  # pragma: no cover
         f1[t, 37] = diam >= thr[37, 0] * hum_r
         f2[t, 37] = diam >= thr[37, 1] * hum_r
         # 39: root fast (P3 speed, no smoothing)
-        s = _speed(vel, 15, t, fps)
+        s = _speed(vel, np.int64(15), t, fps)
         f1[t, 38] = s >= thr[38, 0] * hum_r
         f2[t, 38] = s >= thr[38, 1] * hum_r
 

@@ -266,7 +266,7 @@ class Index:
                 "n_frames": self.seg_len.astype(np.int64)}
 
     @classmethod
-    def from_columns(cls, doc, feature_set, seg, word, start_frame, n_frames, *, doc_lengths):
+    def from_columns(cls, doc, feature_set, seg, word, start_frame, n_frames, *, doc_lengths, parts=None):
         """Rebuild the searchable index from postings-table columns (any row order).
 
         Parameters
@@ -281,6 +281,9 @@ class Index:
         doc_lengths : (n_docs,) int
             Frames per document, in document-position order (documents without
             frames have no rows but count).
+        parts : sequence of str, optional
+            The parts the index has (default: those present in the rows; an
+            index without rows needs them).
 
         Raises
         ------
@@ -313,8 +316,13 @@ class Index:
             raise ParameterError(f"doc ids must be in 0..{len(lengths) - 1} (len(doc_lengths)); "
                                  f"got {doc.min()}..{doc.max()}")
         present = np.flatnonzero(np.bincount(fs, minlength=len(INDEX_PARTS)))
+        if parts is not None:
+            wanted = np.array([INDEX_PARTS.index(p) for p in _part_names(parts)], np.int64)
+            if not np.isin(present, wanted).all():
+                raise ParameterError(f"rows hold parts outside parts={tuple(parts)}")
+            present = wanted
         if len(present) == 0:
-            raise ParameterError("no postings rows: cannot tell which parts the index has")
+            raise ParameterError("no postings rows: cannot tell which parts the index has; pass parts=")
         parts = tuple(INDEX_PARTS[c] for c in present)
         # row position in (part, doc, seg) order without sorting: groups (part,
         # doc) are counted, a row goes to its group's offset + seg

@@ -3,10 +3,20 @@
 No validation or allocation here: the callers in index.py and search.py pass
 checked, contiguous arrays and their output buffers.
 """
+import numba
 import numpy as np
-from numba.cpython.unsafe.numbers import trailing_zeros  # count-trailing-zeros intrinsic
+from numba.cpython.unsafe.numbers import trailing_zeros as _tz_intrinsic  # count-trailing-zeros
 
 from mocapdb._numba import jit
+
+
+def _tz_python(x):  # pragma: no cover - only under NUMBA_DISABLE_JIT
+    x = int(x)
+    return (x & -x).bit_length() - 1
+
+
+# an intrinsic cannot run as plain Python (the NUMBA_DISABLE_JIT job of CI)
+trailing_zeros = _tz_python if numba.config.DISABLE_JIT else _tz_intrinsic
 
 
 
@@ -63,7 +73,7 @@ def _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo, ls
     (#intervals, #postings kept).
     """
     filtered = len(alive) > 0
-    n = 0
+    n = np.int64(0)
     for i in range(n_words):
         a = lst_lo[i]
         hpos[i] = a
@@ -110,7 +120,7 @@ def _union_intervals_kernel(list_doc, list_seg, list_start, list_end, lst_lo, ls
             n -= 1
             hkey[0] = hkey[n]
             hsrc[0] = hsrc[n]
-        _sift_down(hkey, hsrc, n, 0)
+        _sift_down(hkey, hsrc, n, np.int64(0))
     return n_iv, n_u
 
 
@@ -338,8 +348,8 @@ def _distinct_words_kernel(word, lo, hi, out_id):  # pragma: no cover
     distinct words and their counts in first-seen order.  Replaces a sort of
     millions of 40-bit words; the table doubles when half full.
     """
-    bits = 10
-    nd = 0
+    bits = np.int64(10)
+    nd = np.int64(0)
     i = lo
     distinct = np.empty(0, np.uint64)
     counts = np.zeros(0, np.int64)
@@ -348,10 +358,11 @@ def _distinct_words_kernel(word, lo, hi, out_id):  # pragma: no cover
         keys = np.empty(cap, np.uint64)
         ids = np.full(cap, -1, np.int64)
         grown = np.empty(cap // 2, np.uint64)
-        grown[:nd] = distinct[:nd]
-        distinct = grown
         grown_counts = np.zeros(cap // 2, np.int64)
-        grown_counts[:nd] = counts[:nd]
+        for t in range(nd):  # loops, not slice assignment (cheaper to compile)
+            grown[t] = distinct[t]
+            grown_counts[t] = counts[t]
+        distinct = grown
         counts = grown_counts
         shift = np.uint64(64 - bits)
         for t in range(nd):  # re-insert the words seen so far

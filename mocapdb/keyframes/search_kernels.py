@@ -71,11 +71,11 @@ def _keyframe_intervals_kernel(words, list_offset, list_doc, list_seg, list_star
     """
     n_kf = len(kf_sub_offset) - 1
     kf_offset = np.zeros(n_kf + 1, np.int64)
-    cap = 256
+    cap = np.int64(256)
     out_doc = np.empty(cap, np.int64)
     out_s = np.empty(cap, np.int64)
     out_e = np.empty(cap, np.int64)
-    n_out = 0
+    n_out = np.int64(0)
     for k in range(n_kf):
         nc = -1
         c_doc = out_doc[:0]
@@ -88,7 +88,7 @@ def _keyframe_intervals_kernel(words, list_offset, list_doc, list_seg, list_star
                                                      list_start, list_end, seg_start, seg_len,
                                                      seg_wid, part_word_offset, doc_seg_offset,
                                                      sub_part[j], sub_mask[j], sub_value[j],
-                                                     d0, d1, False, 0)
+                                                     d0, d1, np.bool_(False), np.int64(0))
             nb = len(b_doc)
             if nc < 0:
                 c_doc, c_s, c_e, nc = b_doc, b_s, b_e, nb
@@ -99,15 +99,16 @@ def _keyframe_intervals_kernel(words, list_offset, list_doc, list_seg, list_star
             nc = _intersect_kernel(c_doc, c_s, c_e, nc, b_doc, b_s, b_e, nb, t_doc, t_s, t_e)
             c_doc, c_s, c_e = t_doc, t_s, t_e
         if nc < 0:
-            nc = 0
+            nc = np.int64(0)
         if n_out + nc > cap:
             cap = max(2 * cap, n_out + nc)
             out_doc = _grow1(out_doc, n_out, cap)
             out_s = _grow1(out_s, n_out, cap)
             out_e = _grow1(out_e, n_out, cap)
-        out_doc[n_out:n_out + nc] = c_doc[:nc]
-        out_s[n_out:n_out + nc] = c_s[:nc]
-        out_e[n_out:n_out + nc] = c_e[:nc]
+        for i in range(nc):
+            out_doc[n_out + i] = c_doc[i]
+            out_s[n_out + i] = c_s[i]
+            out_e[n_out + i] = c_e[i]
         n_out += nc
         kf_offset[k + 1] = n_out
     return out_doc[:n_out], out_s[:n_out], out_e[:n_out], kf_offset
@@ -161,7 +162,7 @@ def _sub_intervals_kernel(list_doc, list_seg, list_start, list_end, seg_start, s
         return o_doc[:n_iv], o_s[:n_iv], o_e[:n_iv]
     o_doc, o_s, o_e, _, _ = _union_kernel(list_doc, list_seg, list_start, list_end, seg_start,
                                           seg_len, offsets, lst_lo, lst_hi, total, d0, d1,
-                                          alive if filtered else alive[:0], False, strategy)
+                                          alive if filtered else alive[:0], np.bool_(False), strategy)
     return o_doc, o_s, o_e
 
 
@@ -204,7 +205,7 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
     """
     n_kf = len(kfs)
     n_docs = len(doc_seg_offset[0]) - 1
-    n_steps = 0
+    n_steps = np.int64(0)
     room = 0
     for i in range(n_kf):
         for j in range(kf_sub_offset[kfs[i]], kf_sub_offset[kfs[i] + 1]):
@@ -217,7 +218,7 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
     m_idx = np.empty(room, np.int64)
     m_lo = np.empty(room, np.int64)
     m_hi = np.empty(room, np.int64)
-    t = 0
+    t = np.int64(0)
     for i in range(n_kf):
         for j in range(kf_sub_offset[kfs[i]], kf_sub_offset[kfs[i] + 1]):
             o = step_off[t]
@@ -232,7 +233,8 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
     alive = np.zeros(n_docs, np.uint8)
     filtered = n_steps > 1
     if filtered:
-        order = np.argsort(step_total, kind="mergesort")
+        order = np.arange(n_steps)  # steps by total, stable (a few per query)
+        _insertion_sort_by(order, np.int64(0), n_steps, step_total)
         empty = np.empty(0, np.int64)
         if step_total[order[0]] == 0:
             return empty, empty, empty, kf_offset
@@ -244,7 +246,7 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
             if _doc_filter_kernel(list_doc, m_lo[a:b], m_hi[a:b], level, t) == 0:
                 return empty, empty, empty, kf_offset
         docs = np.empty(d1 - d0, np.int64)
-        n_alive = 0
+        n_alive = np.int64(0)
         for d in range(d0, d1):
             if level[d] == n_filter:
                 alive[d] = 1
@@ -253,11 +255,13 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
     else:
         docs = np.arange(d0, d1)
         n_alive = d1 - d0
-    parts_doc = []
-    parts_s = []
-    parts_e = []
-    n_out = 0
-    t = 0
+    # growing flat outputs, not lists of arrays: a typed list costs seconds of cold compile
+    cap = np.int64(64)
+    out_doc = np.empty(cap, np.int64)
+    out_s = np.empty(cap, np.int64)
+    out_e = np.empty(cap, np.int64)
+    n_out = np.int64(0)
+    t = np.int64(0)
     for i in range(n_kf):
         c_doc = np.empty(0, np.int64)
         c_s = c_doc
@@ -282,25 +286,40 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
                                        t_doc, t_s, t_e)
                 c_doc, c_s, c_e = t_doc[:nc], t_s[:nc], t_e[:nc]
             t += 1
-        parts_doc.append(c_doc)
-        parts_s.append(c_s)
-        parts_e.append(c_e)
-        n_out += len(c_doc)
+        nc = len(c_doc)
+        if n_out + nc > cap:
+            cap = max(2 * cap, n_out + nc)
+            out_doc = _grow1(out_doc, n_out, cap)
+            out_s = _grow1(out_s, n_out, cap)
+            out_e = _grow1(out_e, n_out, cap)
+        for j in range(nc):
+            out_doc[n_out + j] = c_doc[j]
+            out_s[n_out + j] = c_s[j]
+            out_e[n_out + j] = c_e[j]
+        n_out += nc
         kf_offset[i + 1] = n_out
-    out_doc = np.empty(n_out, np.int64)
-    out_s = np.empty(n_out, np.int64)
-    out_e = np.empty(n_out, np.int64)
-    for i in range(n_kf):
-        out_doc[kf_offset[i]:kf_offset[i + 1]] = parts_doc[i]
-        out_s[kf_offset[i]:kf_offset[i + 1]] = parts_s[i]
-        out_e[kf_offset[i]:kf_offset[i + 1]] = parts_e[i]
-    return out_doc, out_s, out_e, kf_offset
+    return out_doc[:n_out], out_s[:n_out], out_e[:n_out], kf_offset
+
+
+@jit
+def _insertion_sort_by(idx, a, b, key):  # pragma: no cover
+    """Stable sort of ``idx[a:b]`` by ``key[idx]`` (groups are short and nearly sorted)."""
+    for i in range(a + 1, b):
+        x = idx[i]
+        j = i - 1
+        while j >= a and key[idx[j]] > key[x]:
+            idx[j + 1] = idx[j]
+            j -= 1
+        idx[j + 1] = x
 
 
 @jit
 def _grow1(a, n, cap):  # pragma: no cover
+    # element loops, not slice assignment: slice assignment compiles numba's
+    # shape-mismatch error formatting (seconds of cold compile) for no gain here
     b = np.empty(cap, a.dtype)
-    b[:n] = a[:n]
+    for i in range(n):
+        b[i] = a[i]
     return b
 
 
@@ -309,7 +328,9 @@ def _grow_rows(a, n, need):  # pragma: no cover
     if need <= a.shape[0]:
         return a
     b = np.empty((max(need, 2 * a.shape[0]), 3), np.int64)
-    b[:n] = a[:n]
+    for i in range(n):
+        for j in range(3):
+            b[i, j] = a[i, j]
     return b
 
 
@@ -496,8 +517,8 @@ def _chain_batch_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset, 
     seg_q = np.zeros(n_q + 1, np.int64)
     hit_q = np.zeros(n_q + 1, np.int64)
     dummy = np.zeros(0, np.bool_)
-    n_segs = 0
-    n_hits = 0
+    n_segs = np.int64(0)
+    n_hits = np.int64(0)
     mode = 1 if want_hits else 0
     for q in range(n_q):
         a = q_kf_offset[q]
@@ -534,8 +555,8 @@ def _search_kernel(words, list_offset, list_doc, list_seg, list_start, list_end,
     seg_q = np.zeros(n_q + 1, np.int64)
     hit_q = np.zeros(n_q + 1, np.int64)
     dummy = np.zeros(0, np.bool_)
-    n_segs = 0
-    n_hits = 0
+    n_segs = np.int64(0)
+    n_hits = np.int64(0)
     for q in range(n_q):
         a = q_kf_offset[q]
         b = q_kf_offset[q + 1]
@@ -584,8 +605,8 @@ def _hit_documents_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset
         g0 = a - q
         empty = np.empty((0, 3), np.int64)
         _chain_query_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min[g0:g0 + b - a - 1],
-                            d_max[g0:g0 + b - a - 1], doc_lengths, 0, 0, 2, 0,
-                            empty, 0, empty, 0, out[q])
+                            d_max[g0:g0 + b - a - 1], doc_lengths, np.int64(0), np.int64(0), np.int64(2), np.int64(0),
+                            empty, np.int64(0), empty, np.int64(0), out[q])
 
 
 @jit
@@ -632,8 +653,7 @@ def _runs_intervals_kernel(k, d, s, n, n_docs, n_groups, order):  # pragma: no c
                 b = first[g + 1]
                 for i in range(a + 1, b):
                     if s[order[i]] < s[order[i - 1]]:  # unordered group: sort it by start
-                        grp = order[a:b].copy()
-                        order[a:b] = grp[np.argsort(s[grp], kind="mergesort")]
+                        _insertion_sort_by(order, a, b, s)
                         break
     out_k = np.empty(m, np.int64)
     out_d = np.empty(m, np.int64)

@@ -249,8 +249,8 @@ def _asf_fk_kernel(sin, cos, trans, root_cols, orient, order, parent, dmat, dide
         for q in range(3):
             c = root_cols[q]
             if c >= 0:
-                _rotate_columns(rr, 0, 2 - q, cos[f, c], sin[f, c])
-                _rotate_columns(h, 0, 2 - q, cos[f, c], sin[f, c])
+                _rotate_columns(rr, np.int64(0), 2 - q, cos[f, c], sin[f, c])
+                _rotate_columns(h, np.int64(0), 2 - q, cos[f, c], sin[f, c])
         for i in range(3):
             node[0, i] = trans[f, i]
             for j in range(3):

@@ -50,7 +50,7 @@ def export_features(con, directory, *, overwrite: bool = False) -> int:
     con.execute(
         f"COPY (SELECT motion_id, frame, bits FROM features ORDER BY motion_id, frame) "
         f"TO {_quote(d / 'features')} (FORMAT parquet, PARTITION_BY (motion_id), OVERWRITE_OR_IGNORE)")
-    return con.execute("SELECT count(*) FROM motions").fetchall()[0][0]
+    return con.execute(statement("motions.sql", "count")).fetchall()[0][0]
 
 
 def features_sql(directory) -> str:
@@ -79,7 +79,7 @@ def import_features(con, directory) -> dict[int, int]:
     if not (d / "motions.parquet").is_file():
         raise ParameterError(f"directory: {str(d)!r} has no motions.parquet (written by export_features)")
     motions = pq.read_table(d / "motions.parquet")
-    stored = {(a, b) for a, b in con.execute("SELECT sha256, skeleton_sha256 FROM motions").fetchall()}
+    stored = {(a, b) for _, a, b in con.execute(statement("motions.sql", "stored_keys")).fetchall()}
     keys = zip(motions.column("sha256").to_pylist(), motions.column("skeleton_sha256").to_pylist())
     new = motions.filter(pa.array([k not in stored for k in keys], pa.bool_()))
     if new.num_rows == 0:

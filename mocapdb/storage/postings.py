@@ -19,7 +19,7 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.keyframes import INDEX_PARTS, Index, build_index
-from mocapdb.storage.sqltext import INDEX_SCHEMA, statement
+from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
 #: index parts stored (all four: per-set for toolbox queries, 40-bit for learned ones)
@@ -99,7 +99,7 @@ def create_index(con, *, batch_frames: int = 4_000_000) -> int:
         create_index_schema(con)
         con.execute(_sql("create_postings"))
         con.execute(_sql("bump_version"))
-        meta = con.execute("SELECT motion_id, n_frames FROM motions ORDER BY motion_id").fetchall()
+        meta = con.execute(_sql("motion_lengths")).fetchall()
         batch, frames = [], 0
         for mid, n in meta + [(None, 0)]:
             if mid is not None:
@@ -111,7 +111,7 @@ def create_index(con, *, batch_frames: int = 4_000_000) -> int:
                 chunks = np.split(np.asarray(bits["bits"], np.uint64), starts[1:])
                 index_motions(con, dict(zip(ids.tolist(), chunks)))
                 batch, frames = [], 0
-        return con.execute(f"SELECT count(*) FROM {INDEX_SCHEMA}.postings").fetchall()[0][0]
+        return con.execute(_sql("count_postings")).fetchall()[0][0]
 
 
 def drop_index(con) -> None:
@@ -145,14 +145,14 @@ def load_index(con, *, parts=STORED_PARTS) -> tuple[Index, np.ndarray]:
         Document ``d`` is motion ``motion_ids[d]``.
     motion_ids : (n_docs,) int64, ascending
     """
-    meta = con.execute("SELECT motion_id, n_frames FROM motions ORDER BY motion_id").fetchnumpy()
+    meta = con.execute(_sql("motion_lengths")).fetchnumpy()
     ids = np.asarray(meta["motion_id"], dtype=np.int64)
     # the part as its integer code, computed by DuckDB: millions of Python
     # strings would cost more than the rest of the load together
     rows = con.execute(_sql("load"), {"parts": list(parts), "all_parts": list(INDEX_PARTS)}).fetchnumpy()
     doc = motion_positions(ids, rows["motion_id"])
     index = Index.from_columns(doc, rows["part"], rows["seg"], rows["word"], rows["start_frame"],
-                               rows["n_frames"], doc_lengths=np.asarray(meta["n_frames"], np.int64))
+                               rows["n_frames"], doc_lengths=np.asarray(meta["n_frames"], np.int64), parts=parts)
     return index, ids
 
 

@@ -20,7 +20,7 @@ import duckdb
 from mocapdb.errors import SchemaError
 from mocapdb.storage.models import install_shipped_models
 from mocapdb.storage.postings import create_index, create_index_schema
-from mocapdb.storage.sqltext import sql_text
+from mocapdb.storage.sqltext import sql_text, statement
 from mocapdb.storage.transaction import transaction
 
 SCHEMA_FILES = ("schema.sql", "views.sql")
@@ -78,8 +78,7 @@ def create_schema(con) -> None:
     not, as its owner chose (:func:`mocapdb.storage.postings.drop_index`).
     Shipped models installed earlier are refreshed when the package's differ.
     """
-    new = not con.execute("SELECT count(*) FROM duckdb_tables() WHERE schema_name = 'main' "
-                          "AND table_name = 'motions'").fetchall()[0][0]
+    new = not con.execute(statement("motions.sql", "schema_exists")).fetchall()[0][0]
     with transaction(con):
         for name in SCHEMA_FILES:
             con.execute(sql_text(name))

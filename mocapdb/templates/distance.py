@@ -138,7 +138,7 @@ def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, d
             # librosa also relaxes row 0 along steps with di = 0
             for s in range(nS):
                 if di[s] == 0:
-                    v = D[_pred_base(jj, 0, dj[s], R1, L, pad)] + sw[s] * c[0]
+                    v = D[_pred_base(jj, np.int64(0), dj[s], R1, L, pad)] + sw[s] * c[0]
                     if v < d0:
                         d0 = v
         D[cur] = d0
@@ -265,9 +265,9 @@ def _dense_dtw_kernel(C, di, dj, sw, rule, R1, pad, delta, starts,
     """The DP of :func:`_mt_distance_kernel` on a dense cost matrix C (K, n)."""
     K = C.shape[0]
     _dp_task(np.empty(0, np.uint64), np.empty(0, np.uint64), np.empty(0, np.uint64),
-             np.empty((0, _N_COST)), C, K, 0, 0, C.shape[1],
+             np.empty((0, _N_COST)), C, K, np.int64(0), np.int64(0), C.shape[1],
              np.empty((R1 + 1) * (pad + K)), np.empty((R1 + 1) * (pad + K), np.int32),
-             np.empty(K), R1, pad, di, dj, sw, rule, want_starts, delta, starts, 0)
+             np.empty(K), R1, pad, di, dj, sw, rule, want_starts, delta, starts, np.int64(0))
 
 
 def _ring_shape(di, dj):
