@@ -123,7 +123,7 @@ def repeat_documents(words, lengths, n_frames):
 def synthetic_db(path, words, lengths, *, fps=30.0):
     """A mocapdb database whose motions are the given word sequences (inserted via Arrow).
 
-    The keyframe index is left empty (call ``mocapdb.postings.create_index``).
+    The keyframe index is left empty (call ``mocapdb.storage.postings.create_index``).
     Returns (connection, seconds to insert).
     """
     import pyarrow as pa

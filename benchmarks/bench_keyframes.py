@@ -8,7 +8,7 @@ faster than without). The paper (Athlon X2 5000+, Matlab + C, 74 min =
 without and 20 s with keyframe preselection.
 
 Queries: the "toolbox keyframes" of the default model
-(:func:`mocapdb.toolbox_queries.toolbox_keyframe_queries`): the authors'
+(:func:`mocapdb.learning.toolbox_queries.toolbox_keyframe_queries`): the authors'
 hand-made queries for 5 classes (each keyframe within one feature set) and
 the toolbox's heuristic choice (3 template columns, 40-bit keyframes,
 stiffness 0.5) for the other 6; searched with the annotation margins.

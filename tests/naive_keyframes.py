@@ -1,4 +1,4 @@
-"""Slow, obviously correct references for mocapdb.index and mocapdb.keyframes.
+"""Slow, obviously correct references for mocapdb.keyframes.index and mocapdb.keyframes.
 
 Plain Python over frames: runs of constant word, posting lists as dicts, the
 toolbox's enumeration of all 2^w wildcard words, and a brute-force keyframe

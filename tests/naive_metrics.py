@@ -1,4 +1,4 @@
-"""Slow, obviously correct references for mocapdb.metrics (paper Eq. (5)–(8)).
+"""Slow, obviously correct references for mocapdb.evaluation.metrics (paper Eq. (5)–(8)).
 
 Rows are (document, label, start, end), 0-based inclusive frames.
 """

@@ -130,3 +130,20 @@ def test_the_sql_test_files_exist():
 @pytest.mark.parametrize("path", TESTS, ids=lambda p: p.stem)
 def test_sql_file(path, tmp_path):
     Runner(path, tmp_path / "test.duckdb").run()
+
+
+def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path):
+    """Each ```sql block of the README, statement by statement, on a new database with one motion."""
+    from conftest import REPO
+
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```sql\n(.*?)```", readme, flags=re.S)
+    statements = [s.strip() for b in blocks for s in re.sub(r"(?m)^--.*$", "", b).split(";") if s.strip()]
+    assert len(statements) >= 3
+    con = mocapdb.connect(tmp_path / "fresh.duckdb")
+    try:
+        mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
+        for sql in statements:
+            con.execute(sql).fetchall()
+    finally:
+        con.close()

@@ -1,4 +1,4 @@
-"""The toolbox keyframe queries of a model (mocapdb.toolbox_queries).
+"""The toolbox keyframe queries of a model (mocapdb.learning.toolbox_queries).
 
 Oracle: ../shared/oracle/keyframes (hand-made queries, their gap bounds and
 search results over the toolbox's 77-document index); the heuristic queries

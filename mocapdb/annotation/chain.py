@@ -320,7 +320,7 @@ def extract_hits(delta, starts, *, tau=DEFAULT_TAU, match_num_max=MATCH_NUM_MAX)
         Δ of one document or slice (+inf where no path ends).
     starts : array_like, shape (n,), int
         Start frame (0-based, same numbering as ``delta``) of the path ending
-        at each frame (:func:`mocapdb.sdtw.mt_distance` with ``return_starts``).
+        at each frame (:func:`mocapdb.templates.distance.mt_distance` with ``return_starts``).
     tau : float, default 0.13
     match_num_max : int or None, default 2000
         The toolbox stops with an error when this many hits are found; None:
@@ -743,7 +743,7 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
     match_num_max : int or None, default 2000
         Maximum hits per class and document/slice (error when reached, as the toolbox).
     steps, rule
-        See :func:`mocapdb.sdtw.mt_distance`.
+        See :func:`mocapdb.templates.distance.mt_distance`.
     keep_deltas : bool, default False
         Keep Δ, Δ̄^τ per class and per label in the result (memory: 3 float64
         arrays of n_classes × N).

@@ -12,7 +12,7 @@ In memory a set of segments is a structured array of :data:`LABEL_DTYPE`
 * :func:`read_labels` / :func:`write_labels`: native rate, 1-based inclusive
   (exactly the numbers of the file);
 * :func:`to_feature_grid`: the 30 Hz feature grid, 0-based inclusive (the
-  numpy-level convention of :mod:`mocapdb.annotation` and :mod:`mocapdb.metrics`);
+  numpy-level convention of :mod:`mocapdb.annotation` and :mod:`mocapdb.evaluation.metrics`);
 * :func:`to_native_grid`: back to native 1-based inclusive for output.
 
 This module is **the one place** that converts between the two grids. The
@@ -256,7 +256,7 @@ def read_segments(path):
     Returns
     -------
     ndarray of LABEL_DTYPE
-        On the 30 Hz grid, 0-based inclusive (ready for :mod:`mocapdb.metrics`).
+        On the 30 Hz grid, 0-based inclusive (ready for :mod:`mocapdb.evaluation.metrics`).
 
     Raises
     ------
@@ -465,7 +465,7 @@ def map_labels(rows, mapping):
 
     Unmapped labels are deliberately kept (not dropped): an evaluation
     restricted to a model's label vocabulary drops and reports them
-    (:func:`mocapdb.metrics.evaluate_annotation`).
+    (:func:`mocapdb.evaluation.metrics.evaluate_annotation`).
 
     Returns
     -------

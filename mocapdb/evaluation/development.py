@@ -12,7 +12,7 @@ data/README.md fixes what the project's own evaluation reports:
   14_20 with the mocap6 labels.
 
 :func:`development_evaluation` runs all of it and scores every setting with
-the paper's P1/R1/F1 and P2/R2/F2 (:mod:`mocapdb.metrics`), each restricted
+the paper's P1/R1/F1 and P2/R2/F2 (:mod:`mocapdb.evaluation.metrics`), each restricted
 to the model's label vocabulary (ground-truth labels the model cannot
 produce are dropped and reported).
 
@@ -106,7 +106,7 @@ class DocumentSet:
     truth_native : ndarray of LABEL_DTYPE
         Ground truth as a label CSV holds it: native frames, 1-based inclusive.
     truth : ndarray of LABEL_DTYPE
-        The same on the 30 Hz grid, 0-based inclusive (:func:`mocapdb.labels.to_feature_grid`).
+        The same on the 30 Hz grid, 0-based inclusive (:func:`mocapdb.annotation.labels.to_feature_grid`).
     clips : tuple of tuple of str
         LOAO documents: the clip names of each document in order (else empty).
     """
@@ -447,7 +447,7 @@ def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_D
     """Leave-one-actor-out and real-document evaluation of the annotation.
 
     For each held-out actor: train every class on the other actors' clips
-    (:func:`mocapdb.training.train_model`, file-name order), annotate that
+    (:func:`mocapdb.learning.training.train_model`, file-name order), annotate that
     actor's LOAO documents. Then (``real_documents``) train on all actors and
     annotate CMU 86_09 and the mocap6 takes. Score each setting with the
     paper's measures restricted to the model's labels.
@@ -476,13 +476,13 @@ def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_D
         ``preselection(model, words, doc_lengths)`` → the ``preselection``
         argument of :func:`mocapdb.annotation.annotate` (per class a list of
         (start, end) slices, e.g. from a keyframe search), or None. Default:
-        the keyframe preselection of :mod:`mocapdb.preselection` when the
+        the keyframe preselection of :mod:`mocapdb.annotation.preselection` when the
         model has keyframe queries, else none.
     keyframes : callable, optional
         ``keyframes(model, clips)`` → the model with keyframe queries, given
         the clips it was trained on (class → list of (name, words)); e.g.
-        learned by the GA on them (:func:`mocapdb.ga.learn_keyframe_queries`)
-        or the toolbox's (:func:`mocapdb.toolbox_queries.toolbox_keyframe_queries`).
+        learned by the GA on them (:func:`mocapdb.learning.learn_keyframe_queries`)
+        or the toolbox's (:func:`mocapdb.learning.toolbox_queries.toolbox_keyframe_queries`).
         Default: no keyframe queries.
     sweep_taus : sequence of float, optional
         Also score the LOAO setting for each of these τ (Δ computed once per

@@ -40,7 +40,7 @@ def plot_ga_statistics(statistics, path=None, *, title=None, show_best=True, dpi
     Parameters
     ----------
     statistics : GAStatistics
-        E.g. :func:`mocapdb.ga.average_statistics` of the results of all
+        E.g. :func:`mocapdb.learning.average_statistics` of the results of all
         classes (averages over the individuals of a population and over
         classes and runs, as in the paper).
     path : str or Path, optional
@@ -60,7 +60,7 @@ def plot_ga_statistics(statistics, path=None, *, title=None, show_best=True, dpi
     """
     if not isinstance(statistics, GAStatistics):
         raise ParameterError(f"statistics must be a GAStatistics (see "
-                             f"mocapdb.ga.average_statistics), got {type(statistics).__name__}")
+                             f"mocapdb.learning.average_statistics), got {type(statistics).__name__}")
     plt = _pyplot()
     g = np.arange(statistics.generations + 1)
     fig, ax = plt.subplots(figsize=(6.0, 3.6))

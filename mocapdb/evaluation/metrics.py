@@ -23,7 +23,7 @@ Conventions: a ratio whose denominator is 0 is defined as **0** (no
 automatic annotation → P = 0; no ground truth → R = 0), and F = 0 when
 P + R = 0. Inputs are rows (document, label, start, end) on one common frame
 grid — the 30 Hz feature grid, 0-based inclusive, after
-:func:`mocapdb.labels.to_feature_grid` for ground truth read from a label CSV.
+:func:`mocapdb.annotation.labels.to_feature_grid` for ground truth read from a label CSV.
 
 :func:`sweep_tau` scores many hit thresholds τ (paper Fig. 8) from one
 computation of Δ (:func:`mocapdb.annotation.annotate_sweep`).
@@ -242,7 +242,7 @@ def evaluate_annotation(truth, auto, *, labels=None):
         (document, label, start, end)
         Manual (ground truth) and automatic segments, 0-based inclusive frames
         on a common grid (30 Hz). Documents are matched by name (or index);
-        use :func:`mocapdb.labels.segments_to_rows` to name annotation output.
+        use :func:`mocapdb.annotation.labels.segments_to_rows` to name annotation output.
     labels : sequence of str, optional
         The label vocabulary of the model. Segments with other labels are left
         out of the evaluation and reported in ``dropped_truth``/``dropped_auto``

@@ -564,7 +564,7 @@ def relational_features(joints, root_rotation, fps, *,
     Parameters
     ----------
     joints : array_like, shape (n_frames, 24, 3), float
-        Joint positions in :data:`mocapdb.joints.JOINT_NAMES` order, Y up, any
+        Joint positions in :data:`mocapdb.readers.joints.JOINT_NAMES` order, Y up, any
         length unit (all features are unit-free).
     root_rotation : array_like, shape (n_frames, 3, 3), float, or None
         Root rotation per frame (AMC ``Rz·Ry·Rx``, without the ASF root
@@ -652,7 +652,7 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0)):
 
     Parameters
     ----------
-    motion : mocapdb.motion.Motion
+    motion : mocapdb.readers.motion.Motion
     root_ang_vel_thresholds : (float, float), optional
         See :func:`relational_features`.
 

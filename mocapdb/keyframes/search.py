@@ -210,7 +210,7 @@ def keyframe_intervals(index: Index, query: KeyframeQuery, *, layout=None) -> li
 
     Returns
     -------
-    list of K :class:`~mocapdb.index.Segments`
+    list of K :class:`~mocapdb.keyframes.index.Segments`
         Keyframe k's maximal runs of matching frames ``(doc, start, end)``,
         sorted by (doc, start).  The same for every layout.
     """
@@ -228,7 +228,7 @@ def keyframe_postings(index: Index, query: KeyframeQuery, *, layout=None) -> lis
 
     Returns
     -------
-    list of K :class:`~mocapdb.index.Postings`
+    list of K :class:`~mocapdb.keyframes.index.Postings`
     """
     _check_layout(layout)
     out = []

@@ -71,7 +71,7 @@ def _keyframe_intervals_kernel(words, list_offset, list_doc, list_seg, list_star
     """
     n_kf = len(kf_sub_offset) - 1
     kf_offset = np.zeros(n_kf + 1, np.int64)
-    cap = np.int64(256)
+    cap = 256
     out_doc = np.empty(cap, np.int64)
     out_s = np.empty(cap, np.int64)
     out_e = np.empty(cap, np.int64)
@@ -100,15 +100,7 @@ def _keyframe_intervals_kernel(words, list_offset, list_doc, list_seg, list_star
             c_doc, c_s, c_e = t_doc, t_s, t_e
         if nc < 0:
             nc = np.int64(0)
-        if n_out + nc > cap:
-            cap = max(2 * cap, n_out + nc)
-            out_doc = _grow1(out_doc, n_out, cap)
-            out_s = _grow1(out_s, n_out, cap)
-            out_e = _grow1(out_e, n_out, cap)
-        for i in range(nc):
-            out_doc[n_out + i] = c_doc[i]
-            out_s[n_out + i] = c_s[i]
-            out_e[n_out + i] = c_e[i]
+        out_doc, out_s, out_e = _append3(out_doc, out_s, out_e, n_out, c_doc, c_s, c_e, nc)
         n_out += nc
         kf_offset[k + 1] = n_out
     return out_doc[:n_out], out_s[:n_out], out_e[:n_out], kf_offset
@@ -127,7 +119,7 @@ def _sub_intervals_kernel(list_doc, list_seg, list_start, list_end, seg_start, s
     """Intervals of one single-part sub-keyframe in the documents ``docs[:n_alive]``.
 
     ``idx``/``lst_lo``/``lst_hi``/``total``: its matching words and their
-    lists (:func:`~mocapdb.index._match_lists_kernel`) in a part with
+    lists (:func:`~mocapdb.keyframes.index._match_lists_kernel`) in a part with
     ``n_words`` words from ``word_lo`` and document row ``offsets``.
     Without ``filtered``, ``docs`` holds every document d0 <= d < d1; with
     it, ``alive`` flags exactly ``docs[:n_alive]`` and the other documents'
@@ -256,10 +248,9 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
         docs = np.arange(d0, d1)
         n_alive = d1 - d0
     # growing flat outputs, not lists of arrays: a typed list costs seconds of cold compile
-    cap = np.int64(64)
-    out_doc = np.empty(cap, np.int64)
-    out_s = np.empty(cap, np.int64)
-    out_e = np.empty(cap, np.int64)
+    out_doc = np.empty(64, np.int64)
+    out_s = np.empty(64, np.int64)
+    out_e = np.empty(64, np.int64)
     n_out = np.int64(0)
     t = np.int64(0)
     for i in range(n_kf):
@@ -287,15 +278,7 @@ def _query_intervals_kernel(words, list_offset, list_doc, list_seg, list_start, 
                 c_doc, c_s, c_e = t_doc[:nc], t_s[:nc], t_e[:nc]
             t += 1
         nc = len(c_doc)
-        if n_out + nc > cap:
-            cap = max(2 * cap, n_out + nc)
-            out_doc = _grow1(out_doc, n_out, cap)
-            out_s = _grow1(out_s, n_out, cap)
-            out_e = _grow1(out_e, n_out, cap)
-        for j in range(nc):
-            out_doc[n_out + j] = c_doc[j]
-            out_s[n_out + j] = c_s[j]
-            out_e[n_out + j] = c_e[j]
+        out_doc, out_s, out_e = _append3(out_doc, out_s, out_e, n_out, c_doc, c_s, c_e, nc)
         n_out += nc
         kf_offset[i + 1] = n_out
     return out_doc[:n_out], out_s[:n_out], out_e[:n_out], kf_offset
@@ -321,6 +304,22 @@ def _grow1(a, n, cap):  # pragma: no cover
     for i in range(n):
         b[i] = a[i]
     return b
+
+
+@jit
+def _append3(out_doc, out_s, out_e, n_out, c_doc, c_s, c_e, nc):  # pragma: no cover
+    """Append ``nc`` intervals to three growing outputs of ``n_out`` used entries (doubling when
+    full); returns the (possibly reallocated) outputs."""
+    if n_out + nc > len(out_doc):
+        cap = max(2 * len(out_doc), n_out + nc)
+        out_doc = _grow1(out_doc, n_out, cap)
+        out_s = _grow1(out_s, n_out, cap)
+        out_e = _grow1(out_e, n_out, cap)
+    for i in range(nc):
+        out_doc[n_out + i] = c_doc[i]
+        out_s[n_out + i] = c_s[i]
+        out_e[n_out + i] = c_e[i]
+    return out_doc, out_s, out_e
 
 
 @jit

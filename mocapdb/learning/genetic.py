@@ -252,7 +252,7 @@ def _training_set(positive, negative, template, index):
             template = learn_template(positive)
     else:
         if not isinstance(index, Index):
-            raise ParameterError(f"index must be a mocapdb.index.Index, got "
+            raise ParameterError(f"index must be a mocapdb.keyframes.index.Index, got "
                                  f"{type(index).__name__}")
         if template is None:
             raise ParameterError("with index=, pass template= too (the index does not keep "
@@ -414,7 +414,7 @@ def _evolve(index, relevant, documents, strict, loose, rng, cache, *, population
 
 def _clip_words(clip, where):
     """Words of one clip: an (n,) uint64 array or a (name, words) pair
-    (as :func:`mocapdb.training.clips_from_folders` gives)."""
+    (as :func:`mocapdb.learning.training.clips_from_folders` gives)."""
     if isinstance(clip, tuple) and len(clip) == 2 and isinstance(clip[0], str):
         clip = clip[1]
     w = np.asarray(clip)

@@ -143,7 +143,7 @@ def toolbox_keyframe_queries(model: Model, *, queries_dir) -> Model:
     KEYFRAMES.md §2 (hand-made queries), §4 (stiffness), §8.1 (heuristic).
     """
     if not isinstance(model, Model):
-        raise ParameterError(f"model must be a mocapdb.model.Model, got {type(model).__name__}")
+        raise ParameterError(f"model must be a mocapdb.annotation.model.Model, got {type(model).__name__}")
     if not Path(queries_dir).is_dir():
         raise ParameterError(f"queries_dir={str(queries_dir)!r} is not a folder")
     queries = {}

@@ -1,4 +1,4 @@
-"""Building an annotation :class:`~mocapdb.model.Model` from labelled clips.
+"""Building an annotation :class:`~mocapdb.annotation.model.Model` from labelled clips.
 
 * :func:`train_model` — one motion template per class (TEMPLATES.md §7,
   :func:`mocapdb.templates.learn_template`), quantized with δ, τ attached,
@@ -68,7 +68,7 @@ def train_model(clips, *, name, labels=None, delta=DEFAULT_DELTA, tau=DEFAULT_TA
     name : str
         Model name.
     labels : mapping of str to str, optional
-        Class → (coarse) label, e.g. :func:`mocapdb.labels.class_labels`
+        Class → (coarse) label, e.g. :func:`mocapdb.annotation.labels.class_labels`
         ``("hdm05")``; may hold more classes than ``clips``. The label order
         of the model (Δarg ties) is the order of first appearance in this
         mapping. Default: every class is its own label, in class order.
@@ -236,7 +236,7 @@ def clips_from_segments(words_by_document, label_rows):
         Packed 30 Hz words of each document.
     label_rows : ndarray of LABEL_DTYPE or iterable of (document, label, start, end)
         Segments on the 30 Hz grid, 0-based inclusive
-        (:func:`mocapdb.labels.to_feature_grid` of a label CSV).
+        (:func:`mocapdb.annotation.labels.to_feature_grid` of a label CSV).
 
     Returns
     -------
@@ -261,6 +261,6 @@ def clips_from_segments(words_by_document, label_rows):
             raise ParameterError(
                 f"label_rows[{k}] = ({doc!r}, {lab!r}, {s}, {e}) is outside the document's "
                 f"{w.shape[0]} frames (0-based inclusive 30 Hz frames expected; convert "
-                "label CSV rows with mocapdb.labels.to_feature_grid)")
+                "label CSV rows with mocapdb.annotation.labels.to_feature_grid)")
         out.setdefault(lab, []).append((f"{doc}[{s}:{e}]", w[s:e + 1].copy()))
     return out

@@ -2,7 +2,7 @@
 
 :func:`read_amc` returns the raw DOF values of every frame as one
 ``(n_frames, n_columns)`` float64 array plus the column of each bone
-(:class:`AmcMotion`); :mod:`mocapdb.kinematics` turns them into joint
+(:class:`AmcMotion`); :mod:`mocapdb.readers.kinematics` turns them into joint
 positions. Bone lines may come in any order (values are keyed by bone name,
 case-insensitively as in the toolbox); DOFs a file never lists stay 0.
 
@@ -317,7 +317,7 @@ def read_amc(path, skeleton: Skeleton) -> AmcMotion:
     ----------
     path : str or Path
     skeleton : Skeleton
-        From :func:`mocapdb.asf.read_asf`; gives each bone's DOFs.
+        From :func:`mocapdb.readers.asf.read_asf`; gives each bone's DOFs.
 
     Returns
     -------

@@ -2,7 +2,7 @@
 
 Reading: :func:`read_bvh` parses the ``HIERARCHY`` (joints with ``OFFSET``,
 ``CHANNELS`` in any number and order, ``End Site``\\ s) and the ``MOTION``
-lines (one numba pass, :func:`mocapdb._textscan.parse_rows`), runs forward
+lines (one numba pass, :func:`mocapdb.readers.textscan.parse_rows`), runs forward
 kinematics and picks the 24 canonical joints through the joint-name table of
 the skeleton family that fits (:data:`FAMILIES`).
 
@@ -194,7 +194,7 @@ _TOKEN = re.compile(r"[{}]|[^\s{}]+")
 
 
 def read_bvh(path, *, family=None, skip_rest_frame=None) -> Motion:
-    """Read a BVH file as a :class:`~mocapdb.motion.Motion` of the 24 canonical joints.
+    """Read a BVH file as a :class:`~mocapdb.readers.motion.Motion` of the 24 canonical joints.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Read any supported motion file into a :class:`~mocapdb.motion.Motion`.
+"""Read any supported motion file into a :class:`~mocapdb.readers.motion.Motion`.
 
 :func:`read_motion` dispatches on the extension (``.amc`` with its ASF
 skeleton, ``.bvh``); :func:`find_skeleton` implements the dataset

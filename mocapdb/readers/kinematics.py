@@ -376,7 +376,7 @@ def node_positions(skeleton: Skeleton, motion: AmcMotion):
     ----------
     skeleton : Skeleton
     motion : AmcMotion
-        Read with the same skeleton (:func:`mocapdb.amc.read_amc`).
+        Read with the same skeleton (:func:`mocapdb.readers.amc.read_amc`).
 
     Returns
     -------
@@ -417,7 +417,7 @@ def asf_forward_kinematics(skeleton: Skeleton, motion: AmcMotion):
     Returns
     -------
     joints : ndarray, shape (n_frames, 24, 3), float64
-        In :data:`mocapdb.joints.JOINT_NAMES` order.
+        In :data:`mocapdb.readers.joints.JOINT_NAMES` order.
     root_rotation : ndarray, shape (n_frames, 3, 3), float64
 
     Raises
