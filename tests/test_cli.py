@@ -151,7 +151,7 @@ def test_a_locked_database_is_one_line_naming_the_process(tmp_path):
                                "print('ready', flush=True); time.sleep(60)"], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "ready"
-        r = subprocess.run([sys.executable, "-m", "mocapdb.cli", "--db", str(db), "sql", "SELECT 1"],
+        r = subprocess.run([sys.executable, "-P", "-m", "mocapdb.cli", "--db", str(db), "sql", "SELECT 1"],
                            capture_output=True, text=True)
         assert r.returncode == 1 and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert r.stderr.startswith(f"Error: {db} is in use by another process (PID {holder.pid}, "), r.stderr

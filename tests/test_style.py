@@ -111,8 +111,12 @@ def test_the_tests_run_against_the_installed_package():
 
     import mocapdb
 
-    direct = importlib.metadata.distribution("mocapdb").read_text("direct_url.json")
-    editable = bool(direct and json.loads(direct).get("dir_info", {}).get("editable"))
+    dist = importlib.metadata.distribution("mocapdb")
+    direct = dist.read_text("direct_url.json")
+    # pip records an editable install in direct_url.json, or (older pips) only by
+    # its __editable__ finder files
+    editable = bool(direct and json.loads(direct).get("dir_info", {}).get("editable")) or any(
+        "__editable__" in str(f) for f in dist.files or ())
     here = Path(mocapdb.__file__).resolve()
     if not editable:
         assert not here.is_relative_to(REPO / "mocapdb"), \
