@@ -13,6 +13,9 @@ WHERE $ids IS NULL OR motion_id IN (SELECT unnest($ids)) ORDER BY motion_id;
 -- name: words
 SELECT bits FROM features WHERE $ids IS NULL OR motion_id IN (SELECT unnest($ids)) ORDER BY motion_id, frame;
 
+-- name: source
+SELECT source_path, skeleton_path, reader_options FROM motions WHERE motion_id = $id;
+
 -- name: name_counts
 SELECT name, count(*) AS n FROM motions GROUP BY name;
 
@@ -21,9 +24,9 @@ SELECT motion_id, sha256, skeleton_sha256 FROM motions;
 
 -- name: insert_motions
 INSERT INTO motions (name, source_path, format, sha256, skeleton_sha256, source_fps, fps,
-                     n_source_frames, n_frames, skeleton, skeleton_path)
+                     n_source_frames, n_frames, skeleton, skeleton_path, reader_options)
 SELECT name, source_path, format, sha256, skeleton_sha256, source_fps, fps, n_source_frames, n_frames,
-       skeleton, skeleton_path
+       skeleton, skeleton_path, reader_options
 FROM mocap_new_motions ORDER BY ord
 RETURNING motion_id, sha256, skeleton_sha256;
 

@@ -18,9 +18,13 @@ CREATE TABLE IF NOT EXISTS motions (
     n_frames         INTEGER NOT NULL,          -- rows in `features` = ceil(n_source_frames / 4)
     skeleton         VARCHAR,
     skeleton_path    VARCHAR,
+    reader_options   VARCHAR,                   -- JSON: the reader's options (joint_map, marker_map), to re-read the source
     ingested_at      TIMESTAMP NOT NULL DEFAULT current_timestamp,
     UNIQUE (sha256, skeleton_sha256)
 );
+
+-- databases from before reader_options
+ALTER TABLE motions ADD COLUMN IF NOT EXISTS reader_options VARCHAR;
 
 -- One row per 30 Hz frame: the 40 relational features packed into one word,
 -- bit k-1 = feature k (FEATURES.md §0 order; see the view feature_flags).

@@ -75,6 +75,7 @@ class _Prepared:
     motion: object = None
     words: np.ndarray | None = None
     error: str | None = None
+    reader_options: str | None = None  # JSON of the reader options besides the skeleton
 
 
 def _fingerprint(path: Path, asf) -> _Prepared:
@@ -126,6 +127,7 @@ def store_motions(con, preps) -> list[int]:
         "skeleton": pa.array([p.motion.skeleton for p in preps], pa.string()),
         "skeleton_path": pa.array([str(p.skeleton_path.resolve()) if p.skeleton_path else None for p in preps],
                                   pa.string()),
+        "reader_options": pa.array([p.reader_options for p in preps], pa.string()),
     })
     with transaction(con):
         with registered(con, mocap_new_motions=meta):

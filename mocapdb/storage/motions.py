@@ -1,11 +1,13 @@
 """Reading motions back from the database: ids, metadata and packed feature words."""
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
 
 from mocapdb.errors import SchemaError
+from mocapdb.readers import read_motion
 from mocapdb.storage.sqltext import statement
 
 
@@ -109,4 +111,32 @@ def documents_by_name(con, names) -> Documents:
     return motion_documents(con, motion_ids(con, wanted))
 
 
-__all__ = ["Documents", "motion_ids", "motion_documents", "documents_by_name"]
+def source_motion(con, motion_id):
+    """Re-read a stored motion's source file with the options it was ingested with.
+
+    The joints are not stored (24 × 3 floats per frame would be ~36× the
+    8-byte feature word); the viewer and the figures re-read the source, whose
+    path is stored absolute.
+
+    Returns
+    -------
+    mocapdb.readers.Motion
+
+    Raises
+    ------
+    SchemaError
+        No such motion.
+    ParseError, FileNotFoundError
+        The source file moved or changed since ingest.
+    """
+    rows = con.execute(_sql("source"), {"id": int(motion_id)}).fetchall()
+    if not rows:
+        raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
+    path, skeleton, options = rows[0]
+    kwargs = json.loads(options) if options else {}
+    if skeleton:
+        kwargs["asf"] = skeleton
+    return read_motion(path, **kwargs)
+
+
+__all__ = ["Documents", "motion_ids", "motion_documents", "documents_by_name", "source_motion"]
