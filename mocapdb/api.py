@@ -86,7 +86,7 @@ def connect(path=":memory:", *, read_only: bool = False):
     return con
 
 
-def ingest(con, paths, *, asf=None, progress=None) -> IngestReport:
+def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -98,6 +98,11 @@ def ingest(con, paths, *, asf=None, progress=None) -> IngestReport:
     paths : iterable of str or Path
     asf : str or Path, optional, keyword-only
         Skeleton for every AMC file (default: found by the dataset conventions).
+    joint_map : dict, str or Path, optional, keyword-only
+        BVH files: canonical joint → the file's joint name(s) (TOML/JSON file or
+        dict), overriding the automatic mapping (README "Mapping files").
+    marker_map : dict, str or Path, optional, keyword-only
+        C3D files: canonical joint → the markers whose mean it is.
     progress : callable, optional, keyword-only
         ``progress(path, n_source_frames)`` once per file.
 
@@ -105,7 +110,7 @@ def ingest(con, paths, *, asf=None, progress=None) -> IngestReport:
     -------
     IngestReport
     """
-    return ingest_files(con, paths, asf=asf, progress=progress)
+    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress)
 
 
 def delete(con, motions) -> int:

@@ -186,9 +186,14 @@ def _json_default(v):
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Skeleton for every AMC file (default: found by the dataset conventions: "
                    "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")
+@click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="TOML/JSON file: canonical joint = the BVH joint (or two joints: their midpoint); "
+                   "overrides the automatic mapping of every BVH file.")
+@click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, asf, silent):
+def ingest(ctx, paths, asf, joint_map, marker_map, silent):
     """Read ASF/AMC and BVH files (or folders, recursively) into the database.
 
     A broken file changes nothing and the others still go in; files already
@@ -199,7 +204,8 @@ def ingest(ctx, paths, asf, silent):
 
     con = _open(ctx)
     with _progress(len(motion_files(paths)), "ingest", silent) as bar:
-        report = api_ingest(con, paths, asf=asf, progress=lambda path, frames: bar.update(1))
+        report = api_ingest(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
+                            progress=lambda path, frames: bar.update(1))
     for path, reason in report.skipped:
         click.echo(f"skipped {path}: {reason}", err=True)
     for path, reason in report.failed:

@@ -13,6 +13,7 @@ from mocapdb.readers.asf import (BONE_DOFS, INCH_TO_TOOLBOX, ROOT_DOFS, Bone, Sk
 from mocapdb.readers.amc import (DEFAULT_FPS, AmcMotion, parse_amc, read_amc)
 from mocapdb.readers.kinematics import (ASF_JOINT_BONES, asf_forward_kinematics, asf_joints, euler_matrix, joint_node_indices, local_rotations, node_positions, orientation_matrix, root_rotation, sincos)
 from mocapdb.readers.bvh import (CMU_BONE_NAMES, FAMILIES, BvhData, BvhHierarchy, BvhJoint, bvh_node_positions, bvh_to_motion, euler_angles, parse_bvh, read_bvh, write_bvh)
+from mocapdb.readers.mapping import (load_mapping)
 from mocapdb.readers.files import (SUPPORTED_EXTENSIONS, find_skeleton, load_skeleton, read_asf_amc, read_motion, skeleton_candidates)
 
 __all__ = [
@@ -22,5 +23,5 @@ __all__ = [
     "euler_matrix", "orientation_matrix", "local_rotations", "joint_node_indices", "sincos", "BvhJoint",
     "BvhHierarchy", "BvhData", "FAMILIES", "read_bvh", "parse_bvh", "bvh_node_positions", "bvh_to_motion",
     "write_bvh", "euler_angles", "CMU_BONE_NAMES", "read_motion", "read_asf_amc", "find_skeleton",
-    "skeleton_candidates", "load_skeleton", "SUPPORTED_EXTENSIONS",
+    "skeleton_candidates", "load_skeleton", "SUPPORTED_EXTENSIONS", "load_mapping",
 ]

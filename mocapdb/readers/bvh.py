@@ -193,7 +193,7 @@ def fps_from_frame_time(frame_time: float) -> float:
 _TOKEN = re.compile(r"[{}]|[^\s{}]+")
 
 
-def read_bvh(path, *, family=None, skip_rest_frame=None) -> Motion:
+def read_bvh(path, *, family=None, joint_map=None, skip_rest_frame=None) -> Motion:
     """Read a BVH file as a :class:`~mocapdb.readers.motion.Motion` of the 24 canonical joints.
 
     Parameters
@@ -225,6 +225,12 @@ def read_bvh(path, *, family=None, skip_rest_frame=None) -> Motion:
     """
     path = Path(path)
     data = parse_bvh(path.read_bytes(), path=path)
+    if joint_map is not None:
+        missing = [j for j in JOINT_NAMES if j not in joint_map]
+        if missing:
+            raise ParameterError(f"joint_map: no entry for {', '.join(missing)}")
+        family = {"joints": {j: (joint_map[j], "origin") for j in JOINT_NAMES}, "root": joint_map["root"],
+                  "rest_frame": False}
     return bvh_to_motion(data, family=family, skip_rest_frame=skip_rest_frame,
                          name=path.stem)
 

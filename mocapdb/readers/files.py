@@ -20,6 +20,7 @@ from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.bvh import read_bvh
 from mocapdb.errors import ParseError
 from mocapdb.readers.kinematics import asf_forward_kinematics
+from mocapdb.readers.mapping import load_mapping
 from mocapdb.readers.motion import Motion
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates",
@@ -103,7 +104,7 @@ def read_asf_amc(amc_path, asf) -> Motion:
                   meta={"asf": asf_path, "asf_name": skel.name})
 
 
-def read_motion(path, *, asf=None) -> Motion:
+def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
     """Read a motion file (by extension) into the 24 canonical joints.
 
     Parameters
@@ -112,6 +113,11 @@ def read_motion(path, *, asf=None) -> Motion:
         ``.amc`` (Acclaim motion; needs a skeleton) or ``.bvh``.
     asf : str, Path or Skeleton, optional, keyword-only
         Skeleton of an AMC file; default: :func:`find_skeleton`. Ignored for BVH.
+    joint_map : dict, str or Path, optional, keyword-only
+        BVH only: canonical joint → the file's joint(s), overriding the
+        automatic mapping (:func:`~mocapdb.readers.mapping.load_mapping`).
+    marker_map : dict, str or Path, optional, keyword-only
+        C3D only: canonical joint → the markers whose mean it is.
 
     Returns
     -------
@@ -145,6 +151,6 @@ def read_motion(path, *, asf=None) -> Motion:
                                  "(cmu/13 and cmu/14 have no ASF; cmu/02/02.asf reads them).")
         return read_asf_amc(path, asf)
     if ext == ".bvh":
-        return read_bvh(path)
+        return read_bvh(path, joint_map=load_mapping(joint_map, what="joint_map"))
     raise ParseError(path, None, f"unsupported file type {path.suffix!r} (expected "
                      + " or ".join(SUPPORTED_EXTENSIONS) + ")")

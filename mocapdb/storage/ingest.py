@@ -7,6 +7,7 @@ folder is a no-op.
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import math
 from concurrent.futures import ThreadPoolExecutor
@@ -18,7 +19,7 @@ import pyarrow as pa
 
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import DOWNSAMPLING_FACTOR, motion_features
-from mocapdb.readers import find_skeleton, read_motion
+from mocapdb.readers import find_skeleton, load_mapping, read_motion
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
@@ -87,7 +88,8 @@ def _fingerprint(path: Path, asf) -> _Prepared:
 
 def _compute(prep: _Prepared) -> _Prepared:
     try:
-        prep.motion = read_motion(prep.path, asf=prep.skeleton_path)
+        options = json.loads(prep.reader_options) if prep.reader_options else {}
+        prep.motion = read_motion(prep.path, asf=prep.skeleton_path, **options)
         prep.words = motion_features(prep.motion)
     except MocapdbError as exc:
         prep.error = str(exc)
@@ -153,7 +155,8 @@ BATCH_FILES = 64
 BATCH_FRAMES = 1_000_000
 
 
-def ingest_files(con, paths, *, asf=None, progress=None, workers: int = 2) -> IngestReport:
+def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=None,
+                 workers: int = 2) -> IngestReport:
     """Read recordings, compute their features and store them.
 
     Parameters
@@ -165,6 +168,10 @@ def ingest_files(con, paths, *, asf=None, progress=None, workers: int = 2) -> In
     asf : str or Path, optional, keyword-only
         Skeleton for every AMC file. By default each AMC's ASF is found by the
         dataset conventions (:func:`mocapdb.readers.find_skeleton`).
+    joint_map, marker_map : dict, str or Path, optional, keyword-only
+        Mapping of the canonical joints to a BVH file's joints / a C3D file's
+        markers (TOML or JSON file, or dict; :func:`mocapdb.readers.load_mapping`),
+        for every file of that type. Stored in ``motions.reader_options``.
     progress : callable, optional, keyword-only
         Called as ``progress(path, n_source_frames)`` once per file.
     workers : int, keyword-only
@@ -184,6 +191,8 @@ def ingest_files(con, paths, *, asf=None, progress=None, workers: int = 2) -> In
     confined to its file.
     """
     files = motion_files(paths)
+    maps = {"joint_map": load_mapping(joint_map, what="joint_map"),
+            "marker_map": load_mapping(marker_map, what="marker_map")}
     report = IngestReport()
     stored = _stored_keys(con)
     todo = []
@@ -202,6 +211,7 @@ def ingest_files(con, paths, *, asf=None, progress=None, workers: int = 2) -> In
             _tick(progress, path, 0)
         else:
             stored[key] = None
+            prep.reader_options = _reader_options(path, maps)
             todo.append(prep)
 
     batch = []
@@ -237,6 +247,15 @@ def ingest_files(con, paths, *, asf=None, progress=None, workers: int = 2) -> In
         if batch:
             flush()
     return report
+
+
+#: which reader option applies to which file type
+_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d"}
+
+
+def _reader_options(path: Path, maps: dict) -> str | None:
+    opts = {k: v for k, v in maps.items() if v is not None and path.suffix.lower() == _OPTION_SUFFIX[k]}
+    return json.dumps(opts, sort_keys=True) if opts else None
 
 
 def _tick(progress, path, n):
