@@ -50,7 +50,7 @@ from mocapdb.errors import ParameterError, ParseError
 from mocapdb.readers.humanoid import (JointMap, MappingError, SkeletonTree, asf_axes_at_rest, map_humanoid,
                                      mapping_template)
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns, sincos
+from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.textscan import line_of, parse_rows
 
@@ -372,14 +372,16 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
 # kinematics
 
 @jit
-def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
+def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
                    end_site, has_end, origins, ends, rotations, rot_joint):  # pragma: no cover
     """Joint origins (n, nj, 3), End Sites (n, nj, 3) and the global rotation of
-    joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring."""
+    joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring.
+    Sine and cosine are taken here, of rotation channels only (no temporaries)."""
     n = values.shape[0]
     nj = parent.shape[0]
     h = np.empty((nj, 3, 3))
     t = np.empty(3)
+    deg = math.pi / 180.0
     for f in range(n):
         for j in range(nj):
             p = parent[j]
@@ -396,7 +398,8 @@ def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind
                     else:
                         t[ch_axis[col]] += values[f, col]
                 else:
-                    _rotate_columns(h, j, ch_axis[col], cos[f, col], sin[f, col])
+                    a = values[f, col] * deg
+                    _rotate_columns(h, j, ch_axis[col], math.cos(a), math.sin(a))
             for i in range(3):
                 if p >= 0:
                     origins[f, j, i] = origins[f, p, i] + (h[p, i, 0] * t[0] + h[p, i, 1] * t[1]
@@ -441,12 +444,11 @@ def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0):
     end_site = np.array([j.end_site if j.end_site is not None else np.zeros(3) for j in joints],
                         dtype=np.float64).reshape(nj, 3)
     values = np.ascontiguousarray(data.values, dtype=np.float64)
-    sin, cos = sincos(values * (math.pi / 180.0))
     n = values.shape[0]
     origins = np.empty((n, nj, 3))
     ends = np.full((n, nj, 3), np.nan)
     rot = np.empty((n, 3, 3))
-    _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
+    _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
                    has_end, origins, ends, rot, rotation_joint)
     return origins, ends, rot
 
