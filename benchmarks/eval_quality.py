@@ -1,25 +1,34 @@
-"""Annotation quality on the development evaluation, next to the paper's Table 2.
+"""Annotation quality on the development evaluation: the reference mode, the previous and the new default.
 
-Runs :func:`mocapdb.evaluation.development_evaluation` (leave-one-actor-out
-on hdm05_cut: train 11 classes on three actors, annotate documents joined
-from the fourth actor's clips; then the model trained on all four actors on
-CMU 86_09 and the mocap6 exercise takes), prints P1 R1 F1 P2 R2 F2 per
-setting beside the paper's Table 2 (which is on the authors' 74-minute
-evaluation set — a different, harder data set: real recordings with
-unlabelled stretches, 15 classes), the per-label scores, and a τ sweep of
-the LOAO setting (paper Fig. 8 — there with keyframes; here without).
+Runs :func:`mocapdb.evaluation.development_evaluation` three times on the
+same folds and documents, every setting scored over the paper's 15 labels
+(Table 1; truth labels outside them are 'others', left unlabelled by a good
+annotation):
 
-Three keyframe settings side by side (issue 5): (a) no keyframes — the
-reference mode; (b) the toolbox's keyframes — the authors' hand-made queries
-for the five classes they made one for (../shared/oracle/keyframes/queries),
-the toolbox's heuristic chooser for the others; (c) keyframe queries learned
-by the genetic algorithm on each fold's training clips (paper Sect. 6).
+* **reference** — the toolbox's way: a template per HDM05 class (11
+  classes), τ = 0.13, no keyframes (the shipped model ``toolbox`` with
+  ``--no-keyframes``, bit-identical to the authors' toolbox);
+* **previous default** — the same 11 templates with GA keyframe queries
+  learned on each fold's clips (the default model before issue 11);
+* **new default** — :func:`mocapdb.learning.model_training.train_recipe`
+  with :func:`mocapdb.learning.recipe.default_recipe` on each fold's
+  clips: learned HDM05 and CMU-stretch classes, mirrored and reversed
+  classes, the designed classes of ``mocapdb/models/classes``, robust
+  keyframe queries, τ per class, minimum segment length — annotated in its
+  default mode and with each addition switched off.
 
-Usage: python benchmarks/eval_quality.py [--seed 0] [--tau 0.13]
-       [--clips-per-document 15] [--sweep 0.05:0.25:0.01 | --no-sweep]
-       [--keyframes none,toolbox,ga] [--ga-runs 20]
+Folds: leave-one-actor-out on hdm05_cut (loao; its mirror image
+loao_mirrored), and CMU 86_09 / mocap6, each CMU document annotated by a
+model built without its own stretches (leave-one-document-out). The
+preselection check compares, per label, the truth segments the default
+mode's preselection removes with those the reference mode misses.
+
+Usage: python benchmarks/eval_quality.py [--runs 20] [--generations 100]
+       [--inner-runs 5] [--inner-generations 50] [--seed 0] [--jobs 2]
+       [--json benchmarks/eval_quality.json] [--quick]
 """
 import argparse
+import json
 import os
 import platform
 import time
@@ -27,132 +36,155 @@ from pathlib import Path
 
 import numba
 
-from mocapdb.evaluation import SETTINGS, development_evaluation
+from mocapdb.evaluation import SETTINGS, development_data, development_evaluation, evaluate_by_label
 from mocapdb.learning import learn_keyframe_queries
-from mocapdb.evaluation.metrics import evaluate_by_label, parse_tau_grid
-from mocapdb.learning.toolbox_queries import toolbox_keyframe_queries
+from mocapdb.learning.model_training import train_recipe
+from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
 
-SHARED = Path(os.environ.get("MOCAPDB_SHARED", Path(__file__).resolve().parents[2] / "shared"))
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 DATA = SHARED / "data"
 
 #: paper Table 2 (Müller, Baak & Seidel 2009): P1 R1 F1 P2 R2 F2
 PAPER = {
     ("total", "without keyframes"): (0.48, 0.78, 0.60, 0.57, 0.91, 0.70),
     ("total", "with keyframes"): (0.69, 0.79, 0.74, 0.78, 0.88, 0.82),
-    ("HDM", "without keyframes"): (0.49, 0.80, 0.61, 0.61, 0.91, 0.73),
-    ("HDM", "with keyframes"): (0.70, 0.80, 0.75, 0.80, 0.88, 0.83),
-    ("CMU", "without keyframes"): (0.41, 0.75, 0.53, 0.39, 0.90, 0.54),
     ("CMU", "with keyframes"): (0.66, 0.74, 0.70, 0.65, 0.91, 0.76),
 }
-#: which paper row a setting of ours is closest to
-PAPER_ROW = {"loao": "HDM", "cmu86_09": "CMU", "mocap6": "CMU", "cmu": "CMU", "all": "total"}
+#: the new default's modes: the default, and each addition switched off
+NEW_MODES = {
+    "new default": {},
+    "  no keyframes": {"keyframes": False},
+    "  tau 0.13 for all": {"tau": 0.13},
+    "  no minimum length": {"min_length": False},
+    "  margin 0.01": {"margin": 0.01},
+}
+MEASURES = ("p1", "r1", "f1", "p2", "r2", "f2")
 
 
-QUERIES = SHARED / "oracle" / "keyframes" / "queries"
-
-
-def toolbox_keyframes(model, clips):
-    """(b): hand-made queries where the authors made one, the heuristic chooser otherwise."""
-    return toolbox_keyframe_queries(model, queries_dir=QUERIES)
-
-
-def ga_keyframes(runs, seed):
-    """(c): queries learned by the GA on the clips the model was trained on."""
+def previous_default(runs, seed, generations, jobs):
+    """The default model before issue 11: the toolbox's templates + GA queries of the fold's clips."""
     def attach(model, clips):
-        learned = learn_keyframe_queries(clips, runs=runs, random_state=seed,
+        learned = learn_keyframe_queries(clips, runs=runs, random_state=seed, n_jobs=jobs, generations=generations,
                                          templates={c.name: c.template for c in model.classes})
         return model.with_keyframe_queries({name: lq.query for name, lq in learned.items()})
     return attach
 
 
-def _row(name, v, extra=""):
-    return (f"{name:<34s}" + " ".join(f"{x:5.2f}" for x in v) + (f"  {extra}" if extra else ""))
+def new_default(args, report):
+    cache = {}
+    recipe = default_recipe()
+
+    def build(clips, name):
+        t = time.perf_counter()
+        trained = train_recipe(clips, recipe, name=name, runs=args.runs, generations=args.generations,
+                               inner_runs=args.inner_runs, inner_generations=args.inner_generations, seed=args.seed,
+                               n_jobs=args.jobs, cache=cache)
+        kept = sum(1 for q in trained.queries.values() if q.query is not None)
+        report[name] = {c: src for c, src in trained.query_source.items()}
+        print(f"  built {name}: {len(trained.model.classes)} classes, {kept}/{len(trained.queries)} learned "
+              f"queries kept, {time.perf_counter() - t:.0f} s", flush=True)
+        return trained.model
+    return build
 
 
-def _scores(s):
-    return (s.p1, s.r1, s.f1, s.p2, s.r2, s.f2)
+def _row(name, sc):
+    return f"{name:<26s}" + " ".join(f"{getattr(sc, m):5.2f}" for m in MEASURES)
+
+
+def _missed_by_preselection(res, setting):
+    """Per label: share of truth segments without a preselected frame of the label."""
+    by = evaluate_by_label(res.truth[setting], res.preselected[setting], labels=PAPER_LABELS)
+    return {lab: 1.0 - sc.r2 for lab, sc in by.items() if sc.truth_segments}
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--tau", type=float, default=0.13)
-    ap.add_argument("--clips-per-document", type=int, default=15)
-    ap.add_argument("--sweep", default="0.05:0.25:0.01", help="start:stop:step of τ")
-    ap.add_argument("--no-sweep", action="store_true")
-    ap.add_argument("--keyframes", default="none,toolbox,ga",
-                    help="comma-separated variants: none, toolbox, ga (the last one gets the τ sweep)")
-    ap.add_argument("--ga-runs", type=int, default=20, help="GA runs per class and fold (paper: 100-500)")
+    ap.add_argument("--runs", type=int, default=20, help="GA runs per class (paper: 100-500)")
+    ap.add_argument("--generations", type=int, default=100)
+    ap.add_argument("--inner-runs", type=int, default=5, help="GA runs per class and held-out group")
+    ap.add_argument("--inner-generations", type=int, default=50)
+    ap.add_argument("--jobs", type=int, default=None, help="GA worker processes (default: all cores)")
+    ap.add_argument("--json", type=Path, default=REPO / "benchmarks" / "eval_quality.json",
+                    help="write the figures here (the tests read them)")
+    ap.add_argument("--quick", action="store_true", help="5 GA runs of 50 generations, 3 inner runs (a look)")
     args = ap.parse_args()
-    taus = None if args.no_sweep else parse_tau_grid(args.sweep)
+    if args.quick:
+        args.runs, args.generations, args.inner_runs = 5, 50, 3
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, numba threads "
+          f"{numba.config.NUMBA_NUM_THREADS}; data {DATA}")
+    print(f"GA: {args.runs} runs x {args.generations} generations, inner {args.inner_runs} x "
+          f"{args.inner_generations}, seed {args.seed}\n")
+    t0 = time.perf_counter()
+    data = development_data(DATA)
+    common = dict(data=data, vocabulary=PAPER_LABELS, mirrored=True, seed=args.seed)
+    results, timings = {}, {}
+    t = time.perf_counter()
+    results["reference"] = development_evaluation(DATA, cmu_training=False, tau=0.13, **common)
+    timings["reference"] = time.perf_counter() - t
+    t = time.perf_counter()
+    results["previous default"] = development_evaluation(
+        DATA, cmu_training=False, tau=0.13,
+        keyframes=previous_default(args.runs, args.seed, args.generations, args.jobs), **common)
+    timings["previous default"] = time.perf_counter() - t
+    t = time.perf_counter()
+    sources = {}
+    results.update(development_evaluation(DATA, build=new_default(args, sources), modes=NEW_MODES, **common))
+    timings["new default"] = time.perf_counter() - t
 
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, "
-          f"numba threads {numba.config.NUMBA_NUM_THREADS}; data {DATA}")
-    # warm-up (numba compile / cache load) on one class, not timed
-    development_evaluation(DATA, held_out=["mm"], classes=["rotateArmsBothBackward1Reps"],
-                           real_documents=True, sweep_taus=[0.1])
-    variants = {"none": ("(a) no keyframes", None),
-                "toolbox": ("(b) toolbox keyframes", toolbox_keyframes),
-                "ga": (f"(c) GA keyframes, {args.ga_runs} runs", ga_keyframes(args.ga_runs, args.seed))}
-    results = {}
-    for key in args.keyframes.split(","):
-        title, attach = variants[key]
-        t0 = time.perf_counter()
-        res = development_evaluation(DATA, seed=args.seed, tau=args.tau, keyframes=attach,
-                                     clips_per_document=args.clips_per_document,
-                                     sweep_taus=taus if key == args.keyframes.split(",")[-1] else None)
-        results[key] = (title, res, time.perf_counter() - t0)
-
-    print(f"\nDevelopment evaluation, tau={args.tau}, delta=0.05, seed={args.seed}, "
-          f"{args.clips_per_document} clips per LOAO document\n")
-    print(f"{'setting':<34s}   P1    R1    F1    P2    R2    F2")
+    print(f"\nDevelopment evaluation over the paper's 15 labels (seed {args.seed})\n")
+    print(f"{'':<26s}   P1    R1    F1    P2    R2    F2")
     for s in SETTINGS:
-        for key, (title, res, _) in results.items():
-            if s not in res.scores:
-                continue
-            sc = res.scores[s]
-            docs = res.documents.get(s)
-            size = (f"{len(docs.names)} docs, {int(docs.doc_lengths.sum())} frames, "
-                    if docs is not None else "")
-            print(_row(f"{s} {title[:3]}", _scores(sc),
-                       f"{size}{sc.truth_segments} truth / {sc.auto_segments} auto segments"))
-        print()
-    print("  " + "; ".join(title for title, _, _ in results.values()))
+        docs = results["reference"].documents.get(s)
+        size = f" ({len(docs.names)} documents, {int(docs.doc_lengths.sum())} frames)" if docs is not None else ""
+        print(f"{s}{size}")
+        for mode, res in results.items():
+            if s in res.scores:
+                print(_row("  " + mode, res.scores[s]))
     print()
     for (part, kf), v in PAPER.items():
-        print(_row(f"paper {part}, {kf}", v))
-    title, res, _ = results[list(results)[0]]
-    dropped = res.scores["all"].dropped_truth if "all" in res.scores else {}
-    if dropped:
-        print("\nground truth dropped (label not in the model's vocabulary): "
-              + ", ".join(f"{k} ×{v}" for k, v in sorted(dropped.items())))
-    print("closest paper rows: " + ", ".join(f"{s} ~ {PAPER_ROW[s]}" for s in res.scores))
-    title, res, wall = results[list(results)[-1]]
-    print(f"\nper label below: {title}")
+        print(f"{'paper ' + part + ', ' + kf:<40s}" + " ".join(f"{x:5.2f}" for x in v))
+    dropped = results["reference"].scores["all"].dropped_truth
+    print("\n'others' in the truth (dropped from scoring): " + ", ".join(f"{k} x{v}" for k, v in sorted(dropped.items())))
 
+    per_label = {}
+    for s in ("loao", "loao_mirrored", "cmu"):
+        print(f"\nper label, {s}: F1 / F2 (truth segments)")
+        print(f"{'':<14s}" + "".join(f"{m[:18]:>20s}" for m in results))
+        table = {m: evaluate_by_label(r.truth[s], r.auto[s], labels=PAPER_LABELS) for m, r in results.items()}
+        per_label[s] = {m: {lab: {k: getattr(sc, k) for k in MEASURES + ("truth_segments", "auto_segments")}
+                            for lab, sc in t.items()} for m, t in table.items()}
+        for lab in PAPER_LABELS:
+            ref = table["reference"][lab]
+            if not (ref.truth_segments or any(t[lab].auto_segments for t in table.values())):
+                continue
+            print(f"{lab:<14s}" + "".join(f"{t[lab].f1:>12.2f} / {t[lab].f2:4.2f}" for t in table.values())
+                  + f"   ({ref.truth_segments})")
+
+    print("\npreselection check: truth segments the default mode's preselection removes vs those the reference "
+          "mode misses")
     for s in ("loao", "cmu"):
-        if s not in res.scores:
-            continue
-        print(f"\nper label, {s}:{'':<20s}   P1    R1    F1    P2    R2    F2")
-        vocab = res.models["all" if s == "cmu" else next(iter(res.models))].labels
-        for lab, sc in evaluate_by_label(res.truth[s], res.auto[s], labels=vocab).items():
-            print(_row(f"  {lab}", _scores(sc),
-                       f"{sc.truth_segments} truth / {sc.auto_segments} auto"))
+        cut = _missed_by_preselection(results["new default"], s)
+        ref = {lab: 1.0 - sc.r2 for lab, sc in evaluate_by_label(results["reference"].truth[s],
+                                                                  results["reference"].auto[s],
+                                                                  labels=PAPER_LABELS).items() if sc.truth_segments}
+        print(f"  {s}: " + ", ".join(f"{lab} {cut[lab]:.2f}/{ref.get(lab, 0):.2f}" for lab in cut))
 
-    if res.sweep is not None:
-        print(f"\ntau sweep, LOAO, {title} (paper Fig. 8)\n"
-              f"{'tau':<34s}   P1    R1    F1    P2    R2    F2")
-        for t, sc in res.sweep:
-            print(_row(f"{t:.2f}", _scores(sc)))
-
-    for key, (title_k, res_k, wall_k) in results.items():
-        t = res_k.timings
-        print(f"timings {title_k}: total {wall_k:.2f} s (read + features {t['read']:.2f} s, training "
-              f"{len(res_k.models)} models {t['train']:.2f} s, annotation {t['annotate']:.2f} s)")
-    t = res.timings
-    print(f"\ntimings: total {wall:.2f} s (read + features {t['read']:.2f} s, training "
-          f"{len(res.models)} models {t['train']:.2f} s, annotation {t['annotate']:.2f} s, "
-          f"tau sweep {t['sweep']:.2f} s)")
+    print("\nkeyframe queries of the model built on all folds' data ('all'):")
+    for c, src in sources.get("all", {}).items():
+        print(f"  {c:32s} {src}")
+    total = time.perf_counter() - t0
+    print("\ntimings: " + ", ".join(f"{k} {v:.0f} s" for k, v in timings.items()) + f"; total {total:.0f} s")
+    if args.json:
+        out = {"settings": {m: {s: {k: getattr(sc, k) for k in MEASURES} for s, sc in r.scores.items()}
+                            for m, r in results.items()},
+               "per_label": per_label, "queries": sources.get("all", {}),
+               "parameters": {k: getattr(args, k) for k in ("seed", "runs", "generations", "inner_runs",
+                                                            "inner_generations")},
+               "seconds": total}
+        args.json.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+        print(f"figures written to {args.json}")
 
 
 if __name__ == "__main__":

@@ -1,14 +1,23 @@
-"""Retrain the default model shipped in ``mocapdb/models/default/`` (reproducible).
+"""Retrain the models shipped in ``mocapdb/models/default`` and ``mocapdb/models/toolbox`` (reproducible).
 
-Run: ``python benchmarks/train_default_model.py [--out DIR]``. Templates for
-the 11 classes of ``../shared/data/hdm05_cut`` from all four actors (clips in
-file-name order, δ = 0.05, τ = 0.13), coarse labels from the shipped HDM05
-mapping (``mocapdb/models/hdm05_labels.csv``) — identical to the authors'
-toolbox templates (../shared/oracle/templates) — plus one keyframe query per
-class learned by the genetic algorithm (paper Sect. 6) on the same clips with
-a fixed seed. Writes the model's rows as Parquet files (the shipped-model
-format, :func:`mocapdb.storage.models.export_model`), and the same templates
-without keyframe queries as the shipped model ``toolbox`` (the reference mode).
+Run: ``python benchmarks/train_default_model.py [--runs 20] [--seed 0] [--jobs N]``.
+
+* ``default`` — the paper's 15 labels (Table 1) from everything in
+  ``../shared/data`` (:func:`mocapdb.evaluation.development_data`): the 11
+  HDM05 classes of ``hdm05_cut`` (all four actors) and the classes cut out
+  of labelled CMU stretches (walks, jogs, the mocap6 exercise sets, one
+  repetition each), their mirror images and reversals, and the designed
+  classes of ``mocapdb/models/classes/*.toml``
+  (:func:`mocapdb.learning.recipe.default_recipe`); robust GA keyframe
+  queries, τ per class and minimum segment lengths
+  (:func:`mocapdb.learning.model_training.train_recipe`). Every random step
+  is seeded: the same seed gives the same Parquet files, whatever ``--jobs``.
+* ``toolbox`` — the 11 HDM05 templates, identical to the authors' toolbox
+  templates (../shared/oracle/templates), τ = 0.13, no keyframe queries: the
+  reference mode.
+
+Writes each model's rows as Parquet files (the shipped-model format,
+:func:`mocapdb.storage.models.export_model`).
 """
 import argparse
 import os
@@ -16,16 +25,16 @@ import tempfile
 import time
 from pathlib import Path
 
-import dataclasses
-
 import mocapdb
-from mocapdb.annotation import Model
-from mocapdb.api import learn_keyframes, train
+from mocapdb.api import train
+from mocapdb.evaluation import development_data
+from mocapdb.learning.model_training import train_recipe
+from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
 from mocapdb.storage.models import export_model, save_model
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
-CUT = SHARED / "data" / "hdm05_cut"
+DATA = SHARED / "data"
 
 
 def main():
@@ -33,35 +42,59 @@ def main():
     ap.add_argument("--out", type=Path, default=REPO / "mocapdb" / "models" / "default")
     ap.add_argument("--toolbox-out", type=Path, default=REPO / "mocapdb" / "models" / "toolbox")
     ap.add_argument("--runs", type=int, default=20, help="GA runs per class (paper: 100-500)")
+    ap.add_argument("--generations", type=int, default=100)
+    ap.add_argument("--inner-runs", type=int, default=5, help="GA runs per class and held-out group")
+    ap.add_argument("--inner-generations", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--no-keyframes", action="store_true", help="templates only")
+    ap.add_argument("--jobs", type=int, default=None, help="GA worker processes (default: all cores)")
+    ap.add_argument("--no-keyframes", action="store_true", help="no learned keyframe queries")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         con = mocapdb.connect(Path(tmp) / "train.duckdb")
         try:
             t = time.perf_counter()
-            model = train(con, model="default", folder=CUT, replace=True,
-                          description="11 HDM05 classes (hdm05_cut, actors bd bk dg mm), coarse labels of "
-                                      "paper Table 1")
-            print(f"templates: {len(model.classes)} classes in {time.perf_counter() - t:.1f} s")
-            toolbox = Model("toolbox", tuple(dataclasses.replace(c, keyframe_query=None) for c in model.classes),
-                            labels=model.labels)
-            save_model(con, toolbox, replace=True,
-                       description="The authors' toolbox model: the 11 HDM05 classes of hdm05_cut with the "
-                                   "toolbox's templates, no keyframe queries (the reference mode)",
-                       source="the default model's templates (identical to the toolbox's), without keyframe "
-                              "queries")
+            toolbox = train(con, model="toolbox", folder=DATA / "hdm05_cut", replace=True,
+                            description="The authors' toolbox model: the 11 HDM05 classes of hdm05_cut with the "
+                                        "toolbox's templates, no keyframe queries (the reference mode)")
             export_model(con, "toolbox", args.toolbox_out)
-            if not args.no_keyframes:
-                t = time.perf_counter()
-                learn_keyframes(con, model="default", folder=CUT, runs=args.runs, seed=args.seed)
-                print(f"keyframe queries (GA, {args.runs} runs per class, seed {args.seed}): "
-                      f"{time.perf_counter() - t:.1f} s")
-            for row in con.execute("SELECT c.class, c.label, count(t.col), any_value(q.n_keyframes), "
-                                   "any_value(q.fitness) FROM classes c JOIN templates t USING (model, class) "
-                                   "LEFT JOIN keyframe_queries q USING (model, class) WHERE c.model = 'default' "
-                                   "GROUP BY ALL ORDER BY any_value(c.class_id)").fetchall():
-                print("  {:32s} {:12s} K={:4d} keyframes={} fitness={}".format(*row))
+            print(f"toolbox: {len(toolbox.classes)} templates in {time.perf_counter() - t:.1f} s")
+
+            t = time.perf_counter()
+            data = development_data(DATA)
+            clips = data.clips()
+            trained = train_recipe(clips, default_recipe(), name="default", keyframes=not args.no_keyframes,
+                                   runs=args.runs, generations=args.generations, inner_runs=args.inner_runs,
+                                   inner_generations=args.inner_generations, seed=args.seed, n_jobs=args.jobs,
+                                   progress=lambda what: print(f"  {what} ({time.perf_counter() - t:.0f} s)",
+                                                               flush=True))
+            model = trained.model
+            stats = {}
+            for c in model.classes:
+                if c.keyframe_query is None:
+                    continue
+                r = trained.queries.get(c.name)
+                stats[c.name] = {"source": trained.query_source[c.name]}
+                if r is not None:
+                    stats[c.name].update(fitness=r.fitness, precision=r.precision, recall=r.recall)
+            n_clips = sum(len(v) for v in clips.values())
+            save_model(con, model, replace=True, keyframe_stats=stats,
+                       description="The paper's 15 labels (Table 1): HDM05 and CMU classes learned from "
+                                   "../shared/data, mirrored, reversed and designed classes, robust keyframe "
+                                   "queries, tau per class, minimum segment lengths",
+                       source=f"benchmarks/train_default_model.py: {n_clips} clips (hdm05_cut, CMU stretches), "
+                              f"class definitions mocapdb/models/classes, GA {args.runs} runs x "
+                              f"{args.generations} generations (inner {args.inner_runs} x "
+                              f"{args.inner_generations}), seed {args.seed}")
+            print(f"default: {len(model.classes)} classes, {len(model.labels)} labels in "
+                  f"{time.perf_counter() - t:.0f} s")
+            missing = sorted(set(PAPER_LABELS) - set(model.labels))
+            if missing:
+                print(f"  labels without a class: {missing}")
+            for c in model.classes:
+                q = c.keyframe_query
+                print(f"  {c.name:32s} {c.label:11s} K={len(c.quantized):4d} tau={c.tau:.2f} "
+                      f"min={c.min_frames:3d} keyframes={q.n_keyframes if q else 0}  "
+                      f"{trained.query_source[c.name]}")
             export_model(con, "default", args.out)
             print(f"written to {args.out} and {args.toolbox_out}")
         finally:

@@ -12,6 +12,7 @@ CLI                           API
 ``mocapdb delete``            :func:`delete`
 ``mocapdb train``             :func:`train`
 ``mocapdb learn-keyframes``   :func:`learn_keyframes`
+``mocapdb define-class``      :func:`define_class`
 ``mocapdb annotate``          :func:`annotate`
 ``mocapdb evaluate``          :func:`evaluate`
 ``mocapdb report``            :func:`report`
@@ -24,6 +25,7 @@ CLI                           API
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import numpy as np
@@ -34,15 +36,17 @@ from mocapdb.annotation import (as_label_rows, class_labels, map_labels, native_
 from mocapdb.features import TOOLBOX_RATE
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import joint_map_template as readers_joint_map_template
-from mocapdb.evaluation import evaluate_annotation, parse_tau_grid
+from mocapdb.evaluation import evaluate_annotation, evaluate_by_label, parse_tau_grid
 from mocapdb.extension import register
+from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
+from mocapdb.learning.class_definitions import compile_definitions, read_class_definitions
 from mocapdb.storage import parquet, postings
 from mocapdb.storage.annotations import annotate_documents, store_annotations, stored_preselection
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
-from mocapdb.storage.models import (DEFAULT_MODEL, ga_statistics_rows, keyframe_query_stats, model_metadata,
-                                    save_model)
+from mocapdb.storage.models import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows, keyframe_query_stats,
+                                    model_fingerprint, model_metadata, save_model)
 from mocapdb.storage.motions import documents_by_name, motion_documents, motion_ids
 from mocapdb.storage.schema import open_database
 from mocapdb.storage.sqltext import statement
@@ -136,7 +140,8 @@ def delete(con, motions) -> int:
     return delete_motions(con, motion_ids(con, motions))
 
 
-def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True):
+def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True, min_length=None,
+             margin=None):
     """Annotate motions of the database with a model.
 
     Parameters
@@ -152,6 +157,12 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
         on when the model has keyframe queries. False is the reference mode.
     store : bool, keyword-only
         Replace the ``annotations`` rows of these motions and this model.
+    min_length : bool, optional, keyword-only
+        Drop segments shorter than their label's minimum (the model's
+        ``min_frames``); default on (models without minimums keep everything).
+    margin : float, optional, keyword-only
+        Leave frames unlabelled where the best label wins by less than this;
+        default the model's margin.
 
     Returns
     -------
@@ -164,7 +175,8 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     cache = connection_cache(con)
     key, m = cache.model(model)
     docs = motion_documents(con, None if motions is None else motion_ids(con, motions))
-    segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes)
+    segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes,
+                              min_length=min_length, margin=margin)
     table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
     if store:
         store_annotations(con, table, docs.motion_ids, model=model, tau=tau, keyframes=keyframes)
@@ -202,7 +214,7 @@ def training_clips(con, *, folder=None, labels=None, progress=None):
 
 
 def train(con, *, model, folder=None, labels=None, class_labels=None, delta=0.05, tau=0.13, replace=False,
-          description=None, progress=None):
+          description=None, progress=None, definitions=None):
     """Learn a model from labelled clips and store it.
 
     Parameters
@@ -226,6 +238,9 @@ def train(con, *, model, folder=None, labels=None, class_labels=None, delta=0.05
         Overwrite a stored model of the same name.
     progress : callable, optional
         ``progress(n_done, n_total, what)`` while reading clips and learning.
+    definitions : str, Path or sequence of them, optional, keyword-only
+        Class definition files (or folders of ``*.toml``) whose hand-designed
+        classes join the learned ones (README "Class definitions").
 
     Returns
     -------
@@ -234,9 +249,67 @@ def train(con, *, model, folder=None, labels=None, class_labels=None, delta=0.05
     clips, source = training_clips(con, folder=folder, labels=labels, progress=progress)
     trained = train_model(clips, name=model, labels=_class_label_mapping(class_labels, clips), delta=delta,
                           tau=tau, progress=progress)
-    save_model(con, trained, description=description, replace=replace,
-               source=f"mocapdb train from {source}: {sum(len(v) for v in clips.values())} clips")
+    source = f"mocapdb train from {source}: {sum(len(v) for v in clips.values())} clips"
+    if definitions is not None:
+        trained = _with_definitions(trained, definitions)
+        source += f"; class definitions {definitions}"
+    save_model(con, trained, description=description, replace=replace, source=source,
+               keyframe_stats={c.name: {"source": "class definition"} for c in trained.classes
+                               if c.template is None and c.keyframe_query is not None})
     return trained
+
+
+def _with_definitions(model, definitions, *, replace=False):
+    """``model`` with the compiled classes of definition files added (or replaced)."""
+    designed = compile_definitions(read_class_definitions(definitions))
+    clash = sorted({c.name for c in designed} & set(model.class_names))
+    if clash and not replace:
+        raise ParameterError(f"model {model.name!r} already has the classes {clash}; pass replace=True "
+                             "(--replace) to redefine them")
+    new = {c.name for c in designed}
+    classes = tuple(c for c in model.classes if c.name not in new) + tuple(designed)
+    labels = tuple(dict.fromkeys(list(model.labels) + [c.label for c in designed]))
+    return dataclasses.replace(model, classes=classes, labels=labels)
+
+
+def define_class(con, definitions, *, model=DEFAULT_MODEL, replace=False, description=None):
+    """Add hand-designed classes from class definition files to a model (paper Sect. 8).
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    definitions : str, Path or sequence of them
+        TOML class definition files, or folders of ``*.toml`` (README
+        "Class definitions"); each class compiles to a quantized template
+        and a keyframe query (:mod:`mocapdb.learning.class_definitions`).
+    model : str, keyword-only
+        The model to add them to; a model the database does not have is
+        created with just these classes.
+    replace : bool, keyword-only
+        Redefine classes the model already has (otherwise an error).
+
+    Returns
+    -------
+    mocapdb.annotation.Model
+        The stored model.
+    """
+    stored = model_fingerprint(con, model) is not None or model in SHIPPED_MODELS
+    if stored:
+        _, base = connection_cache(con).model(model)
+        meta = (model_metadata(con, model) if model_fingerprint(con, model) is not None
+                else {"description": None, "source": f"the shipped model {model!r}"})
+        stats = keyframe_query_stats(con, model) if model_fingerprint(con, model) is not None else {}
+        ga = ga_statistics_rows(con, model) if model_fingerprint(con, model) is not None else []
+    else:
+        base, meta, stats, ga = Model(model, ()), {"description": description, "source": ""}, {}, []
+    new = _with_definitions(base, definitions, replace=replace)
+    for c in new.classes:
+        if c.template is None and c.keyframe_query is not None and c.name not in base.class_names:
+            stats[c.name] = {"source": "class definition"}
+    save_model(con, new, replace=True, description=description or meta["description"],
+               source=f"{meta['source']}; class definitions {definitions}".lstrip("; "), keyframe_stats=stats,
+               ga_statistics=ga)
+    return new
 
 
 def learn_keyframes(con, *, model=DEFAULT_MODEL, folder=None, labels=None, classes=None, runs=20, seed=0,
@@ -321,7 +394,7 @@ def read_truth(path, *, label_map=None, n_frames=None, docs=None):
 
 
 def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=None, label_map=None,
-             vocabulary=None, sweep_tau=None):
+             vocabulary=None, sweep_tau=None, by_label=False, min_length=None, margin=None):
     """Score an annotation against ground truth with the paper's measures (Eq. 5–8).
 
     Parameters
@@ -344,17 +417,23 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
     sweep_tau : str or sequence of float, optional
         Score every τ of a sweep (paper Fig. 8) instead of one τ: the values,
         or ``"start:stop:step"`` (e.g. ``"0.05:0.25:0.01"``).
+    by_label : bool, keyword-only
+        Also score each label of the vocabulary on its own.
+    min_length, margin : optional, keyword-only
+        The segment filters, as :func:`annotate`.
 
     Returns
     -------
     mocapdb.evaluation.Scores, or list of (τ, Scores) with ``sweep_tau``
         Truth labels outside the vocabulary are dropped (``Scores.dropped_truth``).
+        With ``by_label``: a dict ``{"all": Scores, label: Scores, …}`` (per τ
+        with ``sweep_tau``).
     """
     taus = parse_tau_grid(sweep_tau) if isinstance(sweep_tau, str) else sweep_tau
     if pred is not None:
         if taus is not None:
             raise ParameterError("a tau sweep re-annotates: use it with a database, not with pred")
-        return evaluate_annotation(read_truth(truth, label_map=label_map), read_segments(pred), labels=vocabulary)
+        return _scores(read_truth(truth, label_map=label_map), read_segments(pred), vocabulary, by_label)
     if con is None:
         raise ParameterError("give pred (an annotation CSV), or a database to annotate the truth's documents")
     cache = connection_cache(con)
@@ -364,11 +443,19 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
                             docs=docs)
     vocab = m.labels if vocabulary is None else tuple(vocabulary)
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau,
-                              keyframes=keyframes, taus=taus)
+                              keyframes=keyframes, taus=taus, min_length=min_length, margin=margin)
     if taus is not None:
-        return [(float(t), evaluate_annotation(truth_rows, segments_to_rows(s, docs.names), labels=vocab))
+        return [(float(t), _scores(truth_rows, segments_to_rows(s, docs.names), vocab, by_label))
                 for t, s in zip(taus, segs)]
-    return evaluate_annotation(truth_rows, segments_to_rows(segs, docs.names), labels=vocab)
+    return _scores(truth_rows, segments_to_rows(segs, docs.names), vocab, by_label)
+
+
+def _scores(truth_rows, auto_rows, vocabulary, by_label):
+    """Scores of all labels, and with ``by_label`` of each label (``{"all": …, label: …}``)."""
+    total = evaluate_annotation(truth_rows, auto_rows, labels=vocabulary)
+    if not by_label:
+        return total
+    return {"all": total, **evaluate_by_label(truth_rows, auto_rows, labels=vocabulary)}
 
 
 FIGURES = ("ga", "annotation")
@@ -452,6 +539,6 @@ def import_features(con, directory) -> dict:
     return parquet.import_features(con, directory)
 
 
-__all__ = ["connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "evaluate", "report",
+__all__ = ["connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate", "report",
            "create_index", "drop_index", "export_features", "import_features", "read_truth", "training_clips",
            "FIGURES"]

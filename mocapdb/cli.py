@@ -35,6 +35,12 @@ keyframes_option = click.option("--keyframes/--no-keyframes", default=None,
                                 help="Keyframe preselection (default: on when the model has keyframe "
                                      "queries; --no-keyframes is the toolbox's reference mode).")
 silent_option = click.option("--silent", is_flag=True, help="No progress bar.")
+min_length_option = click.option("--min-length/--no-min-length", default=None,
+                                 help="Drop segments shorter than their label's minimum (default: on; models "
+                                      "without minimums, as the toolbox's, keep every segment).")
+margin_option = click.option("--margin", type=float,
+                             help="Leave frames unlabelled where the best label wins by less than this "
+                                  "(default: the model's; 0 = the paper).")
 format_option = click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True)
 folder_option = click.option("--folder", type=click.Path(exists=True, file_okay=False, path_type=Path),
                              help="Clips in the HDM05 cut layout: one folder per class (files read directly).")
@@ -280,9 +286,12 @@ def sql(ctx, query, sql_file, fmt, read_only):
 @click.option("--delta", type=float, default=0.05, show_default=True, help="Quantization threshold δ.")
 @click.option("--tau", type=float, default=0.13, show_default=True, help="Hit threshold τ.")
 @click.option("--replace", is_flag=True, help="Overwrite a stored model of the same name.")
+@click.option("--definitions", type=click.Path(exists=True, path_type=Path), multiple=True,
+              help="Class definition file (TOML) or folder of them: hand-designed classes added to the "
+                   "learned ones (repeatable; README \"Class definitions\").")
 @silent_option
 @click.pass_context
-def train(ctx, model, folder, labels, class_labels, delta, tau, replace, silent):
+def train(ctx, model, folder, labels, class_labels, delta, tau, replace, definitions, silent):
     """Learn class motion templates from labelled clips and store them as a model.
 
     \b
@@ -298,7 +307,7 @@ def train(ctx, model, folder, labels, class_labels, delta, tau, replace, silent)
             bar.refresh()
 
         m = api_train(con, model=model, folder=folder, labels=labels, class_labels=class_labels, delta=delta,
-                      tau=tau, replace=replace, progress=progress)
+                      tau=tau, replace=replace, progress=progress, definitions=list(definitions) or None)
     for c in m.classes:
         click.echo(f"{c.name:32s} -> {c.label:12s} K={len(c.quantized):4d}  clips={getattr(c.template, 'n_clips', None)}")
     click.echo(f"model {model!r}: {len(m.classes)} classes, {len(m.labels)} labels")
@@ -344,15 +353,43 @@ def learn_keyframes(ctx, model, folder, labels, classes, runs, seed, generations
     write_rows(rows, ["class", "keyframes", "fitness", "precision", "recall"], "table")
 
 
+@command("define-class")
+@click.argument("definitions", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@model_option("The model the classes join (created if the database has none of that name).")
+@click.option("--replace", is_flag=True, help="Redefine classes the model already has.")
+@click.pass_context
+def define_class(ctx, definitions, model, replace):
+    """Add hand-designed classes from class definition files (TOML) to a model.
+
+    Each class is phases of 0/1/* values of named features with durations,
+    compiled to a quantized template and a keyframe query (README "Class
+    definitions"; paper Sect. 8).
+
+    \b
+    Example:
+      mocapdb --db a.duckdb define-class my_classes.toml --model mine
+    """
+    from mocapdb.api import define_class as api_define_class
+
+    m = api_define_class(_open(ctx), list(definitions), model=model, replace=replace)
+    for c in m.classes:
+        q = c.keyframe_query
+        click.echo(f"{c.name:32s} -> {c.label:12s} K={len(c.quantized):4d}  keyframes={q.n_keyframes if q else 0}  "
+                   f"tau={c.tau:g}")
+    click.echo(f"model {model!r}: {len(m.classes)} classes, {len(m.labels)} labels")
+
+
 @command()
 @click.argument("motions", nargs=-1)
 @model_option()
 @tau_option
 @keyframes_option
+@min_length_option
+@margin_option
 @format_option
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), help="Write to a file instead of stdout.")
 @click.pass_context
-def annotate(ctx, motions, model, tau, keyframes, fmt, out):
+def annotate(ctx, motions, model, tau, keyframes, min_length, margin, fmt, out):
     """Annotate motions (ids or names; default all) and store the segments in `annotations`.
 
     Frames are 30 Hz frames, 1-based inclusive; CSV columns
@@ -364,7 +401,8 @@ def annotate(ctx, motions, model, tau, keyframes, fmt, out):
     """
     from mocapdb.api import annotate as api_annotate
 
-    table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes)
+    table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes,
+                         min_length=min_length, margin=margin)
     cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
     write_rows(list(zip(*(table.column(c).to_pylist() for c in cols))), cols, fmt, out)
 
@@ -395,9 +433,13 @@ def _print_scores(rows):
 @model_option()
 @tau_option
 @keyframes_option
+@min_length_option
+@margin_option
 @click.option("--sweep-tau", help="START:STOP:STEP, e.g. 0.05:0.25:0.01 — P/R/F per τ (paper Fig. 8).")
+@click.option("--by-label", is_flag=True, help="Also score every label on its own.")
 @click.pass_context
-def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, sweep_tau):
+def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, min_length, margin, sweep_tau,
+             by_label):
     """Frame-level P1/R1/F1 and segment-level P2/R2/F2 against ground truth (paper Eq. 5-8).
 
     All documents are concatenated, as in the paper; truth frames are
@@ -413,8 +455,14 @@ def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, swe
     con = None if pred is not None and ctx.obj.get("db") is None else _open(ctx)
     vocab = [v.strip() for v in vocabulary.split(",")] if vocabulary else None
     result = api_evaluate(con, truth, pred=pred, model=model, tau=tau, keyframes=keyframes, label_map=label_map,
-                          vocabulary=vocab, sweep_tau=sweep_tau)
-    _print_scores([(f"tau={t:.3f}", sc) for t, sc in result] if sweep_tau else [("all", result)])
+                          vocabulary=vocab, sweep_tau=sweep_tau, by_label=by_label, min_length=min_length,
+                          margin=margin)
+    if not sweep_tau:
+        _print_scores(list(result.items()) if by_label else [("all", result)])
+    elif by_label:
+        _print_scores([(f"tau={t:.3f} {lab}", sc) for t, per in result for lab, sc in per.items()])
+    else:
+        _print_scores([(f"tau={t:.3f}", sc) for t, sc in result])
 
 
 @command()

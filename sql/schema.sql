@@ -41,16 +41,20 @@ CREATE TABLE IF NOT EXISTS models (
     source       VARCHAR,                  -- how it was made (training data, command)
     fingerprint  VARCHAR NOT NULL,         -- changes whenever the model's rows change
     created_at   TIMESTAMP NOT NULL DEFAULT current_timestamp,
-    shipped      BOOLEAN NOT NULL DEFAULT false  -- installed from the package (kept up to date)
+    shipped      BOOLEAN NOT NULL DEFAULT false,  -- installed from the package (kept up to date)
+    margin       DOUBLE NOT NULL DEFAULT 0  -- frames whose best label wins by less stay unlabelled
 );
 -- databases from before `shipped`: the packaged default model was loaded on
 -- first use and said so in its source
 ALTER TABLE models ADD COLUMN IF NOT EXISTS shipped BOOLEAN DEFAULT false;
 UPDATE models SET shipped = true
 WHERE NOT shipped AND model = 'default' AND source LIKE '%keyframe queries: GA from folder%hdm05_cut';
+-- databases from before the segment filters (issue 11): no margin, no minimum length
+ALTER TABLE models ADD COLUMN IF NOT EXISTS margin DOUBLE DEFAULT 0;
 
 -- One row per fine class: its coarse label (squat1Reps -> exercise), the
--- quantization threshold δ of its template and its hit threshold τ.
+-- quantization threshold δ of its template, its hit threshold τ and the
+-- shortest segment its label keeps through it.
 CREATE TABLE IF NOT EXISTS classes (
     model     VARCHAR NOT NULL,
     class     VARCHAR NOT NULL,
@@ -60,8 +64,10 @@ CREATE TABLE IF NOT EXISTS classes (
     delta     DOUBLE NOT NULL,
     tau       DOUBLE NOT NULL,
     n_clips   INTEGER,
+    min_frames INTEGER NOT NULL DEFAULT 0, -- 30 Hz frames; 0 = no minimum (the paper)
     PRIMARY KEY (model, class)
 );
+ALTER TABLE classes ADD COLUMN IF NOT EXISTS min_frames INTEGER DEFAULT 0;
 
 -- Motion templates, one row per template column (30 Hz template frame):
 -- the real-valued template (40 values in [0, 1]) and its weight, and the

@@ -19,9 +19,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from mocapdb._numba import jit, pjit, prange
+from mocapdb.annotation.chain_kernels import (_count_candidates_kernel, _extract_hits_kernel, _label_scatter_kernel,
+                                              _merge_kernel, _scatter_kernel, _segments_kernel, _sort_by_key)
 from mocapdb.errors import ParameterError
 from mocapdb.annotation.model import DEFAULT_TAU, Model
+from mocapdb.annotation.postprocess import apply_margin, drop_short_segments, label_min_frames
 from mocapdb.features import as_words as _as_words
 from mocapdb.templates import ANNOTATION_STEPS, DEFAULT_CHUNK, mt_distance_slices
 
@@ -41,220 +43,6 @@ HIT_DTYPE = np.dtype([("class_id", np.int64), ("doc", np.int64), ("start", np.in
 #: glibc's largest mmap threshold (32 MiB), so a batch reuses the heap pages
 #: of the one before instead of faulting in fresh ones
 BATCH_CELLS = 1 << 21
-
-
-# ---------------------------------------------------------------------------
-# kernels
-
-
-@pjit
-def _count_candidates_kernel(delta, offsets, tau, out):  # pragma: no cover
-    """out[q] = number of frames of task q with Δ <= tau[q]."""
-    for q in prange(offsets.shape[0] - 1):
-        n = 0
-        for j in range(offsets[q], offsets[q + 1]):
-            if delta[j] <= tau[q]:
-                n += 1
-        out[q] = n
-
-
-@jit
-def _sort_by_key(idx, tmp, n, key, a):  # pragma: no cover
-    """Stable sort of idx[:n] by key[a + idx[k]], in place (tmp: n scratch slots).
-
-    Insertion sort of runs of 16, then bottom-up merges (ties keep the
-    earlier element): the order of ``np.argsort(kind="mergesort")`` without
-    allocating. Keys must not be NaN.
-    """
-    run = 16
-    for lo in range(0, n, run):
-        hi = min(lo + run, n)
-        for i in range(lo + 1, hi):
-            x = idx[i]
-            v = key[a + x]
-            k = i - 1
-            while k >= lo and key[a + idx[k]] > v:
-                idx[k + 1] = idx[k]
-                k -= 1
-            idx[k + 1] = x
-    src, dst = idx, tmp
-    in_tmp = False
-    width = run
-    while width < n:
-        for lo in range(0, n, 2 * width):
-            mid = min(lo + width, n)
-            hi = min(lo + 2 * width, n)
-            i, j = lo, mid
-            for k in range(lo, hi):
-                if j >= hi or (i < mid and key[a + src[i]] <= key[a + src[j]]):
-                    dst[k] = src[i]
-                    i += 1
-                else:
-                    dst[k] = src[j]
-                    j += 1
-        src, dst = dst, src
-        in_tmp = not in_tmp
-        width *= 2
-    if in_tmp:
-        for k in range(n):
-            idx[k] = tmp[k]
-
-
-@pjit
-def _extract_hits_kernel(delta, starts, offsets, task_first, tau, limit, cap_off, want_hits,
-                         cd, hit_start, hit_end, hit_cost, n_hits, cand_buf,
-                         tmp_buf):  # pragma: no cover
-    """Hit extraction (§9.1) for many tasks (slices of the flat Δ) in parallel.
-
-    Task q owns delta[offsets[q]:offsets[q+1]]; starts are word indices,
-    task_first[q] the word index of its first frame. Repeatedly taking the
-    first minimum of Δ over the frames not yet excluded equals walking the
-    frames with Δ <= τ in (Δ, frame) order and skipping excluded ones, since
-    exclusion only raises values to +inf. A frame is excluded once a hit
-    covers it, i.e. once its cd is no longer +inf (hit costs are <= τ, never
-    +inf). Writes cd (Δ̄^τ) over the task and, if want_hits, at most
-    min(#candidates, limit) hits at cap_off[q]...; n_hits[q] = count, or -1
-    if the limit was reached (the toolbox raises an error then).
-    cand_buf, tmp_buf: one row of scratch per worker thread
-    (numba.get_thread_id()), at least as long as any task's candidate count.
-    """
-    for q in prange(offsets.shape[0] - 1):
-        tid = numba.get_thread_id()
-        cand = cand_buf[tid]
-        a = offsets[q]
-        n = offsets[q + 1] - a
-        ncand = np.int64(0)
-        for j in range(n):
-            cd[a + j] = np.inf
-            if delta[a + j] <= tau[q]:
-                cand[ncand] = j
-                ncand += 1
-        _sort_by_key(cand, tmp_buf[tid], ncand, delta, a)
-        h = 0
-        o = cap_off[q]
-        for k in range(ncand):
-            e = cand[k]
-            if cd[a + e] < np.inf:
-                continue
-            cost = delta[a + e]
-            s = starts[a + e] - task_first[q]
-            for f in range(s, e + 1):
-                if cd[a + f] == np.inf:
-                    cd[a + f] = cost
-            if want_hits:
-                hit_start[o + h] = s
-                hit_end[o + h] = e
-                hit_cost[o + h] = cost
-            h += 1
-            if h == limit:
-                h = -1
-                break
-        n_hits[q] = h
-
-
-@jit
-def _segments_kernel(cdl, bounds, out_label, out_doc, out_start, out_end,
-                     out_cost):  # pragma: no cover
-    """Runs of Δarg extended along their label's cd (§10.3), per document.
-
-    cdl (n_labels, N); documents bounds[d]:bounds[d+1]. Writes one record per
-    run (label, doc, start, end in N's frames, cost); returns the count.
-    """
-    L = cdl.shape[0]
-    r = 0
-    for d in range(bounds.shape[0] - 1):
-        a = bounds[d]
-        b = bounds[d + 1]
-        f = a
-        prev = -1
-        run_start = a
-        while f <= b:
-            # Δarg: first label with the minimal cd, -1 where all are +inf
-            lab = -1
-            if f < b:
-                best = np.inf
-                for p in range(L):
-                    if cdl[p, f] < best:
-                        best = cdl[p, f]
-                        lab = p
-            if f == b or lab != prev:
-                if prev >= 0 and f > a:
-                    # run [run_start, f-1] of label prev: extend outward while the
-                    # label's cd does not increase; cost = min at the two ends
-                    s = run_start
-                    s_cost = cdl[prev, s]
-                    while s - 1 >= a and cdl[prev, s - 1] <= s_cost:
-                        s -= 1
-                        s_cost = cdl[prev, s]
-                    e = f - 1
-                    e_cost = cdl[prev, e]
-                    while e + 1 < b and cdl[prev, e + 1] <= e_cost:
-                        e += 1
-                        e_cost = cdl[prev, e]
-                    out_label[r] = prev
-                    out_doc[r] = d
-                    out_start[r] = s - a
-                    out_end[r] = e - a
-                    out_cost[r] = min(s_cost, e_cost)
-                    r += 1
-                prev = lab
-                run_start = f
-            f += 1
-    return r
-
-
-@jit
-def _merge_kernel(label, doc, start, end, cost):  # pragma: no cover
-    """Merge overlapping records of the same (label, doc), sorted by (label, doc, start).
-
-    Overlap means sharing a frame (start <= previous end); merged ranges are
-    unions with the minimal cost. In place; returns the number kept.
-    """
-    n = label.shape[0]
-    if n == 0:
-        return 0
-    k = 0
-    for i in range(1, n):
-        if label[i] == label[k] and doc[i] == doc[k] and start[i] <= end[k]:
-            end[k] = max(end[k], end[i])
-            cost[k] = min(cost[k], cost[i])
-        else:
-            k += 1
-            label[k] = label[i]
-            doc[k] = doc[i]
-            start[k] = start[i]
-            end[k] = end[i]
-            cost[k] = cost[i]
-    return k + 1
-
-
-@jit
-def _scatter_kernel(flat, offsets, row, first, out):  # pragma: no cover
-    """out[row[q], first[q]:...] = flat[offsets[q]:offsets[q+1]], tasks in order
-    (a later slice overwrites an earlier overlapping one, as in annotationScript.m)."""
-    for q in range(row.shape[0]):
-        a = offsets[q]
-        for j in range(offsets[q + 1] - a):
-            out[row[q], first[q] + j] = flat[a + j]
-
-
-@jit
-def _label_scatter_kernel(flat, offsets, row, first, label, stamp, out):  # pragma: no cover
-    """Per label, the minimum over its classes of each class's tasks scattered as
-    :func:`_scatter_kernel` does (a later task of a class overwrites an earlier one):
-    tasks are visited last to first and a frame takes a class's value only once
-    (``stamp`` remembers the last class that wrote it). ``out`` starts at +inf."""
-    for q in range(row.shape[0] - 1, -1, -1):
-        c = row[q]
-        lab = label[c]
-        a = offsets[q]
-        for j in range(offsets[q + 1] - a):
-            f = first[q] + j
-            if stamp[f] != c:
-                stamp[f] = c
-                v = flat[a + j]
-                if v < out[lab, f]:
-                    out[lab, f] = v
 
 
 # ---------------------------------------------------------------------------
@@ -605,7 +393,7 @@ def _batches(bounds, n_frames):
 
 
 def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max, steps, rule,
-                    *, tiled, keep_hits, keep_deltas):
+                    *, tiled, keep_hits, keep_deltas, margin=0.0):
     """:func:`annotate` on documents g0..g1-1 for every row of ``taus``.
 
     Δ is computed once; hits, Δ̄^τ and segments once per τ (Δ does not depend
@@ -656,6 +444,7 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
             label_cd = np.full((len(labels), f1 - f0), np.inf)
             _label_scatter_kernel(cd, offsets, tc, ta - f0, model.label_index, np.full(f1 - f0, -1, np.int64),
                                   label_cd)
+        apply_margin(label_cd, margin)
         segs = _form_segments(label_cd, bounds[g0:g1 + 1] - bounds[g0], labels)
         segs["doc"] += g0
         out.append((segs, hits, kept))
@@ -671,10 +460,24 @@ def _sort_by_label(segments, labels):
     return segments[np.argsort(rank, kind="stable")]
 
 
-def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, steps, rule, keep_deltas, keep_hits):
+def _filters(model, min_length, margin):
+    """(per-label minimum lengths or None, margin) from the switches (None: the model's)."""
+    if min_length is not None and not isinstance(min_length, (bool, np.bool_)):
+        raise ParameterError(f"min_length must be True, False or None (the model's), got {min_length!r}")
+    lengths = None if min_length is False else label_min_frames(model)
+    margin = model.margin if margin is None else margin
+    if isinstance(margin, bool) or not isinstance(margin, (int, float, np.floating)) or not (
+            np.isfinite(margin) and margin >= 0):
+        raise ParameterError(f"margin must be a non-negative number or None (the model's), got {margin!r}")
+    return lengths, float(margin)
+
+
+def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, steps, rule, keep_deltas, keep_hits,
+           min_length=None, margin=None):
     """The annotation chain for one or several τ settings: one Annotation per setting."""
     if not isinstance(model, Model):
         raise ParameterError(f"model must be a mocapdb.annotation.Model, got {type(model).__name__}")
+    min_frames, margin = _filters(model, min_length, margin)
     w = _as_words(words)
     bounds = _doc_bounds(doc_lengths, w.shape[0])
     limit = _check_limit(match_num_max)
@@ -692,7 +495,7 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
     for g0, g1 in groups:
         results = _annotate_batch(
             w, model, bounds, g0, g1, tasks, taus, limit, match_num_max, steps, rule,
-            tiled=preselection is None, keep_hits=keep_hits, keep_deltas=keep_deltas)
+            tiled=preselection is None, keep_hits=keep_hits, keep_deltas=keep_deltas, margin=margin)
         for k, (segs, hits, kept) in enumerate(results):
             per_tau[k][0].append(segs)
             if keep_hits:
@@ -703,6 +506,8 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
         segments = np.concatenate(seg_parts)
         if len(seg_parts) > 1:
             segments = _sort_by_label(segments, labels)
+        if min_frames is not None:
+            segments = drop_short_segments(segments, labels, min_frames)
         hits = np.empty(0, dtype=HIT_DTYPE)
         if keep_hits:
             # tasks are class-major, then document / slice order (the preselection's);
@@ -718,7 +523,7 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
 
 def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
              match_num_max=MATCH_NUM_MAX, steps=ANNOTATION_STEPS, rule="toolbox",
-             keep_deltas=False, keep_hits=True):
+             keep_deltas=False, keep_hits=True, min_length=None, margin=None):
     """Annotate documents with a model of motion templates (the whole chain).
 
     For every class: Δ of its quantized template on every document (or only
@@ -751,6 +556,13 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
         Collect the hits (40 bytes each; on the real data about 0.8 per
         frame with 15 classes). False leaves ``Annotation.hits`` empty; the
         segments are the same.
+    min_length : bool, optional
+        Drop segments shorter than their label's ``min_frames``
+        (:mod:`mocapdb.annotation.postprocess`); default True (a class
+        without ``min_frames`` keeps everything, as the toolbox).
+    margin : float, optional
+        Leave frames unlabelled where the best label wins by less than this;
+        default the model's ``margin`` (0 for the toolbox model).
 
     Returns
     -------
@@ -767,11 +579,11 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
     """
     return _chain(words, model, [tau], doc_lengths=doc_lengths, preselection=preselection,
                   match_num_max=match_num_max, steps=steps, rule=rule, keep_deltas=keep_deltas,
-                  keep_hits=keep_hits)[0]
+                  keep_hits=keep_hits, min_length=min_length, margin=margin)[0]
 
 
 def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, match_num_max=MATCH_NUM_MAX,
-                   steps=ANNOTATION_STEPS, rule="toolbox"):
+                   steps=ANNOTATION_STEPS, rule="toolbox", min_length=None, margin=None):
     """Annotation segments for many hit thresholds τ, computing Δ once (paper Fig. 8).
 
     The same chain as :func:`annotate`: Δ does not depend on τ, so each batch
@@ -783,7 +595,7 @@ def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, m
     model : Model
     taus : sequence of float
         One hit threshold for every class per entry.
-    doc_lengths, preselection, match_num_max, steps, rule
+    doc_lengths, preselection, match_num_max, steps, rule, min_length, margin
         As in :func:`annotate`.
 
     Returns
@@ -796,4 +608,4 @@ def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, m
         _check_tau(t, "taus")
     return [a.segments for a in _chain(words, model, taus, doc_lengths=doc_lengths, preselection=preselection,
                                        match_num_max=match_num_max, steps=steps, rule=rule, keep_deltas=False,
-                                       keep_hits=False)]
+                                       keep_hits=False, min_length=min_length, margin=margin)]

@@ -32,7 +32,8 @@ action names of a foreign label set) to the coarse labels a model annotates
 with; :func:`class_labels` loads the ones shipped in ``mocapdb/models/``
 (``hdm05`` — the 11 HDM05 classes of the development data, Table 1 of the
 paper; ``cmu86`` and ``cmu_mocap6`` — the CMU ground-truth actions of the
-development evaluation, see :mod:`mocapdb.evaluation`). Row order is kept:
+development evaluation, see :mod:`mocapdb.evaluation`; ``default`` — the
+learned classes of the shipped default model). Row order is kept:
 it is the label order (Δarg tie order) of a model trained with it.
 """
 from __future__ import annotations
@@ -67,6 +68,7 @@ SHIPPED_CLASS_LABELS = {
     "hdm05": "hdm05_labels.csv",
     "cmu86": "cmu86_labels.csv",
     "cmu_mocap6": "cmu_mocap6_labels.csv",
+    "default": "default_labels.csv",
 }
 
 
@@ -542,10 +544,11 @@ def class_labels(name="hdm05"):
 
     Parameters
     ----------
-    name : {"hdm05", "cmu86", "cmu_mocap6"}, default "hdm05"
+    name : {"hdm05", "cmu86", "cmu_mocap6", "default"}, default "hdm05"
         ``hdm05``: the 11 HDM05 classes of the development data → the coarse
         labels of paper Table 1 (data/README.md); ``cmu86``: the 86_09 ground
-        truth actions; ``cmu_mocap6``: the mocap6 exercise names.
+        truth actions; ``cmu_mocap6``: the mocap6 exercise names;
+        ``default``: the learned classes of the shipped default model.
 
     Returns
     -------

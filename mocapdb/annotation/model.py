@@ -43,6 +43,9 @@ class ClassModel:
         Hit threshold τ (TEMPLATES.md §9.1).
     keyframe_query : object, optional
         The learned keyframe query (owned by the keyframe module), or None.
+    min_frames : int, default 0
+        Shortest segment (30 Hz frames) the class's label keeps through this
+        class (:mod:`mocapdb.annotation.postprocess`); 0: no minimum (the paper).
     """
 
     name: str
@@ -52,6 +55,7 @@ class ClassModel:
     delta: float = DEFAULT_DELTA
     tau: float = DEFAULT_TAU
     keyframe_query: Any = None
+    min_frames: int = 0
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -75,6 +79,10 @@ class ClassModel:
         if not np.isfinite(self.tau) or self.tau < 0:
             raise ParameterError(
                 f"tau of class {self.name!r} must be a non-negative number, got {self.tau!r}")
+        if (isinstance(self.min_frames, bool) or not isinstance(self.min_frames, (int, np.integer))
+                or self.min_frames < 0):
+            raise ParameterError(
+                f"min_frames of class {self.name!r} must be a non-negative integer, got {self.min_frames!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,11 +98,15 @@ class Model:
         Label order (ties in Δarg go to the earlier label). Default: order of
         first appearance in ``classes``. Must contain every class label; extra
         labels are allowed (they never annotate).
+    margin : float, default 0.0
+        Frames whose best label's Δ̄^τ beats the second best by less than this
+        stay unlabelled (:mod:`mocapdb.annotation.postprocess`); 0: the paper.
     """
 
     name: str
     classes: tuple = field(default_factory=tuple)
     labels: tuple | None = None
+    margin: float = 0.0
 
     def __post_init__(self):
         classes = tuple(self.classes)
@@ -115,8 +127,12 @@ class Model:
             missing = sorted({c.label for c in classes} - set(labels))
             if missing:
                 raise ParameterError(f"labels lacks the class labels {missing}; add them")
+        if (isinstance(self.margin, bool) or not isinstance(self.margin, (int, float, np.floating))
+                or not np.isfinite(self.margin) or self.margin < 0):
+            raise ParameterError(f"margin must be a non-negative number, got {self.margin!r}")
         object.__setattr__(self, "classes", classes)
         object.__setattr__(self, "labels", labels)
+        object.__setattr__(self, "margin", float(self.margin))
 
     @property
     def class_names(self):
@@ -145,4 +161,4 @@ class Model:
             raise ParameterError(f"queries name classes {unknown} that the model does not have")
         classes = tuple(dataclasses.replace(c, keyframe_query=queries[c.name]) if c.name in queries else c
                         for c in self.classes)
-        return Model(self.name, classes, labels=self.labels)
+        return dataclasses.replace(self, classes=classes)

@@ -1,396 +1,132 @@
 """The development evaluation: annotation quality on data the model was not trained on.
 
-data/README.md fixes what the project's own evaluation reports:
+data/README.md fixes what the project's own evaluation reports (the documents
+are in :mod:`mocapdb.evaluation.documents`):
 
-* **leave-one-actor-out (LOAO)** on ``hdm05_cut`` (four actors bd, bk, dg,
-  mm; 11 classes): train on three actors, annotate documents built from the
-  fourth actor's clips (:func:`loao_documents`), ground truth = the clip
-  boundaries with the coarse labels of ``mocapdb/models/hdm05_labels.csv``;
-* **real documents** (:func:`cmu86_documents`, :func:`mocap6_documents`),
-  annotated with the model trained on all four actors: CMU 86_09 with its
-  segment ground truth, and the CMU exercise routines 13_29–13_31, 14_14,
-  14_20 with the mocap6 labels.
+* **loao** — leave-one-actor-out on ``hdm05_cut`` (actors bd, bk, dg, mm):
+  a model built without one actor's clips annotates documents joined from
+  that actor's clips;
+* **loao_mirrored** (optional) — the same documents mirrored left/right, the
+  right-handed truth dropped: how a model copes with the other side
+  (right-footed kicks, right-foot starts) that hdm05_cut lacks;
+* **cmu86_09**, **mocap6** — the real CMU documents with their ground truth;
+  a model that trains templates on CMU stretches (``cmu_training``) is
+  built without the stretches of the document it annotates
+  (leave-one-document-out), so no document is annotated by a model that saw
+  it;
+* **cmu** (both CMU sets) and **all** (loao and cmu), concatenated, as the
+  paper scores its evaluation set.
 
-:func:`development_evaluation` runs all of it and scores every setting with
-the paper's P1/R1/F1 and P2/R2/F2 (:mod:`mocapdb.evaluation.metrics`), each restricted
-to the model's label vocabulary (ground-truth labels the model cannot
-produce are dropped and reported).
-
-Judgement calls (documented here, data not code where possible):
-
-* LOAO documents hold ``clips_per_document = 15`` clips (default): 44–65
-  clips per actor give 3–5 documents of ≈ 30–45 s each, close to the
-  paper's evaluation documents (109 documents averaging 40 s). Unlike those,
-  every frame of a LOAO document belongs to a labelled clip (no unlabelled
-  transitions), and the joins are abrupt pose changes.
-* Joining clips: each clip's joints are translated in the floor plane (x, z)
-  so that its first-frame root lies where the previous clip's last-frame
-  root was; height, heading and the recorded root rotation are kept. The
-  features are computed on the joined document (so velocities and the root
-  turn rate see the joins), not clip by clip.
-* CMU 86_09 (``labels/cmu86_segmentation``, 120 Hz frames): only ``walk``
-  has a counterpart in the model (→ ``move``, ``mocapdb/models/cmu86_labels.csv``);
-  ``look_around``, ``clap``, ``stand_and_clap`` are dropped and reported.
-  The unlabelled transition windows are not ground truth of any label.
-* mocap6 (``labels/cmu_mocap6/<trial>.txt``, one action id per block of 12
-  native frames): Squat → exercise, Jog → move, JumpJack → jump,
-  ArmCircle → rotateArms (``mocapdb/models/cmu_mocap6_labels.csv``), all
-  other actions dropped and reported. Block k (1-based) covers native frames
-  12k − 11 … 12k, clipped to the recording (the label files run up to 12
-  frames past the end of some takes); the takes are read with the skeleton
-  ``cmu/02/02.asf`` (their own ASF files were not published).
+:func:`development_evaluation` builds one model per fold — by default the
+toolbox's way (a template per HDM05 class, :func:`mocapdb.learning.train_model`),
+or by any ``build(clips, name)`` (e.g. the default model's recipe,
+:func:`mocapdb.learning.recipe.build_model`) — annotates each fold's documents
+in one or several annotation ``modes`` (keyframes on/off, τ, segment
+filters) and scores every setting with the paper's P1/R1/F1 and P2/R2/F2
+(:mod:`mocapdb.evaluation.metrics`), restricted to a label vocabulary
+(ground-truth labels outside it are dropped and reported).
 """
 from __future__ import annotations
 
-import csv
-import io
 import logging
 import time
-import zlib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from mocapdb.annotation import annotate, annotate_sweep
-from mocapdb.errors import ParameterError, ParseError
-from mocapdb.features import DOWNSAMPLING_FACTOR, motion_features
-from mocapdb.readers.joints import JOINT_INDEX
-from mocapdb.annotation.labels import (
-    LABEL_DTYPE, read_text, class_labels as shipped_class_labels, label_rows,
-    map_labels, segments_to_rows, to_feature_grid)
-from mocapdb.evaluation.metrics import evaluate_annotation
-from mocapdb.annotation.model import DEFAULT_DELTA, DEFAULT_TAU
-from mocapdb.readers.motion import Motion
+from mocapdb.annotation.labels import LABEL_DTYPE, class_labels as shipped_class_labels, label_rows, segments_to_rows
+from mocapdb.annotation.model import DEFAULT_DELTA
 from mocapdb.annotation.preselection import preselection_for
-from mocapdb.readers import read_motion
+from mocapdb.errors import ParameterError
+from mocapdb.evaluation.documents import (CLIPS_PER_DOCUMENT, MOCAP6_TRIALS, DocumentSet, _loao_from_clips,
+                                          cmu86_documents, cmu_stretches, concatenate_motions, loao_documents,
+                                          mirror_document_set, mocap6_documents)
+from mocapdb.evaluation.metrics import evaluate_annotation
+from mocapdb.features import motion_features
+from mocapdb.learning.cutting import clips_from_stretches
+from mocapdb.learning.recipe import Clip
 from mocapdb.learning.training import clip_actor, clip_files, train_model
+from mocapdb.readers import read_motion
 
-__all__ = ["DocumentSet", "DevelopmentEvaluation", "concatenate_motions", "loao_documents",
-           "cmu86_documents", "mocap6_documents", "development_evaluation",
+__all__ = ["DocumentSet", "DevelopmentEvaluation", "DevelopmentData", "concatenate_motions", "loao_documents",
+           "cmu86_documents", "mocap6_documents", "development_evaluation", "development_data",
            "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS"]
 
 log = logging.getLogger("mocapdb")
 
-#: clips per LOAO document (3–5 documents of ≈ 30–45 s per actor)
-CLIPS_PER_DOCUMENT = 15
-#: the CMU exercise takes with mocap6 labels in the development data
-MOCAP6_TRIALS = ("13_29", "13_30", "13_31", "14_14", "14_20")
-#: native frames per mocap6 label (10 labels per second at 120 Hz)
-MOCAP6_BLOCK = 12
 #: the settings :func:`development_evaluation` scores, in report order
-SETTINGS = ("loao", "cmu86_09", "mocap6", "cmu", "all")
-
-_ROOT = JOINT_INDEX["root"]
-_FLOOR = [0, 2]  # x and z: the floor plane (Y is up)
+SETTINGS = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all")
 
 
 # ---------------------------------------------------------------------------
-# documents
+# the training data of the folds
 
 
 @dataclass(frozen=True, eq=False)
-class DocumentSet:
-    """Documents to annotate, with their ground truth.
+class DevelopmentData:
+    """Everything the folds train on: HDM05 clips and (optionally) CMU stretches.
 
     Attributes
     ----------
-    names : tuple of str
-        Document names, in order.
-    words : ndarray, shape (N,), uint64
-        Packed 30 Hz feature words of all documents concatenated.
-    doc_lengths : ndarray, shape (n_docs,), int64
-        30 Hz frames per document (sum N).
-    native_lengths : ndarray, shape (n_docs,), int64
-        Native (120 Hz) frames per document.
-    truth_native : ndarray of LABEL_DTYPE
-        Ground truth as a label CSV holds it: native frames, 1-based inclusive.
-    truth : ndarray of LABEL_DTYPE
-        The same on the 30 Hz grid, 0-based inclusive (:func:`mocapdb.annotation.labels.to_feature_grid`).
-    clips : tuple of tuple of str
-        LOAO documents: the clip names of each document in order (else empty).
+    hdm05 : dict of str to list of (Clip, Motion)
+        Class → its clips (group = actor) with their motions, file-name order.
+    cmu_words : dict of str to (n,) uint64
+        CMU documents with training stretches.
+    cmu_rows : ndarray of LABEL_DTYPE
+        The stretches (30 Hz, 0-based inclusive), labelled with their class.
+    cmu_groups : dict of str to str
+        CMU document → subject.
     """
 
-    names: tuple
-    words: np.ndarray
-    doc_lengths: np.ndarray
-    native_lengths: np.ndarray
-    truth_native: np.ndarray
-    truth: np.ndarray
-    clips: tuple = ()
+    hdm05: dict
+    cmu_words: dict = field(default_factory=dict)
+    cmu_rows: np.ndarray = field(default_factory=lambda: np.empty(0, LABEL_DTYPE))
+    cmu_groups: dict = field(default_factory=dict)
 
-    @classmethod
-    def concat(cls, sets):
-        """One DocumentSet of several (documents appended in order)."""
-        sets = list(sets)
-        if not sets:
-            return cls((), np.zeros(0, np.uint64), np.zeros(0, np.int64),
-                       np.zeros(0, np.int64), np.empty(0, LABEL_DTYPE),
-                       np.empty(0, LABEL_DTYPE))
-        return cls(tuple(n for s in sets for n in s.names),
-                   np.concatenate([s.words for s in sets]),
-                   np.concatenate([s.doc_lengths for s in sets]),
-                   np.concatenate([s.native_lengths for s in sets]),
-                   np.concatenate([s.truth_native for s in sets]),
-                   np.concatenate([s.truth for s in sets]),
-                   tuple(c for s in sets for c in s.clips))
+    @property
+    def actors(self):
+        return sorted({c.group for cl in self.hdm05.values() for c, _ in cl if c.group})
 
+    def clips(self, *, without_actor=None, without_document=None, cut_params=None):
+        """Training clips of a fold: class → list of Clip (HDM05 clips, then CMU repetitions).
 
-def _document_set(names, motions, truth_native, clips=()):
-    """Features of each document motion + ground truth on both grids."""
-    words = [motion_features(m) for m in motions]
-    return DocumentSet(tuple(names), np.concatenate(words) if words else np.zeros(0, np.uint64),
-                       np.array([w.size for w in words], dtype=np.int64),
-                       np.array([m.n_frames for m in motions], dtype=np.int64),
-                       truth_native, to_feature_grid(truth_native, factor=DOWNSAMPLING_FACTOR),
-                       tuple(clips))
+        The CMU stretches of ``without_document`` are dropped before cutting,
+        so the cut (its anchor feature) never sees the held-out document.
+        """
+        out = {c: [clip for clip, _ in cl if clip.group != without_actor] for c, cl in self.hdm05.items()}
+        out = {c: v for c, v in out.items() if v}
+        rows = self.cmu_rows[self.cmu_rows["document"] != without_document] if without_document else self.cmu_rows
+        if rows.size:
+            cut = clips_from_stretches(self.cmu_words, rows, groups=self.cmu_groups.get, **(cut_params or {}))
+            for c, items in cut.items():
+                out.setdefault(c, []).extend(Clip(n, w, g, d) for n, g, d, w in items)
+        return out
 
 
-def concatenate_motions(motions, *, name=""):
-    """Join clips into one document, each clip's root re-placed where the previous ended.
-
-    Clip k+1 is translated in the floor plane (x, z) so that its first-frame
-    root is at clip k's last-frame root (after clip k's own translation);
-    heights, headings and the recorded root rotations are unchanged. The first
-    clip stays where it was recorded.
+def development_data(data_dir, *, classes=None, cmu_training=True) -> DevelopmentData:
+    """Read the training material of the development folds.
 
     Parameters
     ----------
-    motions : sequence of Motion
-        Same native rate; root rotations all present or all absent.
-    name : str
-
-    Returns
-    -------
-    motion : Motion
-        The document (``meta["clips"]`` = the clip names).
-    lengths : ndarray, shape (n_clips,), int64
-        Native frames of each clip, in order.
-
-    Raises
-    ------
-    ParameterError
-        No motions, different rates, mixed root rotations, or an empty clip.
-    """
-    motions = list(motions)
-    if not motions:
-        raise ParameterError("motions must hold at least one clip")
-    fps = {float(m.fps) for m in motions}
-    if len(fps) != 1:
-        raise ParameterError(f"clips must share one native rate to be joined, got {sorted(fps)}")
-    has_rot = {m.root_rotation is not None for m in motions}
-    if len(has_rot) != 1:
-        raise ParameterError("clips must all have root rotations or all lack them")
-    if any(m.n_frames == 0 for m in motions):
-        raise ParameterError("cannot join a clip without frames")
-    parts = []
-    end = None
-    for m in motions:
-        j = np.array(m.joints, dtype=np.float64, copy=True)
-        if end is not None:
-            j[:, :, _FLOOR] += end - j[0, _ROOT, _FLOOR]
-        end = j[-1, _ROOT, _FLOOR].copy()
-        parts.append(j)
-    rot = (np.concatenate([m.root_rotation for m in motions]) if has_rot == {True} else None)
-    first = motions[0]
-    doc = Motion(joints=np.concatenate(parts), root_rotation=rot, fps=first.fps, name=name,
-                 skeleton=first.skeleton, source_format=first.source_format,
-                 meta={"clips": [m.name for m in motions]})
-    return doc, np.array([m.n_frames for m in motions], dtype=np.int64)
-
-
-def _actor_rng(seed, actor):
-    """A generator per (seed, actor): independent shuffles for different actors."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
-    return np.random.default_rng([int(seed), zlib.crc32(str(actor).encode())])
-
-
-def _loao_from_clips(items, actor, *, seed, clips_per_document, class_labels):
-    """LOAO documents from (class, Motion) items of one actor (file-name order)."""
-    if (isinstance(clips_per_document, bool)
-            or not isinstance(clips_per_document, (int, np.integer)) or clips_per_document < 1):
-        raise ParameterError(
-            f"clips_per_document must be a positive integer, got {clips_per_document!r}")
-    if not items:
-        raise ParameterError(f"actor {actor!r} has no clips")
-    perm = _actor_rng(seed, actor).permutation(len(items))
-    n_docs = -(-len(items) // int(clips_per_document))
-    names, motions, truth, clips = [], [], [], []
-    for k, part in enumerate(np.array_split(perm, n_docs)):
-        doc_name = f"loao_{actor}_{k:02d}"
-        chosen = [items[i] for i in part]
-        doc, lengths = concatenate_motions([m for _, m in chosen], name=doc_name)
-        ends = np.cumsum(lengths)
-        truth.append(label_rows(doc_name, [class_labels.get(c, c) for c, _ in chosen],
-                                ends - lengths + 1, ends))
-        names.append(doc_name)
-        motions.append(doc)
-        clips.append(tuple(m.name for _, m in chosen))
-    return _document_set(names, motions, np.concatenate(truth), clips)
-
-
-def loao_documents(root, actor, *, seed=0, clips_per_document=CLIPS_PER_DOCUMENT, classes=None,
-                   class_labels=None):
-    """Documents for leave-one-actor-out evaluation built from one actor's clips.
-
-    The actor's clips (all classes, or ``classes``) are shuffled by a
-    generator seeded with (``seed``, actor), split into ⌈n / clips_per_document⌉
-    documents of nearly equal clip counts and joined by
-    :func:`concatenate_motions`; features are computed on each joined
-    document. The ground truth is one row per clip with its coarse label.
-
-    Parameters
-    ----------
-    root : str or Path
-        The HDM05 "cut" folder (``data/hdm05_cut``).
-    actor : str
-        E.g. ``"bd"``.
-    seed : int, default 0
-    clips_per_document : int, default 15
+    data_dir : str or Path
     classes : sequence of str, optional
-        Only these classes (default all).
-    class_labels : mapping of str to str, optional
-        Class → coarse label; default the shipped ``hdm05`` mapping. Classes
-        not in it keep their name.
-
-    Returns
-    -------
-    DocumentSet
-        Names ``loao_<actor>_<k>``; ``clips`` lists each document's clips.
-
-    Raises
-    ------
-    ParameterError
-        Unknown classes, an actor without clips, or bad parameters.
+        HDM05 classes (default all).
+    cmu_training : bool, default True
+        Also the CMU training stretches (:func:`mocapdb.evaluation.documents.cmu_stretches`).
     """
-    files = clip_files(root, classes=classes, actors=[actor])
-    items = [(c, read_motion(p)) for c, ps in files.items() for p in ps]
-    labels = shipped_class_labels("hdm05") if class_labels is None else class_labels
-    return _loao_from_clips(items, actor, seed=seed, clips_per_document=clips_per_document,
-                            class_labels=labels)
-
-
-def _read_cmu86_segments(path, document):
-    """Rows of labels/cmu86_segmentation (trial,segment,label,start_frame,end_frame,…)."""
-    text = read_text(path)
-    reader = csv.DictReader(io.StringIO(text, newline=""))
-    need = {"trial", "label", "start_frame", "end_frame"}
-    if reader.fieldnames is None or not need <= {f.strip() for f in reader.fieldnames}:
-        raise ParseError(path, 1, f"expected the columns {sorted(need)}, "
-                         f"got {reader.fieldnames}")
-    rows = []
-    for rec in reader:
-        rec = {k.strip(): (v or "").strip() for k, v in rec.items() if k}
-        if rec["trial"] != document:
-            continue
-        try:
-            s, e = int(rec["start_frame"]), int(rec["end_frame"])
-        except ValueError:
-            raise ParseError(path, reader.line_num, "start_frame and end_frame must be "
-                             "integers") from None
-        if not 1 <= s <= e:
-            raise ParseError(path, reader.line_num, f"need 1 <= start_frame <= end_frame, "
-                             f"got {s}, {e}")
-        rows.append((document, rec["label"], s, e))
-    if not rows:
-        raise ParseError(path, None, f"no segments of trial {document!r}")
-    d, lab, s, e = zip(*rows)
-    return label_rows(list(d), list(lab), s, e)
-
-
-def cmu86_documents(data_dir, *, class_labels=None):
-    """CMU 86_09 (a continuous document) with its segment ground truth.
-
-    Parameters
-    ----------
-    data_dir : str or Path
-        The development data folder (``cmu/86/86_09.amc``,
-        ``labels/cmu86_segmentation/cmu86_09_segments.csv``).
-    class_labels : mapping of str to str, optional
-        Ground-truth action → model label; default the shipped ``cmu86``
-        mapping (walk → move; the other actions keep their names).
-
-    Returns
-    -------
-    DocumentSet
-    """
-    data_dir = Path(data_dir)
-    motion = read_motion(data_dir / "cmu" / "86" / "86_09.amc")
-    truth = _read_cmu86_segments(
-        data_dir / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv", "86_09")
-    if (truth["end"] > motion.n_frames).any():
-        raise ParseError(data_dir / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv",
-                         None, f"segments end beyond the document's {motion.n_frames} frames")
-    mapping = shipped_class_labels("cmu86") if class_labels is None else class_labels
-    return _document_set(["86_09"], [motion], map_labels(truth, mapping))
-
-
-def _action_names(path):
-    """{id: name} of labels/cmu_mocap6/action_names.txt (``id<TAB>name``, # comments)."""
-    out = {}
-    for k, line in enumerate(read_text(path).splitlines(), 1):
-        line = line.strip()
-        if not line or line.startswith("#"):
-            continue
-        parts = line.split(None, 1)
-        if len(parts) != 2 or not parts[0].isdigit():
-            raise ParseError(path, k, f"expected '<id> <name>', got {line!r}")
-        out[int(parts[0])] = parts[1].strip()
-    return out
-
-
-def _block_labels(path, names, document, n_frames, block):
-    """Runs of equal block labels as native 1-based rows, clipped to n_frames."""
-    text = read_text(path)
-    try:
-        ids = np.array([int(t) for t in text.split()], dtype=np.int64)
-    except ValueError:
-        raise ParseError(path, None, "expected whitespace-separated integer labels") from None
-    unknown = sorted(set(ids.tolist()) - set(names))
-    if unknown:
-        raise ParseError(path, None, f"label ids {unknown} are not in action_names.txt")
-    n_blocks = min(ids.size, -(-n_frames // block))  # blocks past the recording are dropped
-    ids = ids[:n_blocks]
-    if ids.size == 0:
-        return np.empty(0, LABEL_DTYPE)
-    cut = np.flatnonzero(np.diff(ids)) + 1
-    first = np.concatenate(([0], cut))
-    last = np.concatenate((cut, [ids.size])) - 1
-    return label_rows(document, [names[i] for i in ids[first]], first * block + 1,
-                      np.minimum((last + 1) * block, n_frames))
-
-
-def mocap6_documents(data_dir, *, trials=MOCAP6_TRIALS, asf=None, class_labels=None):
-    """The CMU exercise takes with mocap6 labels (one action per 12 native frames).
-
-    Parameters
-    ----------
-    data_dir : str or Path
-        The development data folder (``cmu/<subject>/<trial>.amc``,
-        ``labels/cmu_mocap6/<trial>.txt`` and ``action_names.txt``).
-    trials : sequence of str, default MOCAP6_TRIALS
-    asf : str or Path, optional
-        Skeleton for the takes; default ``cmu/02/02.asf`` (their own ASF files
-        were not published; the bone names and order are the standard CMU ones).
-    class_labels : mapping of str to str, optional
-        Action name → model label; default the shipped ``cmu_mocap6`` mapping.
-
-    Returns
-    -------
-    DocumentSet
-    """
-    data_dir = Path(data_dir)
-    asf = data_dir / "cmu" / "02" / "02.asf" if asf is None else Path(asf)
-    lab_dir = data_dir / "labels" / "cmu_mocap6"
-    names = _action_names(lab_dir / "action_names.txt")
-    mapping = shipped_class_labels("cmu_mocap6") if class_labels is None else class_labels
-    motions, truth = [], []
-    for t in trials:
-        m = read_motion(data_dir / "cmu" / t.split("_")[0] / f"{t}.amc", asf=asf)
-        motions.append(replace(m, name=t))
-        truth.append(_block_labels(lab_dir / f"{t}.txt", names, t, m.n_frames, MOCAP6_BLOCK))
-    return _document_set(list(trials), motions, map_labels(np.concatenate(truth), mapping))
+    files = clip_files(Path(data_dir) / "hdm05_cut", classes=classes)
+    hdm05 = {}
+    for c, ps in files.items():
+        hdm05[c] = []
+        for p in ps:
+            m = read_motion(p)
+            hdm05[c].append((Clip(p.stem, motion_features(m), clip_actor(p.stem) or "", p.stem), m))
+    if not cmu_training:
+        return DevelopmentData(hdm05)
+    words, rows, groups = cmu_stretches(data_dir)
+    return DevelopmentData(hdm05, words, rows, groups)
 
 
 # ---------------------------------------------------------------------------
@@ -399,25 +135,30 @@ def mocap6_documents(data_dir, *, trials=MOCAP6_TRIALS, asf=None, class_labels=N
 
 @dataclass(frozen=True, eq=False)
 class DevelopmentEvaluation:
-    """Result of :func:`development_evaluation`.
+    """Result of :func:`development_evaluation` (for one annotation mode).
 
     Attributes
     ----------
     scores : dict of str to Scores
-        Per setting of :data:`SETTINGS` present: ``loao`` (all held-out
-        actors' documents concatenated), ``cmu86_09``, ``mocap6``, ``cmu``
-        (both CMU sets) and ``all``.
+        Per setting of :data:`SETTINGS` present.
     truth, auto : dict of str to ndarray of LABEL_DTYPE
         Ground truth and annotation per setting (30 Hz, 0-based inclusive,
         documents by name).
     models : dict of str to Model
-        ``"without_<actor>"`` per held-out actor, ``"all"`` if trained.
+        ``"without_<actor>"`` per held-out actor; ``"all"`` (the model of
+        every CMU document not held out) and ``"without_<document>"`` for
+        CMU documents whose stretches trained it.
     documents : dict of str to DocumentSet
     sweep : list of (float, Scores) or None
         LOAO scores per τ (paper Fig. 8), if requested.
     timings : dict of str to float
-        Seconds: ``read`` (clips and documents incl. features), ``train``,
-        ``annotate``, ``sweep``, ``total``.
+        Seconds: ``read``, ``train``, ``annotate``, ``sweep``, ``total``.
+    preselected : dict of str to ndarray of LABEL_DTYPE
+        Per setting, the frames each label's classes were matched on (the
+        keyframe preselection's slices; whole documents for a class without
+        query or without keyframes): where a label *can* be found.
+    vocabulary : dict of str to tuple of str
+        The labels scored per setting.
     """
 
     scores: dict
@@ -427,30 +168,74 @@ class DevelopmentEvaluation:
     documents: dict
     sweep: list | None = None
     timings: dict = field(default_factory=dict)
+    preselected: dict = field(default_factory=dict)
+    vocabulary: dict = field(default_factory=dict)
 
 
-def _preselect(preselection, model, docs):
+def _preselect(preselection, model, docs, keyframes):
     if preselection is not None:
         return preselection(model, docs.words, docs.doc_lengths)
-    return preselection_for(docs.words, docs.doc_lengths, model)
+    return preselection_for(docs.words, docs.doc_lengths, model, keyframes)
 
 
-def _annotate_rows(docs, model, tau, pre):
-    ann = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre, tau=tau)
-    return segments_to_rows(ann.segments, docs.names)
+def _preselected_rows(model, docs, pre):
+    """Label rows of the frames each label's classes are matched on (see DevelopmentEvaluation)."""
+    bounds = np.concatenate(([0], np.cumsum(docs.doc_lengths)))
+    out = []
+    for k, c in enumerate(model.classes):
+        sl = None if pre is None else (pre.get(c.name) if isinstance(pre, dict) else pre[k])
+        if sl is None:
+            sl = np.stack([bounds[:-1], bounds[1:] - 1], axis=1)
+        sl = np.asarray(sl, dtype=np.int64).reshape(-1, 2)
+        sl = sl[sl[:, 1] >= sl[:, 0]]
+        if sl.size == 0:
+            continue
+        d = np.searchsorted(bounds, sl[:, 0], side="right") - 1
+        out.append(label_rows([docs.names[i] for i in d], [c.label] * len(d), sl[:, 0] - bounds[d],
+                              sl[:, 1] - bounds[d]))
+    return np.concatenate(out) if out else np.empty(0, LABEL_DTYPE)
 
 
-def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_DELTA,
+def _check_modes(modes):
+    if modes is None:
+        return None
+    if not isinstance(modes, dict) or not modes:
+        raise ParameterError("modes must be a non-empty dict: mode name -> annotate options")
+    for name, opts in modes.items():
+        if not isinstance(opts, dict):
+            raise ParameterError(f"modes[{name!r}] must be a dict of annotate options (keyframes, tau, …)")
+    return modes
+
+
+def _annotate_modes(docs, model, modes, preselection):
+    """Per mode: (annotation rows, preselected rows)."""
+    out = {}
+    cache = {}
+    for mode, opts in modes.items():
+        opts = dict(opts)
+        kf = opts.pop("keyframes", None)
+        key = (id(model), kf)
+        if key not in cache:
+            cache[key] = _preselect(preselection, model, docs, kf)
+        pre = cache[key]
+        ann = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre, keep_hits=False,
+                       **opts)
+        out[mode] = (segments_to_rows(ann.segments, docs.names), _preselected_rows(model, docs, pre))
+    return out
+
+
+def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
                            clips_per_document=CLIPS_PER_DOCUMENT, held_out=None, classes=None,
                            class_labels=None, real_documents=True, preselection=None,
-                           keyframes=None, sweep_taus=None, progress=None):
+                           keyframes=None, sweep_taus=None, progress=None, build=None, cmu_training=None,
+                           mirrored=False, vocabulary=None, modes=None, data=None, cut_params=None):
     """Leave-one-actor-out and real-document evaluation of the annotation.
 
-    For each held-out actor: train every class on the other actors' clips
-    (:func:`mocapdb.learning.training.train_model`, file-name order), annotate that
-    actor's LOAO documents. Then (``real_documents``) train on all actors and
-    annotate CMU 86_09 and the mocap6 takes. Score each setting with the
-    paper's measures restricted to the model's labels.
+    For each held-out actor: build a model without that actor's clips,
+    annotate that actor's LOAO documents (and their mirror images with
+    ``mirrored``). Then (``real_documents``) annotate CMU 86_09 and the
+    mocap6 takes with a model built from all actors — without the stretches
+    of the annotated document when CMU stretches train. Score each setting.
 
     Parameters
     ----------
@@ -458,41 +243,59 @@ def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_D
         The development data folder (``hdm05_cut/``, ``cmu/``, ``labels/``).
     seed : int, default 0
         Seed of the LOAO document composition.
-    tau : float, default 0.13
-        Hit threshold τ for every class.
+    tau : float, optional
+        Hit threshold τ for every class (default: each class's own τ).
     delta : float, default 0.05
-        Quantization threshold δ.
+        Quantization threshold δ of the default build.
     clips_per_document : int, default 15
     held_out : sequence of str, optional
         Actors to hold out in turn (default: every actor of ``hdm05_cut``).
-        Training always uses all other actors.
     classes : sequence of str, optional
         Only these HDM05 classes (default all 11).
     class_labels : mapping of str to str, optional
-        Class → coarse label (default the shipped ``hdm05`` mapping).
+        Class → coarse label of the LOAO truth and the default build
+        (default: the shipped ``hdm05`` mapping).
     real_documents : bool, default True
-        Also train on all actors and evaluate CMU 86_09 and mocap6.
+        Also evaluate CMU 86_09 and mocap6.
     preselection : callable, optional
         ``preselection(model, words, doc_lengths)`` → the ``preselection``
-        argument of :func:`mocapdb.annotation.annotate` (per class a list of
-        (start, end) slices, e.g. from a keyframe search), or None. Default:
-        the keyframe preselection of :mod:`mocapdb.annotation.preselection` when the
-        model has keyframe queries, else none.
+        argument of :func:`mocapdb.annotation.annotate`. Default: the keyframe
+        preselection when the model has keyframe queries (and the mode's
+        ``keyframes`` allows), else none.
     keyframes : callable, optional
-        ``keyframes(model, clips)`` → the model with keyframe queries, given
-        the clips it was trained on (class → list of (name, words)); e.g.
-        learned by the GA on them (:func:`mocapdb.learning.learn_keyframe_queries`)
-        or the toolbox's (:func:`mocapdb.learning.toolbox_queries.toolbox_keyframe_queries`).
-        Default: no keyframe queries.
+        Default build only: ``keyframes(model, clips)`` → the model with
+        keyframe queries, given its training clips (class → list of
+        (name, words)).
     sweep_taus : sequence of float, optional
-        Also score the LOAO setting for each of these τ (Δ computed once per
-        held-out actor; :func:`mocapdb.annotation.annotate_sweep`).
+        Also score the LOAO setting for each of these τ (first mode only).
     progress : callable, optional
-        ``progress(n_done, n_steps, what)`` after each training + annotation step.
+        ``progress(n_done, n_steps, what)`` after each fold.
+    build : callable, optional
+        ``build(clips, name)`` → Model, given the fold's training clips
+        (class → list of :class:`mocapdb.learning.recipe.Clip`: HDM05 clips,
+        then CMU repetitions). Default: a template per class by
+        :func:`mocapdb.learning.train_model` with ``class_labels``, δ, and
+        ``keyframes``.
+    cmu_training : bool, optional
+        CMU stretches in the training clips (default: with ``build``).
+    mirrored : bool, default False
+        Also score the mirrored LOAO documents (``loao_mirrored``).
+    vocabulary : sequence of str, optional
+        Labels scored in every setting (e.g. the paper's 15); default each
+        setting's models' labels.
+    modes : dict of str to dict, optional
+        Annotate every fold in several modes, e.g. ``{"reference":
+        {"keyframes": False}, "default": {}}``: options of
+        :func:`mocapdb.annotation.annotate` (and ``keyframes``). Then the
+        result is a dict mode → DevelopmentEvaluation.
+    data : DevelopmentData, optional
+        Already read material (:func:`development_data`); default read here.
+    cut_params : dict, optional
+        Options of :func:`mocapdb.learning.cutting.cut_repetitions` for the CMU stretches.
 
     Returns
     -------
-    DevelopmentEvaluation
+    DevelopmentEvaluation, or dict of str to DevelopmentEvaluation with ``modes``
 
     References
     ----------
@@ -500,97 +303,136 @@ def development_evaluation(data_dir, *, seed=0, tau=DEFAULT_TAU, delta=DEFAULT_D
     """
     t_start = time.perf_counter()
     timings = {"read": 0.0, "train": 0.0, "annotate": 0.0, "sweep": 0.0}
-    root = Path(data_dir) / "hdm05_cut"
+    single = modes is None
+    modes = {"": {"tau": tau}} if single else _check_modes(modes)
+    if not single and tau is not None:
+        modes = {k: {"tau": tau, **v} for k, v in modes.items()}
     labels = shipped_class_labels("hdm05") if class_labels is None else dict(class_labels)
+    cmu_training = build is not None if cmu_training is None else bool(cmu_training)
     t0 = time.perf_counter()
-    files = clip_files(root, classes=classes)
-    # every clip is read once: its own features for training, its motion for
-    # the held-out actor's joined documents
-    clips = {c: [(p.stem, clip_actor(p.stem), read_motion(p)) for p in ps]
-             for c, ps in files.items()}
-    clip_words = {c: [(n, a, motion_features(m)) for n, a, m in cl] for c, cl in clips.items()}
-    actors = sorted({a for cl in clips.values() for _, a, _ in cl if a is not None})
+    if data is None:
+        data = development_data(data_dir, classes=classes, cmu_training=cmu_training and real_documents)
+    actors = data.actors
     held_out = actors if held_out is None else [str(a) for a in held_out]
     unknown = sorted(set(held_out) - set(actors))
     if unknown:
         raise ParameterError(f"held_out actors {unknown} have no clips; available: {actors}")
     timings["read"] += time.perf_counter() - t0
+
+    def make(clips, name):
+        t = time.perf_counter()
+        if build is not None:
+            model = build(clips, name)
+        else:
+            hdm = {c: [(x.name, x.words) for x in v] for c, v in clips.items() if c in data.hdm05}
+            model = train_model(hdm, name=name, labels=labels, delta=delta)
+            if keyframes is not None:
+                model = keyframes(model, hdm)
+        timings["train"] += time.perf_counter() - t
+        return model
+
     n_steps = len(held_out) + bool(real_documents)
-    models, documents, truth, auto = {}, {}, {}, {}
-    loao_docs, loao_auto, sweep_parts = [], [], []
+    models, documents = {}, {}
+    parts = {m: {} for m in modes}       # mode -> setting -> list of (truth, auto, preselected)
+    sweep_parts = []
+
+    def add(setting, docs, model):
+        t = time.perf_counter()
+        for m, (rows, pre) in _annotate_modes(docs, model, modes, preselection).items():
+            parts[m].setdefault(setting, []).append((docs.truth, rows, pre, model.labels))
+        timings["annotate"] += time.perf_counter() - t
+
+    loao_docs, mirror_docs = [], []
     for k, actor in enumerate(held_out):
-        t0 = time.perf_counter()
-        train = {c: [(n, w) for n, a, w in cl if a != actor] for c, cl in clip_words.items()}
-        train = {c: v for c, v in train.items() if v}
-        model = train_model(train, name=f"without_{actor}", labels=labels, delta=delta, tau=tau)
-        if keyframes is not None:
-            model = keyframes(model, train)
+        model = make(data.clips(without_actor=actor, cut_params=cut_params), f"without_{actor}")
         models[model.name] = model
-        timings["train"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        items = [(c, m) for c, cl in clips.items() for n, a, m in cl if a == actor]
+        items = [(c, m) for c, cl in data.hdm05.items() for clip, m in cl if clip.group == actor]
         docs = _loao_from_clips(items, actor, seed=seed, clips_per_document=clips_per_document,
                                 class_labels=labels)
         timings["read"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
         loao_docs.append(docs)
-        pre = _preselect(preselection, model, docs)
-        loao_auto.append(_annotate_rows(docs, model, tau, pre))
-        timings["annotate"] += time.perf_counter() - t0
+        add("loao", docs, model)
+        if mirrored:
+            mdocs = mirror_document_set(docs)
+            mirror_docs.append(mdocs)
+            add("loao_mirrored", mdocs, model)
         if sweep_taus is not None:
             t0 = time.perf_counter()
-            segs = annotate_sweep(docs.words, model, sweep_taus, doc_lengths=docs.doc_lengths,
-                                  preselection=pre)
-            sweep_parts.append([segments_to_rows(s, docs.names) for s in segs])
+            first = next(iter(modes.values()))
+            pre = _preselect(preselection, model, docs, first.get("keyframes"))
+            segs = annotate_sweep(docs.words, model, sweep_taus, doc_lengths=docs.doc_lengths, preselection=pre)
+            sweep_parts.append((docs.truth, [segments_to_rows(s, docs.names) for s in segs], model.labels))
             timings["sweep"] += time.perf_counter() - t0
         if progress is not None:
             progress(k + 1, n_steps, f"held out {actor}")
-    vocab = {}
     if held_out:
         documents["loao"] = DocumentSet.concat(loao_docs)
-        truth["loao"] = documents["loao"].truth
-        auto["loao"] = np.concatenate(loao_auto)
-        vocab["loao"] = tuple(dict.fromkeys(lab for m in models.values() for lab in m.labels))
+        if mirrored:
+            documents["loao_mirrored"] = DocumentSet.concat(mirror_docs)
     if real_documents:
-        t0 = time.perf_counter()
-        everything = {c: [(n, w) for n, _, w in cl] for c, cl in clip_words.items()}
-        full = train_model(everything, name="all", labels=labels, delta=delta, tau=tau)
-        if keyframes is not None:
-            full = keyframes(full, everything)
-        models["all"] = full
-        timings["train"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         documents["cmu86_09"] = cmu86_documents(data_dir)
         documents["mocap6"] = mocap6_documents(data_dir)
         timings["read"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
+        full = make(data.clips(cut_params=cut_params), "all")
+        models["all"] = full
+        trained_on = set(data.cmu_rows["document"].tolist()) if cmu_training else set()
         for s in ("cmu86_09", "mocap6"):
-            truth[s] = documents[s].truth
-            auto[s] = _annotate_rows(documents[s], full, tau,
-                                     _preselect(preselection, full, documents[s]))
-            vocab[s] = full.labels
-        timings["annotate"] += time.perf_counter() - t0
+            ds = documents[s]
+            off = np.concatenate(([0], np.cumsum(ds.doc_lengths)))
+            for k, name in enumerate(ds.names):
+                one = _subset(ds, k, off)
+                model = full
+                if name in trained_on:
+                    model = make(data.clips(without_document=name, cut_params=cut_params), f"without_{name}")
+                    models[model.name] = model
+                add(s, one, model)
         documents["cmu"] = DocumentSet.concat([documents["cmu86_09"], documents["mocap6"]])
-        truth["cmu"] = documents["cmu"].truth
-        auto["cmu"] = np.concatenate([auto["cmu86_09"], auto["mocap6"]])
-        vocab["cmu"] = full.labels
         if progress is not None:
-            progress(n_steps, n_steps, "all actors: CMU documents")
-    parts = [s for s in ("loao", "cmu") if s in truth]
-    if parts:
-        truth["all"] = np.concatenate([truth[s] for s in parts])
-        auto["all"] = np.concatenate([auto[s] for s in parts])
-        vocab["all"] = tuple(dict.fromkeys(lab for s in parts for lab in vocab[s]))
-    scores = {s: evaluate_annotation(truth[s], auto[s], labels=vocab[s])
-              for s in SETTINGS if s in truth}
+            progress(n_steps, n_steps, "CMU documents")
+    results = {}
+    for m in modes:
+        results[m] = _scores(parts[m], vocabulary, models, documents, timings, sweep_parts if m == next(iter(modes))
+                             else [], sweep_taus)
+    timings["total"] = time.perf_counter() - t_start
+    log.info("development evaluation: %s", {m: {s: round(v.f1, 3) for s, v in r.scores.items()}
+                                            for m, r in results.items()})
+    return results[""] if single else results
+
+
+def _subset(ds, k, off):
+    """Document k of a DocumentSet as a DocumentSet of its own."""
+    name = ds.names[k]
+    return DocumentSet((name,), ds.words[off[k]:off[k + 1]], ds.doc_lengths[k:k + 1], ds.native_lengths[k:k + 1],
+                       ds.truth_native[ds.truth_native["document"] == name], ds.truth[ds.truth["document"] == name])
+
+
+def _scores(parts, vocabulary, models, documents, timings, sweep_parts, sweep_taus):
+    """Concatenate the folds of each setting, build cmu and all, score."""
+    truth, auto, pre, vocab = {}, {}, {}, {}
+    for s, items in parts.items():
+        truth[s] = np.concatenate([t for t, _, _, _ in items])
+        auto[s] = np.concatenate([a for _, a, _, _ in items])
+        pre[s] = np.concatenate([p for _, _, p, _ in items])
+        vocab[s] = tuple(dict.fromkeys(lab for _, _, _, labs in items for lab in labs))
+    for s, members in (("cmu", ("cmu86_09", "mocap6")), ("all", ("loao", "cmu86_09", "mocap6"))):
+        have = [x for x in members if x in truth]
+        if have and (s != "cmu" or len(have) == 2):
+            truth[s] = np.concatenate([truth[x] for x in have])
+            auto[s] = np.concatenate([auto[x] for x in have])
+            pre[s] = np.concatenate([pre[x] for x in have])
+            vocab[s] = tuple(dict.fromkeys(lab for x in have for lab in vocab[x]))
+    if vocabulary is not None:
+        vocab = {s: tuple(vocabulary) for s in vocab}
+    scores = {s: evaluate_annotation(truth[s], auto[s], labels=vocab[s]) for s in SETTINGS if s in truth}
     sweep = None
     if sweep_taus is not None and sweep_parts:
         t0 = time.perf_counter()
-        sweep = [(float(t), evaluate_annotation(truth["loao"],
-                                                np.concatenate([p[i] for p in sweep_parts]),
-                                                labels=vocab["loao"]))
+        lv = tuple(vocabulary) if vocabulary is not None else tuple(
+            dict.fromkeys(lab for _, _, labs in sweep_parts for lab in labs))
+        tr = np.concatenate([t for t, _, _ in sweep_parts])
+        sweep = [(float(t), evaluate_annotation(tr, np.concatenate([p[i] for _, p, _ in sweep_parts]), labels=lv))
                  for i, t in enumerate(np.atleast_1d(sweep_taus))]
         timings["sweep"] += time.perf_counter() - t0
-    timings["total"] = time.perf_counter() - t_start
-    log.info("development evaluation: %s", {s: round(v.f1, 3) for s, v in scores.items()})
-    return DevelopmentEvaluation(scores, truth, auto, models, documents, sweep, timings)
+    return DevelopmentEvaluation(scores, truth, auto, models, documents, sweep, timings, pre, vocab)

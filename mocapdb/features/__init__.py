@@ -3,7 +3,7 @@
 :mod:`~mocapdb.features.relational` computes the features at the native rate
 (body units, smoothed velocities, lenient/strict tests, hysteresis);
 :mod:`~mocapdb.features.words` holds everything on packed words (downsampling,
-packing, runs, mirroring).
+packing, runs, mirroring, time reversal).
 """
 from mocapdb.features.relational import (FEATURE_THRESHOLDS, ROOT_ANG_VEL_THRESHOLDS_ALT, SMOOTHING_MS,
                                          hysteresis, motion_features, relational_features, smoothing_window)
@@ -11,7 +11,8 @@ from mocapdb.features.rates import (FEATURE_RATE, RATE_METHODS, TOOLBOX_RATE, fe
                                     grid_source_frames, resample_joints)
 from mocapdb.features.words import (DOWNSAMPLING_FACTOR, FEATURE_NAMES, FEATURE_SETS, MIRROR_FEATURES, N_FEATURES,
                                     SET_BITS, as_doc_lengths, as_words, downsample, feature_runs, mirror_words,
-                                    pack_words, segment_runs, unpack_words)
+                                    pack_words, segment_runs, unpack_words, reverse_fuzzy_words, DIRECTION_FEATURES,
+                                    REVERSE_SWAP)
 
 __all__ = [
     "FEATURE_NAMES", "N_FEATURES", "FEATURE_SETS", "SET_BITS", "MIRROR_FEATURES", "DOWNSAMPLING_FACTOR",
@@ -19,5 +20,6 @@ __all__ = [
     "relational_features", "hysteresis", "smoothing_window", "motion_features",
     "downsample", "pack_words", "unpack_words", "feature_runs", "segment_runs", "mirror_words",
     "as_words", "as_doc_lengths", "FEATURE_RATE", "TOOLBOX_RATE", "RATE_METHODS", "feature_frame_count",
-    "feature_grid", "grid_source_frames", "resample_joints",
+    "feature_grid", "grid_source_frames", "resample_joints", "reverse_fuzzy_words", "DIRECTION_FEATURES",
+    "REVERSE_SWAP",
 ]

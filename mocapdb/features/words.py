@@ -7,6 +7,7 @@ Bit k−1 of a word is feature k (matrix order, :data:`FEATURE_NAMES`).
 * :func:`feature_runs` / :func:`segment_runs` — maximal runs of constant word
   (the run-length encoding the inverted index is built from);
 * :func:`mirror_words` — left/right swap (§7);
+* :func:`reverse_fuzzy_words` — a fuzzy word (mask, value) of the time-reversed motion;
 * :func:`as_words` — validate an array of packed words.
 """
 import numpy as np
@@ -45,6 +46,13 @@ FEATURE_SETS = {"upper": (0, 14), "lower": (14, 12), "mix": (26, 14)}
 MIRROR_FEATURES = tuple(i - 1 for i in (
     2, 1, 4, 3, 6, 5, 8, 7, 9, 10, 12, 11, 14, 13, 16, 15, 18, 17, 19, 21, 20,
     22, 23, 24, 26, 25, 28, 27, 30, 29, 31, 32, 34, 33, 36, 35, 37, 38, 39, 40))
+
+#: time reversal (:func:`reverse_fuzzy_words`): features that say a body part moves in a
+#: direction (forward, upward, together, away from the root); played backwards it moves
+#: the opposite way, which no feature says -- except feet moving together <-> apart
+DIRECTION_FEATURES = tuple(i - 1 for i in (1, 2, 5, 6, 10, 11, 12))
+#: pairs of features that swap under time reversal (feet move together / apart)
+REVERSE_SWAP = ((22, 23),)
 
 #: the toolbox keeps every 4th native frame (120 Hz -> 30 Hz), whatever the rate
 DOWNSAMPLING_FACTOR = 4
@@ -312,8 +320,45 @@ def mirror_words(words):
 
 
 
+def reverse_fuzzy_words(mask, value):
+    """Fuzzy words ``(mask, value)`` (bit set in mask = feature fixed) of the motion played backwards.
+
+    Poses and speeds read the same backwards; a motion in a direction becomes
+    the opposite motion. For the direction features
+    (:data:`DIRECTION_FEATURES`: hand to the front / to the top, hands move
+    together, hand moves away from the root) "on" becomes "off" (moving the
+    other way is not moving this way) and "off" becomes a wildcard (the
+    other way is unknown); feet moving together and apart swap
+    (:data:`REVERSE_SWAP`). Word order is not touched: reverse the sequence
+    yourself.
+
+    Parameters
+    ----------
+    mask, value : array_like, shape (n,), uint64
+
+    Returns
+    -------
+    mask, value : ndarray, shape (n,), uint64
+    """
+    m = np.array(mask, dtype=np.uint64, copy=True)
+    v = np.array(value, dtype=np.uint64, copy=True)
+    for f in DIRECTION_FEATURES:
+        b = np.uint64(1 << f)
+        was_on = (m & b).astype(bool) & (v & b).astype(bool)
+        m = np.where(was_on, m, m & ~b)      # fixed 0 -> wildcard; fixed 1 stays fixed ...
+        v = v & ~b                           # ... and becomes 0
+    for a, c in REVERSE_SWAP:
+        ba, bc = np.uint64(1 << a), np.uint64(1 << c)
+        for x in (m, v):
+            on_a, on_c = (x & ba) != 0, (x & bc) != 0
+            x &= ~(ba | bc)
+            x |= np.where(on_a, bc, np.uint64(0)) | np.where(on_c, ba, np.uint64(0))
+    return m, v
+
+
 __all__ = [
     "FEATURE_NAMES", "N_FEATURES", "FEATURE_SETS", "SET_BITS", "MIRROR_FEATURES", "DOWNSAMPLING_FACTOR",
     "downsample", "pack_words", "unpack_words", "feature_runs", "segment_runs", "mirror_words", "as_words",
+    "reverse_fuzzy_words", "DIRECTION_FEATURES", "REVERSE_SWAP",
     "as_doc_lengths",
 ]

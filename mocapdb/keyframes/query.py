@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.features import FEATURE_SETS, N_FEATURES
+from mocapdb.features import FEATURE_SETS, N_FEATURES, mirror_words, reverse_fuzzy_words
 
 #: d_max value meaning "+inf" (large enough never to bind, small enough that
 #: frame + UNBOUNDED and frame - UNBOUNDED cannot overflow int64)
@@ -195,6 +195,18 @@ class KeyframeQuery:
     @property
     def n_keyframes(self) -> int:
         return len(self.mask)
+
+    def mirrored(self) -> "KeyframeQuery":
+        """The query of the left/right mirrored motion (FEATURES.md §7; 40-bit keyframes)."""
+        return KeyframeQuery(mirror_words(self.mask), mirror_words(self.value), self.positions, self.d_min,
+                             self.d_max, self.template_length, self.feature_sets)
+
+    def reversed(self) -> "KeyframeQuery":
+        """The query of the motion played backwards: keyframes and gaps in reverse order,
+        positions ``L - 1 - p``, features by :func:`mocapdb.features.reverse_fuzzy_words`."""
+        m, v = reverse_fuzzy_words(self.mask[::-1], self.value[::-1])
+        return KeyframeQuery(m, v, self.template_length - 1 - self.positions[::-1], self.d_min[::-1],
+                             self.d_max[::-1], self.template_length, self.feature_sets[::-1])
 
     def to_vectors(self) -> np.ndarray:
         """``(K, 40) float64`` keyframe vectors with 0, 1 and 0.5 (wildcard)."""

@@ -157,16 +157,22 @@ def _worker_init(index, documents, setups, params):
     _WORKER.update(index=index, documents=documents, setups=setups, params=params)
 
 
+def _setup(setups, key, documents):
+    """(relevant, documents, strict, loose) of a task: a setup may carry its own documents."""
+    relevant, strict, loose, *own = setups[key]
+    return relevant, (own[0] if own else documents), strict, loose
+
+
 def _worker_run(key, rng):
     w = _WORKER
-    relevant, strict, loose = w["setups"][key]
-    return _evolve(w["index"], relevant, w["documents"], strict, loose, rng, {}, **w["params"])
+    relevant, documents, strict, loose = _setup(w["setups"], key, w["documents"])
+    return _evolve(w["index"], relevant, documents, strict, loose, rng, {}, **w["params"])
 
 
 def _run_all(index, documents, setups, params, tasks, n_jobs, on_done):
     """Run GA tasks ``(key, run, rng)``; ``on_done(key, run, result)`` on this thread.
 
-    ``setups[key] = (relevant, strict, loose)``.  Parallel runs use worker
+    ``setups[key] = (relevant, strict, loose[, documents])``.  Parallel runs use worker
     processes, not threads: most of a run's time is Python (operators,
     query validation, search planning) holding the GIL, so threads do not
     scale (benchmarks/bench_ga.py measures both).  The index and templates go
@@ -176,9 +182,8 @@ def _run_all(index, documents, setups, params, tasks, n_jobs, on_done):
     n = min(_n_jobs(n_jobs), len(tasks))
     if n <= 1:
         for key, i, rng in tasks:
-            relevant, strict, loose = setups[key]
-            on_done(key, i, _evolve(index, relevant, documents, strict, loose, rng, {},
-                                    **params))
+            relevant, docs, strict, loose = _setup(setups, key, documents)
+            on_done(key, i, _evolve(index, relevant, docs, strict, loose, rng, {}, **params))
         return
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_worker_init,
@@ -253,7 +258,7 @@ def _class_seed(random_state, name):
 
 
 def learn_keyframe_queries(clips_by_class, *, classes=None, runs=20, templates=None,
-                           random_state=0, n_jobs=None, progress=None,
+                           random_state=0, n_jobs=None, progress=None, labels=None,
                            **ga_params) -> dict:
     """Learn the keyframe queries of several classes of one training set.
 
@@ -278,6 +283,11 @@ def learn_keyframe_queries(clips_by_class, *, classes=None, runs=20, templates=N
         Worker processes, see :func:`learn_keyframe_query`.
     progress : callable, optional
         ``progress(class_name, runs_done, runs)`` after each finished run.
+    labels : mapping str -> str, optional
+        Class → coarse label. Then T− of class C leaves out the clips of the
+        other classes of C's label (paper Sect. 7: T− is the clips of the
+        other classes Table 1 annotates; a hit on a sibling subclass is no
+        error of the label). Default: every other class is T−.
     **ga_params
         GA parameters, see :func:`learn_keyframe_query`.
 
@@ -299,15 +309,16 @@ def learn_keyframe_queries(clips_by_class, *, classes=None, runs=20, templates=N
     if missing:
         raise ParameterError(f"classes {missing} are not in clips_by_class "
                              f"(has {', '.join(names)})")
-    words, labels = [], []
+    label_of = None if labels is None else dict(labels)
+    words, class_ids = [], []
     for ci, name in enumerate(names):
         cl = [_clip_words(c, f"clips_by_class[{name!r}][{k}]")
               for k, c in enumerate(clips_by_class[name])]
         if not cl and name in classes:
             raise ParameterError(f"class {name!r} has no clips")
         words += cl
-        labels += [ci] * len(cl)
-    labels = np.array(labels, np.int64)
+        class_ids += [ci] * len(cl)
+    class_ids = np.array(class_ids, np.int64)
     index = training_index(words)
     everything = np.ones(index.n_docs, bool)
     setup = {}
@@ -315,8 +326,12 @@ def learn_keyframe_queries(clips_by_class, *, classes=None, runs=20, templates=N
         ci = names.index(name)
         tmpl = templates.get(name) if templates is not None else None
         if tmpl is None:
-            tmpl = learn_template([w for w, lab in zip(words, labels) if lab == ci])
-        setup[name] = (labels == ci, *_templates(tmpl))
+            tmpl = learn_template([w for w, k in zip(words, class_ids) if k == ci])
+        docs = everything
+        if label_of is not None:
+            sibling = np.array([label_of.get(n, n) == label_of.get(name, name) for n in names])[class_ids]
+            docs = ~sibling | (class_ids == ci)
+        setup[name] = (class_ids == ci, *_templates(tmpl), docs)
     results = {name: [None] * runs for name in classes}
     done = {name: 0 for name in classes}
     tasks = [(name, i, np.random.default_rng(s)) for name in classes

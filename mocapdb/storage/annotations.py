@@ -23,7 +23,7 @@ def stored_preselection(cache, key, model, motion_ids, lengths, *, keyframes=Non
 
 
 def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=None, keyframes=None,
-                       index_version=UNKNOWN, taus=None):
+                       index_version=UNKNOWN, taus=None, min_length=None, margin=None):
     """Segments of stored motions (0-based inclusive, ``doc`` indexing ``motion_ids``).
 
     Parameters
@@ -41,6 +41,8 @@ def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=Non
         Keyframe preselection (default: when the model has keyframe queries).
     taus : sequence of float, optional
         Annotate once per τ instead (paper Fig. 8): returns a list.
+    min_length, margin : optional
+        The segment filters (:func:`mocapdb.annotation.annotate`; default the model's).
 
     Returns
     -------
@@ -50,8 +52,10 @@ def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=Non
     pre = stored_preselection(cache, key, model, motion_ids, lengths, keyframes=keyframes,
                               index_version=index_version)
     if taus is not None:
-        return annotate_sweep(words, model, taus, doc_lengths=lengths, preselection=pre)
-    return annotate(words, model, doc_lengths=lengths, preselection=pre, tau=tau, keep_hits=False).segments
+        return annotate_sweep(words, model, taus, doc_lengths=lengths, preselection=pre, min_length=min_length,
+                              margin=margin)
+    return annotate(words, model, doc_lengths=lengths, preselection=pre, tau=tau, keep_hits=False,
+                    min_length=min_length, margin=margin).segments
 
 
 def store_annotations(con, table, motion_ids, *, model, tau, keyframes) -> None:

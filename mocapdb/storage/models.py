@@ -48,9 +48,13 @@ def fingerprint(model: Model) -> str:
     """A digest of everything annotation reads from a model (changes when it changes)."""
     h = hashlib.sha256()
     h.update(repr(model.labels).encode())
+    if model.margin:  # models without the segment filters keep their fingerprints
+        h.update(f"margin={model.margin!r}".encode())
     for c in model.classes:
         q = c.quantized
         h.update(f"{c.name}|{c.label}|{c.delta!r}|{c.tau!r}".encode())
+        if c.min_frames:
+            h.update(f"min_frames={c.min_frames}".encode())
         for a in (q.mask, q.value, q.weights):
             h.update(np.ascontiguousarray(a).tobytes())
         kq = c.keyframe_query
@@ -90,7 +94,8 @@ def model_tables(model: Model, *, description=None, source=None, keyframe_stats=
     for cid, c in enumerate(model.classes, start=1):
         q = c.quantized
         n_clips = getattr(c.template, "n_clips", None) if c.template is not None else None
-        classes.append((name, c.name, cid, c.label, label_id[c.label], float(c.delta), float(c.tau), n_clips))
+        classes.append((name, c.name, cid, c.label, label_id[c.label], float(c.delta), float(c.tau), n_clips,
+                        int(c.min_frames)))
         real = c.template.real if c.template is not None and len(c.template) == len(q) else None
         for col in range(len(q)):
             templates.append((name, c.name, col + 1, int(q.mask[col]), int(q.value[col]), float(q.weights[col]),
@@ -112,7 +117,8 @@ def model_tables(model: Model, *, description=None, source=None, keyframe_stats=
         return pa.Table.from_pylist([dict(zip(schema.names, r)) for r in rows], schema=schema)
 
     return {
-        "models": table([(name, description, source, fingerprint(model), shipped)], _SCHEMAS["models"]),
+        "models": table([(name, description, source, fingerprint(model), shipped, float(model.margin))],
+                        _SCHEMAS["models"]),
         "classes": table(classes, _SCHEMAS["classes"]),
         "templates": table(templates, _SCHEMAS["templates"]),
         "keyframe_queries": table(queries, _SCHEMAS["keyframe_queries"]),
@@ -125,9 +131,10 @@ _U64, _I32, _F64, _STR = pa.uint64(), pa.int32(), pa.float64(), pa.string()
 #: Arrow types of the rows the codec writes (names as in sql/schema.sql)
 _SCHEMAS = {
     "models": pa.schema([("model", _STR), ("description", _STR), ("source", _STR), ("fingerprint", _STR),
-                         ("shipped", pa.bool_())]),
+                         ("shipped", pa.bool_()), ("margin", _F64)]),
     "classes": pa.schema([("model", _STR), ("class", _STR), ("class_id", _I32), ("label", _STR),
-                          ("label_id", _I32), ("delta", _F64), ("tau", _F64), ("n_clips", _I32)]),
+                          ("label_id", _I32), ("delta", _F64), ("tau", _F64), ("n_clips", _I32),
+                          ("min_frames", _I32)]),
     "templates": pa.schema([("model", _STR), ("class", _STR), ("col", _I32), ("mask", _U64), ("value", _U64),
                             ("weight", _F64), ("real", pa.list_(_F64)), ("real_weight", _F64)]),
     "keyframe_queries": pa.schema([("model", _STR), ("class", _STR), ("n_keyframes", _I32),
@@ -196,8 +203,10 @@ def model_from_tables(tables: dict) -> Model:
                 np.array([UNBOUNDED if x is None else x for x in d_max], np.float64),
                 int(queries[r["class"]]["template_length"]), tuple(k["feature_set"].to_pylist()))
         out.append(ClassModel(r["class"], r["label"], template=template, quantized=quantized, delta=r["delta"],
-                              tau=r["tau"], keyframe_query=query))
-    return Model(name, tuple(out), labels=tuple(labels))
+                              tau=r["tau"], keyframe_query=query, min_frames=int(r.get("min_frames") or 0)))
+    models = tables["models"]
+    margin = models.column("margin")[0].as_py() if "margin" in models.column_names else None
+    return Model(name, tuple(out), labels=tuple(labels), margin=float(margin or 0.0))
 
 
 # -- the database ---------------------------------------------------------------

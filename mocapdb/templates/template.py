@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.features import N_FEATURES, pack_words, unpack_words
+from mocapdb.features import MIRROR_FEATURES, N_FEATURES, mirror_words, pack_words, reverse_fuzzy_words, unpack_words
 
 # ---------------------------------------------------------------------------
 # helpers
@@ -133,6 +133,16 @@ class QuantizedTemplate:
         return QuantizedTemplate(np.repeat(self.mask, reps), np.repeat(self.value, reps),
                                  np.repeat(w, reps))
 
+    def mirrored(self):
+        """The template of the left/right mirrored motion (FEATURES.md §7)."""
+        return QuantizedTemplate(mirror_words(self.mask), mirror_words(self.value), self.weights)
+
+    def reversed(self):
+        """The template of the motion played backwards: columns in reverse order,
+        features by :func:`mocapdb.features.reverse_fuzzy_words`."""
+        m, v = reverse_fuzzy_words(self.mask[::-1], self.value[::-1])
+        return QuantizedTemplate(m, v, self.weights[::-1].copy())
+
     @property
     def wildcard_fraction(self):
         """Fraction of wildcard entries (of K × 40)."""
@@ -175,6 +185,16 @@ class MotionTemplate:
 
     def __len__(self):
         return self.real.shape[0]
+
+    def mirrored(self):
+        """The template of the left/right mirrored clips (FEATURES.md §7): rows permuted.
+
+        Equal to :func:`~mocapdb.templates.learn_template` of the mirrored
+        clips up to the order of floating-point sums (equal bit for bit on 10
+        of the 11 HDM05 classes; the quantized templates agree on all).
+        """
+        return MotionTemplate(self.real[:, list(MIRROR_FEATURES)], self.weights, self.iterations, self.error_max,
+                              self.error_mean, self.error_std, self.n_clips)
 
     def quantize(self, delta=0.05):
         """Quantize to a wildcard template (§8, ``motionTemplateBool.m``).

@@ -1,0 +1,155 @@
+"""A hit threshold τ per class, learned on the training clips by leave-one-group-out.
+
+The toolbox uses τ = 0.13 for every class (0.06 for standing and T-pose,
+TEMPLATES.md §9.1). How well a template matches a new actor's motion, and how
+readily it matches other motions, differs from class to class; a τ per class
+can follow it. :func:`learn_taus` measures both the way annotation meets
+them — on actors the templates did not see:
+
+1. For every group g of the training clips (HDM05 actor, CMU subject) the
+   model is built without g's clips (:func:`mocapdb.learning.recipe.build_model`,
+   templates only) and every class's Δ is computed on each of g's clips (a
+   document each; mirror images for mirrored classes): the clip's cost
+   ``m[c, d]`` = min Δ_c over the clip.
+2. Clip d of class e *counts for* class c at threshold τ if ``m[c, d] ≤ τ``
+   and no class of d's own label matches d better — the frames would carry
+   c's label in the annotation. For c's own clips that is a true positive,
+   for clips of other labels a false positive.
+3. τ_c maximises F1 of those counts over a grid; a designed class (no clips
+   of its own) takes the largest τ up to its definition's whose false
+   positives stay at most ``max_false_rate`` of the other clips (so does a
+   reversed class).
+
+Designed classes therefore never take more than their author gave them, and
+learned ones get the τ at which unseen actors' clips are told apart best.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from mocapdb.annotation.model import Model
+from mocapdb.errors import ParameterError
+from mocapdb.learning.recipe import build_model, recipe_clips
+from mocapdb.templates import ANNOTATION_STEPS, mt_distance_slices
+
+__all__ = ["TAU_GRID", "clip_costs", "learn_taus", "with_taus"]
+
+#: the τ values tried (the paper's Fig. 8 sweep: 0.05 … 0.25)
+TAU_GRID = tuple(np.round(np.arange(0.04, 0.2501, 0.01), 2).tolist())
+
+
+def clip_costs(model: Model, clips) -> np.ndarray:
+    """``m[c, d]``: the smallest Δ of class c's template on clip d (+inf if none ends).
+
+    Parameters
+    ----------
+    model : Model
+    clips : sequence of (n_d,) uint64
+
+    Returns
+    -------
+    (n_classes, n_clips) float64
+    """
+    words = [np.asarray(w, dtype=np.uint64) for w in clips]
+    if not words:
+        return np.zeros((len(model.classes), 0))
+    flat = np.concatenate(words)
+    bounds = np.concatenate(([0], np.cumsum([w.size for w in words]))).astype(np.int64)
+    n_cls, n_doc = len(model.classes), len(words)
+    tc = np.repeat(np.arange(n_cls, dtype=np.int64), n_doc)
+    ta = np.tile(bounds[:-1], n_cls)
+    tb = np.tile(bounds[1:], n_cls)
+    delta, offsets, _ = mt_distance_slices(flat, [c.quantized for c in model.classes], tc, ta, tb,
+                                           steps=ANNOTATION_STEPS, rule="toolbox", return_starts=True)
+    out = np.empty(n_cls * n_doc)
+    for q in range(n_cls * n_doc):
+        seg = delta[offsets[q]:offsets[q + 1]]
+        out[q] = seg.min() if seg.size else np.inf
+    return out.reshape(n_cls, n_doc)
+
+
+def _f_beta(tp, fn, fp, beta):
+    b2 = beta * beta
+    den = (1 + b2) * tp + b2 * fn + fp
+    return np.where(den > 0, (1 + b2) * tp / np.maximum(den, 1e-300), 0.0)
+
+
+def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, cache=None):
+    """τ per class of the model a recipe builds from ``clips`` (module docstring).
+
+    Parameters
+    ----------
+    clips : mapping of str to sequence of Clip
+        The training clips (with groups), as for :func:`build_model`.
+    recipe : Recipe
+    grid : sequence of float
+        Candidate τ values.
+    max_false_rate : float, default 0.02
+        Designed classes: the largest share of other clips they may claim.
+    beta : float, default 1.0
+        Learned classes maximise F_β of the clip counts (β < 1 weighs
+        precision more).
+    cache : dict, optional
+        Templates kept across builds (:func:`build_model`).
+
+    Returns
+    -------
+    dict of str to float
+        Class → τ for every class of the model (learned, mirrored, reversed,
+        designed).
+    """
+    grid = np.asarray(sorted(float(t) for t in grid))
+    if grid.size == 0 or (grid < 0).any():
+        raise ParameterError("grid must hold non-negative τ values")
+    every = recipe_clips(clips, recipe)
+    groups = sorted({x.group for v in every.values() for x in v})
+    if len(groups) < 2:
+        raise ParameterError(f"learning τ needs clips of at least two groups (actors), got {groups}")
+    full = build_model(clips, recipe, name="taus", cache=cache)
+    names = full.class_names
+    label_of = {c.name: c.label for c in full.classes}
+    costs, owner = [], []
+    for g in groups:
+        rest = {c: [x for x in v if x.group != g] for c, v in clips.items()}
+        model = build_model(rest, recipe, name=f"without_{g}", cache=cache)
+        held = [(c, x) for c, v in every.items() for x in v if x.group == g]
+        if not held:
+            continue
+        m = clip_costs(model, [x.words for _, x in held])
+        row = {c: k for k, c in enumerate(model.class_names)}
+        full_m = np.full((len(names), len(held)), np.inf)
+        for k, c in enumerate(names):
+            if c in row:
+                full_m[k] = m[row[c]]
+        costs.append(full_m)
+        owner += [c for c, _ in held]
+    m = np.concatenate(costs, axis=1)
+    owner = np.array(owner, dtype=object)
+    own_label = np.array([label_of.get(c, c) for c in owner], dtype=object)
+    # the best cost of each clip among the classes of its own label
+    own_best = np.full(m.shape[1], np.inf)
+    for k, c in enumerate(names):
+        mine = own_label == label_of[c]
+        own_best[mine] = np.minimum(own_best[mine], m[k, mine])
+    out = {}
+    for k, c in enumerate(full.classes):
+        pos = owner == c.name
+        neg = own_label != c.label
+        claims = m[k][:, None] <= grid[None, :]                     # (n_clips, n_grid)
+        fp = (claims[neg] & (m[k, neg] < own_best[neg])[:, None]).sum(axis=0)
+        if pos.any():
+            tp = claims[pos].sum(axis=0)
+            f = _f_beta(tp, pos.sum() - tp, fp, beta)
+            out[c.name] = float(grid[int(np.flatnonzero(f == f.max())[-1])])  # ties: the larger τ
+        else:  # no clips of its own (designed, reversed): its own τ at most, few false claims
+            allowed = grid[(fp <= max_false_rate * max(1, neg.sum())) & (grid <= c.tau + 1e-12)]
+            out[c.name] = float(allowed.max()) if allowed.size else float(grid.min())
+    return out
+
+
+def with_taus(model: Model, taus) -> Model:
+    """A copy of ``model`` whose classes take τ from ``taus`` (class → τ; others keep theirs)."""
+    return dataclasses.replace(model, classes=tuple(
+        dataclasses.replace(c, tau=float(taus[c.name])) if c.name in taus else c for c in model.classes))
