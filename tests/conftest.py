@@ -3,6 +3,7 @@
 The data is never copied into the repository; it is read from ``../shared``
 beside the checkout (override with ``MOCAPDB_SHARED``).
 """
+import csv
 import os
 import re
 from pathlib import Path
@@ -37,3 +38,18 @@ def amc_frame_count(path):
     """Frames of an AMC counted independently of the reader: lines that are a bare integer."""
     with open(path, "rb") as f:
         return sum(1 for line in f if re.fullmatch(rb"\s*\d+\s*", line))
+
+
+def truth_86_09_rows():
+    """The 86_09 ground truth (labels/cmu86_segmentation) as dicts with trial, label, start_frame, end_frame."""
+    return list(csv.DictReader((DATA / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv").open()))
+
+
+def write_truth_86_09(path):
+    """The 86_09 ground truth as a label CSV (document,label,start_frame,end_frame; native frames)."""
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["document", "label", "start_frame", "end_frame"])
+        for r in truth_86_09_rows():
+            w.writerow([r["trial"], r["label"], r["start_frame"], r["end_frame"]])
+    return path
