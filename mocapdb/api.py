@@ -33,6 +33,7 @@ import numpy as np
 from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_labels, read_segments,
                                 read_truth, segment_table, segments_to_rows, to_feature_grid)
 from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.evaluation import evaluate_annotation, parse_tau_grid
 from mocapdb.extension import register
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
@@ -113,6 +114,16 @@ def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=No
     IngestReport
     """
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress)
+
+
+def joint_map_template(path) -> str:
+    """A ready-to-edit TOML joint map for a BVH file (``ingest(joint_map=…)``, ``--joint-map``).
+
+    The canonical joints the automatic mapping places are filled in; the
+    others are left as comments to fill, and the file's joints are listed.
+    See :func:`mocapdb.readers.joint_map_template`.
+    """
+    return readers_joint_map_template(path)
 
 
 def delete(con, motions) -> int:
