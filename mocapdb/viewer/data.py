@@ -19,7 +19,7 @@ import numpy as np
 
 from mocapdb.annotation import annotate, read_truth
 from mocapdb.errors import SchemaError
-from mocapdb.features import downsample
+from mocapdb.features import grid_source_frames
 from mocapdb.storage.annotations import motion_sources, stored_preselection
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.motions import motion_documents, motion_ids, source_motion
@@ -147,7 +147,9 @@ def motion_poses(con, motion_id, n_frames=None):
     Returns
     -------
     (n_frames, 24, 3) float64
-        Native frames 0, 4, 8, … (the frames the features were computed on).
+        The source frame nearest to each 30 Hz grid time
+        (:func:`mocapdb.features.grid_source_frames`): native frames 0, 4, 8, …
+        of a 120 Hz recording, the frames the features were computed on.
 
     Raises
     ------
@@ -156,7 +158,8 @@ def motion_poses(con, motion_id, n_frames=None):
     ParseError, FileNotFoundError
         The source file moved or cannot be read.
     """
-    joints = downsample(source_motion(con, motion_id).joints)
+    motion = source_motion(con, motion_id)
+    joints = motion.joints[grid_source_frames(motion.n_frames, motion.fps)]
     if n_frames is not None and joints.shape[0] != int(n_frames):
         raise SchemaError(f"motion {motion_id}: its source file now gives {joints.shape[0]} frames at the feature "
                           f"rate, the database holds {int(n_frames)}; the file changed since ingest (re-ingest it)")
