@@ -53,3 +53,18 @@ def write_truth_86_09(path):
         for r in truth_86_09_rows():
             w.writerow([r["trial"], r["label"], r["start_frame"], r["end_frame"]])
     return path
+
+
+def write_truth_86_09_eaf(path, fps=120.0):
+    """The 86_09 ground truth as an ELAN file written with pympi by hand: one tier, times in ms,
+    the recording as linked media (native frames s..e, 1-based, span [(s-1)/fps, e/fps))."""
+    import pympi
+
+    eaf = pympi.Elan.Eaf()
+    eaf.add_linked_file((DATA / "cmu" / "86" / "86_09.amc").resolve().as_uri(), mimetype="unknown")
+    eaf.add_tier("actions")
+    for r in truth_86_09_rows():
+        eaf.add_annotation("actions", round((int(r["start_frame"]) - 1) * 1000 / fps),
+                           round(int(r["end_frame"]) * 1000 / fps), r["label"])
+    pympi.Elan.to_eaf(str(path), eaf)
+    return path

@@ -8,7 +8,7 @@ from click.testing import CliRunner
 import mocapdb
 from mocapdb.cli import main
 
-from conftest import DATA, write_truth_86_09
+from conftest import DATA, write_truth_86_09, write_truth_86_09_eaf
 
 CMU86_MAP = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
 
@@ -77,6 +77,8 @@ def test_tau_sweep(db, tmp_path):
 @pytest.mark.parametrize("figure", ["timeline", "annotation"])
 def test_timeline_with_truth(db, tmp_path, figure):
     path, truth = db
+    if figure == "timeline":  # the ground truth as an ELAN file
+        truth = write_truth_86_09_eaf(tmp_path / "truth.eaf")
     out = tmp_path / f"{figure}.png"
     r = report(path, "--figure", figure, "--motion", "86_09", "--truth", truth, "--map", CMU86_MAP, "--out", out)
     assert r.exit_code == 0, r.output

@@ -12,28 +12,13 @@ from click.testing import CliRunner
 import mocapdb
 from mocapdb.annotation import read_truth
 from mocapdb.cli import main
-from mocapdb.viewer import encode_delta, encode_poses, motion_poses
+from mocapdb.viewer import encode_delta, encode_poses, motion_poses, motion_view
 
 from browser import Elements, console_errors, dump_dom, screenshot
-from conftest import DATA, REPO, truth_86_09_rows
+from conftest import DATA, REPO, write_truth_86_09_eaf
 
 CMU86_MAP = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:2]
-
-
-def truth_eaf(path, fps=120.0):
-    """The 86_09 ground truth as an ELAN file written by pympi by hand: one tier, times in ms."""
-    import pympi
-
-    rows = truth_86_09_rows()
-    eaf = pympi.Elan.Eaf()
-    eaf.add_linked_file((DATA / "cmu" / "86" / "86_09.amc").resolve().as_uri(), mimetype="unknown")
-    eaf.add_tier("actions")
-    for r in rows:  # native frames s..e (1-based) span [(s-1)/fps, e/fps)
-        eaf.add_annotation("actions", round((int(r["start_frame"]) - 1) * 1000 / fps),
-                           round(int(r["end_frame"]) * 1000 / fps), r["label"])
-    pympi.Elan.to_eaf(str(path), eaf)
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +28,7 @@ def db(tmp_path_factory):
     con = mocapdb.connect(path)
     mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc", *HOPS])
     con.close()
-    return path, truth_eaf(root / "86_09_truth.eaf")
+    return path, write_truth_86_09_eaf(root / "86_09_truth.eaf")
 
 
 def run(db_path, *args):
@@ -177,6 +162,34 @@ def test_view_needs_a_motion_and_out_or_all(db):
     assert r.exit_code == 1 and r.output.startswith("Error: give a motion and out")
     r = CliRunner().invoke(main, ["--db", str(path), "view", "no_such", "--out", "x.html"])
     assert r.exit_code == 1 and "no motion 'no_such'" in r.output
+
+
+def test_the_distance_functions_are_those_of_sql_mt_distance(db):
+    """Δ̄^τ of the page (reference mode) is made of the SQL function's Δ: every finite value is a
+    value of Δ below τ, and where Δ has its smallest value below τ, Δ̄^τ has it too."""
+    path, _ = db
+    con = mocapdb.connect(path, read_only=True)
+    try:
+        v = motion_view(con, "86_09", keyframes=False)
+        checked = 0
+        for k, (cls, tau) in enumerate(zip(v.class_names, v.taus)):
+            delta = np.array(con.execute("SELECT mt_distance(motion_id, ?) FROM motions WHERE name = '86_09'",
+                                         [cls]).fetchone()[0])
+            bar = v.class_delta[k]
+            assert bar.shape == delta.shape == (v.n_frames,)
+            finite = np.isfinite(bar)
+            assert np.isin(bar[finite], delta[delta <= tau]).all(), cls
+            if delta.min() < tau:
+                best = int(np.argmin(delta))
+                assert bar[best] == delta[best], cls
+                checked += 1
+        label_of = np.array(v.class_labels)
+        for k, lab in enumerate(v.labels):  # per label: the minimum over the label's classes
+            rows = v.class_delta[label_of == lab]
+            np.testing.assert_array_equal(v.label_delta[k], rows.min(axis=0) if len(rows) else np.inf)
+    finally:
+        con.close()
+    assert checked >= 2  # at least move and throwR have hits on 86_09
 
 
 def test_delta_bytes():
