@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_labels, read_segments,
-                                read_truth, segment_table, segments_to_rows, to_feature_grid)
+from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_segments, read_truth,
+                                segment_table, segments_to_rows)
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.evaluation import evaluate_annotation, parse_tau_grid
@@ -218,7 +218,7 @@ def training_clips(con, *, folder=None, labels=None, progress=None):
     if folder is not None:
         return clips_from_folders(folder, progress=progress), f"folder {folder}"
     docs = documents_by_name(con, set(label_documents(labels)))
-    rows = to_feature_grid(read_labels(labels, fps=_native_rates(docs)))
+    rows = read_truth(labels, fps=_native_rates(docs))
     return clips_from_segments({n: docs.words_of(n) for n in docs.names}, rows), f"labels {labels}"
 
 

@@ -163,3 +163,15 @@ def test_an_eaf_of_the_truth_reads_as_the_csv_and_trains_the_same_model(db, tmp_
     by_csv = _scores(run(db, "evaluate", "--truth", truth_csv, "--map", CMU86_MAP).output)
     by_eaf = _scores(run(db, "evaluate", "--truth", truth_eaf, "--map", CMU86_MAP).output)
     assert by_csv == by_eaf and not np.allclose(by_csv, 1.0)
+
+
+@pytest.mark.parametrize("fps", [30.0, 60.0, 100.0, 120.0, 240.0])
+def test_eaf_times_land_on_the_same_30hz_frames_at_any_source_rate(tmp_path, fps):
+    """ELAN gives times: at any native rate the truth lands on the 30 Hz frames of those times."""
+    from mocapdb.annotation import read_truth
+
+    path = _eaf(tmp_path / "take.eaf", {"t": [(0, 1000, "walk"), (2000, 3500, "clap")]}, fps=fps)
+    rows = read_truth(path)
+    assert [(str(r["label"]), int(r["start"]), int(r["end"])) for r in rows] == [("walk", 0, 29), ("clap", 60, 104)]
+    # the database's rate wins over the file's
+    assert read_truth(path, fps={"take": 2 * fps})["end"].tolist() == [29, 104]

@@ -36,7 +36,7 @@ import pympi  # pympi-ling, a runtime dependency (3 ms to import)
 
 from mocapdb.errors import ParameterError, ParseError
 
-__all__ = ["EAF_FPS_PROPERTY", "eaf_document", "read_eaf", "write_eaf", "is_eaf"]
+__all__ = ["EAF_FPS_PROPERTY", "eaf_document", "eaf_source_fps", "read_eaf", "write_eaf", "is_eaf"]
 
 #: header property holding the document's native frame rate (Hz)
 EAF_FPS_PROPERTY = "mocapdb:source_fps"
@@ -78,6 +78,25 @@ def eaf_document(path) -> str:
     return _document(_open(path), path)
 
 
+def _property_rate(eaf, path):
+    prop = dict(eaf.properties).get(EAF_FPS_PROPERTY) if eaf.properties else None
+    try:
+        return float(prop) if prop is not None else None
+    except ValueError:
+        raise ParseError(path, None, f"property {EAF_FPS_PROPERTY} must be a number, got {prop!r}") from None
+
+
+def eaf_source_fps(path):
+    """The native frame rate an ELAN file states (its ``mocapdb:source_fps`` property), or None.
+
+    Raises
+    ------
+    ParseError
+        If the file cannot be read as ELAN or the property is not a number.
+    """
+    return _property_rate(_open(path), path)
+
+
 def read_eaf(path, *, fps=None):
     """The labelled segments of an ELAN file, on the document's native frames.
 
@@ -104,11 +123,7 @@ def read_eaf(path, *, fps=None):
     doc = _document(eaf, path)
     rate = fps.get(doc) if isinstance(fps, dict) else fps
     if rate is None:
-        prop = dict(eaf.properties).get(EAF_FPS_PROPERTY) if eaf.properties else None
-        try:
-            rate = float(prop) if prop is not None else None
-        except ValueError:
-            raise ParseError(path, None, f"property {EAF_FPS_PROPERTY} must be a number, got {prop!r}") from None
+        rate = _property_rate(eaf, path)
     if rate is None:
         raise ParseError(path, None, f"ELAN times are in ms and the frame rate of document {doc!r} is unknown: "
                          "ingest the document (the database knows its rate) or add the header property "

@@ -50,7 +50,7 @@ from mocapdb.errors import ParameterError, ParseError
 from mocapdb.readers.humanoid import (JointMap, MappingError, SkeletonTree, asf_axes_at_rest, map_humanoid,
                                      mapping_template)
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns, sincos
+from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.textscan import line_of, parse_rows
 
@@ -372,16 +372,21 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
 # kinematics
 
 @jit
-def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
-                   end_site, has_end, origins, ends, rotations, rot_joint):  # pragma: no cover
+def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
+                   end_site, has_end, needed, origins, ends, rotations, rot_joint):  # pragma: no cover
     """Joint origins (n, nj, 3), End Sites (n, nj, 3) and the global rotation of
-    joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring."""
+    joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring.
+    Sine and cosine are taken here, of rotation channels only (no temporaries);
+    joints not ``needed`` (nor below a needed one) are skipped."""
     n = values.shape[0]
     nj = parent.shape[0]
     h = np.empty((nj, 3, 3))
     t = np.empty(3)
+    deg = math.pi / 180.0
     for f in range(n):
         for j in range(nj):
+            if not needed[j]:
+                continue
             p = parent[j]
             for i in range(3):
                 for k in range(3):
@@ -396,7 +401,8 @@ def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind
                     else:
                         t[ch_axis[col]] += values[f, col]
                 else:
-                    _rotate_columns(h, j, ch_axis[col], cos[f, col], sin[f, col])
+                    a = values[f, col] * deg
+                    _rotate_columns(h, j, ch_axis[col], math.cos(a), math.sin(a))
             for i in range(3):
                 if p >= 0:
                     origins[f, j, i] = origins[f, p, i] + (h[p, i, 0] * t[0] + h[p, i, 1] * t[1]
@@ -414,8 +420,11 @@ def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind
                         rotations[f, i, k] = h[j, i, k]
 
 
-def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0):
+def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0, needed=None):
     """Forward kinematics of a parsed BVH file.
+
+    ``needed`` (bool per joint, closed under parents) limits the work to those
+    joints; the others' origins and End Sites are left undefined.
 
     Returns
     -------
@@ -441,13 +450,14 @@ def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0):
     end_site = np.array([j.end_site if j.end_site is not None else np.zeros(3) for j in joints],
                         dtype=np.float64).reshape(nj, 3)
     values = np.ascontiguousarray(data.values, dtype=np.float64)
-    sin, cos = sincos(values * (math.pi / 180.0))
     n = values.shape[0]
     origins = np.empty((n, nj, 3))
     ends = np.full((n, nj, 3), np.nan)
     rot = np.empty((n, 3, 3))
-    _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
-                   has_end, origins, ends, rot, rotation_joint)
+    if needed is None:
+        needed = np.ones(nj, dtype=np.bool_)
+    _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
+                   has_end, needed, origins, ends, rot, rotation_joint)
     return origins, ends, rot
 
 
@@ -528,12 +538,50 @@ def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<b
         the message names the file's joints and the canonical joints it
         could not place, and how to get a mapping template.
     """
-    key = (tuple((j.name, j.parent, j.offset.tobytes(), None if j.end_site is None else j.end_site.tobytes())
-                 for j in hier.joints), None if joint_map is None else repr(sorted(joint_map.items())))
+    return _plan(hier, joint_map, path, pose)[0]
+
+
+def _plan(hier: BvhHierarchy, joint_map, path, pose):
+    """(JointMap, gather arrays, joints FK must compute), cached per parsed hierarchy.
+
+    Hierarchies are cached per header (:func:`_cached_hierarchy`), so the
+    files of one skeleton share one object and one plan.
+    """
+    key = (id(hier), None if joint_map is None else repr(sorted(joint_map.items())))
     with _MAP_LOCK:
         hit = _MAP_CACHE.get(key)
-    if hit is not None:
-        return hit
+    if hit is not None and hit[0] is hier:
+        return hit[1]
+    jm = _map_skeleton(hier, joint_map, path, pose)
+    plan = (jm, *_gather(jm, hier))
+    with _MAP_LOCK:
+        if len(_MAP_CACHE) > 256:
+            _MAP_CACHE.clear()
+        _MAP_CACHE[key] = (hier, plan)
+    return plan
+
+
+def _gather(jm: JointMap, hier: BvhHierarchy):
+    """Per canonical joint its points and weights; the joints FK needs (used points and their ancestors)."""
+    nj = len(hier.joints)
+    width = max(1, int((jm.weights != 0).sum(axis=1).max()))
+    point = np.zeros((len(JOINT_NAMES), width), dtype=np.int64)
+    weight = np.zeros((len(JOINT_NAMES), width))
+    for j in range(len(JOINT_NAMES)):
+        nz = np.flatnonzero(jm.weights[j])
+        point[j, :len(nz)] = nz
+        weight[j, :len(nz)] = jm.weights[j, nz]
+    end_of = np.array([k for k, j in enumerate(hier.joints) if j.end_site is not None] or [0], dtype=np.int64)
+    needed = np.zeros(nj, dtype=np.bool_)
+    for p in set(point[weight != 0].tolist()) | {jm.rotation_point}:
+        k = p if p < nj else int(end_of[p - nj])
+        while k >= 0 and not needed[k]:
+            needed[k] = True
+            k = hier.joints[k].parent
+    return point, weight, end_of, needed
+
+
+def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
     tree = hier.tree()
     auto = _asf_map(hier, tree)
     problem = None
@@ -558,10 +606,6 @@ def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<b
                          f"mocapdb joint-map-template {path} > map.toml) and ingest with --joint-map map.toml")
     else:
         result = auto
-    with _MAP_LOCK:
-        if len(_MAP_CACHE) > 256:
-            _MAP_CACHE.clear()
-        _MAP_CACHE[key] = result
     return result
 
 
@@ -614,16 +658,8 @@ def _combine_kernel(origins, ends, point, end_of, weight, out):  # pragma: no co
                         out[f, j, c] += w * ends[f, end_of[p - nj], c]
 
 
-def _combine(jm: JointMap, origins, ends, hier) -> np.ndarray:
+def _combine(point, weight, end_of, origins, ends) -> np.ndarray:
     """The 24 canonical joints from the FK points (a gather: most rows are one point)."""
-    width = max(1, int((jm.weights != 0).sum(axis=1).max()))
-    point = np.zeros((len(JOINT_NAMES), width), dtype=np.int64)
-    weight = np.zeros((len(JOINT_NAMES), width))
-    for j in range(len(JOINT_NAMES)):
-        nz = np.flatnonzero(jm.weights[j])
-        point[j, :len(nz)] = nz
-        weight[j, :len(nz)] = jm.weights[j, nz]
-    end_of = np.array([k for k, j in enumerate(hier.joints) if j.end_site is not None] or [0], dtype=np.int64)
     out = np.empty((origins.shape[0], len(JOINT_NAMES), 3))
     _combine_kernel(origins, ends, point, end_of, weight, out)
     return out
@@ -695,9 +731,9 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
         with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
         return np.concatenate([o[0], e[0, with_end]])
 
-    jm = bvh_joint_map(hier, joint_map=joint_map, path=data.path, pose=first_frame)
-    origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point)
-    joints = _combine(jm, origins, ends, hier)
+    jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, first_frame)
+    origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point, needed=needed)
+    joints = _combine(point, weight, end_of, origins, ends)
     # feature #40 may read the pelvis rotation only where its x axis is the hip axis
     # (ASF convention) in the take itself: R^T (lhip - rhip) along +x
     hips = joints[:, JOINT_INDEX["lhip"]] - joints[:, JOINT_INDEX["rhip"]]
