@@ -37,3 +37,11 @@ def amc_frame_count(path):
     """Frames of an AMC counted independently of the reader: lines that are a bare integer."""
     with open(path, "rb") as f:
         return sum(1 for line in f if re.fullmatch(rb"\s*\d+\s*", line))
+
+
+def c3d_frame_count(path):
+    """Frames of a C3D file from its 512-byte header (last − first + 1), independent of ezc3d."""
+    import struct
+    with open(path, "rb") as f:
+        first, last = struct.unpack("<2H", f.read(10)[6:10])
+    return last - first + 1
