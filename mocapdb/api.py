@@ -29,9 +29,11 @@ import logging
 import numpy as np
 
 from mocapdb.annotation import annotate as annotate_words
-from mocapdb.annotation import (as_label_rows, class_labels, map_labels, read_class_labels, read_labels,
-                                read_segments, segment_table, segments_to_rows, to_feature_grid)
+from mocapdb.annotation import (as_label_rows, class_labels, map_labels, native_factor, read_class_labels,
+                                read_labels, read_segments, segment_table, segments_to_rows, to_feature_grid)
+from mocapdb.features import TOOLBOX_RATE
 from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.evaluation import evaluate_annotation, parse_tau_grid
 from mocapdb.extension import register
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
@@ -113,6 +115,16 @@ def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=No
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress)
 
 
+def joint_map_template(path) -> str:
+    """A ready-to-edit TOML joint map for a BVH file (``ingest(joint_map=…)``, ``--joint-map``).
+
+    The canonical joints the automatic mapping places are filled in; the
+    others are left as comments to fill, and the file's joints are listed.
+    See :func:`mocapdb.readers.joint_map_template`.
+    """
+    return readers_joint_map_template(path)
+
+
 def delete(con, motions) -> int:
     """Delete motions (ids or names) with their features, postings and annotations.
 
@@ -183,8 +195,9 @@ def training_clips(con, *, folder=None, labels=None, progress=None):
         raise ParameterError("give exactly one of folder (--folder) and labels (--labels)")
     if folder is not None:
         return clips_from_folders(folder, progress=progress), f"folder {folder}"
-    rows = to_feature_grid(read_labels(labels))
-    docs = documents_by_name(con, set(rows["document"]))
+    native = read_labels(labels)
+    docs = documents_by_name(con, set(native["document"]))
+    rows = to_feature_grid(native, factor=_native_factors(docs, native))
     return clips_from_segments({n: docs.words_of(n) for n in docs.names}, rows), f"labels {labels}"
 
 
@@ -286,13 +299,22 @@ def learn_keyframes(con, *, model=DEFAULT_MODEL, folder=None, labels=None, class
     return learned
 
 
-def read_truth(path, *, label_map=None, n_frames=None):
+def _native_factors(docs, rows):
+    """Native frames per 30 Hz frame for each label row, from its document's source rate."""
+    rate = dict(zip(docs.names, docs.source_fps.tolist()))
+    return native_factor([rate.get(d, TOOLBOX_RATE) for d in rows["document"]])
+
+
+def read_truth(path, *, label_map=None, n_frames=None, docs=None):
     """A ground-truth file (native frames, 1-based) on the 30 Hz grid, labels mapped.
 
     ``label_map`` (CSV ``class,label`` path or dict) renames truth labels to the
     model's (e.g. 86_09's ``walk`` → ``move``); unmapped labels are kept.
+    ``docs`` (:class:`~mocapdb.storage.motions.Documents`) gives each
+    document's source rate (default: 120 Hz).
     """
-    rows = to_feature_grid(read_labels(path, n_frames=n_frames))
+    native = read_labels(path, n_frames=n_frames)
+    rows = to_feature_grid(native, factor=4 if docs is None else _native_factors(docs, native))
     if label_map is not None:
         rows = map_labels(rows, label_map if isinstance(label_map, dict) else read_class_labels(label_map))
     return rows
@@ -338,7 +360,8 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
     cache = connection_cache(con)
     key, m = cache.model(model)
     docs = documents_by_name(con, set(as_label_rows(read_labels(truth))["document"]))
-    truth_rows = read_truth(truth, label_map=label_map, n_frames=dict(zip(docs.names, docs.n_source_frames)))
+    truth_rows = read_truth(truth, label_map=label_map, n_frames=dict(zip(docs.names, docs.n_source_frames)),
+                            docs=docs)
     vocab = m.labels if vocabulary is None else tuple(vocabulary)
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau,
                               keyframes=keyframes, taus=taus)

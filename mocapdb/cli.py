@@ -206,6 +206,8 @@ def ingest(ctx, paths, asf, joint_map, marker_map, silent):
     with _progress(len(motion_files(paths)), "ingest", silent) as bar:
         report = api_ingest(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
                             progress=lambda path, frames: bar.update(1))
+    for path, reason in report.unsupported:
+        click.echo(f"not a motion file {path}: {reason}", err=True)
     for path, reason in report.skipped:
         click.echo(f"skipped {path}: {reason}", err=True)
     for path, reason in report.failed:
@@ -213,6 +215,19 @@ def ingest(ctx, paths, asf, joint_map, marker_map, silent):
     click.echo(f"{report.summary()} ({report.source_frames} source frames)")
     if report.failed and not report.ingested and not report.skipped:
         ctx.exit(1)
+
+
+@command()
+@click.argument("path", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+def joint_map_template(path):
+    """Print a ready-to-edit TOML joint map for a BVH file (for ingest --joint-map).
+
+    Every canonical joint the automatic mapping places is filled in; the
+    others are left for you, with the file's own joints listed.
+    """
+    from mocapdb.api import joint_map_template as api_template
+
+    click.echo(api_template(path), nl=False)
 
 
 @command()

@@ -20,6 +20,7 @@ from mocapdb.readers import read_motion
 from mocapdb.storage.models import load_model
 
 from conftest import DATA
+from fuzzing import mutate
 from naive_keyframes import naive_keyframe_search
 
 FOREIGN = DATA / "foreign" / "c3d"
@@ -32,14 +33,17 @@ FUZZ_SOURCES = [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d", FOREIGN / "ezc3
 
 def mutated_copies(folder, n, seed):
     """Copies of real files: truncated anywhere, or with 1–3 bytes changed in the header and parameter
-    section, or 1–30 bytes changed anywhere."""
+    section, or 1–30 bytes changed anywhere, or the readers' generic mutations (tests/fuzzing.py:
+    spans cut or repeated, hostile numbers, inserted tokens)."""
     rng = np.random.default_rng(seed)
     out = []
     for i in range(n):
         data = bytearray(FUZZ_SOURCES[i % len(FUZZ_SOURCES)].read_bytes())
-        mode = i % 3
+        mode = i % 4
         if mode == 0:
             data = data[:int(rng.integers(1, len(data)))]
+        elif mode == 3:
+            data = mutate(bytes(data), rng)
         else:
             hi = min(len(data), 512 * 20) if mode == 1 else len(data)
             for _ in range(int(rng.integers(1, 4 if mode == 1 else 31))):
@@ -71,7 +75,7 @@ READ_ALL = textwrap.dedent("""
 def test_corrupt_copies_are_refused_or_read_never_crash(tmp_path):
     """Run in a child process: a crash of the C++ reader (the layout guard of
     mocapdb.readers.c3dfile exists for this) fails the test instead of killing the run."""
-    files = mutated_copies(tmp_path, 180, seed=10)
+    files = mutated_copies(tmp_path, 240, seed=10)
     run = subprocess.run([sys.executable, "-c", READ_ALL, *map(str, files)], capture_output=True, text=True,
                          timeout=600)
     assert run.returncode == 0, f"reader process died ({run.returncode}): {run.stderr[-2000:]}"
@@ -80,7 +84,7 @@ def test_corrupt_copies_are_refused_or_read_never_crash(tmp_path):
     assert set(outcomes) <= {"motion", "refused"}, [ln for ln in run.stdout.splitlines()
                                                      if ln.split()[0] not in ("motion", "refused")]
     # every truncated copy is refused (the cut lands inside a frame or the header), most others too
-    assert all(o == "refused" for o, f in zip(outcomes, files) if int(f.stem[1:]) % 3 == 0
+    assert all(o == "refused" for o, f in zip(outcomes, files) if int(f.stem[1:]) % 4 == 0
                and f.stat().st_size % 512)
     assert 0 < outcomes.count("motion") < len(files)
 

@@ -9,7 +9,7 @@ from mocapdb.annotation.model import (DEFAULT_DELTA, DEFAULT_TAU, ClassModel, Mo
 from mocapdb.annotation.chain import (HIT_DTYPE, MATCH_NUM_MAX, SEGMENT_DTYPE, Annotation, annotate, annotate_sweep, combine_by_label, extract_hits, form_segments, frame_labels)
 from mocapdb.annotation.preselection import (index_parts, keyframe_preselection, model_index_parts, preselection_for,
                                             preselection_slices, uses_keyframes)
-from mocapdb.annotation.labels import (LABEL_COLUMNS, LABEL_DTYPE, SHIPPED_CLASS_LABELS, as_label_rows, class_labels, feature_to_native_frames, label_rows, map_labels, native_to_feature_frames, read_class_labels, read_labels, read_segments, read_text, segments_to_rows, to_feature_grid, to_native_grid, write_class_labels, write_labels)
+from mocapdb.annotation.labels import (LABEL_COLUMNS, LABEL_DTYPE, SHIPPED_CLASS_LABELS, as_label_rows, class_labels, feature_to_native_frames, label_rows, map_labels, native_factor, native_to_feature_frames, read_class_labels, read_labels, read_segments, read_text, segments_to_rows, to_feature_grid, to_native_grid, write_class_labels, write_labels)
 from mocapdb.annotation.results import SEGMENT_COLUMNS, segment_table
 
 __all__ = [
@@ -17,7 +17,7 @@ __all__ = [
     "MATCH_NUM_MAX", "annotate", "annotate_sweep", "extract_hits", "combine_by_label", "frame_labels", "form_segments",
     "keyframe_preselection", "preselection_slices", "model_index_parts", "preselection_for", "uses_keyframes", "index_parts", "LABEL_COLUMNS",
     "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "read_segments", "write_labels",
-    "native_to_feature_frames", "feature_to_native_frames", "to_feature_grid", "to_native_grid",
+    "native_to_feature_frames", "feature_to_native_frames", "native_factor", "to_feature_grid", "to_native_grid",
     "segments_to_rows", "map_labels", "read_class_labels", "write_class_labels", "class_labels", "read_text",
     "SHIPPED_CLASS_LABELS", "SEGMENT_COLUMNS", "segment_table",
 ]

@@ -15,10 +15,12 @@ In memory a set of segments is a structured array of :data:`LABEL_DTYPE`
   numpy-level convention of :mod:`mocapdb.annotation` and :mod:`mocapdb.evaluation.metrics`);
 * :func:`to_native_grid`: back to native 1-based inclusive for output.
 
-This module is **the one place** that converts between the two grids. The
-30 Hz feature frame k (1-based) is native frame 4k − 3 (FEATURES.md §1,
-downsampling by 4 keeping the first frame) and *covers* the native frames
-4k − 3 … 4k. Hence a native range [s, e] covers the 30 Hz frames
+This module is **the one place** that converts between the two grids. At
+120 Hz the 30 Hz feature frame k (1-based) is native frame 4k − 3 (FEATURES.md
+§1, downsampling by 4 keeping the first frame) and *covers* the native frames
+4k − 3 … 4k. At another rate the factor is ``fps/30`` (:func:`native_factor`;
+native frame s lies at time (s − 1)/fps and belongs to 30 Hz frame
+floor((s − 1)·30/fps)); the statements below are for the factor 4. Hence a native range [s, e] covers the 30 Hz frames
 ceil(s/4) … ceil(e/4) (1-based), i.e. ``(s − 1) // 4 … (e − 1) // 4`` 0-based,
 and a 30 Hz range [a, b] (0-based) covers the native frames 4a + 1 … 4b + 4
 (clipped to the document's length). Feature grid → native → feature grid is
@@ -43,14 +45,14 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.features import DOWNSAMPLING_FACTOR
+from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE
 
 __all__ = [
     "LABEL_COLUMNS", "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "read_segments",
     "write_labels",
     "native_to_feature_frames", "feature_to_native_frames", "to_feature_grid",
     "to_native_grid", "segments_to_rows", "map_labels", "read_class_labels",
-    "write_class_labels", "class_labels", "read_text", "SHIPPED_CLASS_LABELS",
+    "write_class_labels", "class_labels", "read_text", "SHIPPED_CLASS_LABELS", "native_factor",
 ]
 
 #: the columns of a label / ground-truth CSV (DESIGN.md §5)
@@ -314,9 +316,22 @@ def write_labels(path, rows):
 
 
 def _check_factor(factor):
-    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
-        raise ParameterError(f"factor must be a positive integer, got {factor!r}; default 4")
-    return int(factor)
+    """Native frames per 30 Hz frame: a number or one per range (source rate / 30)."""
+    if isinstance(factor, bool):
+        raise ParameterError(f"factor must be a positive number, got {factor!r}; default 4 (120 Hz)")
+    f = np.asarray(factor, dtype=np.float64)
+    if not (np.isfinite(f).all() and (f > 0).all()):
+        raise ParameterError(f"factor must be positive (native frames per 30 Hz frame), got {factor!r}")
+    return f
+
+
+def native_factor(fps):
+    """Native frames per 30 Hz feature frame of a source at ``fps`` Hz (4 at 120 Hz)."""
+    return np.asarray(fps, dtype=np.float64) / FEATURE_RATE
+
+
+# grid arithmetic on floats: 1e-9 absorbs the rounding of fps/30 (e.g. 29.97 Hz)
+_EPS = 1e-9
 
 
 def native_to_feature_frames(start, end, *, factor=DOWNSAMPLING_FACTOR):
@@ -329,7 +344,9 @@ def native_to_feature_frames(start, end, *, factor=DOWNSAMPLING_FACTOR):
     ----------
     start, end : int or array_like of int
         Native frames, 1-based inclusive (``1 <= start <= end``).
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
         The toolbox's fixed downsampling factor (FEATURES.md §1).
 
     Returns
@@ -352,7 +369,7 @@ def native_to_feature_frames(start, end, *, factor=DOWNSAMPLING_FACTOR):
     e = np.asarray(end, dtype=np.int64)
     if (s < 1).any() or (e < s).any():
         raise ParameterError("native ranges must satisfy 1 <= start <= end (1-based frames)")
-    return (s - 1) // f, (e - 1) // f
+    return (np.floor((s - 1) / f + _EPS).astype(np.int64), np.floor((e - 1) / f + _EPS).astype(np.int64))
 
 
 def feature_to_native_frames(start, end, *, factor=DOWNSAMPLING_FACTOR, n_native=None):
@@ -362,7 +379,9 @@ def feature_to_native_frames(start, end, *, factor=DOWNSAMPLING_FACTOR, n_native
     ----------
     start, end : int or array_like of int
         0-based inclusive 30 Hz frames (``0 <= start <= end``).
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
     n_native : int or array_like of int, optional
         Native length of each range's document: ends are clipped to it (the
         last 30 Hz frame of a document may cover fewer than ``factor`` frames).
@@ -382,8 +401,9 @@ def feature_to_native_frames(start, end, *, factor=DOWNSAMPLING_FACTOR, n_native
     b = np.asarray(end, dtype=np.int64)
     if (a < 0).any() or (b < a).any():
         raise ParameterError("feature-grid ranges must satisfy 0 <= start <= end (0-based)")
-    s = f * a + 1
-    e = f * b + f
+    # 30 Hz frame k covers the native frames s with floor((s - 1)/f) = k
+    s = np.ceil(a * f - _EPS).astype(np.int64) + 1
+    e = np.ceil((b + 1) * f - _EPS).astype(np.int64)
     if n_native is not None:
         n = np.asarray(n_native, dtype=np.int64)
         if (s > n).any():
@@ -398,7 +418,9 @@ def to_feature_grid(rows, *, factor=DOWNSAMPLING_FACTOR):
     Parameters
     ----------
     rows : ndarray of LABEL_DTYPE or iterable of (document, label, start, end)
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
 
     Returns
     -------
@@ -415,7 +437,9 @@ def to_native_grid(rows, *, factor=DOWNSAMPLING_FACTOR, n_native=None):
     Parameters
     ----------
     rows : ndarray of LABEL_DTYPE (or with a ``doc`` field) or iterable of tuples
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
     n_native : mapping of str to int, optional
         Native frame count per document; ends are clipped to it (documents
         missing from the mapping are not clipped).

@@ -43,7 +43,7 @@ from mocapdb.errors import ParseError
 from mocapdb.readers.c3d_rules import MAPPED, TOOLBOX, MarkerIndex, candidate_rules, mapped_rule
 from mocapdb.readers.c3dfile import read_c3d_points
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.motion import Motion
+from mocapdb.readers.motion import Motion, check_finite_motion
 
 log = logging.getLogger("mocapdb")
 
@@ -302,10 +302,7 @@ def read_c3d(path, *, marker_map=None, bone_fit: bool = True) -> Motion:
         joints[:, JOINT_INDEX[joint]] = rule.formula(m)
     if toolbox and bone_fit:
         joints = fit_bone_lengths(joints)
-    broken = ~np.isfinite(joints).all(axis=2)
-    if broken.any():  # pragma: no cover - the formulas guard their divisions
-        f, j = np.argwhere(broken)[0]
-        raise ParseError(path, None, f"{JOINT_NAMES[j]} is not finite (degenerate markers)", frame=int(f) + 1)
+    check_finite_motion(joints, path)
     if filled:
         log.info("%s: filled %d missing marker samples (gaps ≤ %.2f s)", path, filled, MAX_GAP_S)
     kind = "toolbox" if toolbox else ("marker_map" if MAPPED in sources else "landmarks")

@@ -32,13 +32,11 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParseError
+from mocapdb.readers.motion import check_rate, snap_rate
 
 log = logging.getLogger("mocapdb")
 
-__all__ = ["C3dPoints", "read_c3d_points", "check_layout", "MAX_RATE"]
-
-#: rates above this (Hz) are refused as absurd (READERS.md §4)
-MAX_RATE = 10_000.0
+__all__ = ["C3dPoints", "read_c3d_points", "check_layout"]
 
 _BLOCK = 512
 #: processor type byte of the parameter section → struct byte order
@@ -63,7 +61,8 @@ class C3dPoints:
         ``POINT:LABELS`` followed by ``LABELS2``, ``LABELS3``… (one per point;
         ``"?<i>"`` where the file has fewer labels than points), as stored.
     rate : float
-        ``POINT:RATE`` in Hz (the header's rate when the parameter is absent).
+        ``POINT:RATE`` in Hz (the header's rate when the parameter is absent),
+        snapped to a common rate within 0.5 % (:func:`~mocapdb.readers.motion.snap_rate`).
     units : str
         ``POINT:UNITS`` lower-cased (``"mm"`` when absent, the C3D default).
     scale : float
@@ -298,8 +297,8 @@ def read_c3d_points(path) -> C3dPoints:
     ------
     ParseError
         The file fails :func:`check_layout`, ezc3d cannot read it, or it has
-        no frames, a rate that is not finite, ≤ 0 or above :data:`MAX_RATE`, or
-        more labels missing than present.
+        no frames, a rate that is not finite, ≤ 0 or above 10 kHz, or a
+        data section that ends inside a frame (truncated).
     FileNotFoundError
     """
     path = Path(path)
@@ -329,8 +328,7 @@ def read_c3d_points(path) -> C3dPoints:
     rate = float(np.asarray(rate_values).ravel()[0]) if rate_values is not None and len(rate_values) else 0.0
     if not rate:
         rate = header_rate
-    if not (math.isfinite(rate) and 0.0 < rate <= MAX_RATE):
-        raise ParseError(path, None, f"POINT:RATE is {rate!r} Hz; expected a rate in (0, {MAX_RATE:g}] Hz")
+    rate = snap_rate(check_rate(rate, path))    # 119.88 is 120 (READERS.md §1)
     units = [u.strip().lower() for u in _strings(param("UNITS")) if u.strip()]
     if len(set(units)) > 1:
         raise ParseError(path, None, f"POINT:UNITS mixes {sorted(set(units))}; expected one unit")

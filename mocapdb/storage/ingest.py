@@ -9,7 +9,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,34 +17,54 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import MocapdbError, ParameterError
-from mocapdb.features import DOWNSAMPLING_FACTOR, motion_features
-from mocapdb.readers import find_skeleton, load_mapping, read_motion
+from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
+from mocapdb.readers import SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
 log = logging.getLogger("mocapdb")
 
-#: file extensions ingest picks up when walking a folder
-MOTION_SUFFIXES = (".amc", ".bvh", ".c3d")
+#: file extensions ingest reads as motions
+MOTION_SUFFIXES = SUPPORTED_EXTENSIONS
+#: files a motion folder holds beside its motions, and why they are not ingested
+_COMPANIONS = {".asf": "an ASF skeleton (read with its AMC takes)"}
 
 
 @dataclass
 class IngestReport:
     """What an :func:`ingest` call did, file by file."""
 
-    ingested: list = field(default_factory=list)   # (path, motion_id, n_frames)
-    skipped: list = field(default_factory=list)    # (path, reason)
-    failed: list = field(default_factory=list)     # (path, reason)
+    ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
+    skipped: list = field(default_factory=list)      # (path, reason): already stored
+    failed: list = field(default_factory=list)       # (path, reason)
+    unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
     source_frames: int = 0
 
     def summary(self) -> str:
-        return (f"{len(self.ingested)} ingested, {len(self.skipped)} skipped, "
-                f"{len(self.failed)} failed")
+        out = (f"{len(self.ingested)} ingested, {len(self.skipped)} skipped, "
+               f"{len(self.failed)} failed")
+        if self.unsupported:
+            out += f", {len(self.unsupported)} not motion files"
+        return out
 
 
-def motion_files(paths) -> list[Path]:
+def _folder_files(folder: Path) -> list[Path]:
+    # hidden files and folders (.DS_Store, .git) are nobody's motions
+    return sorted(q for q in folder.rglob("*") if q.is_file()
+                  and not any(part.startswith(".") for part in q.relative_to(folder).parts))
+
+
+def motion_files(paths, *, unsupported=None) -> list[Path]:
     """Expand files and folders (recursively) into motion files, in sorted order.
+
+    Parameters
+    ----------
+    paths : iterable of str or Path
+    unsupported : list, optional, keyword-only
+        Receives ``(path, reason)`` for every file of a folder that is not a
+        motion file (a file named explicitly is always returned: reading it
+        says what is wrong).
 
     Raises
     ------
@@ -55,7 +74,14 @@ def motion_files(paths) -> list[Path]:
     out = []
     for p in map(Path, paths):
         if p.is_dir():
-            out.extend(sorted(q for q in p.rglob("*") if q.suffix.lower() in MOTION_SUFFIXES and q.is_file()))
+            for q in _folder_files(p):
+                ext = q.suffix.lower()
+                if ext in MOTION_SUFFIXES:
+                    out.append(q)
+                elif unsupported is not None:
+                    why = _COMPANIONS.get(ext) or (f"unsupported file type {q.suffix!r}" if q.suffix
+                                                   else "no file extension")
+                    unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ")"))
         elif p.is_file():
             out.append(p)
         else:
@@ -83,16 +109,26 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     skel = None
     if path.suffix.lower() == ".amc":
         skel = Path(asf) if asf is not None else find_skeleton(path)
-    return _Prepared(path, _sha256(path), skel, _sha256(skel) if skel is not None else None)
+    try:
+        return _Prepared(path, _sha256(path), skel, _sha256(skel) if skel is not None else None)
+    except OSError as exc:
+        raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
 
 def _compute(prep: _Prepared) -> _Prepared:
+    # any failure stays with its file: a reader raises only MocapdbError, but a
+    # bug must not stop the other files of an archive (READERS.md §4)
     try:
         options = json.loads(prep.reader_options) if prep.reader_options else {}
         prep.motion = read_motion(prep.path, asf=prep.skeleton_path, **options)
         prep.words = motion_features(prep.motion)
     except MocapdbError as exc:
         prep.error = str(exc)
+    except Exception as exc:  # noqa: BLE001 - reported per file, never raised
+        log.warning("internal error reading %s", prep.path, exc_info=True)
+        prep.error = f"{prep.path}: internal error while reading ({type(exc).__name__}: {exc}); please report it"
+    if prep.error is not None:
+        prep.motion = prep.words = None
     return prep
 
 
@@ -113,7 +149,7 @@ def store_motions(con, preps) -> list[int]:
     """
     for p in preps:
         n30 = int(p.words.shape[0])
-        if n30 != math.ceil(p.motion.n_frames / DOWNSAMPLING_FACTOR):
+        if n30 != feature_frame_count(p.motion.n_frames, p.motion.fps):
             raise MocapdbError(f"{p.path}: {n30} feature frames for {p.motion.n_frames} source frames")
     meta = pa.table({
         "ord": pa.array(np.arange(len(preps), dtype=np.int32)),
@@ -123,7 +159,7 @@ def store_motions(con, preps) -> list[int]:
         "sha256": pa.array([p.sha256 for p in preps], pa.string()),
         "skeleton_sha256": pa.array([p.skeleton_sha256 for p in preps], pa.string()),
         "source_fps": pa.array([float(p.motion.fps) for p in preps], pa.float64()),
-        "fps": pa.array([float(p.motion.fps) / DOWNSAMPLING_FACTOR for p in preps], pa.float64()),
+        "fps": pa.array([FEATURE_RATE] * len(preps), pa.float64()),
         "n_source_frames": pa.array([p.motion.n_frames for p in preps], pa.int32()),
         "n_frames": pa.array([int(p.words.shape[0]) for p in preps], pa.int32()),
         "skeleton": pa.array([p.motion.skeleton for p in preps], pa.string()),
@@ -190,12 +226,14 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     fails, its files are retried one transaction each, so a failure stays
     confined to its file.
     """
-    files = motion_files(paths)
+    report = IngestReport()
+    files = motion_files(paths, unsupported=report.unsupported)
     maps = {"joint_map": load_mapping(joint_map, what="joint_map"),
             "marker_map": load_mapping(marker_map, what="marker_map")}
-    report = IngestReport()
     stored = _stored_keys(con)
     todo = []
+    first_of = {}     # key -> the first file of this ingest with those bytes
+    duplicates = []   # (path, key): decided once the first file is read
     for path in files:
         try:
             prep = _fingerprint(path, asf)
@@ -205,12 +243,12 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
             continue
         key = (prep.sha256, prep.skeleton_sha256)
         if key in stored:
-            why = (f"already ingested as motion {stored[key]}" if stored[key] is not None
-                   else "same bytes as another file of this ingest")
-            report.skipped.append((str(path), why))
+            report.skipped.append((str(path), f"already ingested as motion {stored[key]}"))
             _tick(progress, path, 0)
+        elif key in first_of:
+            duplicates.append((path, key))
         else:
-            stored[key] = None
+            first_of[key] = str(path)
             prep.reader_options = _reader_options(path, maps)
             todo.append(prep)
 
@@ -219,13 +257,13 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     def flush():
         try:
             ids = store_motions(con, batch)
-        except MocapdbError:
+        except Exception:  # noqa: BLE001 - retried file by file below
             ids = []
             for p in batch:  # one transaction each: a failure stays with its file
                 try:
                     ids.extend(store_motions(con, [p]))
-                except MocapdbError as exc:
-                    report.failed.append((str(p.path), str(exc)))
+                except Exception as exc:  # noqa: BLE001 - reported per file
+                    report.failed.append((str(p.path), f"{p.path}: not stored ({exc})"))
                     ids.append(None)
         for p, mid in zip(batch, ids):
             if mid is not None:
@@ -246,6 +284,15 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
                 flush()
         if batch:
             flush()
+    # a copy of a stored file is skipped; a copy of a broken one is as broken
+    failed = dict(report.failed)
+    for path, key in duplicates:
+        first = first_of[key]
+        if first in failed:
+            report.failed.append((str(path), f"{path}: same bytes as {first}, which failed: {failed[first]}"))
+        else:
+            report.skipped.append((str(path), f"same bytes as {first} of this ingest"))
+        _tick(progress, path, 0)
     return report
 
 
