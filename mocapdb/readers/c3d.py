@@ -41,7 +41,7 @@ import numpy as np
 
 from mocapdb.errors import ParseError
 from mocapdb.readers.c3d_rules import MAPPED, TOOLBOX, MarkerIndex, candidate_rules, mapped_rule
-from mocapdb.readers.c3dfile import read_c3d_points
+from mocapdb.readers.c3dfile import printable, read_c3d_points
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.motion import Motion, check_finite_motion
 
@@ -176,7 +176,7 @@ def _to_y_up(xyz: np.ndarray, axis: int, sign: int, factor: float) -> np.ndarray
 
 
 def _describe(labels, limit=60):
-    shown = ", ".join(labels[:limit])
+    shown = ", ".join(printable(label) for label in labels[:limit])
     return shown + (f", … ({len(labels)} in all)" if len(labels) > limit else "")
 
 

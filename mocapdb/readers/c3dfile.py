@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +37,7 @@ from mocapdb.readers.motion import check_rate, snap_rate
 
 log = logging.getLogger("mocapdb")
 
-__all__ = ["C3dPoints", "read_c3d_points", "check_layout"]
+__all__ = ["C3dPoints", "read_c3d_points", "check_layout", "printable"]
 
 _BLOCK = 512
 #: processor type byte of the parameter section → struct byte order
@@ -88,6 +89,15 @@ class C3dPoints:
         return int(self.xyz.shape[0])
 
 
+_UNPRINTABLE = re.compile(r"[^\x20-\x7e\u00a0-\u00ff]")
+
+
+def printable(text: str, limit: int = 40) -> str:
+    """``text`` for a one-line message: control characters as ``?``, at most ``limit`` characters."""
+    text = _UNPRINTABLE.sub("?", str(text))
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
+
 def _float(raw: bytes, proc: int) -> float:
     """A 4-byte C3D float in the processor's format (DEC: words swapped, exponent + 2)."""
     if proc == 85:
@@ -126,7 +136,8 @@ def _parameters(buf: bytes, start: int, bound: int, proc: int, refuse) -> dict:
         name_end = pos + 2 + abs(nchars)
         if name_end + 2 > bound:
             refuse(f"byte {pos}: parameter record runs past the end of the file")
-        name = buf[pos + 2:name_end].decode("latin-1").strip().upper()
+        raw_name = buf[pos + 2:name_end].decode("latin-1").strip().upper()
+        name = printable(raw_name)
         (offset,) = struct.unpack(order + "H", buf[name_end:name_end + 2])
         cur = name_end + 2
         if rid == 0:
@@ -134,7 +145,7 @@ def _parameters(buf: bytes, start: int, bound: int, proc: int, refuse) -> dict:
         if rid < 0:
             if cur + 1 > bound:
                 refuse(f"byte {pos}: group {name} runs past the end of the file")
-            groups[-rid] = name
+            groups[-rid] = raw_name
             end = cur + 1 + buf[cur]
         else:
             if cur + 2 > bound:
@@ -152,7 +163,7 @@ def _parameters(buf: bytes, start: int, bound: int, proc: int, refuse) -> dict:
             if data_at + size + 1 > bound:
                 refuse(f"byte {cur}: parameter {name} declares {count} elements, "
                        "more than the file holds")
-            params[(rid, name)] = (typ, _value(buf[data_at:data_at + size], typ, proc), count)
+            params[(rid, raw_name)] = (typ, _value(buf[data_at:data_at + size], typ, proc), count)
             end = data_at + size + 1 + buf[data_at + size]
         if end > bound:
             refuse(f"byte {pos}: the description of {name} runs past the end of the file")
@@ -318,22 +329,27 @@ def read_c3d_points(path) -> C3dPoints:
         raise ParseError(path, None, "ezc3d ran out of memory reading it (a corrupt count?)") from None
     except Exception as exc:  # ezc3d raises RuntimeError, OSError, IndexError, ... on broken files
         raise ParseError(path, None, f"ezc3d cannot read it: {type(exc).__name__}: "
-                         f"{str(exc).strip() or 'no detail'}") from None
+                         f"{printable(' '.join(str(exc).split()), 200) or 'no detail'}") from None
     point = params["POINT"] if "POINT" in params else {}
 
     def param(name):
         return point[name]["value"] if name in point else None
 
-    rate_values = param("RATE")
-    rate = float(np.asarray(rate_values).ravel()[0]) if rate_values is not None and len(rate_values) else 0.0
-    if not rate:
-        rate = header_rate
+    def number(name, default):
+        values = param(name)
+        if values is None or not len(values):
+            return default
+        try:
+            return float(np.asarray(values).ravel()[0])
+        except (TypeError, ValueError):
+            raise ParseError(path, None, f"POINT:{name} is {printable(repr(values), 60)}, not a number") from None
+
+    rate = number("RATE", 0.0) or header_rate
     rate = snap_rate(check_rate(rate, path))    # 119.88 is 120 (READERS.md §1)
     units = [u.strip().lower() for u in _strings(param("UNITS")) if u.strip()]
     if len(set(units)) > 1:
         raise ParseError(path, None, f"POINT:UNITS mixes {sorted(set(units))}; expected one unit")
-    scale_values = param("SCALE")
-    scale = float(np.asarray(scale_values).ravel()[0]) if scale_values is not None and len(scale_values) else -1.0
+    scale = number("SCALE", -1.0)
     screen = tuple((_strings(param(k)) or [""])[0].strip().upper() for k in ("X_SCREEN", "Y_SCREEN"))
 
     n_frames = xyz.shape[2] if xyz.ndim == 3 else 0
