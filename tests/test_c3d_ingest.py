@@ -220,3 +220,11 @@ def test_train_from_a_label_file_over_a_c3d_document(c3d_db, tmp_path):
         s30, e30 = (s - 1) // 4 + 1, (e - 1) // 4 + 1
         hits = [r for r in segs if r["label"] == label and r["start_frame"] <= e30 and r["end_frame"] >= s30]
         assert hits and min(r["cost"] for r in hits) == 0.0, (label, segs)
+
+
+def test_view_page_of_a_c3d_motion(c3d_db, tmp_path):
+    """The viewer re-reads the source: a C3D document's page holds its poses."""
+    out = tmp_path / "85_02.html"
+    mocapdb.view(c3d_db, "85_02", out=out)
+    page = out.read_text(encoding="utf-8")
+    assert "85_02" in page and len(page) > 10_000
