@@ -168,3 +168,21 @@ def test_delete_removes_everything_of_a_motion(tmp_path):
         assert len(ingest(con, [DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps"]).ingested) == 5
     finally:
         con.close()
+
+
+def test_a_take_in_two_formats_is_named_by_its_file(archive):
+    """hdm05_full holds the dg excerpt as .amc and as .c3d: both are stored, the
+    stem names two motions, and a label file names either by its file name."""
+    from mocapdb.errors import SchemaError
+    from mocapdb.storage.motions import documents_by_name
+
+    con = archive[0]
+    stem = "HDM_dg_06-03_03_120"
+    assert con.execute("SELECT count(*) FROM motions WHERE name = ?", [stem]).fetchall()[0][0] == 2
+    with pytest.raises(SchemaError, match=r"name several motions .*name the file instead"):
+        documents_by_name(con, [stem])
+    docs = documents_by_name(con, [f"{stem}.amc", f"{stem}.c3d", "86_09"])
+    assert sorted(docs.names) == sorted([f"{stem}.amc", f"{stem}.c3d", "86_09"])
+    fmt = dict(con.execute("SELECT motion_id, format FROM motions").fetchall())
+    assert {n: fmt[int(m)] for n, m in zip(docs.names, docs.motion_ids)} == {
+        f"{stem}.amc": "amc", f"{stem}.c3d": "c3d", "86_09": "amc"}
