@@ -109,16 +109,27 @@ def _set_bar(bar):
     return progress
 
 
-def _say_when_compiling():
-    """Say once that kernels compile when numba's cache is still empty (first run only)."""
-    cache = os.environ.get("NUMBA_CACHE_DIR")
-    root = Path(__file__).parent
-    if cache:
-        has_cache = any(Path(cache).rglob("*.nbi"))
-    else:
-        has_cache = any(root.glob("*/__pycache__/*.nbi"))
-    if not has_cache:
-        click.echo("Compiling the numba kernels (first run only, about a minute)…", err=True)
+#: commands that annotate: they use the kernels the background warm-up compiles
+_ANNOTATING = {"annotate", "evaluate", "sql", "view", "report", "learn-keyframes", "train"}
+
+
+def _say_when_compiling(command):
+    """Say once that kernels compile when numba's cache is still empty (first run only).
+
+    A first command that does not annotate (``ingest``) also starts the
+    annotation kernels compiling on the other core
+    (:mod:`mocapdb.storage.warmup`); a command that annotates waits for that
+    rather than compiling the same kernels again.
+    """
+    from mocapdb.storage.warmup import cache_is_cold, start_warmup, wait_for_warmup
+
+    if cache_is_cold():
+        if command != "sql":  # a query need not compile anything; its output stays clean
+            click.echo("Compiling the numba kernels (first run only, about 15 s)…", err=True)
+        if command not in _ANNOTATING:
+            start_warmup()
+    elif command in _ANNOTATING:
+        wait_for_warmup()
 
 
 # -- the group --------------------------------------------------------------------
@@ -139,8 +150,8 @@ def main(ctx, db):
     """
     ctx.ensure_object(dict)
     ctx.obj["db"] = db
-    if ctx.invoked_subcommand not in (None, "sql", "delete", "drop-index", "export-features"):
-        _say_when_compiling()
+    if ctx.invoked_subcommand not in (None, "delete", "drop-index", "export-features", "joint-map-template"):
+        _say_when_compiling(ctx.invoked_subcommand)
 
 
 # -- output -----------------------------------------------------------------------

@@ -167,21 +167,59 @@ def store_motions(con, preps) -> list[int]:
                                   pa.string()),
         "reader_options": pa.array([p.reader_options for p in preps], pa.string()),
     })
+    return _insert(con, meta, [p.words for p in preps])
+
+
+def _insert(con, meta: pa.Table, words: list) -> list[int]:
+    """Insert ``motions`` rows (``meta``, with ``ord``) with their words, features and postings: one transaction."""
     with transaction(con):
         with registered(con, mocap_new_motions=meta):
             rows = con.execute(_sql("insert_motions")).fetchall()
         by_key = {(a, b): mid for mid, a, b in rows}
-        ids = [by_key[(p.sha256, p.skeleton_sha256)] for p in preps]
-        counts = np.array([p.words.shape[0] for p in preps], dtype=np.int64)
+        ids = [by_key[k] for k in zip(meta.column("sha256").to_pylist(), meta.column("skeleton_sha256").to_pylist())]
+        counts = np.array([len(w) for w in words], dtype=np.int64)
         feats = pa.table({
             "motion_id": pa.array(np.repeat(np.array(ids, dtype=np.int32), counts)),
             "frame": pa.array(np.concatenate([np.arange(1, c + 1, dtype=np.int32) for c in counts])),
-            "bits": pa.array(np.concatenate([p.words for p in preps]).astype(np.uint64, copy=False)),
+            "bits": pa.array(np.concatenate(words).astype(np.uint64, copy=False)),
         })
         with registered(con, mocap_new_features=feats):
             con.execute(_sql("insert_features"))
-        index_motions(con, dict(zip(ids, (p.words for p in preps))))
+        index_motions(con, dict(zip(ids, words)))
     return ids
+
+
+def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: str = "words") -> list[int]:
+    """Store motions given only as 30 Hz feature words (computed elsewhere, or synthetic).
+
+    Each becomes a ``motions`` row (format ``words``, no source file to re-read:
+    ``source_path`` is ``"<source>:<name>"``), its ``features`` rows and its
+    postings, in one transaction.
+
+    Returns
+    -------
+    list of int
+        The new motion ids, in the order of ``words_by_name``.
+    """
+    names = list(words_by_name)
+    words = [np.ascontiguousarray(words_by_name[n], dtype=np.uint64) for n in names]
+    n30 = np.array([len(w) for w in words], dtype=np.int64)
+    meta = pa.table({
+        "ord": pa.array(np.arange(len(names), dtype=np.int32)),
+        "name": pa.array(names, pa.string()),
+        "source_path": pa.array([f"{source}:{n}" for n in names], pa.string()),
+        "format": pa.array(["words"] * len(names), pa.string()),
+        "sha256": pa.array([hashlib.sha256(w.tobytes()).hexdigest() for w in words], pa.string()),
+        "skeleton_sha256": pa.array([None] * len(names), pa.string()),
+        "source_fps": pa.array([float(fps)] * len(names), pa.float64()),
+        "fps": pa.array([FEATURE_RATE] * len(names), pa.float64()),
+        "n_source_frames": pa.array(((n30 - 1) * fps / FEATURE_RATE + 1).astype(np.int32), pa.int32()),
+        "n_frames": pa.array(n30.astype(np.int32), pa.int32()),
+        "skeleton": pa.array([None] * len(names), pa.string()),
+        "skeleton_path": pa.array([None] * len(names), pa.string()),
+        "reader_options": pa.array([None] * len(names), pa.string()),
+    })
+    return _insert(con, meta, words)
 
 
 #: computed files are stored in batches, one transaction per batch, once a batch
@@ -328,4 +366,5 @@ def delete_motions(con, motion_ids) -> int:
         return len(con.execute(_sql("delete_motions"), ids).fetchall())
 
 
-__all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "delete_motions", "MOTION_SUFFIXES"]
+__all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "store_words", "delete_motions",
+           "MOTION_SUFFIXES"]
