@@ -86,7 +86,40 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     return _Prepared(path, _sha256(path), skel, _sha256(skel) if skel is not None else None)
 
 
-def _compute(prep: _Prepared) -> _Prepared:
+def prepare_file(path, *, asf=None, maps=None):
+    """Fingerprint one file as ingest does, before reading it.
+
+    Parameters
+    ----------
+    path : str or Path
+    asf : str or Path, optional, keyword-only
+        Skeleton of an AMC file (default: found by the dataset conventions).
+    maps : dict, optional, keyword-only
+        :func:`reader_maps` output.
+
+    Returns
+    -------
+    record
+        ``path``, ``sha256``, ``skeleton_path`` and ``skeleton_sha256`` (the
+        ``motions`` key) and ``reader_options``; the input of :func:`compute_motion`.
+
+    Raises
+    ------
+    MocapdbError
+        If an AMC file's skeleton cannot be found.
+    """
+    prep = _fingerprint(Path(path), asf)
+    prep.reader_options = _reader_options(prep.path, maps or {})
+    return prep
+
+
+def compute_motion(prep):
+    """Read a prepared file and compute its 30 Hz feature words, as ingest does.
+
+    Sets ``prep.motion`` (:class:`mocapdb.readers.Motion`) and ``prep.words``
+    ((n_frames,) uint64), or ``prep.error`` (the reader's message) when the
+    file is malformed; returns ``prep``.
+    """
     try:
         options = json.loads(prep.reader_options) if prep.reader_options else {}
         prep.motion = read_motion(prep.path, asf=prep.skeleton_path, **options)
@@ -105,18 +138,20 @@ def _stored_keys(con) -> dict:
     return {(a, b): mid for mid, a, b in con.execute(_sql("stored_keys")).fetchall()}
 
 
-def store_motions(con, preps) -> list[int]:
-    """Insert computed motions — their ``motions`` rows, ``features`` rows and,
-    when the keyframe index exists, postings — in one transaction.
+def motions_table(preps) -> pa.Table:
+    """The ``motions`` rows of computed files (:func:`compute_motion`), without
+    ``motion_id`` and ``ingested_at``.
 
-    Returns the new motion ids in the order of ``preps``.
+    Raises
+    ------
+    MocapdbError
+        If a file's feature frames do not match its source frames.
     """
     for p in preps:
         n30 = int(p.words.shape[0])
         if n30 != math.ceil(p.motion.n_frames / DOWNSAMPLING_FACTOR):
             raise MocapdbError(f"{p.path}: {n30} feature frames for {p.motion.n_frames} source frames")
-    meta = pa.table({
-        "ord": pa.array(np.arange(len(preps), dtype=np.int32)),
+    return pa.table({
         "name": pa.array([p.motion.name or p.path.stem for p in preps], pa.string()),
         "source_path": pa.array([str(p.path.resolve()) for p in preps], pa.string()),
         "format": pa.array([p.motion.source_format for p in preps], pa.string()),
@@ -131,6 +166,16 @@ def store_motions(con, preps) -> list[int]:
                                   pa.string()),
         "reader_options": pa.array([p.reader_options for p in preps], pa.string()),
     })
+
+
+def store_motions(con, preps) -> list[int]:
+    """Insert computed motions — their ``motions`` rows, ``features`` rows and,
+    when the keyframe index exists, postings — in one transaction.
+
+    Returns the new motion ids in the order of ``preps``.
+    """
+    meta = motions_table(preps)
+    meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
     with transaction(con):
         with registered(con, mocap_new_motions=meta):
             rows = con.execute(_sql("insert_motions")).fetchall()
@@ -191,14 +236,13 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     confined to its file.
     """
     files = motion_files(paths)
-    maps = {"joint_map": load_mapping(joint_map, what="joint_map"),
-            "marker_map": load_mapping(marker_map, what="marker_map")}
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
     report = IngestReport()
     stored = _stored_keys(con)
     todo = []
     for path in files:
         try:
-            prep = _fingerprint(path, asf)
+            prep = prepare_file(path, asf=asf, maps=maps)
         except MocapdbError as exc:
             report.failed.append((str(path), str(exc)))
             _tick(progress, path, 0)
@@ -211,7 +255,6 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
             _tick(progress, path, 0)
         else:
             stored[key] = None
-            prep.reader_options = _reader_options(path, maps)
             todo.append(prep)
 
     batch = []
@@ -236,7 +279,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
         batch.clear()
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        for prep in pool.map(_compute, todo):
+        for prep in pool.map(compute_motion, todo):
             if prep.error is not None:
                 report.failed.append((str(prep.path), prep.error))
                 _tick(progress, prep.path, 0)
@@ -251,6 +294,12 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
 
 #: which reader option applies to which file type
 _OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d"}
+
+
+def reader_maps(*, joint_map=None, marker_map=None) -> dict:
+    """The reader options of an ingest, loaded and checked once (:func:`mocapdb.readers.load_mapping`)."""
+    return {"joint_map": load_mapping(joint_map, what="joint_map"),
+            "marker_map": load_mapping(marker_map, what="marker_map")}
 
 
 def _reader_options(path: Path, maps: dict) -> str | None:
@@ -281,4 +330,5 @@ def delete_motions(con, motion_ids) -> int:
         return len(con.execute(_sql("delete_motions"), ids).fetchall())
 
 
-__all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "delete_motions", "MOTION_SUFFIXES"]
+__all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "delete_motions", "MOTION_SUFFIXES",
+           "prepare_file", "compute_motion", "motions_table", "reader_maps"]
