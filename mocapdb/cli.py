@@ -18,6 +18,7 @@ from pathlib import Path
 
 import click
 
+from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
 from mocapdb.errors import MocapdbError
 
 # -- shared options ---------------------------------------------------------------
@@ -41,6 +42,19 @@ folder_option = click.option("--folder", type=click.Path(exists=True, file_okay=
 labels_option = click.option("--labels", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                              help="Label file document,label,start_frame,end_frame (native frames, 1-based) "
                                   "cutting clips out of ingested documents.")
+
+
+
+def reader_options(fn):
+    """``--asf``, ``--joint-map`` and ``--marker-map``: how files are read (ingest, ray-annotate)."""
+    fn = click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")(fn)
+    fn = click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the BVH joint (or two joints: their midpoint); "
+                           "overrides the automatic mapping of every BVH file.")(fn)
+    return click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                        help="Skeleton for every AMC file (default: found by the dataset conventions: "
+                             "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")(fn)
 
 
 _UDF_WRAPPER = re.compile(r"^Invalid Input Error: Python exception occurred while executing the UDF: "
@@ -183,14 +197,7 @@ def _json_default(v):
 
 @command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
-@click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Skeleton for every AMC file (default: found by the dataset conventions: "
-                   "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")
-@click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="TOML/JSON file: canonical joint = the BVH joint (or two joints: their midpoint); "
-                   "overrides the automatic mapping of every BVH file.")
-@click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")
+@reader_options
 @silent_option
 @click.pass_context
 def ingest(ctx, paths, asf, joint_map, marker_map, silent):
@@ -467,6 +474,51 @@ def import_features(ctx, directory):
     from mocapdb.api import import_features as api_import_features
 
     click.echo(f"{len(api_import_features(_open(ctx), directory))} motion(s) imported")
+
+
+@command("ray-annotate")
+@click.argument("sources", nargs=-1, required=True)
+@click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Archive folder for the Parquet datasets (on storage every node sees).")
+@click.option("--address", help="Ray cluster address (e.g. auto, ray://head:10001); default: a local Ray.")
+@model_option("Model name: a shipped model, or one stored in the --db database.")
+@tau_option
+@keyframes_option
+@reader_options
+@click.option("--num-cpus", type=int, help="CPUs of the local Ray (default: all cores).")
+@click.option("--batch-files", type=int, default=BATCH_FILES, show_default=True,
+              help="Files per batch: the unit of work, of retry and of the Parquet parts.")
+@click.option("--bucket-motions", type=int, default=BUCKET_MOTIONS, show_default=True,
+              help="Motions per motion_bucket partition of features, postings and annotations.")
+@click.option("--overwrite", is_flag=True, help="Replace an archive already in --out.")
+@click.pass_context
+def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_map, marker_map, num_cpus,
+                 batch_files, bucket_motions, overwrite):
+    """Ingest and annotate files, folders or glob patterns on a Ray cluster; write Parquet.
+
+    Needs the ray extra (pip install 'mocapdb[ray]'). Writes the datasets
+    motions, features, postings, annotations (the columns of the database
+    tables) and errors (file, reason) under --out; `import-features` loads
+    them into a database and DuckDB reads them in place.
+
+    \b
+    Example:
+      mocapdb ray-annotate '../shared/data/hdm05_cut/**/*.amc' --out archive
+      mocapdb --db archive.duckdb import-features archive
+    """
+    from mocapdb.api import ray_annotate as api_ray_annotate
+
+    report = api_ray_annotate(sources, out, address=address, model=model, tau=tau, keyframes=keyframes,
+                              database=ctx.obj.get("db"), asf=asf, joint_map=joint_map, marker_map=marker_map,
+                              num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
+                              overwrite=overwrite)
+    for path, reason in report.skipped:
+        click.echo(f"skipped {path}: {reason}", err=True)
+    for path, reason in report.failed:
+        click.echo(f"failed  {reason}", err=True)
+    click.echo(f"{report.summary()} ({report.source_frames} source frames)")
+    if report.failed and not report.ingested:
+        ctx.exit(1)
 
 
 if __name__ == "__main__":  # pragma: no cover
