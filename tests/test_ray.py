@@ -26,6 +26,9 @@ from mocapdb.storage.parquet import table_schemas
 
 from conftest import DATA, REPO
 
+#: Ray Data's own DataContext warns about its deprecated fields whenever it copies itself
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context")
+
 SOURCES = [DATA / "hdm05_cut", DATA / "cmu" / "02"]
 #: small batches and buckets, so that batches cross bucket borders (100 is not a multiple of 16)
 RUN = {"batch_files": 16, "bucket_motions": 100}
@@ -119,6 +122,25 @@ def test_motion_ids_follow_the_file_list_and_parts_their_buckets(archive):
                 assert all(bucket * 100 < i <= (bucket + 1) * 100 and first <= i <= last for i in ids), part
     assert sorted(p.name for p in (out / "features").iterdir()) == [f"motion_bucket={k}" for k in range(3)]
     assert not [p for p in out.rglob("*") if p.name.startswith(".")]  # no temporary files left
+
+
+def test_every_format_and_every_failure_as_ingest(local_ray, tmp_path):
+    """Foreign recordings (BVH of other tools, an AMC of another lab): the same motions and
+    rows as ingest + annotate, and the files ingest refuses are the errors, with its reasons."""
+    sources = [DATA / "foreign"]
+    con = mocapdb.connect()
+    try:
+        report = mocapdb.ingest(con, sources)
+        mocapdb.annotate(con)
+        out = tmp_path / "archive"
+        ray_report = ray_annotate(sources, out)
+        assert len(ray_report.ingested) == len(report.ingested) > 0
+        for dataset in DB_TABLES:
+            assert _archive_rows(con, out, "f", dataset) == _rows(con, dataset, DB_TABLES), dataset
+        errors = pq.read_table(out / "errors").to_pylist()
+        assert sorted((e["file"], e["reason"]) for e in errors) == sorted(report.failed) == sorted(ray_report.failed)
+    finally:
+        con.close()
 
 
 def _broken_folder(tmp_path):
@@ -217,6 +239,38 @@ def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, t
         con.close()
 
 
+def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, tmp_path):
+    """`mocapdb --db DB ray-annotate --model NAME --tau … --no-keyframes`: the model comes from the
+    database; the segments equal `annotate` with the same options in that database."""
+    root = tmp_path / "cut"
+    root.mkdir()
+    for asf in (DATA / "hdm05_cut").glob("HDM_*.asf"):
+        (root / asf.name).symlink_to(asf)
+    for c in ("squat1Reps", "kickLFront1Reps"):
+        (root / c).symlink_to(DATA / "hdm05_cut" / c, target_is_directory=True)
+    db = tmp_path / "trained.duckdb"
+    con = api.connect(db)
+    try:
+        api.train(con, model="two", folder=root)
+        api.ingest(con, [DATA / "cmu" / "02", root])
+        want = api.annotate(con, model="two", tau=0.2, keyframes=False, store=True)
+        single = _rows(con, "annotations", DB_TABLES)
+    finally:
+        con.close()
+    out = tmp_path / "archive"
+    r = CliRunner().invoke(main, ["--db", str(db), "ray-annotate", str(DATA / "cmu" / "02"), str(root), "--out",
+                                  str(out), "--model", "two", "--tau", "0.2", "--no-keyframes"])
+    assert r.exit_code == 0, r.output
+    assert f"{want.num_rows} segments written to {out}" in r.output
+    con = duckdb.connect()
+    try:
+        _views(con, out, "t")
+        assert _rows(con, "annotations", {k: f"t_{k}" for k in DB_TABLES}) == single
+        assert con.execute("SELECT DISTINCT model, tau, keyframes FROM t_annotations").fetchall() == [("two", 0.2, False)]
+    finally:
+        con.close()
+
+
 def test_the_readme_example_queries_the_parquet_in_place(archive, tmp_path, monkeypatch):
     """The README section's Python block, run where `archive` is the archive."""
     out, report = archive
@@ -248,6 +302,8 @@ def test_sources_expand_like_ingest_and_globs(tmp_path):
 def test_parameters_are_checked_before_any_work(tmp_path):
     with pytest.raises(SchemaError, match="no model 'nope'"):
         ray_annotate(SOURCES, tmp_path / "a", model="nope")
+    with pytest.raises(ParameterError, match="database: .* does not exist"):
+        ray_annotate(SOURCES, tmp_path / "a", database=tmp_path / "none.duckdb")
     with pytest.raises(ParameterError, match="batch_files must be a positive integer"):
         ray_annotate(SOURCES, tmp_path / "a", batch_files=0)
     (tmp_path / "full").mkdir()

@@ -169,6 +169,9 @@ def _quiet_data(ray):
 
 def _model(name, database):
     """The model ``name`` from ``database`` (read-only), or a shipped model."""
+    if database is not None and not Path(database).is_file():
+        raise ParameterError(f"database: {str(database)!r} does not exist (it is read for the model {name!r}; "
+                             "leave --db out to use a shipped model)")
     con = open_database(database, read_only=True) if database is not None else open_database(":memory:")
     try:
         return load_model(con, name)
