@@ -28,7 +28,7 @@ sys.path.insert(0, str(REPO))
 
 from mocapdb.readers.amc import parse_amc, read_amc  # noqa: E402
 from mocapdb.readers.asf import read_asf  # noqa: E402
-from mocapdb.readers.bvh import read_bvh, write_bvh  # noqa: E402
+from mocapdb.readers import read_bvh, write_bvh  # noqa: E402
 from mocapdb.readers.kinematics import asf_forward_kinematics  # noqa: E402
 from mocapdb.readers import read_motion  # noqa: E402
 

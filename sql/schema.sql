@@ -13,9 +13,9 @@ CREATE TABLE IF NOT EXISTS motions (
     sha256           VARCHAR NOT NULL,          -- of the source file's bytes
     skeleton_sha256  VARCHAR,                   -- of the ASF's bytes (AMC only)
     source_fps       DOUBLE NOT NULL,           -- native rate, usually 120
-    fps              DOUBLE NOT NULL,           -- rate of `features` (source_fps / 4)
+    fps              DOUBLE NOT NULL,           -- rate of `features`: 30 for every source rate
     n_source_frames  INTEGER NOT NULL,
-    n_frames         INTEGER NOT NULL,          -- rows in `features` = ceil(n_source_frames / 4)
+    n_frames         INTEGER NOT NULL,          -- rows in `features`: floor((n_source_frames - 1) * 30 / source_fps) + 1
     skeleton         VARCHAR,
     skeleton_path    VARCHAR,
     reader_options   VARCHAR,                   -- JSON: the reader's options (joint_map, marker_map), to re-read the source

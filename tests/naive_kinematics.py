@@ -126,7 +126,12 @@ def naive_bvh_fk(hierarchy, values):
                 v = values[f, jt.channel_start + c]
                 axis = name[0].lower()
                 if name.endswith("position"):
-                    t["xyz".index(axis)] += v
+                    # the root's position channels add to its OFFSET, a non-root
+                    # joint's replace it (READERS.md §2)
+                    if jt.parent >= 0:
+                        t["xyz".index(axis)] = v
+                    else:
+                        t["xyz".index(axis)] += v
                 else:
                     local = local @ rot(axis, math.radians(v))
             pg = glob[f, jt.parent] if jt.parent >= 0 else np.eye(3)

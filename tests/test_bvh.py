@@ -1,5 +1,5 @@
 """BVH reading and writing: round trips from real ASF/AMC takes, channel orders,
-skeleton families, the cmuconvert rest frame, and the FK kernel vs a naive one."""
+the humanoid mapping of cmuconvert names, the rest frame, and the FK kernel vs a naive one."""
 import re
 from dataclasses import replace
 
@@ -9,8 +9,8 @@ import pytest
 from conftest import DATA
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import read_asf
-from mocapdb.readers.bvh import (CMU_BONE_NAMES, FAMILIES, bvh_node_positions, euler_angles,
-                         fps_from_frame_time, parse_bvh, read_bvh, write_bvh)
+from mocapdb.readers import CMU_BONE_NAMES, euler_angles, read_bvh, write_bvh
+from mocapdb.readers.bvh import bvh_node_positions, fps_from_frame_time, parse_bvh
 from mocapdb.errors import ParseError
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import asf_forward_kinematics, euler_matrix
@@ -57,20 +57,44 @@ def assert_same_motion(bvh_motion, joints, rot, *, exact=False):
     assert np.abs(bvh_motion.root_rotation - rot).max() <= (1e-14 if exact else 1e-10)
 
 
+#: canonical joints the cmuconvert names place exactly where the ASF reader does (the
+#: spine's belly/chest are placed at 1/3 and 2/3 of its length, the wrist at the
+#: origin of LeftHand, i.e. before the ASF wrist bone)
+CMU_EXACT = ["root", "lhip", "lknee", "lankle", "ltoes", "rhip", "rknee", "rankle", "rtoes", "neck",
+             "head", "headtop", "lclavicle", "rclavicle", "lshoulder", "lelbow", "lfingers", "rshoulder",
+             "relbow", "rfingers"]
+
+
 @pytest.mark.parametrize("which", ["hdm", "cmu500"])
-@pytest.mark.parametrize("layout", ["asf", "cmu"])
-def test_round_trip_reproduces_asf_joints_and_root_rotation(which, layout, request, tmp_path):
+def test_asf_names_round_trip_reproduces_asf_joints_and_root_rotation(which, request, tmp_path):
     s, m, (joints, rot) = request.getfixturevalue(which)
-    path = write_bvh(tmp_path / "take.bvh", s, m, layout=layout, rest_frame=layout == "cmu",
-                     precision=17)
+    path = write_bvh(tmp_path / "take.bvh", s, m, layout="asf", precision=17)
     b = read_motion(path)
-    assert b.meta["bvh_family"] == layout and b.skeleton == f"bvh:{layout}"
+    assert b.meta["bvh_family"] == "asf" and b.skeleton == "bvh:asf"
     assert b.source_format == "bvh" and b.name == "take" and b.fps == 120.0
-    assert b.meta.get("rest_frame_skipped", False) == (layout == "cmu")
+    assert not b.meta.get("rest_frame_skipped", False)
     assert_same_motion(b, joints, rot, exact=True)
     # the default 12 digits
-    write_bvh(path, s, m, layout=layout, rest_frame=layout == "cmu")
+    write_bvh(path, s, m, layout="asf")
     assert_same_motion(read_motion(path), joints, rot)
+
+
+@pytest.mark.parametrize("which", ["hdm", "cmu500"])
+def test_cmuconvert_names_map_onto_the_asf_points(which, request, tmp_path):
+    s, m, (joints, rot) = request.getfixturevalue(which)
+    path = write_bvh(tmp_path / "take.bvh", s, m, layout="cmu", rest_frame=True, precision=17)
+    b = read_motion(path)
+    assert b.skeleton == "bvh:humanoid" and b.meta["rest_frame_skipped"]
+    assert b.meta["mapping"]["lknee"] == "LeftLeg" and b.meta["mapping"]["lwrist"] == "LeftHand"
+    idx = [JOINT_INDEX[j] for j in CMU_EXACT]
+    assert np.abs(b.joints[:, idx] - joints[:, idx]).max() <= 1e-11 * humerus(joints)
+    # the pelvis has the ASF axes: feature #40 reads the root rotation
+    assert np.abs(b.root_rotation - rot).max() <= 1e-13
+    # belly and chest lie on the spine between root and neck, a third apart
+    root, belly, chest, neck = (b.joints[:, JOINT_INDEX[j]] for j in ("root", "belly", "chest", "neck"))
+    spine = np.linalg.norm(neck - root, axis=1)
+    for p in (belly, chest):
+        assert (np.linalg.norm(p - root, axis=1) < spine).all() and (np.linalg.norm(p - neck, axis=1) < spine).all()
 
 
 def test_cmu_layout_matches_the_cmuconvert_facts(hdm, tmp_path):
@@ -88,6 +112,28 @@ def test_cmu_layout_matches_the_cmuconvert_facts(hdm, tmp_path):
     # the same file read with the rest frame kept has one frame more
     keep = read_bvh(tmp_path / "c.bvh", skip_rest_frame=False)
     assert keep.n_frames == m.n_frames + 1
+    assert read_bvh(tmp_path / "c.bvh").n_frames == m.n_frames
+
+
+def test_a_rest_frame_that_is_not_all_zero_is_dropped(hdm, tmp_path):
+    """cmuconvert keeps the root and a few degrees on the limbs in some rest frames
+    (READERS.md §2): detected by its jump to frame 2, not by zeros."""
+    s, m, (joints, _) = hdm
+    text = write_bvh(tmp_path / "c.bvh", s, m, layout="cmu", rest_frame=True).read_text()
+    head, body = text.split("MOTION\n")
+    lines = body.split("\n")
+    first = np.array(lines[3].split(), dtype=float)  # the take's first frame
+    rest = np.zeros_like(first)
+    rest[:3] = first[:3]  # the root where the take starts
+    rest[6::3] += 3.0    # a few degrees on every joint
+    lines[2] = " ".join(repr(float(v)) for v in rest)
+    p = tmp_path / "rest.bvh"
+    p.write_text(head + "MOTION\n" + "\n".join(lines))
+    b = read_bvh(p)
+    assert b.meta["rest_frame_skipped"] and b.n_frames == m.n_frames
+    # a take without a rest frame keeps every frame
+    plain = write_bvh(tmp_path / "plain.bvh", s, m, layout="cmu")
+    assert read_bvh(plain).n_frames == m.n_frames and not read_bvh(plain).meta.get("rest_frame_skipped")
 
 
 @pytest.mark.parametrize("order", ORDERS)
@@ -164,45 +210,62 @@ def test_euler_angles_invert_euler_matrix(order):
     assert np.allclose(euler_matrix(back, order.lower()), r, atol=1e-14)
 
 
-@pytest.mark.parametrize("frame_time,fps", [(0.0083333, 120.0), (0.008333, 120.0),
-                                            (1 / 120, 120.0), (0.0333333, 30.0),
-                                            (0.04, 25.0), (0.0333, 1 / 0.0333)])
-def test_fps_from_frame_time(frame_time, fps):
+@pytest.mark.parametrize("frame_time,fps", [(0.0083333, 120.0), (0.008333, 120.0), (0.0083, 120.0),
+                                            (1 / 120, 120.0), (0.0333333, 30.0), (0.0333, 30.0),
+                                            (0.04, 25.0), (0.041667, 24.0), (0.016667, 60.0),
+                                            (0.005, 200.0), (0.0123, 1 / 0.0123)])
+def test_fps_from_frame_time_snaps_to_common_rates(frame_time, fps):
+    """READERS.md §1: within 0.5 % of a common rate it is that rate (``.0083`` is 120 Hz,
+    not 120.48); otherwise the recorded rate stays."""
     assert fps_from_frame_time(frame_time) == fps
 
 
-def test_cmu_family_maps_every_canonical_joint():
-    fam = FAMILIES["cmu"]["joints"]
-    assert set(fam) == set(JOINT_NAMES)
-    assert fam["lclavicle"] == fam["rclavicle"] == fam["neck"] == ("Neck", "origin")
-    assert fam["ltoes"] == ("LeftToeBase", "tip") and fam["headtop"] == ("Head", "tip")
-    used = {b for b, _ in fam.values()}
-    assert used <= set(CMU_BONE_NAMES.values())
+def test_names_without_meaning_map_by_topology(hdm, tmp_path):
+    """Joint names that say nothing (j0, j1, …) still give the cmuconvert points: limbs
+    from the tree and their two longest bones, sides from the rest pose."""
+    s, m, (joints, _) = hdm
+    path = write_bvh(tmp_path / "x.bvh", s, replace(m, values=m.values[:40]), layout="cmu")
+    text = path.read_text()
+    names = re.findall(r"(?:ROOT|JOINT) (\w+)", text)
+    for k, name in enumerate(sorted(names, key=len, reverse=True)):
+        text = re.sub(rf"((?:ROOT|JOINT) ){name}\n", rf"\1q{k}z\n", text)
+    anon = tmp_path / "anon.bvh"
+    anon.write_text(text)
+    named = read_bvh(path)
+    b = read_bvh(anon)
+    assert b.skeleton == "bvh:humanoid"
+    assert all(v[0] == "q" or isinstance(v, list) or "spine" in v for v in b.meta["mapping"].values())
+    idx = [JOINT_INDEX[j] for j in ("root", "lhip", "lknee", "lankle", "rhip", "rknee", "rankle", "lshoulder",
+                                    "lelbow", "rshoulder", "relbow", "neck")]
+    assert np.abs(b.joints[:, idx] - named.joints[:, idx]).max() <= 1e-12 * humerus(joints)
 
 
-def test_unknown_skeleton_names_the_missing_joints(hdm, tmp_path):
+def test_a_joint_map_overrides_the_automatic_mapping(hdm, tmp_path):
     s, m, _ = hdm
-    path = write_bvh(tmp_path / "x.bvh", s, replace(m, values=m.values[:3]), layout="cmu")
-    text = path.read_text().replace("LeftUpLeg", "LeftThigh").replace("RightArm", "RArm")
-    bad = tmp_path / "renamed.bvh"
-    bad.write_text(text)
-    with pytest.raises(ParseError, match=r"renamed\.bvh: no known skeleton family fits this BVH: "
-                                         r"family 'asf' lacks .*lfemur.*; family 'cmu' lacks "
-                                         r"LeftUpLeg, RightArm"):
-        read_bvh(bad)
-    # an explicit family table reads it
-    fam = {"joints": dict(FAMILIES["cmu"]["joints"], lhip=("LeftThigh", "origin"),
-                          rshoulder=("RArm", "origin")), "root": "Hips", "rest_frame": True}
-    assert read_bvh(bad, family=fam).n_frames == 3
+    path = write_bvh(tmp_path / "x.bvh", s, replace(m, values=m.values[:10]), layout="cmu")
+    auto = read_bvh(path)
+    b = read_bvh(path, joint_map={"lwrist": "LeftFingerBase", "neck": ["LeftShoulder", "RightShoulder"],
+                                  "ltoes": "LeftToeBase/end"})
+    assert b.skeleton == "bvh:joint_map"
+    data = parse_bvh(path.read_bytes())
+    origins, ends, _ = bvh_node_positions(data)
+    h = data.hierarchy
+    np.testing.assert_allclose(b.joints[:, JOINT_INDEX["lwrist"]], origins[:, h.index("LeftFingerBase")], atol=1e-12)
+    np.testing.assert_allclose(b.joints[:, JOINT_INDEX["neck"]], (origins[:, h.index("LeftShoulder")]
+                                                                  + origins[:, h.index("RightShoulder")]) / 2)
+    np.testing.assert_allclose(b.joints[:, JOINT_INDEX["ltoes"]], ends[:, h.index("LeftToeBase")], atol=1e-12)
+    np.testing.assert_array_equal(b.joints[:, JOINT_INDEX["lknee"]], auto.joints[:, JOINT_INDEX["lknee"]])
+    with pytest.raises(ParseError, match=r"joint_map: lwrist = 'Nope': no such joint in this file "
+                                         r"\(its joints: Hips, LHipJoint, "):
+        read_bvh(path, joint_map={"lwrist": "Nope"})
 
 
-def test_cmuconvert_offsets_give_the_spec_points(hdm, tmp_path):
+def test_cmuconvert_offsets_give_distinct_spine_points(hdm, tmp_path):
     """Real cmuconvert files drop the ASF thorax and wrist vectors (OFFSET 0 for
-    Neck, Left/RightShoulder, Left/RightFingerBase, L/RThumb; FEATURES.md §2.3b).
-    Mimic that: the spine and legs stay exact, neck = lclavicle = rclavicle
-    collapses onto Spine1's origin and lwrist onto LeftHand's origin (the spec's
-    proposed points); arms and head are then only approximate (they hang off
-    the dropped vectors), so they are not compared."""
+    Neck, Left/RightShoulder, Left/RightFingerBase, L/RThumb; FEATURES.md §2.3b):
+    the neck collapses onto Spine1's origin. The spec's proposed chest = Spine1
+    would then equal the neck (chest length 0, features #3–#6 undefined); the
+    mapping keeps belly and chest at 1/3 and 2/3 of the spine instead."""
     s, m, (joints, rot) = hdm
     text = write_bvh(tmp_path / "c.bvh", s, m, layout="cmu", precision=17).read_text()
     for name in ("Neck", "LeftShoulder", "RightShoulder", "LeftFingerBase", "RightFingerBase",
@@ -212,18 +275,19 @@ def test_cmuconvert_offsets_give_the_spec_points(hdm, tmp_path):
     p = tmp_path / "folded.bvh"
     p.write_text(text)
     b = read_bvh(p)
-    assert b.meta["bvh_family"] == "cmu"
-    exact = ["root", "lhip", "lknee", "lankle", "ltoes", "rhip", "rknee", "rankle", "rtoes",
-             "belly", "chest"]
+    exact = ["root", "lhip", "lknee", "lankle", "ltoes", "rhip", "rknee", "rankle", "rtoes"]
     idx = [JOINT_INDEX[j] for j in exact]
     assert np.abs(b.joints[:, idx] - joints[:, idx]).max() <= 1e-12 * humerus(joints)
     assert np.abs(b.root_rotation - rot).max() <= 1e-14
     data = parse_bvh(p.read_bytes())
     origins, _, _ = bvh_node_positions(data)
     h = data.hierarchy
-    assert np.array_equal(b.joints[:, JOINT_INDEX["neck"]], origins[:, h.index("Spine1")])
+    assert np.array_equal(b.joints[:, JOINT_INDEX["neck"]], origins[:, h.index("Neck")])
+    np.testing.assert_allclose(origins[:, h.index("Neck")], origins[:, h.index("Spine1")], atol=1e-12)
     assert np.array_equal(b.joints[:, JOINT_INDEX["lwrist"]], origins[:, h.index("LeftHand")])
     assert np.array_equal(b.joints[:, JOINT_INDEX["lclavicle"]], b.joints[:, JOINT_INDEX["neck"]])
+    chest_len = np.linalg.norm(b.joints[0, JOINT_INDEX["chest"]] - b.joints[0, JOINT_INDEX["neck"]])
+    assert chest_len > 0.2 * np.linalg.norm(b.joints[0, JOINT_INDEX["neck"]] - b.joints[0, JOINT_INDEX["root"]])
 
 
 def test_motion_values_equal_python_float(hdm, tmp_path):
@@ -242,6 +306,11 @@ def test_bvh_round_trip_gives_the_same_feature_words(cmu500, tmp_path):
 
     s, m, (joints, rot) = cmu500
     amc_words = motion_features(Motion(joints=joints, root_rotation=rot, fps=120.0))
-    for layout in ("asf", "cmu"):
-        p = write_bvh(tmp_path / f"{layout}.bvh", s, m, layout=layout, precision=17)
-        assert np.array_equal(motion_features(read_bvh(p)), amc_words)
+    p = write_bvh(tmp_path / "asf.bvh", s, m, layout="asf", precision=17)
+    assert np.array_equal(motion_features(read_bvh(p)), amc_words)
+    # cmuconvert names: belly/chest and the wrist move a little; features nearly agree
+    from mocapdb.features import unpack_words
+
+    p = write_bvh(tmp_path / "cmu.bvh", s, m, layout="cmu", precision=17)
+    agree = (unpack_words(motion_features(read_bvh(p))) == unpack_words(amc_words)).mean()
+    assert agree >= 0.99, agree

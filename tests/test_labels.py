@@ -178,3 +178,30 @@ def test_map_labels_keeps_unmapped_and_segments_to_rows():
     assert [tuple(r) for r in segments_to_rows(seg, ["x", "y"])] == [("y", "move", 3, 9)]
     with pytest.raises(ParameterError, match="document names"):
         segments_to_rows(seg, ["x"])
+
+
+@pytest.mark.parametrize("fps", [24.0, 25.0, 30.0, 50.0, 59.94, 60.0, 100.0, 120.0, 200.0, 240.0])
+def test_grids_at_any_source_rate(fps):
+    """Native frame s (time (s-1)/fps) belongs to the 30 Hz frame of the grid time
+    at or before it; feature → native → feature is the identity at every rate, and
+    at 120 Hz the factor-4 rules hold exactly."""
+    from mocapdb.annotation.labels import feature_to_native_frames, native_factor, native_to_feature_frames
+    from mocapdb.features import feature_frame_count
+
+    f = native_factor(fps)
+    n = 5000
+    s = np.arange(1, n + 1)
+    k, _ = native_to_feature_frames(s, s, factor=f)
+    np.testing.assert_array_equal(k, np.floor((s - 1) * 30 / fps + 1e-9).astype(int))
+    assert k.max() == feature_frame_count(n, fps) - 1
+    if fps < 30:
+        return  # below 30 Hz some feature frames lie between two native frames
+    a = np.arange(0, k.max() + 1)
+    lo, hi = feature_to_native_frames(a, a, factor=f, n_native=n)
+    back, _ = native_to_feature_frames(lo, hi, factor=f)
+    np.testing.assert_array_equal(back, a)
+    # the native ranges tile the take without gaps or overlaps
+    assert lo[0] == 1 and hi[-1] == n and (lo[1:] == hi[:-1] + 1).all()
+    if fps == 120.0:
+        np.testing.assert_array_equal(k, (s - 1) // 4)
+        np.testing.assert_array_equal(lo, 4 * a + 1)

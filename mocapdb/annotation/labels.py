@@ -4,6 +4,8 @@ A label (or ground-truth) CSV has the columns ``document,label,start_frame,end_f
 (DESIGN.md §5): one labelled segment per row, frames at the document's
 **native** rate, 1-based and inclusive, as in the HDM05 annotations. Extra
 columns are ignored; blank lines and lines starting with ``#`` are skipped.
+An ELAN ``.eaf`` file is read wherever a label CSV is (:func:`read_labels`
+dispatches on the suffix; the rules are in :mod:`mocapdb.annotation.elan`).
 
 In memory a set of segments is a structured array of :data:`LABEL_DTYPE`
 (``document``, ``label``, ``start``, ``end``). Which frame grid ``start`` and
@@ -15,10 +17,12 @@ In memory a set of segments is a structured array of :data:`LABEL_DTYPE`
   numpy-level convention of :mod:`mocapdb.annotation` and :mod:`mocapdb.evaluation.metrics`);
 * :func:`to_native_grid`: back to native 1-based inclusive for output.
 
-This module is **the one place** that converts between the two grids. The
-30 Hz feature frame k (1-based) is native frame 4k − 3 (FEATURES.md §1,
-downsampling by 4 keeping the first frame) and *covers* the native frames
-4k − 3 … 4k. Hence a native range [s, e] covers the 30 Hz frames
+This module is **the one place** that converts between the two grids. At
+120 Hz the 30 Hz feature frame k (1-based) is native frame 4k − 3 (FEATURES.md
+§1, downsampling by 4 keeping the first frame) and *covers* the native frames
+4k − 3 … 4k. At another rate the factor is ``fps/30`` (:func:`native_factor`;
+native frame s lies at time (s − 1)/fps and belongs to 30 Hz frame
+floor((s − 1)·30/fps)); the statements below are for the factor 4. Hence a native range [s, e] covers the 30 Hz frames
 ceil(s/4) … ceil(e/4) (1-based), i.e. ``(s − 1) // 4 … (e − 1) // 4`` 0-based,
 and a 30 Hz range [a, b] (0-based) covers the native frames 4a + 1 … 4b + 4
 (clipped to the document's length). Feature grid → native → feature grid is
@@ -42,15 +46,17 @@ from pathlib import Path
 
 import numpy as np
 
+from mocapdb.annotation.elan import eaf_document, eaf_source_fps, is_eaf, read_eaf
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.features import DOWNSAMPLING_FACTOR
+from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE, TOOLBOX_RATE
 
 __all__ = [
-    "LABEL_COLUMNS", "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "read_segments",
+    "LABEL_COLUMNS", "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "label_documents",
+    "read_segments", "read_truth",
     "write_labels",
     "native_to_feature_frames", "feature_to_native_frames", "to_feature_grid",
     "to_native_grid", "segments_to_rows", "map_labels", "read_class_labels",
-    "write_class_labels", "class_labels", "read_text", "SHIPPED_CLASS_LABELS",
+    "write_class_labels", "class_labels", "read_text", "SHIPPED_CLASS_LABELS", "native_factor",
 ]
 
 #: the columns of a label / ground-truth CSV (DESIGN.md §5)
@@ -200,15 +206,20 @@ def _int_field(path, line, name, text):
                          f"got {text!r}") from None
 
 
-def read_labels(path, *, n_frames=None):
-    """Read a label / ground-truth CSV (``document,label,start_frame,end_frame``).
+def read_labels(path, *, n_frames=None, fps=None):
+    """Read a label / ground-truth CSV (``document,label,start_frame,end_frame``) or an ELAN file.
 
     Parameters
     ----------
     path : str or Path
+        A CSV, or an ELAN ``.eaf`` file (by the suffix; the tier → label and
+        time → frame rules are in :mod:`mocapdb.annotation.elan`).
     n_frames : mapping of str to int, optional
         Native frame count per document; rows of these documents must end
         within it (other documents are not checked).
+    fps : float or mapping of str to float, optional
+        ELAN files only: the document's native frame rate (default: the
+        file's ``mocapdb:source_fps`` property).
 
     Returns
     -------
@@ -227,6 +238,13 @@ def read_labels(path, *, n_frames=None):
     ----------
     DESIGN.md §5.
     """
+    if is_eaf(path):
+        rows = read_eaf(path, fps=fps)
+        for doc, _, _, e in rows:
+            if n_frames is not None and doc in n_frames and e > int(n_frames[doc]):
+                raise ParseError(path, None, f"an annotation ends at native frame {e}, beyond the last frame "
+                                 f"of document {doc!r} ({int(n_frames[doc])} frames)")
+        return as_label_rows(rows)
     out = []
     for line, rec in _csv_records(path, LABEL_COLUMNS):
         doc, lab = rec["document"], rec["label"]
@@ -245,6 +263,20 @@ def read_labels(path, *, n_frames=None):
                              f"{doc!r} ({int(n_frames[doc])} frames at the native rate)")
         out.append((doc, lab, s, e))
     return as_label_rows(out)
+
+
+def label_documents(path):
+    """The documents a label file (CSV or ELAN) names, in first-appearance order.
+
+    For an ELAN file this needs no frame rate (the rows need one).
+
+    Returns
+    -------
+    list of str
+    """
+    if is_eaf(path):
+        return [eaf_document(path)]
+    return list(dict.fromkeys(read_labels(path)["document"]))
 
 
 def read_segments(path):
@@ -314,9 +346,22 @@ def write_labels(path, rows):
 
 
 def _check_factor(factor):
-    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
-        raise ParameterError(f"factor must be a positive integer, got {factor!r}; default 4")
-    return int(factor)
+    """Native frames per 30 Hz frame: a number or one per range (source rate / 30)."""
+    if isinstance(factor, bool):
+        raise ParameterError(f"factor must be a positive number, got {factor!r}; default 4 (120 Hz)")
+    f = np.asarray(factor, dtype=np.float64)
+    if not (np.isfinite(f).all() and (f > 0).all()):
+        raise ParameterError(f"factor must be positive (native frames per 30 Hz frame), got {factor!r}")
+    return f
+
+
+def native_factor(fps):
+    """Native frames per 30 Hz feature frame of a source at ``fps`` Hz (4 at 120 Hz)."""
+    return np.asarray(fps, dtype=np.float64) / FEATURE_RATE
+
+
+# grid arithmetic on floats: 1e-9 absorbs the rounding of fps/30 (e.g. 29.97 Hz)
+_EPS = 1e-9
 
 
 def native_to_feature_frames(start, end, *, factor=DOWNSAMPLING_FACTOR):
@@ -329,7 +374,9 @@ def native_to_feature_frames(start, end, *, factor=DOWNSAMPLING_FACTOR):
     ----------
     start, end : int or array_like of int
         Native frames, 1-based inclusive (``1 <= start <= end``).
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
         The toolbox's fixed downsampling factor (FEATURES.md §1).
 
     Returns
@@ -352,7 +399,7 @@ def native_to_feature_frames(start, end, *, factor=DOWNSAMPLING_FACTOR):
     e = np.asarray(end, dtype=np.int64)
     if (s < 1).any() or (e < s).any():
         raise ParameterError("native ranges must satisfy 1 <= start <= end (1-based frames)")
-    return (s - 1) // f, (e - 1) // f
+    return (np.floor((s - 1) / f + _EPS).astype(np.int64), np.floor((e - 1) / f + _EPS).astype(np.int64))
 
 
 def feature_to_native_frames(start, end, *, factor=DOWNSAMPLING_FACTOR, n_native=None):
@@ -362,7 +409,9 @@ def feature_to_native_frames(start, end, *, factor=DOWNSAMPLING_FACTOR, n_native
     ----------
     start, end : int or array_like of int
         0-based inclusive 30 Hz frames (``0 <= start <= end``).
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
     n_native : int or array_like of int, optional
         Native length of each range's document: ends are clipped to it (the
         last 30 Hz frame of a document may cover fewer than ``factor`` frames).
@@ -382,8 +431,9 @@ def feature_to_native_frames(start, end, *, factor=DOWNSAMPLING_FACTOR, n_native
     b = np.asarray(end, dtype=np.int64)
     if (a < 0).any() or (b < a).any():
         raise ParameterError("feature-grid ranges must satisfy 0 <= start <= end (0-based)")
-    s = f * a + 1
-    e = f * b + f
+    # 30 Hz frame k covers the native frames s with floor((s - 1)/f) = k
+    s = np.ceil(a * f - _EPS).astype(np.int64) + 1
+    e = np.ceil((b + 1) * f - _EPS).astype(np.int64)
     if n_native is not None:
         n = np.asarray(n_native, dtype=np.int64)
         if (s > n).any():
@@ -398,7 +448,9 @@ def to_feature_grid(rows, *, factor=DOWNSAMPLING_FACTOR):
     Parameters
     ----------
     rows : ndarray of LABEL_DTYPE or iterable of (document, label, start, end)
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
 
     Returns
     -------
@@ -415,7 +467,9 @@ def to_native_grid(rows, *, factor=DOWNSAMPLING_FACTOR, n_native=None):
     Parameters
     ----------
     rows : ndarray of LABEL_DTYPE (or with a ``doc`` field) or iterable of tuples
-    factor : int, default 4
+    factor : float or array_like of float, default 4
+        Native frames per 30 Hz frame: ``source_fps / 30`` (:func:`native_factor`),
+        one number or one per range.
     n_native : mapping of str to int, optional
         Native frame count per document; ends are clipped to it (documents
         missing from the mapping are not clipped).
@@ -458,6 +512,38 @@ def segments_to_rows(segments, documents):
     out["label"] = [str(x) for x in segments["label"]]
     out["start"], out["end"] = segments["start"], segments["end"]
     return out
+
+
+def read_truth(path, *, label_map=None, n_frames=None, fps=None):
+    """A ground-truth or label file (CSV or ELAN, native frames) on the 30 Hz grid, labels mapped.
+
+    Parameters
+    ----------
+    path : str or Path
+    label_map : str, Path or dict, optional
+        Truth label → model label (CSV ``class,label`` or a dict), e.g.
+        86_09's ``walk`` → ``move``; unmapped labels are kept.
+    n_frames : mapping of str to int, optional
+        As :func:`read_labels`.
+    fps : float or mapping of str to float, optional
+        Each document's native rate (a database's ``motions.source_fps``):
+        places ELAN times on native frames and native frames on the 30 Hz
+        grid (:func:`native_factor`). Default: an ELAN file's
+        ``mocapdb:source_fps`` property, else 120 Hz.
+
+    Returns
+    -------
+    ndarray of LABEL_DTYPE
+        30 Hz feature frames, 0-based inclusive.
+    """
+    native = read_labels(path, n_frames=n_frames, fps=fps)
+    default = (eaf_source_fps(path) if is_eaf(path) else None) or TOOLBOX_RATE
+    rates = [float(fps) if fps is not None and not isinstance(fps, dict) else (fps or {}).get(d, default)
+             for d in native["document"]]
+    rows = to_feature_grid(native, factor=native_factor(rates) if rates else DOWNSAMPLING_FACTOR)
+    if label_map is not None:
+        rows = map_labels(rows, label_map if isinstance(label_map, dict) else read_class_labels(label_map))
+    return rows
 
 
 def map_labels(rows, mapping):

@@ -90,16 +90,19 @@ class RayReport(IngestReport):
     out: str = ""
 
     def summary(self) -> str:
-        return (f"{len(self.ingested)} motions, {self.segments} segments written to {self.out} "
-                f"({len(self.skipped)} skipped, {len(self.failed)} failed)")
+        out = (f"{len(self.ingested)} motions, {self.segments} segments written to {self.out} "
+               f"({len(self.skipped)} skipped, {len(self.failed)} failed")
+        return out + (f", {len(self.unsupported)} not motion files)" if self.unsupported else ")")
 
 
-def expand_sources(sources) -> list[Path]:
+def expand_sources(sources, *, unsupported=None) -> list[Path]:
     """Files, folders (recursively) and glob patterns → the motion files, as absolute paths.
 
     Folders are walked as by ``ingest`` (:func:`mocapdb.storage.ingest.motion_files`);
     a pattern (``*``, ``?``, ``[…]``, ``**`` for any depth) adds its matching
-    folders and motion files. A file listed twice counts once.
+    folders and motion files. A file listed twice counts once. ``unsupported``
+    receives ``(path, reason)`` of the other files of the folders, as with
+    ``motion_files``.
 
     Raises
     ------
@@ -116,7 +119,7 @@ def expand_sources(sources) -> list[Path]:
             paths.extend(hits)
         else:
             paths.append(Path(s))
-    files = list(dict.fromkeys(p.resolve() for p in motion_files(paths)))
+    files = list(dict.fromkeys(p.resolve() for p in motion_files(paths, unsupported=unsupported)))
     if not files:
         raise ParameterError(f"sources: no motion files ({', '.join(MOTION_SUFFIXES)}) in {[str(s) for s in sources]}")
     return files
@@ -249,14 +252,15 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     """
     _check(tau, num_cpus, batch_files, bucket_motions)
     ray = require_ray()
-    files = expand_sources(sources)
+    report = RayReport()
+    files = expand_sources(sources, unsupported=report.unsupported)
     maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
     asf = None if asf is None else str(Path(asf).resolve())  # workers have their own working directory
     the_model = _model(model, database)
     schemas = {**table_schemas(), "errors": ERRORS_SCHEMA}
     out = prepare_output(out, overwrite=overwrite)
     stamp = datetime.now().replace(microsecond=0)  # one ingested_at / annotated_at for the run
-    report = RayReport(out=str(out))
+    report.out = str(out)
     init = {"model_name": model, "tau": tau, "keyframes": keyframes, "out": str(out), "schemas": schemas,
             "stamp": stamp, "bucket_motions": bucket_motions, "asf": asf, "maps": maps, "threads": ACTOR_CPUS}
     with ray_session(ray, address=address, num_cpus=num_cpus) as cpus, _quiet_data(ray):
@@ -314,7 +318,7 @@ def _drop_duplicates(out, rows, parts, schemas, report) -> None:
             continue
         key = (r["sha256"], r["skeleton_sha256"])
         if key in first:
-            report.skipped.append((r["file"], f"same bytes as {first[key]}"))
+            report.skipped.append((r["file"], f"same bytes as {first[key]} of this run"))
             dropped[r["motion_id"]] = r
         else:
             first[key] = r["file"]

@@ -7,6 +7,8 @@ packing, runs, mirroring).
 """
 from mocapdb.features.relational import (FEATURE_THRESHOLDS, ROOT_ANG_VEL_THRESHOLDS_ALT, SMOOTHING_MS,
                                          hysteresis, motion_features, relational_features, smoothing_window)
+from mocapdb.features.rates import (FEATURE_RATE, RATE_METHODS, TOOLBOX_RATE, feature_frame_count, feature_grid,
+                                    grid_source_frames, resample_joints)
 from mocapdb.features.words import (DOWNSAMPLING_FACTOR, FEATURE_NAMES, FEATURE_SETS, MIRROR_FEATURES, N_FEATURES,
                                     SET_BITS, as_doc_lengths, as_words, downsample, feature_runs, mirror_words,
                                     pack_words, segment_runs, unpack_words)
@@ -16,5 +18,6 @@ __all__ = [
     "FEATURE_THRESHOLDS", "SMOOTHING_MS", "ROOT_ANG_VEL_THRESHOLDS_ALT",
     "relational_features", "hysteresis", "smoothing_window", "motion_features",
     "downsample", "pack_words", "unpack_words", "feature_runs", "segment_runs", "mirror_words",
-    "as_words", "as_doc_lengths",
+    "as_words", "as_doc_lengths", "FEATURE_RATE", "TOOLBOX_RATE", "RATE_METHODS", "feature_frame_count",
+    "feature_grid", "grid_source_frames", "resample_joints",
 ]

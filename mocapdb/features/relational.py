@@ -22,6 +22,8 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
+from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, feature_frame_count, grid_source_frames,
+                                    resample_joints)
 from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
 from mocapdb.readers import JOINT_INDEX
 
@@ -647,7 +649,7 @@ def relational_features(joints, root_rotation, fps, *,
     return out
 
 
-def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0)):
+def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_method: str = "resample"):
     """The whole feature pipeline of one motion: 40 features → 30 Hz → words.
 
     Parameters
@@ -655,15 +657,39 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0)):
     motion : mocapdb.readers.motion.Motion
     root_ang_vel_thresholds : (float, float), optional
         See :func:`relational_features`.
+    rate_method : {"resample", "native"}, keyword-only
+        How a source not at 120 Hz reaches the 30 Hz grid
+        (:mod:`mocapdb.features.rates`): ``"resample"`` (default) resamples
+        the joints to 120 Hz and takes the toolbox path; ``"native"``
+        computes at the source rate and samples the nearest frames. At
+        120 Hz both are the toolbox path (native frames 0, 4, 8, …).
 
     Returns
     -------
-    ndarray, shape (ceil(n_frames/4),), uint64
-        One packed word per kept frame (native frames 0, 4, 8, …).
+    ndarray, shape (feature_frame_count(n_frames, fps),), uint64
+        One packed word per 30 Hz frame (``ceil(n_frames/4)`` at 120 Hz).
+
+    References
+    ----------
+    FEATURES.md §1; READERS.md §1.
     """
-    feats = relational_features(motion.joints, motion.root_rotation, motion.fps,
-                                root_ang_vel_thresholds=root_ang_vel_thresholds)
-    return pack_words(downsample(feats))
+    if rate_method not in RATE_METHODS:
+        raise ParameterError(f"rate_method={rate_method!r}: expected one of {RATE_METHODS}")
+    fps = float(motion.fps)
+    joints, rot = motion.joints, motion.root_rotation
+    if fps != TOOLBOX_RATE and rate_method == "resample":
+        joints, rot = resample_joints(joints, rot, fps)
+        fps = TOOLBOX_RATE
+    feats = relational_features(joints, rot, fps, root_ang_vel_thresholds=root_ang_vel_thresholds)
+    if fps == TOOLBOX_RATE:
+        words = pack_words(downsample(feats))
+    else:
+        words = pack_words(feats[grid_source_frames(len(feats), fps)])
+    # a resampled take can end a hair before the source's last grid time
+    want = feature_frame_count(motion.n_frames, motion.fps)
+    if len(words) < want:
+        words = np.concatenate([words, np.repeat(words[-1:], want - len(words))])
+    return words[:want]
 
 
 __all__ = [

@@ -8,11 +8,14 @@ rotation, rate); :func:`read_motion` dispatches on the file type
 :mod:`~mocapdb.readers.textscan`.
 """
 from mocapdb.readers.joints import (JOINT_INDEX, JOINT_NAMES, MIRROR_JOINTS)
-from mocapdb.readers.motion import (Motion)
+from mocapdb.readers.motion import (COMMON_RATES, MAX_RATE, Motion, check_finite_motion, check_rate, snap_rate)
 from mocapdb.readers.asf import (BONE_DOFS, INCH_TO_TOOLBOX, ROOT_DOFS, Bone, Skeleton, parse_asf, read_asf)
 from mocapdb.readers.amc import (DEFAULT_FPS, AmcMotion, parse_amc, read_amc)
 from mocapdb.readers.kinematics import (ASF_JOINT_BONES, asf_forward_kinematics, asf_joints, euler_matrix, joint_node_indices, local_rotations, node_positions, orientation_matrix, root_rotation, sincos)
-from mocapdb.readers.bvh import (CMU_BONE_NAMES, FAMILIES, BvhData, BvhHierarchy, BvhJoint, bvh_node_positions, bvh_to_motion, euler_angles, parse_bvh, read_bvh, write_bvh)
+from mocapdb.readers.humanoid import (JointMap, SkeletonTree, map_humanoid)
+from mocapdb.readers.bvh import (BvhData, BvhHierarchy, BvhJoint, bvh_joint_map, bvh_node_positions, bvh_to_motion,
+                                 joint_map_template, parse_bvh, read_bvh)
+from mocapdb.readers.bvh_write import (CMU_BONE_NAMES, euler_angles, write_bvh)
 from mocapdb.readers.mapping import (load_mapping)
 from mocapdb.readers.files import (SUPPORTED_EXTENSIONS, find_skeleton, load_skeleton, read_asf_amc, read_motion, skeleton_candidates)
 
@@ -21,7 +24,8 @@ __all__ = [
     "INCH_TO_TOOLBOX", "ROOT_DOFS", "BONE_DOFS", "AmcMotion", "read_amc", "parse_amc", "DEFAULT_FPS",
     "ASF_JOINT_BONES", "node_positions", "asf_joints", "asf_forward_kinematics", "root_rotation",
     "euler_matrix", "orientation_matrix", "local_rotations", "joint_node_indices", "sincos", "BvhJoint",
-    "BvhHierarchy", "BvhData", "FAMILIES", "read_bvh", "parse_bvh", "bvh_node_positions", "bvh_to_motion",
+    "BvhHierarchy", "BvhData", "read_bvh", "bvh_joint_map", "joint_map_template", "JointMap", "SkeletonTree",
+    "map_humanoid", "snap_rate", "check_rate", "check_finite_motion", "COMMON_RATES", "MAX_RATE", "parse_bvh", "bvh_node_positions", "bvh_to_motion",
     "write_bvh", "euler_angles", "CMU_BONE_NAMES", "read_motion", "read_asf_amc", "find_skeleton",
     "skeleton_candidates", "load_skeleton", "SUPPORTED_EXTENSIONS", "load_mapping",
 ]

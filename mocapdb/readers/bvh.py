@@ -1,116 +1,71 @@
-"""Biovision hierarchy (BVH) reader and writer.
+"""Biovision hierarchy (BVH) reader: any humanoid skeleton, any dialect (READERS.md §2).
 
-Reading: :func:`read_bvh` parses the ``HIERARCHY`` (joints with ``OFFSET``,
-``CHANNELS`` in any number and order, ``End Site``\\ s) and the ``MOTION``
-lines (one numba pass, :func:`mocapdb.readers.textscan.parse_rows`), runs forward
-kinematics and picks the 24 canonical joints through the joint-name table of
-the skeleton family that fits (:data:`FAMILIES`).
+:func:`read_bvh` parses the ``HIERARCHY`` (joints with ``OFFSET``, ``CHANNELS``
+in any number and order, ``End Site``\\ s; one-line blocks, names with spaces
+or namespaces, CR, LF or CRLF line ends) and the ``MOTION`` lines (the numba
+scanner of :mod:`mocapdb.readers.textscan`), runs forward kinematics and
+places the 24 canonical joints:
 
-BVH semantics used (the common reading of the format):
+* files written with ASF bone names (:func:`mocapdb.readers.bvh_write.write_bvh`)
+  take the exact ASF points (FEATURES.md §2.2);
+* any other humanoid goes through :func:`mocapdb.readers.humanoid.map_humanoid`
+  (names with prefixes stripped, else topology);
+* a user ``joint_map`` overrides either.
+
+BVH semantics (the common reading of the format, as bvhio, MotionBuilder and
+Blender):
 
 * a joint's rotation is the product of its rotation channels **in the order
-  listed**: ``Zrotation Yrotation Xrotation`` means ``Rz·Ry·Rx``; angles in
-  degrees;
-* global rotation = parent global · local; a joint's origin = parent origin +
-  parent global · (``OFFSET`` + its position channels); an End Site =
-  joint origin + joint global · its ``OFFSET``;
-* the root's position channels are added to its ``OFFSET`` (usually 0).
+  listed** (``Zrotation Yrotation Xrotation`` = ``Rz·Ry·Rx``), in degrees;
+  global rotation = parent global · local;
+* a joint's origin = parent origin + parent global · t, where t is the
+  ``OFFSET``; position channels of a non-root joint **replace** the OFFSET's
+  coordinates, those of the root are added to it;
+* an End Site = joint origin + joint global · its OFFSET;
+* Y is up. The frame time is snapped to a common rate (``.0083`` → 120 Hz,
+  :func:`mocapdb.readers.motion.snap_rate`).
 
-Families (how canonical joints map to BVH nodes; "tip" = the joint's End
-Site, or its first child joint's origin when it has no End Site):
-
-* ``"asf"``: BVH written with ASF bone names (our :func:`write_bvh`): every
-  canonical joint is the tip of the ASF bone of FEATURES.md §2.2.
-* ``"cmu"``: the CMU "cmuconvert" files (FEATURES.md §2.3b): joint origins
-  (root = Hips, lhip = LeftUpLeg, ..., neck = lclavicle = rclavicle = Neck,
-  lshoulder = LeftArm, lelbow = LeftForeArm), toe/head/finger tips from End
-  Sites. lwrist = the origin of LeftFingerBase: in cmuconvert files its
-  OFFSET is 0, so that is the spec's LeftHand point; in a BVH written from an
-  ASF it carries the ASF wrist bone, so the point is exact there too.
-  A first frame of all zeros is cmuconvert's added rest pose and is skipped
-  (``skip_rest_frame=None``: only for this family).
-
-Writing: :func:`write_bvh` stores an ASF/AMC motion as BVH (``layout="asf"``
-or ``"cmu"``), one joint per ASF bone with its local rotation
-``C·M·C⁻¹`` as Euler angles, so that reading it back reproduces the ASF
-joint positions and root rotation.
+A rest pose that converters put in frame 1 (cmuconvert) is dropped: its jump
+to frame 2 is far above the motion's largest frame-to-frame change.
+Feature #40 reads the pelvis's rotation only when its axes follow the ASF
+convention (x from the right to the left hip at rest); otherwise
+``root_rotation`` is None and #40 uses the hip axis.
 
 References
 ----------
-FEATURES.md §2.1, §2.3, §2.3b; DESIGN.md §6.
+FEATURES.md §2.2, §2.3b; READERS.md §1, §2, §4; DESIGN.md §6.
 """
 from __future__ import annotations
 
 import math
 import re
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from mocapdb._numba import jit
-from mocapdb.readers.textscan import parse_rows
-from mocapdb.readers.amc import AmcMotion
-from mocapdb.readers.asf import Skeleton
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.joints import JOINT_NAMES
-from mocapdb.readers.kinematics import (ASF_JOINT_BONES, _rotate_columns, local_rotations, node_positions,
-                         sincos)
-from mocapdb.readers.motion import Motion
+from mocapdb.readers.humanoid import (JointMap, MappingError, SkeletonTree, asf_axes_at_rest, map_humanoid,
+                                     mapping_template)
+from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
+from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
+from mocapdb.readers.textscan import line_of, parse_rows
 
-__all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "FAMILIES", "read_bvh", "parse_bvh",
-           "bvh_node_positions", "bvh_to_motion", "write_bvh", "euler_angles",
-           "CMU_BONE_NAMES"]
+__all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "bvh_node_positions",
+           "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
 
 #: BVH channel names (case-insensitive in files) -> (kind, axis): kind 0 =
 #: position, 1 = rotation; axis 0 = x, 1 = y, 2 = z
 CHANNELS = {"xposition": (0, 0), "yposition": (0, 1), "zposition": (0, 2),
             "xrotation": (1, 0), "yrotation": (1, 1), "zrotation": (1, 2)}
 _CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
+_KEYWORDS = {"JOINT", "END", "}", "{", "OFFSET", "CHANNELS", "MOTION", "ROOT"}
 
-#: ASF bone -> joint name in the cmuconvert (cgspeed) CMU BVH files
-CMU_BONE_NAMES = {
-    "root": "Hips",
-    "lhipjoint": "LHipJoint", "lfemur": "LeftUpLeg", "ltibia": "LeftLeg", "lfoot": "LeftFoot",
-    "ltoes": "LeftToeBase",
-    "rhipjoint": "RHipJoint", "rfemur": "RightUpLeg", "rtibia": "RightLeg", "rfoot": "RightFoot",
-    "rtoes": "RightToeBase",
-    "lowerback": "LowerBack", "upperback": "Spine", "thorax": "Spine1", "lowerneck": "Neck",
-    "upperneck": "Neck1", "head": "Head",
-    "lclavicle": "LeftShoulder", "lhumerus": "LeftArm", "lradius": "LeftForeArm",
-    "lwrist": "LeftHand", "lhand": "LeftFingerBase", "lfingers": "LeftHandIndex1",
-    "lthumb": "LThumb",
-    "rclavicle": "RightShoulder", "rhumerus": "RightArm", "rradius": "RightForeArm",
-    "rwrist": "RightHand", "rhand": "RightFingerBase", "rfingers": "RightHandIndex1",
-    "rthumb": "RThumb",
-}
-
-
-def _cmu_family():
-    side = {}
-    for s, S in (("l", "Left"), ("r", "Right")):
-        side.update({
-            f"{s}hip": (f"{S}UpLeg", "origin"), f"{s}knee": (f"{S}Leg", "origin"),
-            f"{s}ankle": (f"{S}Foot", "origin"), f"{s}toes": (f"{S}ToeBase", "tip"),
-            f"{s}clavicle": ("Neck", "origin"), f"{s}shoulder": (f"{S}Arm", "origin"),
-            f"{s}elbow": (f"{S}ForeArm", "origin"), f"{s}wrist": (f"{S}FingerBase", "origin"),
-            f"{s}fingers": (f"{S}HandIndex1", "tip"),
-        })
-    side.update({"root": ("Hips", "origin"), "belly": ("Spine", "origin"),
-                 "chest": ("Spine1", "origin"), "neck": ("Neck", "origin"),
-                 "head": ("Head", "origin"), "headtop": ("Head", "tip")})
-    return {"joints": {j: side[j] for j in JOINT_NAMES}, "root": "Hips", "rest_frame": True}
-
-
-#: skeleton families: canonical joint -> (BVH joint name, "origin" | "tip"),
-#: the joint whose global rotation is the root rotation (feature #40), and
-#: whether an all-zero first frame is a converter's rest pose
-FAMILIES = {
-    "asf": {"joints": {j: (ASF_JOINT_BONES[j], "origin" if j == "root" else "tip")
-                       for j in JOINT_NAMES},
-            "root": "root", "rest_frame": False},
-    "cmu": _cmu_family(),
-}
+#: deepest hierarchy read (a human has ~10 levels; fingers and rigs add some)
+MAX_DEPTH = 256
 
 
 @dataclass(frozen=True)
@@ -159,6 +114,22 @@ class BvhHierarchy:
     def children(self, k: int) -> list:
         return [i for i, j in enumerate(self.joints) if j.parent == k]
 
+    def tree(self) -> SkeletonTree:
+        """Joint origins then End Sites, with rest-pose positions (OFFSETs accumulated)."""
+        nj = len(self.joints)
+        names = [j.name for j in self.joints]
+        parent = [j.parent for j in self.joints]
+        rest = np.zeros((nj, 3))
+        for k, j in enumerate(self.joints):
+            rest[k] = j.offset + (rest[j.parent] if j.parent >= 0 else 0.0)
+        ends = [(k, j) for k, j in enumerate(self.joints) if j.end_site is not None]
+        end_rest = np.array([rest[k] + j.end_site for k, j in ends]).reshape(-1, 3)
+        names += [f"{j.name}/end" for _, j in ends]
+        parent += [k for k, _ in ends]
+        return SkeletonTree(tuple(names), np.array(parent, dtype=np.int64),
+                            np.concatenate([rest, end_rest]),
+                            np.array([True] * nj + [False] * len(ends)))
+
 
 @dataclass(frozen=True)
 class BvhData:
@@ -176,251 +147,246 @@ class BvhData:
 
 
 def fps_from_frame_time(frame_time: float) -> float:
-    """``1 / frame_time``, snapped to the nearest integer rate when within 1e-4.
-
-    BVH files round the frame time (cmuconvert writes ``.0083333``); an fps of
-    120.0005 would change the toolbox's millisecond windows
-    (``ceil(0.1 · fps)`` = 13 instead of 12 frames).
-    """
-    fps = 1.0 / frame_time
-    r = round(fps)
-    return float(r) if r > 0 and abs(fps - r) <= 1e-4 * fps else fps
+    """``1 / frame_time`` snapped to a common rate within 0.5 % (READERS.md §1)."""
+    return snap_rate(1.0 / frame_time)
 
 
 # ----------------------------------------------------------------------------
 # parsing
 
-_TOKEN = re.compile(r"[{}]|[^\s{}]+")
+_TOKEN = re.compile(rb"[{}]|[^\s{}]+")
+_FRAMES = re.compile(rb"Frames\s*:?\s*(\S*)", re.IGNORECASE)
+_FRAME_TIME = re.compile(rb"Frame\s*Time\s*:?\s*([^\s]*)", re.IGNORECASE)
+_MOTION = re.compile(rb"(?m)^[ \t]*MOTION\b")
 
 
-def read_bvh(path, *, family=None, joint_map=None, skip_rest_frame=None) -> Motion:
-    """Read a BVH file as a :class:`~mocapdb.readers.motion.Motion` of the 24 canonical joints.
-
-    Parameters
-    ----------
-    path : str or Path
-    family : str or dict, optional, keyword-only
-        A key of :data:`FAMILIES` or a family dict of the same form; default:
-        the first family whose joint names are all present.
-    skip_rest_frame : bool, optional, keyword-only
-        Drop an all-zero first frame. Default (None): only for families that
-        add one (cmuconvert).
-
-    Returns
-    -------
-    Motion
-        ``source_format="bvh"``, ``skeleton`` = ``"bvh:<family>"``, ``fps`` from
-        ``Frame Time`` (:func:`fps_from_frame_time`); ``root_rotation`` is the
-        global rotation of the family's root joint.
+def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
+    """Parse the bytes of a BVH file into hierarchy and channel values.
 
     Raises
     ------
     ParseError
-        Malformed file (file, line, frame and what was expected), or no family
-        fits (the message lists each family's missing joints).
-
-    References
-    ----------
-    FEATURES.md §2.3, §2.3b.
+        Malformed hierarchy or motion (file, line and what was expected).
     """
-    path = Path(path)
-    data = parse_bvh(path.read_bytes(), path=path)
-    if joint_map is not None:
-        missing = [j for j in JOINT_NAMES if j not in joint_map]
-        if missing:
-            raise ParameterError(f"joint_map: no entry for {', '.join(missing)}")
-        family = {"joints": {j: (joint_map[j], "origin") for j in JOINT_NAMES}, "root": joint_map["root"],
-                  "rest_frame": False}
-    return bvh_to_motion(data, family=family, skip_rest_frame=skip_rest_frame,
-                         name=path.stem)
-
-
-def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
-    """Parse the bytes of a BVH file into hierarchy and channel values."""
     path = str(path)
-    parser = _HierarchyParser(data, path)
-    hierarchy, n_frames, frame_time, start = parser.parse()
-    values = parse_rows(data, start, n_frames, hierarchy.n_channels, path,
-                        what="channel values")
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    if b"\n" not in data and b"\r" in data:
+        data = data.replace(b"\r", b"\n")  # classic-Mac line ends
+    m = _MOTION.search(data)
+    if m is None:
+        if not data.lstrip().upper().startswith(b"HIERARCHY"):
+            raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
+        raise ParseError(path, line_of(data, len(data)), "no 'MOTION' section (truncated file?)")
+    hierarchy = _cached_hierarchy(data, m.start(), path)
+    n_frames, frame_time, frames_line, start = _parse_motion_header(data, m.end(), path)
+    values = parse_rows(data, start, n_frames, hierarchy.n_channels, path, what="channel values")
     if values.shape[0] != n_frames:
-        raise ParseError(path, parser.frames_line, f"'Frames: {n_frames}' but only "
+        raise ParseError(path, frames_line, f"'Frames: {n_frames}' but only "
                          f"{values.shape[0]} motion lines follow (truncated file?)")
     return BvhData(hierarchy, values, frame_time, path)
 
 
-class _HierarchyParser:
-    """Recursive-descent parser of the HIERARCHY and the MOTION header."""
+def _parse_motion_header(data, pos, path):
+    head = data[pos:pos + 4096]
+    fm = _FRAMES.search(head)
+    if fm is None:
+        raise ParseError(path, line_of(data, pos), "expected 'Frames:' after MOTION")
+    frames_line = line_of(data, pos + fm.start())
+    tok = fm.group(1).decode("latin-1")
+    if not tok.isdigit():
+        raise ParseError(path, frames_line, f"Frames: expected a frame count, found {tok!r}")
+    n_frames = int(tok)
+    if n_frames == 0:
+        raise ParseError(path, frames_line, "no frames ('Frames: 0')")
+    tm = _FRAME_TIME.search(head, fm.end())
+    if tm is None:
+        raise ParseError(path, frames_line + 1, "expected 'Frame Time:' after 'Frames:'")
+    line = line_of(data, pos + tm.start())
+    tok = tm.group(1).decode("latin-1")
+    try:
+        frame_time = float(tok)
+    except ValueError:
+        raise ParseError(path, line, f"Frame Time: expected a number, found {tok!r}") from None
+    # 10 kHz is the fastest rate READERS.md §4 accepts
+    if not (math.isfinite(frame_time) and frame_time >= 1e-4):
+        raise ParseError(path, line, f"Frame Time: expected a time of at least 0.0001 s (at most "
+                         f"10 kHz), found {tok!r}")
+    if frame_time > 3600.0:
+        raise ParseError(path, line, f"Frame Time: {tok} s per frame is not a motion recording")
+    return n_frames, frame_time, frames_line, pos + tm.end()
 
-    def __init__(self, data: bytes, path: str):
+
+# an archive's files share a handful of skeletons: parse each header once
+_HIER_CACHE: dict = {}
+_HIER_LOCK = threading.Lock()
+
+
+def _cached_hierarchy(data, end, path) -> BvhHierarchy:
+    head = bytes(data[:end])
+    with _HIER_LOCK:
+        hit = _HIER_CACHE.get(head)
+    if hit is None:
+        hit = _parse_hierarchy(data, end, path)
+        with _HIER_LOCK:
+            if len(_HIER_CACHE) > 64:
+                _HIER_CACHE.clear()
+            _HIER_CACHE[head] = hit
+    return hit
+
+
+class _Tokens:
+    """Tokens of the hierarchy with byte offsets; line numbers only for messages."""
+
+    def __init__(self, data, end, path):
         self.data = data
         self.path = path
-        self.pos = 3 if data.startswith(b"\xef\xbb\xbf") else 0  # next unread line (skip BOM)
-        self.line = 0         # its line number - 1
-        self.tokens: list = []  # pending (token, line) of the current line
-        self.frames_line = None
+        self.items = [(m.group().decode("latin-1"), m.start()) for m in _TOKEN.finditer(data, 0, end)]
+        self.k = 0
 
-    def error(self, line, msg):
-        return ParseError(self.path, line, msg)
-
-    def _fill(self):
-        while not self.tokens:
-            if self.pos >= len(self.data):
-                return False
-            end = self.data.find(b"\n", self.pos)
-            if end < 0:
-                end = len(self.data)
-            self.line += 1
-            text = self.data[self.pos:end].decode("latin-1")
-            self.pos = end + 1
-            self.tokens = [(t, self.line) for t in _TOKEN.findall(text)]
-        return True
+    def error(self, pos, msg):
+        return ParseError(self.path, line_of(self.data, pos), msg)
 
     def next(self, what):
-        if not self._fill():
-            raise self.error(self.line, f"unexpected end of file, expected {what}")
-        return self.tokens.pop(0)
+        if self.k >= len(self.items):
+            raise self.error(len(self.data), f"unexpected end of the hierarchy, expected {what}")
+        tok = self.items[self.k]
+        self.k += 1
+        return tok
 
     def peek(self):
-        if not self._fill():
-            return None, self.line
-        return self.tokens[0]
-
-    def rest_of_line(self):
-        toks = self.tokens
-        self.tokens = []
-        return toks
+        return self.items[self.k][0] if self.k < len(self.items) else None
 
     def expect(self, word):
-        tok, line = self.next(repr(word))
+        tok, pos = self.next(repr(word))
         if tok.upper() != word.upper():
-            raise self.error(line, f"expected {word!r}, found {tok!r}")
-        return line
+            raise self.error(pos, f"expected {word!r}, found {tok!r}")
+        return pos
 
-    def offset(self, what):
-        """Three numbers on the rest of the OFFSET line."""
-        line = self.expect("OFFSET")
-        toks = self.rest_of_line()
-        if len(toks) != 3:
-            raise self.error(line, f"{what}: expected 3 numbers, found {len(toks)} "
-                             f"({' '.join(t for t, _ in toks) or 'nothing'})")
-        self.tokens = toks
-        return np.array([self.number(what)[0] for _ in range(3)])
+    def numbers(self, what):
+        pos = self.expect("OFFSET")
+        out = []
+        for _ in range(3):
+            tok = self.peek()
+            if tok is None or tok.upper() in _KEYWORDS:
+                raise self.error(pos, f"{what}: expected 3 numbers, found {len(out)}"
+                                 + (f" (then {tok!r})" if tok else ""))
+            tok, p = self.next("a number")
+            try:
+                v = float(tok)
+            except ValueError:
+                raise self.error(p, f"{what}: expected a number, found {tok!r}") from None
+            if not math.isfinite(v) or abs(v) > 1e12:
+                raise self.error(p, f"{what}: expected a finite length, found {tok!r}")
+            out.append(v)
+        return np.array(out)
 
-    def number(self, what):
-        tok, line = self.next(what)
-        try:
-            v = float(tok)
-        except ValueError:
-            raise self.error(line, f"{what}: expected a number, found {tok!r}") from None
-        if not math.isfinite(v):
-            raise self.error(line, f"{what}: expected a finite number, found {tok!r}")
-        return v, line
 
-    def parse(self):
-        self.expect("HIERARCHY")
-        tok, line = self.next("'ROOT'")
-        if tok.upper() != "ROOT":
-            raise self.error(line, f"expected 'ROOT', found {tok!r}")
-        joints: list = []
-        nch = self.joint(joints, -1, line, 0)
-        tok, line = self.next("'MOTION'")
-        if tok.upper() == "ROOT":
-            raise self.error(line, "a second ROOT: only one skeleton per file is supported")
-        if tok.upper() != "MOTION":
-            raise self.error(line, f"expected 'MOTION', found {tok!r}")
-        tok, line = self.next("'Frames:'")
-        if tok.lower() == "frames" and self.peek()[0] == ":":
-            self.next("':'")
-        elif tok.lower() != "frames:":
-            raise self.error(line, f"expected 'Frames:', found {tok!r}")
-        self.frames_line = line
-        tok, line = self.next("a frame count")
-        if not tok.isdigit():
-            raise self.error(line, f"Frames: expected a frame count, found {tok!r}")
-        n_frames = int(tok)
-        t1, line = self.next("'Frame Time:'")
-        t2, _ = self.next("'Frame Time:'")
-        if (t1.lower(), t2.lower()) != ("frame", "time:"):
-            raise self.error(line, f"expected 'Frame Time:', found {t1 + ' ' + t2!r}")
-        frame_time, line = self.number("Frame Time")
-        if not frame_time > 0:
-            raise self.error(line, f"Frame Time: expected a positive time, found {frame_time!r}")
-        if self.tokens:
-            raise self.error(line, f"unexpected {self.tokens[0][0]!r} after the frame time")
-        if n_frames == 0:
-            raise self.error(self.frames_line, "no frames ('Frames: 0')")
-        hierarchy = BvhHierarchy(tuple(joints), nch)
-        return hierarchy, n_frames, frame_time, min(self.pos, len(self.data))
+def _parse_hierarchy(data, end, path) -> BvhHierarchy:
+    t = _Tokens(data, end, path)
+    t.expect("HIERARCHY")
+    tok, pos = t.next("'ROOT'")
+    if tok.upper() != "ROOT":
+        raise t.error(pos, f"expected 'ROOT', found {tok!r}")
+    joints: list = []
+    n_channels = 0
+    # an explicit stack instead of recursion: depth is bounded, not Python's limit
+    stack = []  # (joint index, its fields under construction)
 
-    def joint(self, joints, parent, line, channel_start):
-        name_toks = [t for t, _ in self.rest_of_line()]
-        if name_toks and name_toks[-1] == "{":
-            name_toks.pop()
-            self.tokens = [("{", line)]
-        if not name_toks:
-            raise self.error(line, "joint without a name")
-        name = " ".join(name_toks)
-        self.expect("{")
-        offset = self.offset(f"joint {name!r}: OFFSET")
-        me = len(joints)
-        joints.append(None)  # placeholder keeps file order (parents first)
-        channels = ()
-        end_site = None
-        nch = channel_start
+    def open_joint(start_pos, parent):
+        name_toks = []
         while True:
-            tok, tline = self.next("'}'")
-            key = tok.upper()
-            if key == "CHANNELS":
-                cnt_tok, cline = self.next("a channel count")
-                if not cnt_tok.isdigit():
-                    raise self.error(cline, f"CHANNELS: expected a count, found {cnt_tok!r}")
-                cnt = int(cnt_tok)
-                got = self.rest_of_line()
-                names = []
-                for t, l in got:
-                    k = t.lower()
-                    if k not in CHANNELS:
-                        raise self.error(l, f"joint {name!r}: unknown channel {t!r} (expected "
-                                         + ", ".join(_CHANNEL_NAMES) + ")")
-                    names.append(_CHANNEL_NAMES[CHANNELS[k][0] * 3 + CHANNELS[k][1]])
-                if len(names) != cnt:
-                    raise self.error(cline, f"joint {name!r}: CHANNELS {cnt} but "
-                                     f"{len(names)} channel names follow")
-                channels = tuple(names)
-                nch = channel_start + cnt
-            elif key == "JOINT":
-                nch = self.joint(joints, me, tline, nch)
-            elif key == "END":
-                site, sline = self.next("'Site'")
-                if site.upper() != "SITE":
-                    raise self.error(sline, f"expected 'End Site', found 'End {site}'")
-                self.expect("{")
-                end_site = self.offset(f"joint {name!r}: End Site OFFSET")
-                self.expect("}")
-            elif key == "}":
+            tok, p = t.next("'{'")
+            if tok == "{":
                 break
-            else:
-                raise self.error(tline, f"joint {name!r}: expected CHANNELS, JOINT, End Site "
-                                 f"or '}}', found {tok!r}")
-        joints[me] = BvhJoint(name=name, parent=parent, offset=offset, channels=channels,
-                              channel_start=channel_start, end_site=end_site, line=line)
-        return nch
+            if tok in ("}", "JOINT", "ROOT", "OFFSET", "CHANNELS", "MOTION"):  # a name may be "root"
+                raise t.error(p, f"expected a joint name and '{{', found {tok!r}")
+            name_toks.append(tok)
+        if not name_toks:
+            raise t.error(start_pos, "joint without a name")
+        if len(stack) >= MAX_DEPTH:
+            raise t.error(start_pos, f"hierarchy deeper than {MAX_DEPTH} joints")
+        name = " ".join(name_toks)
+        joints.append(None)
+        stack.append([len(joints) - 1, name, parent, None, (), None, start_pos, None])
+
+    open_joint(pos, -1)
+    while stack:
+        cur = stack[-1]
+        me, name = cur[0], cur[1]
+        tok, p = t.next("'}'")
+        key = tok.upper()
+        if key == "OFFSET":
+            t.k -= 1
+            cur[3] = t.numbers(f"joint {name!r}: OFFSET")
+        elif key == "CHANNELS":
+            cnt_tok, cp = t.next("a channel count")
+            if not cnt_tok.isdigit() or int(cnt_tok) > 64:
+                raise t.error(cp, f"joint {name!r}: CHANNELS: expected a count (0–64), found {cnt_tok!r}")
+            cnt = int(cnt_tok)
+            names = []
+            for _ in range(cnt):
+                nxt = t.peek()
+                if nxt is None or nxt.upper() in _KEYWORDS:
+                    raise t.error(cp, f"joint {name!r}: CHANNELS {cnt} but {len(names)} channel names follow")
+                ch, chp = t.next("a channel name")
+                k = ch.lower()
+                if k not in CHANNELS:
+                    raise t.error(chp, f"joint {name!r}: unknown channel {ch!r} (expected "
+                                  + ", ".join(_CHANNEL_NAMES) + ")")
+                names.append(_CHANNEL_NAMES[CHANNELS[k][0] * 3 + CHANNELS[k][1]])
+            cur[4] = tuple(names)
+            cur[7] = n_channels
+            n_channels += cnt
+        elif key == "JOINT":
+            if cur[3] is None:
+                raise t.error(p, f"joint {name!r}: expected OFFSET before its child joints")
+            open_joint(p, me)
+        elif key == "END":
+            site, sp = t.next("'Site'")
+            if site.upper() != "SITE":
+                raise t.error(sp, f"expected 'End Site', found 'End {site}'")
+            t.expect("{")
+            cur[5] = t.numbers(f"joint {name!r}: End Site OFFSET")
+            t.expect("}")
+        elif key == "}":
+            if cur[3] is None:
+                raise t.error(p, f"joint {name!r}: no OFFSET")
+            stack.pop()
+            joints[me] = BvhJoint(name=name, parent=cur[2], offset=cur[3], channels=cur[4],
+                                  channel_start=cur[7] if cur[7] is not None else n_channels,
+                                  end_site=cur[5], line=line_of(data, cur[6]))
+        else:
+            raise t.error(p, f"joint {name!r}: expected OFFSET, CHANNELS, JOINT, End Site or '}}', "
+                          f"found {tok!r}")
+    nxt = t.peek()
+    if nxt is not None:
+        tok, p = t.next("")
+        if tok.upper() == "ROOT":
+            raise t.error(p, "a second ROOT: only one skeleton per file is supported")
+        raise t.error(p, f"expected 'MOTION', found {tok!r}")
+    return BvhHierarchy(tuple(joints), n_channels)
 
 
 # ----------------------------------------------------------------------------
 # kinematics
 
 @jit
-def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
-                   end_site, has_end, origins, ends, rotations, rot_joint):  # pragma: no cover
+def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
+                   end_site, has_end, needed, origins, ends, rotations, rot_joint):  # pragma: no cover
     """Joint origins (n, nj, 3), End Sites (n, nj, 3) and the global rotation of
-    joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring."""
+    joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring.
+    Sine and cosine are taken here, of rotation channels only (no temporaries);
+    joints not ``needed`` (nor below a needed one) are skipped."""
     n = values.shape[0]
     nj = parent.shape[0]
     h = np.empty((nj, 3, 3))
     t = np.empty(3)
+    deg = math.pi / 180.0
     for f in range(n):
         for j in range(nj):
+            if not needed[j]:
+                continue
             p = parent[j]
             for i in range(3):
                 for k in range(3):
@@ -430,9 +396,13 @@ def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind
             for c in range(ch_count[j]):
                 col = s0 + c
                 if ch_kind[col] == 0:
-                    t[ch_axis[col]] += values[f, col]
+                    if p >= 0:
+                        t[ch_axis[col]] = values[f, col]  # replaces the OFFSET coordinate
+                    else:
+                        t[ch_axis[col]] += values[f, col]
                 else:
-                    _rotate_columns(h, j, ch_axis[col], cos[f, col], sin[f, col])
+                    a = values[f, col] * deg
+                    _rotate_columns(h, j, ch_axis[col], math.cos(a), math.sin(a))
             for i in range(3):
                 if p >= 0:
                     origins[f, j, i] = origins[f, p, i] + (h[p, i, 0] * t[0] + h[p, i, 1] * t[1]
@@ -450,8 +420,11 @@ def _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, ch_kind
                         rotations[f, i, k] = h[j, i, k]
 
 
-def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0):
+def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0, needed=None):
     """Forward kinematics of a parsed BVH file.
+
+    ``needed`` (bool per joint, closed under parents) limits the work to those
+    joints; the others' origins and End Sites are left undefined.
 
     Returns
     -------
@@ -477,216 +450,302 @@ def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0):
     end_site = np.array([j.end_site if j.end_site is not None else np.zeros(3) for j in joints],
                         dtype=np.float64).reshape(nj, 3)
     values = np.ascontiguousarray(data.values, dtype=np.float64)
-    sin, cos = sincos(values * (math.pi / 180.0))
     n = values.shape[0]
     origins = np.empty((n, nj, 3))
     ends = np.full((n, nj, 3), np.nan)
     rot = np.empty((n, 3, 3))
-    _bvh_fk_kernel(sin, cos, values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
-                   has_end, origins, ends, rot, rotation_joint)
+    if needed is None:
+        needed = np.ones(nj, dtype=np.bool_)
+    _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
+                   has_end, needed, origins, ends, rot, rotation_joint)
     return origins, ends, rot
 
 
-def _resolve_family(hier: BvhHierarchy, family, path):
-    if isinstance(family, dict):
-        candidates = [("custom", family)]
-    elif family is not None:
-        if family not in FAMILIES:
-            raise ParameterError(f"family={family!r}: unknown; expected one of "
-                                 f"{sorted(FAMILIES)} or a dict like FAMILIES['cmu']")
-        candidates = [(family, FAMILIES[family])]
-    else:
-        candidates = list(FAMILIES.items())
-    names = {j.name.lower() for j in hier.joints}
-    report = []
-    for fname, fam in candidates:
-        need = {b for b, _ in fam["joints"].values()} | {fam["root"]}
-        missing = sorted(b for b in need if b.lower() not in names)
-        if not missing:
-            return fname, fam
-        report.append(f"family {fname!r} lacks {', '.join(missing)}")
-    raise ParseError(path, None, "no known skeleton family fits this BVH: "
-                     + "; ".join(report) + " (pass family=... with a joint-name table)")
+# ----------------------------------------------------------------------------
+# mapping
 
-
-def _tip(hier: BvhHierarchy, k: int):
-    """("end", k) for an End Site, ("origin", child) for the first child joint."""
-    if hier.joints[k].end_site is not None:
-        return "end", k
-    kids = hier.children(k)
-    if not kids:
-        raise ParameterError(f"BVH joint {hier.joints[k].name!r} has neither an End Site nor "
-                             "a child joint: its tip is undefined")
-    return "origin", kids[0]
-
-
-def bvh_to_motion(data: BvhData, *, family=None, skip_rest_frame=None, name="") -> Motion:
-    """The canonical joints of a parsed BVH file; see :func:`read_bvh`."""
-    hier = data.hierarchy
-    fname, fam = _resolve_family(hier, family, data.path)
-    values = data.values
-    meta = {"bvh_family": fname, "frame_time": data.frame_time}
-    skip = fam.get("rest_frame", False) if skip_rest_frame is None else skip_rest_frame
-    if skip and values.shape[0] > 1 and not np.any(values[0]):
-        values = values[1:]
-        meta["rest_frame_skipped"] = True
-    sel_kind = []
+def _asf_map(hier: BvhHierarchy, tree: SkeletonTree) -> JointMap | None:
+    """The exact ASF points when the file uses ASF bone names (our writer)."""
+    names = {nm.lower(): k for k, nm in enumerate(tree.names)}
+    need = set(ASF_JOINT_BONES.values()) | {"root"}
+    if not need <= names.keys():
+        return None
+    weights = np.zeros((len(JOINT_NAMES), tree.n))
+    how = {}
     for j in JOINT_NAMES:
-        bone, where = fam["joints"][j]
-        k = hier.index(bone)
-        sel_kind.append(("origin", k) if where == "origin" else _tip(hier, k))
-    origins, ends, rot = bvh_node_positions(
-        BvhData(hier, values, data.frame_time, data.path), rotation_joint=hier.index(fam["root"]))
-    joints = np.empty((values.shape[0], len(JOINT_NAMES), 3))
-    for c, (kind, k) in enumerate(sel_kind):
-        joints[:, c] = origins[:, k] if kind == "origin" else ends[:, k]
-    return Motion(joints=joints, root_rotation=rot, fps=data.fps, name=name,
-                  skeleton=f"bvh:{fname}", source_format="bvh", meta=meta)
+        bone = ASF_JOINT_BONES[j]
+        if j == "root":
+            point = names["root"]
+        else:
+            k = names[bone]
+            # a bone's tip: its End Site, or the origin of its first child joint
+            point = names.get(f"{bone}/end")
+            if point is None:
+                kids = hier.children(k)
+                if not kids:
+                    return None
+                point = kids[0]
+        weights[JOINT_INDEX[j], point] = 1.0
+        how[j] = (tree.names[point], "ASF bone names")
+    return JointMap(weights, names["root"], True, how)
+
+
+def _user_map(tree: SkeletonTree, joint_map: dict, auto: JointMap | None, path) -> JointMap:
+    names = {nm.lower(): k for k, nm in enumerate(tree.names)}
+    weights = np.zeros((len(JOINT_NAMES), tree.n)) if auto is None else auto.weights.copy()
+    how = {} if auto is None else dict(auto.how)
+    for j, value in joint_map.items():
+        items = [value] if isinstance(value, str) else value
+        row = np.zeros(tree.n)
+        for item in items:
+            k = names.get(item.lower())
+            if k is None:
+                raise ParseError(path, None, f"joint_map: {j} = {item!r}: no such joint in this file "
+                                 f"(its joints: {', '.join(n for n, jt in zip(tree.names, tree.is_joint) if jt)}"
+                                 "; an End Site is 'Joint/end')")
+            row[k] += 1.0 / len(items)
+        weights[JOINT_INDEX[j]] = row
+        how[j] = (value, "joint_map")
+    missing = [j for j in JOINT_NAMES if not weights[JOINT_INDEX[j]].any()]
+    if missing:
+        raise ParseError(path, None, f"joint_map places {len(JOINT_NAMES) - len(missing)} of 24 joints and "
+                         f"the automatic mapping failed; add {', '.join(missing)}")
+    root = joint_map.get("root")
+    if isinstance(root, str):
+        rot_point = names[root.lower()]
+    else:
+        rot_point = auto.rotation_point if auto is not None else 0
+    if not tree.is_joint[rot_point]:
+        rot_point = int(tree.parent[rot_point])
+    axis = (weights[JOINT_INDEX["lhip"]] - weights[JOINT_INDEX["rhip"]]) @ tree.rest
+    return JointMap(weights, rot_point, asf_axes_at_rest(axis), how)
+
+
+_MAP_CACHE: dict = {}
+_MAP_LOCK = threading.Lock()
+
+
+def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<bvh>", pose=None) -> JointMap:
+    """Where the 24 canonical joints are in a BVH skeleton (cached per skeleton).
+
+    ``pose`` (a callable giving the points of one motion frame) is used when
+    the rest pose is not an upright body.
+
+    Raises
+    ------
+    ParseError
+        Not a humanoid the mapper can read, and no complete ``joint_map``:
+        the message names the file's joints and the canonical joints it
+        could not place, and how to get a mapping template.
+    """
+    return _plan(hier, joint_map, path, pose)[0]
+
+
+def _plan(hier: BvhHierarchy, joint_map, path, pose):
+    """(JointMap, gather arrays, joints FK must compute), cached per parsed hierarchy.
+
+    Hierarchies are cached per header (:func:`_cached_hierarchy`), so the
+    files of one skeleton share one object and one plan.
+    """
+    key = (id(hier), None if joint_map is None else repr(sorted(joint_map.items())))
+    with _MAP_LOCK:
+        hit = _MAP_CACHE.get(key)
+    if hit is not None and hit[0] is hier:
+        return hit[1]
+    jm = _map_skeleton(hier, joint_map, path, pose)
+    plan = (jm, *_gather(jm, hier))
+    with _MAP_LOCK:
+        if len(_MAP_CACHE) > 256:
+            _MAP_CACHE.clear()
+        _MAP_CACHE[key] = (hier, plan)
+    return plan
+
+
+def _gather(jm: JointMap, hier: BvhHierarchy):
+    """Per canonical joint its points and weights; the joints FK needs (used points and their ancestors)."""
+    nj = len(hier.joints)
+    width = max(1, int((jm.weights != 0).sum(axis=1).max()))
+    point = np.zeros((len(JOINT_NAMES), width), dtype=np.int64)
+    weight = np.zeros((len(JOINT_NAMES), width))
+    for j in range(len(JOINT_NAMES)):
+        nz = np.flatnonzero(jm.weights[j])
+        point[j, :len(nz)] = nz
+        weight[j, :len(nz)] = jm.weights[j, nz]
+    end_of = np.array([k for k, j in enumerate(hier.joints) if j.end_site is not None] or [0], dtype=np.int64)
+    needed = np.zeros(nj, dtype=np.bool_)
+    for p in set(point[weight != 0].tolist()) | {jm.rotation_point}:
+        k = p if p < nj else int(end_of[p - nj])
+        while k >= 0 and not needed[k]:
+            needed[k] = True
+            k = hier.joints[k].parent
+    return point, weight, end_of, needed
+
+
+def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
+    tree = hier.tree()
+    auto = _asf_map(hier, tree)
+    problem = None
+    if auto is None:
+        try:
+            auto = map_humanoid(tree)
+        except MappingError as exc:
+            problem = exc
+            if pose is not None:  # a rest pose on its side: judge the body by a frame
+                try:
+                    auto, problem = map_humanoid(tree, pose()), None
+                except MappingError as again:
+                    problem = again
+    if joint_map:
+        result = _user_map(tree, joint_map, auto, path)
+    elif auto is None:
+        own = [n for n, j in zip(tree.names, tree.is_joint) if j]
+        missing = problem.missing or [j for j in JOINT_NAMES if j not in problem.partial]
+        raise ParseError(path, None, f"not a humanoid skeleton mocapdb can map: {problem}; "
+                         f"its {len(own)} joints: {', '.join(own[:40])}{' …' if len(own) > 40 else ''}; "
+                         f"could not place: {', '.join(missing)}. Write a joint map (template: "
+                         f"mocapdb joint-map-template {path} > map.toml) and ingest with --joint-map map.toml")
+    else:
+        result = auto
+    return result
+
+
+def joint_map_template(path) -> str:
+    """A ready-to-edit TOML joint map for a BVH file, filled with what the automatic mapping places.
+
+    Raises
+    ------
+    ParseError
+        The file's hierarchy is malformed.
+    """
+    path = Path(path)
+    data = path.read_bytes()
+    m = _MOTION.search(data)
+    hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
+    tree = hier.tree()
+    partial = {}
+    auto = _asf_map(hier, tree)
+    if auto is None:
+        try:
+            auto = map_humanoid(tree)
+        except MappingError as exc:
+            partial = exc.partial
+    if auto is not None:
+        partial = auto.how
+    return mapping_template(tree, partial, source=str(path))
 
 
 # ----------------------------------------------------------------------------
-# writing
+# reading
 
-_AXIS = {"x": 0, "y": 1, "z": 2}
-
-
-def euler_angles(rotations, order: str) -> np.ndarray:
-    """Euler angles (radians) of rotation matrices: ``R = R_o0(a0)·R_o1(a1)·R_o2(a2)``.
-
-    Parameters
-    ----------
-    rotations : ndarray, shape (..., 3, 3)
-    order : str
-        Three distinct axis letters, e.g. ``"zyx"`` (BVH channel order).
-
-    Returns
-    -------
-    ndarray, shape (..., 3)
-        Angles in the order of ``order``; the middle one in [-pi/2, pi/2].
-    """
-    o = order.lower()
-    if sorted(o) != ["x", "y", "z"]:
-        raise ParameterError(f"order={order!r}: expected a permutation of 'xyz'")
-    i, j, k = (_AXIS[a] for a in o)
-    r = np.asarray(rotations, dtype=np.float64)
-    # sign of the permutation (i, j, k): +1 for cyclic (xyz, yzx, zxy)
-    s = 1.0 if (j - i) % 3 == 1 else -1.0
-    b = np.arctan2(s * r[..., i, k], np.hypot(r[..., i, i], r[..., i, j]))
-    a = np.arctan2(-s * r[..., j, k], r[..., k, k])
-    c = np.arctan2(-s * r[..., i, j], r[..., i, i])
-    return np.stack([a, b, c], axis=-1)
+@jit
+def _combine_kernel(origins, ends, point, end_of, weight, out):  # pragma: no cover - compiled
+    """out[f, j] = Σ_k weight[j, k] · P(point[j, k]); a point below n_joints is a joint
+    origin, above it the End Site of joint end_of[point - n_joints]."""
+    nj = origins.shape[1]
+    for f in range(origins.shape[0]):
+        for j in range(point.shape[0]):
+            for c in range(3):
+                out[f, j, c] = 0.0
+            for k in range(point.shape[1]):
+                w = weight[j, k]
+                if w == 0.0:
+                    continue
+                p = point[j, k]
+                for c in range(3):
+                    if p < nj:
+                        out[f, j, c] += w * origins[f, p, c]
+                    else:
+                        out[f, j, c] += w * ends[f, end_of[p - nj], c]
 
 
-def _fmt(x, precision):
-    return format(float(x), f".{precision}g")
+def _combine(point, weight, end_of, origins, ends) -> np.ndarray:
+    """The 24 canonical joints from the FK points (a gather: most rows are one point)."""
+    out = np.empty((origins.shape[0], len(JOINT_NAMES), 3))
+    _combine_kernel(origins, ends, point, end_of, weight, out)
+    return out
 
 
-def write_bvh(path, skeleton: Skeleton, motion: AmcMotion, *, layout: str = "asf",
-              rotation_order="ZYX", rest_frame: bool = False, precision: int = 12) -> Path:
-    """Write an ASF/AMC motion as a BVH file.
+def _rest_frame(joints: np.ndarray) -> bool:
+    """True when frame 0 is a converter's rest pose: its jump to frame 1 is far
+    above every later frame-to-frame change (READERS.md §2)."""
+    n = joints.shape[0]
+    if n < 4:
+        return False
+    step = np.linalg.norm(np.diff(joints, axis=0), axis=2).max(axis=1)
+    size = float(np.ptp(joints[1:, :, 1])) or 1.0
+    later = float(step[1:].max())
+    return bool(step[0] > 4.0 * later and step[0] > 0.05 * size)
 
-    One BVH joint per ASF bone (its OFFSET is the parent bone's vector, its
-    channels the bone's local rotation ``C·M·C⁻¹``), leaf bones end in an End
-    Site with their own vector, the root has 6 channels (position = AMC
-    translation + ASF position in toolbox units; rotation = ``O·Rz·Ry·Rx``).
-    Reading the file back gives the ASF joint positions and, when the ASF
-    orientation O is the identity (all files here), the AMC root rotation.
+
+def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
+    """Read a BVH file as a :class:`~mocapdb.readers.motion.Motion` of the 24 canonical joints.
 
     Parameters
     ----------
     path : str or Path
-    skeleton : Skeleton
-    motion : AmcMotion
-        Read with ``skeleton``.
-    layout : {"asf", "cmu"}, keyword-only
-        Joint names: ASF bone names, or the cmuconvert names of
-        :data:`CMU_BONE_NAMES` (needs the standard CMU bone set).
-    rotation_order : str or dict, keyword-only
-        Rotation channel order, e.g. ``"ZYX"`` (default, as cmuconvert) or any
-        permutation; a dict maps joint names (BVH names) to orders, others ZYX.
-    rest_frame : bool, keyword-only
-        Prepend an all-zero frame, as cmuconvert does.
-    precision : int, keyword-only
-        Significant digits. 12 (default) keeps positions within ~1e-11 of a
-        bone length and stays on the reader's exact fast path; 17 round-trips
-        float64 exactly but reads ~5x slower (mantissas beyond 2**53 go
-        through Python's ``float``).
+    joint_map : dict, optional, keyword-only
+        Canonical joint → the file's joint name (its origin), ``"Name/end"``
+        (its End Site) or a list of names (their mean); overrides the
+        automatic mapping (:func:`mocapdb.readers.load_mapping` reads files).
+    skip_rest_frame : bool, optional, keyword-only
+        Drop frame 1 (True) or keep it (False); default: drop it when it is a
+        converter's rest pose (:func:`_rest_frame`).
 
     Returns
     -------
-    Path
+    Motion
+        ``source_format="bvh"``; ``skeleton`` = ``"bvh:asf"`` (ASF bone names),
+        ``"bvh:humanoid"`` or ``"bvh:joint_map"``; ``fps`` from ``Frame
+        Time`` (snapped); ``root_rotation`` = the pelvis's global rotation
+        when its axes follow the ASF convention, else None (feature #40 then
+        uses the hip axis); ``meta["mapping"]`` says how each joint was placed.
 
     Raises
     ------
-    ParameterError
-        Unknown layout, a bone without a cmuconvert name, a bad rotation order.
+    ParseError
+        Malformed file (file, line, frame and what was expected), a skeleton
+        that is not a humanoid, non-finite or absurd positions.
+
+    References
+    ----------
+    FEATURES.md §2.3b; READERS.md §2.
     """
     path = Path(path)
-    if layout not in ("asf", "cmu"):
-        raise ParameterError(f"layout={layout!r}: expected 'asf' or 'cmu'")
-    if layout == "cmu":
-        missing = [b.name for b in skeleton.bones if b.name.lower() not in CMU_BONE_NAMES]
-        if missing:
-            raise ParameterError(f"layout='cmu': bones {missing} have no cmuconvert name; "
-                                 "use layout='asf'")
-        rename = {b.name: CMU_BONE_NAMES[b.name.lower()] for b in skeleton.bones}
-        rename["root"] = CMU_BONE_NAMES["root"]
-    else:
-        rename = {b.name: b.name for b in skeleton.bones}
-        rename["root"] = "root"
+    data = parse_bvh(path.read_bytes(), path=path)
+    return bvh_to_motion(data, joint_map=joint_map, skip_rest_frame=skip_rest_frame, name=path.stem)
 
-    def order_of(joint):
-        o = rotation_order.get(joint, "ZYX") if isinstance(rotation_order, dict) else rotation_order
-        if sorted(o.lower()) != ["x", "y", "z"]:
-            raise ParameterError(f"rotation_order={o!r} (joint {joint!r}): expected a "
-                                 "permutation of 'XYZ'")
-        return o.upper()
 
-    root_rot, local = local_rotations(skeleton, motion)
-    positions, _ = node_positions(skeleton, motion)
-    bones = skeleton.bones
-    children = {"root": [b for b in bones if b.parent == "root"]}
-    for b in bones:
-        children[b.name] = [c for c in bones if c.parent == b.name]
-    fmt = lambda x: _fmt(x, precision)  # noqa: E731
-    lines = ["HIERARCHY"]
-    columns = []  # per joint: (n, k) arrays in channel order
+def _placed(how):
+    name, why = how
+    return name if name is not None else why
 
-    def emit(bone, depth, offset):
-        ind = "\t" * depth
-        name = rename[bone.name if bone is not None else "root"]
-        key = "ROOT" if bone is None else "JOINT"
-        order = order_of(name)
-        rot_names = [f"{a}rotation" for a in order]
-        lines.append(f"{ind}{key} {name}")
-        lines.append(f"{ind}{{")
-        lines.append(f"{ind}\tOFFSET {' '.join(fmt(v) for v in offset)}")
-        if bone is None:
-            lines.append(f"{ind}\tCHANNELS 6 Xposition Yposition Zposition {' '.join(rot_names)}")
-            columns.append(positions[:, 0, :])
-            rot = root_rot
-        else:
-            lines.append(f"{ind}\tCHANNELS 3 {' '.join(rot_names)}")
-            rot = local[:, skeleton.bone_index[bone.name]]
-        columns.append(np.degrees(euler_angles(rot, order)))
-        kids = children[bone.name if bone is not None else "root"]
-        own = bone.offset if bone is not None else np.zeros(3)
-        for c in kids:
-            emit(c, depth + 1, own)
-        if bone is not None and not kids:
-            lines.append(f"{ind}\tEnd Site")
-            lines.append(f"{ind}\t{{")
-            lines.append(f"{ind}\t\tOFFSET {' '.join(fmt(v) for v in own)}")
-            lines.append(f"{ind}\t}}")
-        lines.append(f"{ind}}}")
 
-    emit(None, 0, np.zeros(3))
-    table = np.concatenate(columns, axis=1)
-    if rest_frame:
-        table = np.concatenate([np.zeros((1, table.shape[1])), table])
-    lines.append("MOTION")
-    lines.append(f"Frames: {table.shape[0]}")
-    lines.append(f"Frame Time: {fmt(1.0 / motion.fps)}")
-    body = "\n".join(" ".join(fmt(v) for v in row) for row in table)
-    path.write_text("\n".join(lines) + "\n" + body + "\n", encoding="latin-1")
-    return path
+def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="") -> Motion:
+    """The canonical joints of a parsed BVH file; see :func:`read_bvh`."""
+    if joint_map is not None and not isinstance(joint_map, dict):
+        raise ParameterError(f"joint_map must be a dict (see mocapdb.readers.load_mapping), got {joint_map!r}")
+    hier = data.hierarchy
+
+    def first_frame():
+        o, e, _ = bvh_node_positions(BvhData(hier, data.values[:1], data.frame_time, data.path))
+        with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
+        return np.concatenate([o[0], e[0, with_end]])
+
+    jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, first_frame)
+    origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point, needed=needed)
+    joints = _combine(point, weight, end_of, origins, ends)
+    # feature #40 may read the pelvis rotation only where its x axis is the hip axis
+    # (ASF convention) in the take itself: R^T (lhip - rhip) along +x
+    hips = joints[:, JOINT_INDEX["lhip"]] - joints[:, JOINT_INDEX["rhip"]]
+    asf_axes = asf_axes_at_rest(np.einsum("fji,fj->i", rot, hips) / max(len(hips), 1))
+    kind = ("joint_map" if joint_map else
+            "asf" if all(w[1] == "ASF bone names" for w in jm.how.values()) else "humanoid")
+    meta = {"bvh_family": kind, "frame_time": data.frame_time,
+            "mapping": {j: _placed(jm.how.get(j, (None, ""))) for j in JOINT_NAMES}}
+    skip = _rest_frame(joints) if skip_rest_frame is None else bool(skip_rest_frame)
+    if skip and joints.shape[0] > 1:
+        joints, rot = joints[1:], rot[1:]
+        meta["rest_frame_skipped"] = True
+    check_finite_motion(joints, data.path)
+    return Motion(joints=np.ascontiguousarray(joints), root_rotation=rot if asf_axes else None,
+                  fps=data.fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)

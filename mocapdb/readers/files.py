@@ -15,13 +15,15 @@ import re
 import threading
 from pathlib import Path
 
+import numpy as np
+
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.bvh import read_bvh
-from mocapdb.errors import ParseError
+from mocapdb.errors import MocapdbError, ParseError
 from mocapdb.readers.kinematics import asf_forward_kinematics
 from mocapdb.readers.mapping import load_mapping
-from mocapdb.readers.motion import Motion
+from mocapdb.readers.motion import Motion, check_finite_motion
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates",
            "load_skeleton", "SUPPORTED_EXTENSIONS"]
@@ -98,6 +100,8 @@ def read_asf_amc(amc_path, asf) -> Motion:
     skel = load_skeleton(asf)
     amc = read_amc(amc_path, skel)
     joints, rot = asf_forward_kinematics(skel, amc)
+    # an absurd root translation or ASF unit overflows to inf in FK (READERS.md §4)
+    check_finite_motion(joints, amc_path)
     asf_path = skel.path if isinstance(asf, Skeleton) else str(asf)
     return Motion(joints=joints, root_rotation=rot, fps=amc.fps, name=amc_path.stem,
                   skeleton=Path(asf_path).stem or skel.name, source_format="amc",
@@ -139,6 +143,22 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
     DESIGN.md §1, §6; FEATURES.md §2.
     """
     path = Path(path)
+    try:
+        # hostile values overflow in FK; the result is checked for finiteness
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return _read(path, asf, joint_map, marker_map)
+    except MocapdbError:
+        raise
+    except OSError as exc:
+        raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
+    except (MemoryError, RecursionError, ValueError, ArithmeticError, IndexError, KeyError, TypeError) as exc:
+        # READERS.md §4: nothing but a MocapdbError leaves a reader. Known
+        # malformations raise ParseErrors with a position; this is the net for
+        # the ones nobody foresaw
+        raise ParseError(path, None, f"unreadable ({type(exc).__name__}: {exc})") from None
+
+
+def _read(path, asf, joint_map, marker_map) -> Motion:
     ext = path.suffix.lower()
     if ext == ".amc":
         if asf is None:

@@ -1,9 +1,12 @@
 """The in-memory result of reading a recording: what every reader returns."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from mocapdb.errors import ParseError
 
 
 @dataclass(frozen=True)
@@ -43,4 +46,61 @@ class Motion:
         return int(self.joints.shape[0])
 
 
-__all__ = ["Motion"]
+#: rates (Hz) a recorded frame time is snapped to (READERS.md §1)
+COMMON_RATES = (24.0, 25.0, 29.97, 30.0, 48.0, 50.0, 59.94, 60.0, 72.0, 90.0, 96.0, 100.0, 120.0, 125.0,
+                144.0, 150.0, 180.0, 200.0, 240.0, 250.0, 300.0, 360.0, 400.0, 480.0, 500.0, 600.0,
+                960.0, 1000.0, 2000.0)
+#: fastest rate accepted (READERS.md §4)
+MAX_RATE = 10_000.0
+
+
+def snap_rate(fps: float) -> float:
+    """The nearest common rate when within 0.5 % (``1/.0083`` → 120), else ``fps``.
+
+    Exactly integral rates are kept; a rate within 1e-4 of an integer becomes
+    that integer (a rounded frame time must not change the toolbox's
+    millisecond windows, ``ceil(0.1 · fps)``).
+    """
+    fps = float(fps)
+    best = min(COMMON_RATES, key=lambda r: abs(fps - r))
+    if abs(fps - best) <= 0.005 * best:
+        return best
+    r = round(fps)
+    return float(r) if r > 0 and abs(fps - r) <= 1e-4 * fps else fps
+
+
+def check_rate(fps, path, line=None) -> float:
+    """``fps`` if it is a usable rate (0 < fps ≤ 10 kHz), else a ParseError naming the file."""
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and 0.0 < fps <= MAX_RATE):
+        raise ParseError(path, line, f"frame rate {fps!r} Hz: expected a rate above 0 and at most "
+                         f"{MAX_RATE:g} Hz")
+    return float(fps)
+
+
+def check_finite_motion(joints: np.ndarray, path, *, first_line=None) -> None:
+    """Refuse non-finite joint positions or positions absurdly far from the body.
+
+    Raises
+    ------
+    ParseError
+        Naming the file, the first bad frame (1-based) and, when
+        ``first_line`` (the file line of frame 1) is given, its line.
+    """
+    if joints.size == 0:
+        raise ParseError(path, first_line, "no frames")
+    finite = np.isfinite(joints).all(axis=(1, 2))
+    if not finite.all():
+        f = int(np.argmin(finite))
+        raise ParseError(path, None if first_line is None else first_line + f,
+                         "non-finite joint position (NaN or inf)", frame=f + 1)
+    first = joints[0]
+    size = float(np.ptp(first, axis=0).max()) or 1.0
+    far = np.abs(joints - first.mean(axis=0)).max(axis=(1, 2)) > 1e6 * size
+    if far.any():
+        f = int(np.argmax(far))
+        raise ParseError(path, None if first_line is None else first_line + f,
+                         f"a joint lies more than 10^6 body sizes ({size:g} units) away: absurd values",
+                         frame=f + 1)
+
+
+__all__ = ["Motion", "snap_rate", "check_rate", "check_finite_motion", "COMMON_RATES", "MAX_RATE"]

@@ -248,9 +248,12 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
         values, or more lines than ``n_rows`` (file, line and frame named).
     """
     buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
-    cap = max(4096, n_rows * n_cols // 16)  # slow-path tokens are rare; rerun if not
+    # a header's row count is never trusted for allocation (READERS.md §4): at
+    # most as many rows as there are lines left, one more to detect extra lines
+    n_alloc = min(n_rows, data.count(b"\n", start) + 1)
+    cap = max(4096, n_alloc * n_cols // 16)  # slow-path tokens are rare; rerun if not
     while True:
-        out = np.zeros((n_rows, n_cols))
+        out = np.zeros((n_alloc, n_cols))
         fb_index = np.zeros(cap, dtype=np.int64)
         fb_start = np.zeros(cap, dtype=np.int64)
         fb_end = np.zeros(cap, dtype=np.int64)

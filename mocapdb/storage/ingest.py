@@ -9,7 +9,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,34 +17,54 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import MocapdbError, ParameterError
-from mocapdb.features import DOWNSAMPLING_FACTOR, motion_features
-from mocapdb.readers import find_skeleton, load_mapping, read_motion
+from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
+from mocapdb.readers import SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
 log = logging.getLogger("mocapdb")
 
-#: file extensions ingest picks up when walking a folder
-MOTION_SUFFIXES = (".amc", ".bvh")
+#: file extensions ingest reads as motions
+MOTION_SUFFIXES = SUPPORTED_EXTENSIONS
+#: files a motion folder holds beside its motions, and why they are not ingested
+_COMPANIONS = {".asf": "an ASF skeleton (read with its AMC takes)"}
 
 
 @dataclass
 class IngestReport:
     """What an :func:`ingest` call did, file by file."""
 
-    ingested: list = field(default_factory=list)   # (path, motion_id, n_frames)
-    skipped: list = field(default_factory=list)    # (path, reason)
-    failed: list = field(default_factory=list)     # (path, reason)
+    ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
+    skipped: list = field(default_factory=list)      # (path, reason): already stored
+    failed: list = field(default_factory=list)       # (path, reason)
+    unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
     source_frames: int = 0
 
     def summary(self) -> str:
-        return (f"{len(self.ingested)} ingested, {len(self.skipped)} skipped, "
-                f"{len(self.failed)} failed")
+        out = (f"{len(self.ingested)} ingested, {len(self.skipped)} skipped, "
+               f"{len(self.failed)} failed")
+        if self.unsupported:
+            out += f", {len(self.unsupported)} not motion files"
+        return out
 
 
-def motion_files(paths) -> list[Path]:
+def _folder_files(folder: Path) -> list[Path]:
+    # hidden files and folders (.DS_Store, .git) are nobody's motions
+    return sorted(q for q in folder.rglob("*") if q.is_file()
+                  and not any(part.startswith(".") for part in q.relative_to(folder).parts))
+
+
+def motion_files(paths, *, unsupported=None) -> list[Path]:
     """Expand files and folders (recursively) into motion files, in sorted order.
+
+    Parameters
+    ----------
+    paths : iterable of str or Path
+    unsupported : list, optional, keyword-only
+        Receives ``(path, reason)`` for every file of a folder that is not a
+        motion file (a file named explicitly is always returned: reading it
+        says what is wrong).
 
     Raises
     ------
@@ -55,7 +74,14 @@ def motion_files(paths) -> list[Path]:
     out = []
     for p in map(Path, paths):
         if p.is_dir():
-            out.extend(sorted(q for q in p.rglob("*") if q.suffix.lower() in MOTION_SUFFIXES and q.is_file()))
+            for q in _folder_files(p):
+                ext = q.suffix.lower()
+                if ext in MOTION_SUFFIXES:
+                    out.append(q)
+                elif unsupported is not None:
+                    why = _COMPANIONS.get(ext) or (f"unsupported file type {q.suffix!r}" if q.suffix
+                                                   else "no file extension")
+                    unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ")"))
         elif p.is_file():
             out.append(p)
         else:
@@ -83,7 +109,10 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     skel = None
     if path.suffix.lower() == ".amc":
         skel = Path(asf) if asf is not None else find_skeleton(path)
-    return _Prepared(path, _sha256(path), skel, _sha256(skel) if skel is not None else None)
+    try:
+        return _Prepared(path, _sha256(path), skel, _sha256(skel) if skel is not None else None)
+    except OSError as exc:
+        raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
 
 def prepare_file(path, *, asf=None, maps=None):
@@ -106,7 +135,7 @@ def prepare_file(path, *, asf=None, maps=None):
     Raises
     ------
     MocapdbError
-        If an AMC file's skeleton cannot be found.
+        If an AMC file's skeleton cannot be found, or the file cannot be read.
     """
     prep = _fingerprint(Path(path), asf)
     prep.reader_options = _reader_options(prep.path, maps or {})
@@ -118,14 +147,21 @@ def compute_motion(prep):
 
     Sets ``prep.motion`` (:class:`mocapdb.readers.Motion`) and ``prep.words``
     ((n_frames,) uint64), or ``prep.error`` (the reader's message) when the
-    file is malformed; returns ``prep``.
+    file cannot be read; returns ``prep``.
     """
+    # any failure stays with its file: a reader raises only MocapdbError, but a
+    # bug must not stop the other files of an archive (READERS.md §4)
     try:
         options = json.loads(prep.reader_options) if prep.reader_options else {}
         prep.motion = read_motion(prep.path, asf=prep.skeleton_path, **options)
         prep.words = motion_features(prep.motion)
     except MocapdbError as exc:
         prep.error = str(exc)
+    except Exception as exc:  # noqa: BLE001 - reported per file, never raised
+        log.warning("internal error reading %s", prep.path, exc_info=True)
+        prep.error = f"{prep.path}: internal error while reading ({type(exc).__name__}: {exc}); please report it"
+    if prep.error is not None:
+        prep.motion = prep.words = None
     return prep
 
 
@@ -149,7 +185,7 @@ def motions_table(preps) -> pa.Table:
     """
     for p in preps:
         n30 = int(p.words.shape[0])
-        if n30 != math.ceil(p.motion.n_frames / DOWNSAMPLING_FACTOR):
+        if n30 != feature_frame_count(p.motion.n_frames, p.motion.fps):
             raise MocapdbError(f"{p.path}: {n30} feature frames for {p.motion.n_frames} source frames")
     return pa.table({
         "name": pa.array([p.motion.name or p.path.stem for p in preps], pa.string()),
@@ -158,7 +194,7 @@ def motions_table(preps) -> pa.Table:
         "sha256": pa.array([p.sha256 for p in preps], pa.string()),
         "skeleton_sha256": pa.array([p.skeleton_sha256 for p in preps], pa.string()),
         "source_fps": pa.array([float(p.motion.fps) for p in preps], pa.float64()),
-        "fps": pa.array([float(p.motion.fps) / DOWNSAMPLING_FACTOR for p in preps], pa.float64()),
+        "fps": pa.array([FEATURE_RATE] * len(preps), pa.float64()),
         "n_source_frames": pa.array([p.motion.n_frames for p in preps], pa.int32()),
         "n_frames": pa.array([int(p.words.shape[0]) for p in preps], pa.int32()),
         "skeleton": pa.array([p.motion.skeleton for p in preps], pa.string()),
@@ -235,11 +271,13 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     fails, its files are retried one transaction each, so a failure stays
     confined to its file.
     """
-    files = motion_files(paths)
-    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
     report = IngestReport()
+    files = motion_files(paths, unsupported=report.unsupported)
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
     stored = _stored_keys(con)
     todo = []
+    first_of = {}     # key -> the first file of this ingest with those bytes
+    duplicates = []   # (path, key): decided once the first file is read
     for path in files:
         try:
             prep = prepare_file(path, asf=asf, maps=maps)
@@ -249,12 +287,12 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
             continue
         key = (prep.sha256, prep.skeleton_sha256)
         if key in stored:
-            why = (f"already ingested as motion {stored[key]}" if stored[key] is not None
-                   else "same bytes as another file of this ingest")
-            report.skipped.append((str(path), why))
+            report.skipped.append((str(path), f"already ingested as motion {stored[key]}"))
             _tick(progress, path, 0)
+        elif key in first_of:
+            duplicates.append((path, key))
         else:
-            stored[key] = None
+            first_of[key] = str(path)
             todo.append(prep)
 
     batch = []
@@ -262,13 +300,13 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     def flush():
         try:
             ids = store_motions(con, batch)
-        except MocapdbError:
+        except Exception:  # noqa: BLE001 - retried file by file below
             ids = []
             for p in batch:  # one transaction each: a failure stays with its file
                 try:
                     ids.extend(store_motions(con, [p]))
-                except MocapdbError as exc:
-                    report.failed.append((str(p.path), str(exc)))
+                except Exception as exc:  # noqa: BLE001 - reported per file
+                    report.failed.append((str(p.path), f"{p.path}: not stored ({exc})"))
                     ids.append(None)
         for p, mid in zip(batch, ids):
             if mid is not None:
@@ -289,6 +327,15 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
                 flush()
         if batch:
             flush()
+    # a copy of a stored file is skipped; a copy of a broken one is as broken
+    failed = dict(report.failed)
+    for path, key in duplicates:
+        first = first_of[key]
+        if first in failed:
+            report.failed.append((str(path), f"{path}: same bytes as {first}, which failed: {failed[first]}"))
+        else:
+            report.skipped.append((str(path), f"same bytes as {first} of this ingest"))
+        _tick(progress, path, 0)
     return report
 
 

@@ -1,0 +1,498 @@
+"""Map any humanoid skeleton tree onto the 24 canonical joints (READERS.md §2).
+
+Input is a tree of points — joint origins and End Sites — with their
+positions in the rest pose; output is a :class:`JointMap`: each canonical
+joint as a weighted sum of tree points (a point, or a point between two),
+plus the joint whose global rotation is the body's root rotation.
+
+How a skeleton is read, whatever its naming:
+
+1. **Topology.** The feet are the leaves in the lowest quarter of the body;
+   the pelvis is their common ancestor; the head top is the highest leaf;
+   the spine is the path from the pelvis to it. The two legs are the
+   pelvis's branches that hold the feet, the two arms the longest branches
+   off the spine above the pelvis. Each limb is the path from where it
+   branches off to its farthest leaf (toe tip, longest finger tip).
+2. **Names** place the joints of a limb where they exist: after stripping
+   namespaces and rig prefixes (``mixamorig:``, ``Bip01``, ``joint_``, …)
+   and splitting CamelCase, a knee is a ``Leg``/``LowLeg``/``Knee``/``Calf``/
+   ``Shin``, an ankle a ``Foot``/``Ankle``, an elbow a ``ForeArm``/
+   ``LowArm``/``Elbow``, a wrist a ``Hand``/``Wrist``, the hip or shoulder
+   the point before the knee or elbow; twist and roll joints are skipped.
+   Without usable names, thigh and shin (upper arm and forearm) are the two
+   consecutive bones of a limb that are longest together minus the bone that
+   follows them (foot, hand).
+3. **Sides** come from the names (``Left``/``L``/``Right``/``R``) or else
+   from the rest pose: left is up × forward, forward being the direction
+   from ankle to toe (BVH: Y up).
+4. **Spine points.** belly and chest lie at 1/3 and 2/3 of the spine's
+   length from the pelvis to the neck (as the three equal ASF spine bones
+   do), so they are distinct points whatever the number of spine joints;
+   the neck is the first joint of the head's branch where the arms branch
+   off (or, when that joint is the head itself, the midpoint of the two
+   clavicle joints); clavicles are the neck point, as in ASF data.
+
+A user map (``joint_map``: canonical joint → a joint name, ``"Name/end"``
+for its End Site, or a list of names whose mean it is) overrides any of it.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
+
+__all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
+           "mapping_template", "asf_axes_at_rest"]
+
+#: rig prefixes stripped from joint names (after any ``namespace:``)
+_PREFIXES = {"mixamorig", "bip01", "bip001", "bip02", "bip", "character1", "character", "joint", "jnt",
+             "j", "b", "def", "mch", "org", "bn", "bone", "sk", "ccbase", "cc", "base", "rig", "skel",
+             "mocap", "valvebiped", "bip1", "hik", "model", "armature"}
+_LEFT = {"left", "l", "lt", "lft"}
+_RIGHT = {"right", "r", "rt", "rgt"}
+#: name words of a limb's middle joint (knee, elbow) and end joint (ankle, wrist)
+_KNEE = {"leg", "lowleg", "lowerleg", "knee", "calf", "shin", "tibia", "loleg", "leglower", "crus"}
+_ANKLE = {"foot", "ankle"}
+_ELBOW = {"forearm", "lowarm", "lowerarm", "elbow", "radius", "ulna", "loarm", "armlower"}
+_WRIST = {"hand", "wrist"}
+_THIGH = {"upleg", "upperleg", "thigh", "femur", "hip", "legupper", "uleg"}
+_UPPERARM = {"arm", "uparm", "upperarm", "humerus", "armupper", "shoulder"}
+_TWIST = ("roll", "twist", "share", "helper", "aux", "corrective")
+_HEAD = {"head"}
+# glued single-letter sides of ASF/CMU names: LHipJoint → l hip joint, lfemur → l femur
+_GLUED = re.compile(r"^([lr])(hipjoint|femur|tibia|foot|toes|toe|clavicle|humerus|radius|wrist|hand|"
+                    r"fingers|fingerbase|thumb|shoulder|elbow|knee|ankle|hip|collar|uparm|lowarm|"
+                    r"upleg|lowleg|arm|leg|forearm)(\d*)$")
+
+
+def _tokens(name: str) -> list:
+    """Lower-case words of a joint name: namespace dropped, CamelCase and digits split."""
+    base = re.split(r"[:|]", name)[-1]
+    base = re.sub(r"([a-z0-9])([A-Z])", r"\1 \2", base)
+    base = re.sub(r"([A-Z]+)([A-Z][a-z])", r"\1 \2", base)
+    words = [w for w in re.split(r"[^A-Za-z0-9]+", base) if w]
+    out = []
+    for w in words:
+        w = w.lower()
+        m = _GLUED.match(w)
+        if m:
+            out.extend(x for x in m.groups() if x)
+        else:
+            out.extend(re.findall(r"[a-z]+|\d+", w))
+    while len(out) > 1 and out[0] in _PREFIXES:
+        out.pop(0)
+    return out
+
+
+def name_side(name: str) -> str | None:
+    """``"l"``, ``"r"`` or None: the side a joint name states."""
+    toks = _tokens(name)
+    left = any(t in _LEFT for t in toks)
+    right = any(t in _RIGHT for t in toks)
+    if left != right:
+        return "l" if left else "r"
+    return None
+
+
+def normalized_name(name: str) -> str:
+    """The name's words without side and rig prefix, joined: ``mixamorig:LeftForeArm`` → ``forearm``."""
+    return "".join(t for t in _tokens(name) if t not in _LEFT and t not in _RIGHT and not t.isdigit())
+
+
+@dataclass(frozen=True)
+class SkeletonTree:
+    """Points of a skeleton: joint origins, then End Sites.
+
+    Attributes
+    ----------
+    names : tuple of str
+        One per point; an End Site is ``"<joint>/end"``.
+    parent : ndarray, shape (n_points,), int64
+        Parent point (-1 for the root). An End Site's parent is its joint.
+    rest : ndarray, shape (n_points, 3)
+        Rest-pose positions (offsets accumulated), Y up.
+    is_joint : ndarray, shape (n_points,), bool
+        False for End Sites.
+    """
+
+    names: tuple
+    parent: np.ndarray
+    rest: np.ndarray
+    is_joint: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+
+@dataclass(frozen=True)
+class JointMap:
+    """The 24 canonical joints as weighted sums of tree points.
+
+    Attributes
+    ----------
+    weights : ndarray, shape (24, n_points)
+        ``joints[f] = weights @ points[f]``; every row sums to 1.
+    rotation_point : int
+        The pelvis joint: its global rotation is the root rotation.
+    asf_axes : bool
+        True when the pelvis's axes follow the ASF convention (x from the
+        right hip to the left one in the rest pose): then feature #40 may use
+        the root rotation; otherwise it uses the hip axis (READERS.md §2).
+    how : dict
+        Canonical joint → how it was placed (for messages and templates).
+    """
+
+    weights: np.ndarray
+    rotation_point: int
+    asf_axes: bool
+    how: dict
+
+
+class MappingError(Exception):
+    """No humanoid mapping: ``missing`` lists canonical joints it could not place."""
+
+    def __init__(self, message, missing, partial, *, upright=True):
+        super().__init__(message)
+        self.missing = list(missing)
+        self.partial = dict(partial)
+        self.upright = upright
+
+
+# ----------------------------------------------------------------------------
+# tree helpers
+
+def _children(tree: SkeletonTree) -> list:
+    kids = [[] for _ in range(tree.n)]
+    for i, p in enumerate(tree.parent):
+        if p >= 0:
+            kids[p].append(i)
+    return kids
+
+
+def _path_to_root(tree: SkeletonTree, i: int) -> list:
+    out = []
+    while i >= 0:
+        out.append(i)
+        i = int(tree.parent[i])
+    return out[::-1]
+
+
+def _farthest_leaf(tree, kids, start):
+    """The leaf below ``start`` with the longest rest path from it, and the path."""
+    best, best_len, best_path = start, -1.0, [start]
+    stack = [(start, 0.0, [start])]
+    while stack:
+        i, length, path = stack.pop()
+        if not kids[i]:
+            if length > best_len + 1e-12:
+                best, best_len, best_path = i, length, path
+            continue
+        for k in kids[i]:
+            seg = float(np.linalg.norm(tree.rest[k] - tree.rest[i]))
+            stack.append((k, length + seg, path + [k]))
+    return best, best_len, best_path
+
+
+def _is_twist(tree, i) -> bool:
+    return any(t in _TWIST for t in _tokens(tree.names[i]))
+
+
+def _distinct(tree, path, tol):
+    """Path points without twist joints and without repeats of the previous position."""
+    out = []
+    for i in path:
+        if tree.is_joint[i] and _is_twist(tree, i) and i != path[-1]:
+            continue
+        if out and np.linalg.norm(tree.rest[i] - tree.rest[out[-1]]) <= tol:
+            # a repeated position: keep the deeper point only for an End Site leaf of a
+            # zero-length bone (the joint itself is the better-named one)
+            continue
+        out.append(i)
+    return out
+
+
+def _named(tree, chain, words):
+    return [i for i in chain if tree.is_joint[i] and normalized_name(tree.names[i]) in words]
+
+
+# ----------------------------------------------------------------------------
+# limbs
+
+def _limb_points(tree, chain, tol, mid_words, end_words, top_words):
+    """(top, middle, end, tip) points of a limb chain (attach point first, leaf last).
+
+    Names first (middle joint: knee/elbow words; end: ankle/wrist words; top:
+    the named thigh/upper arm or the point before the middle one); else the
+    two longest consecutive bones.
+    """
+    pts = _distinct(tree, chain, tol)
+    tip = pts[-1]
+    mids = _named(tree, pts, mid_words)
+    if mids:
+        mid = mids[0]
+        k = pts.index(mid)
+        tops = _named(tree, pts[:k], top_words)
+        top = tops[-1] if tops else (pts[k - 1] if k >= 1 else None)
+        ends = _named(tree, pts[k + 1:], end_words)
+        end = ends[0] if ends else (pts[k + 1] if k + 1 < len(pts) else None)
+        if top is not None and end is not None:
+            return top, mid, end, tip, "names"
+    if len(pts) < 4:
+        return None
+    seg = [float(np.linalg.norm(tree.rest[pts[i + 1]] - tree.rest[pts[i]])) for i in range(len(pts) - 1)] + [0.0]
+    # the two long bones (thigh and shin, upper arm and forearm) followed by a short
+    # one (foot, hand): the longest pair minus what follows it. The plain longest
+    # pair would take clavicle and upper arm on skeletons with a long clavicle and
+    # a short forearm (HDM05: 21, 27, 17 cm)
+    best = max(range(len(seg) - 2), key=lambda i: seg[i] + seg[i + 1] - seg[i + 2])
+    if best + 2 >= len(pts):
+        return None
+    return pts[best], pts[best + 1], pts[best + 2], tip, "bone lengths"
+
+
+# ----------------------------------------------------------------------------
+# the mapper
+
+def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
+    """Place the 24 canonical joints on a skeleton tree; see the module docstring.
+
+    Parameters
+    ----------
+    tree : SkeletonTree
+    pose : ndarray, shape (n_points, 3), optional
+        Positions to judge up, down, left and right by (default: the rest
+        pose). Rigs whose rest pose lies on its side (root axes along the
+        spine) are read from a frame of the motion instead.
+
+    Raises
+    ------
+    MappingError
+        The tree is not a humanoid (no two legs, two arms and a head), with
+        the canonical joints it could not place; ``upright`` is False when the
+        pose is not an upright body (then try a frame of the motion).
+    """
+    n = tree.n
+    rest = tree.rest  # lengths: the same in any pose
+    pose = rest if pose is None else np.asarray(pose, dtype=np.float64)
+    kids = _children(tree)
+    leaves = [i for i in range(n) if not kids[i]]
+    height = float(pose[:, 1].max() - pose[:, 1].min()) if n else 0.0
+    tol = 1e-6 * max(height, 1e-12)
+    partial: dict = {}
+    if n < 5 or height <= 0.0:
+        raise MappingError(f"{n} points in a rest pose of height {height:g}: too few for a body",
+                           JOINT_NAMES, partial)
+    floor = float(pose[:, 1].min())
+    feet = [i for i in leaves if pose[i, 1] <= floor + 0.25 * height]
+    head_leaf = max(leaves, key=lambda i: pose[i, 1])
+    if len(feet) < 2:
+        raise MappingError("fewer than two leaves near the floor: no two legs", JOINT_NAMES, partial)
+    paths = {i: _path_to_root(tree, i) for i in feet}
+    # pelvis: the deepest common ancestor of the feet
+    common = paths[feet[0]]
+    for i in feet[1:]:
+        p = paths[i]
+        k = 0
+        while k < min(len(common), len(p)) and common[k] == p[k]:
+            k += 1
+        common = common[:k]
+    if not common:
+        raise MappingError("the feet have no common ancestor", JOINT_NAMES, partial)
+    pelvis = common[-1]
+    depth = len(common)
+    up = pose[head_leaf] - pose[pelvis]
+    if up[1] < 0.5 * np.linalg.norm(up) or any(pose[i, 1] >= pose[pelvis, 1] for i in feet):
+        raise MappingError("the pose is not an upright body (head above the pelvis, feet below)", JOINT_NAMES,
+                           partial, upright=False)
+    branches = {}
+    for i in feet:
+        branches.setdefault(paths[i][depth], []).append(i)
+    if len(branches) < 2:
+        raise MappingError("the feet hang off one branch: no two legs", JOINT_NAMES, partial)
+    legs = sorted(branches, key=lambda b: -_farthest_leaf(tree, kids, b)[1])[:2]
+    spine = _path_to_root(tree, head_leaf)
+    if pelvis not in spine:
+        raise MappingError("the head is not above the pelvis in the tree", JOINT_NAMES, partial)
+    spine = spine[spine.index(pelvis):]
+    on_spine = set(spine)
+    # arms: the longest branches off the spine above the pelvis (not the legs)
+    arm_cands = []
+    for s in spine:
+        for k in kids[s]:
+            if k in on_spine or k in legs:
+                continue
+            leaf, length, _ = _farthest_leaf(tree, kids, k)
+            arm_cands.append((length + float(np.linalg.norm(rest[k] - rest[s])), s, k))
+    arm_cands.sort(key=lambda t: -t[0])
+    if len(arm_cands) < 2 or arm_cands[1][0] < 0.15 * height:
+        raise MappingError("fewer than two arms branch off the spine", [j for j in JOINT_NAMES if j[0] in "lr"
+                                                                        and j[1:] in ("clavicle", "shoulder", "elbow",
+                                                                                      "wrist", "fingers")],
+                           partial)
+    arms = [(s, k) for _, s, k in arm_cands[:2]]
+
+    def chain(attach, first):
+        _, _, path = _farthest_leaf(tree, kids, first)
+        return [attach] + path
+
+    limb = {}
+    for kind, items, words in (("leg", [(pelvis, b) for b in legs], (_KNEE, _ANKLE, _THIGH)),
+                               ("arm", arms, (_ELBOW, _WRIST, _UPPERARM))):
+        for attach, first in items:
+            c = chain(attach, first)
+            got = _limb_points(tree, c, tol, *words)
+            if got is None:
+                raise MappingError(f"cannot find the joints of an {kind} ({', '.join(tree.names[i] for i in c)})",
+                                   [], partial)
+            limb[(kind, first)] = (c, got)
+
+    # sides: names, else rest pose (left = up × forward)
+    def side_of(c):
+        votes = [name_side(tree.names[i]) for i in c if tree.is_joint[i]]
+        left, right = votes.count("l"), votes.count("r")
+        return "l" if left > right else "r" if right > left else None
+
+    leg_keys = [("leg", b) for b in legs]
+    arm_keys = [("arm", k) for _, k in arms]
+    forward = np.zeros(3)
+    for key in leg_keys:
+        _, (top, mid, end, tip, _) = limb[key]
+        forward += pose[tip] - pose[end]
+    forward[1] = 0.0
+    if np.linalg.norm(forward) < 1e-9 * height:
+        forward = np.array([0.0, 0.0, 1.0])  # BVH convention: the character faces +Z
+    left_dir = np.cross([0.0, 1.0, 0.0], forward / np.linalg.norm(forward))
+    sides = {}
+    for pair in (leg_keys, arm_keys):
+        named = [side_of(limb[k][0]) for k in pair]
+        if sorted(x for x in named if x) == ["l", "r"]:
+            sides.update(zip(pair, named))
+            continue
+        lat = [float(np.dot(pose[limb[k][1][2]] - pose[pelvis], left_dir)) for k in pair]
+        if abs(lat[0] - lat[1]) < 1e-6 * height:
+            raise MappingError("cannot tell left from right (names carry no side and the limbs overlap "
+                               "in the rest pose)", [], partial)
+        first_left = lat[0] > lat[1]
+        sides[pair[0]] = "l" if first_left else "r"
+        sides[pair[1]] = "r" if first_left else "l"
+
+    weights = np.zeros((len(JOINT_NAMES), n))
+    how = {}
+
+    def put(joint, point, why):
+        weights[JOINT_INDEX[joint]] = 0.0
+        weights[JOINT_INDEX[joint], point] = 1.0
+        how[joint] = (tree.names[point], why)
+
+    for key in leg_keys:
+        s = sides[key]
+        top, mid, end, tip, why = limb[key][1]
+        put(f"{s}hip", top, why)
+        put(f"{s}knee", mid, why)
+        put(f"{s}ankle", end, why)
+        put(f"{s}toes", tip, "leaf")
+    arm_attach = {}
+    for (attach, first) in arms:
+        key = ("arm", first)
+        s = sides[key]
+        top, mid, end, tip, why = limb[key][1]
+        put(f"{s}shoulder", top, why)
+        put(f"{s}elbow", mid, why)
+        put(f"{s}wrist", end, why)
+        put(f"{s}fingers", tip, "leaf")
+        arm_attach[s] = (attach, first)
+
+    put("root", pelvis, "pelvis: common ancestor of the feet")
+    # head top: the highest leaf; head: the joint named Head on the spine path, else
+    # the last distinct joint before the head top
+    sp = _distinct(tree, spine, tol)
+    put("headtop", sp[-1], "highest leaf")
+    heads = [i for i in sp[:-1] if tree.is_joint[i] and normalized_name(tree.names[i]) in _HEAD]
+    if heads:
+        put("head", heads[-1], "names")
+    elif len(sp) >= 2:
+        put("head", sp[-2], "last joint below the head top")
+    # neck: the first joint of the head's branch at the point the arms branch off
+    # (where the ASF clavicles start), unless that joint is the head itself
+    fork = max(spine.index(a) for a, _ in arms)
+    head_node = int(np.argmax(weights[JOINT_INDEX["head"]]))
+    branch = spine[fork + 1] if fork + 1 < len(spine) else None
+    if branch is not None and tree.is_joint[branch] and branch != head_node and branch != sp[-1]:
+        put("neck", branch, "first joint of the head's branch")
+    else:
+        a, b = arm_attach["l"][1], arm_attach["r"][1]
+        weights[JOINT_INDEX["neck"]] = 0.0
+        weights[JOINT_INDEX["neck"], a] += 0.5
+        weights[JOINT_INDEX["neck"], b] += 0.5
+        how["neck"] = ([tree.names[a], tree.names[b]], "between the clavicle joints")
+    for s in "lr":
+        weights[JOINT_INDEX[f"{s}clavicle"]] = weights[JOINT_INDEX["neck"]]
+        how[f"{s}clavicle"] = how["neck"]
+    # belly and chest at 1/3 and 2/3 of the spine from the pelvis to the neck
+    neck_node = int(np.argmax(weights[JOINT_INDEX["neck"]]))
+    neck_pos = weights[JOINT_INDEX["neck"]] @ rest
+    upto = spine[:spine.index(neck_node) + 1] if neck_node in on_spine else spine[:fork + 1]
+    pts = _distinct(tree, upto, tol)
+    poly = [rest[i] for i in pts]
+    nodes = list(pts)
+    if np.linalg.norm(poly[-1] - neck_pos) > tol:
+        poly.append(neck_pos)
+        nodes.append(None)
+    seg = [float(np.linalg.norm(poly[i + 1] - poly[i])) for i in range(len(poly) - 1)]
+    total = sum(seg)
+    if total <= tol:
+        raise MappingError("the spine has no length (neck at the pelvis)", ["belly", "chest"], how)
+    for joint, frac in (("belly", 1 / 3), ("chest", 2 / 3)):
+        target = frac * total
+        acc = 0.0
+        for i, L in enumerate(seg):
+            if acc + L >= target or i == len(seg) - 1:
+                u = min(max((target - acc) / L, 0.0), 1.0) if L > 0 else 0.0
+                row = np.zeros(n)
+                row[nodes[i]] += 1.0 - u
+                if nodes[i + 1] is None:
+                    row += u * weights[JOINT_INDEX["neck"]]
+                else:
+                    row[nodes[i + 1]] += u
+                weights[JOINT_INDEX[joint]] = row
+                how[joint] = (None, f"at {frac * 3:.0f}/3 of the spine from the pelvis to the neck")
+                break
+            acc += L
+    axis = (weights[JOINT_INDEX["lhip"]] - weights[JOINT_INDEX["rhip"]]) @ rest
+    return JointMap(weights, int(pelvis), asf_axes_at_rest(axis), how)
+
+
+def asf_axes_at_rest(hip_axis) -> bool:
+    """True when a hip axis (lhip − rhip) in the pelvis's own frame runs along +x
+    (within 20°): the ASF root convention that feature #40 relies on."""
+    a = np.asarray(hip_axis, dtype=np.float64)
+    norm = float(np.linalg.norm(a))
+    return bool(norm > 0 and a[0] / norm > np.cos(np.radians(20.0)))
+
+
+def mapping_template(tree: SkeletonTree, partial: dict | None = None, *, source: str = "") -> str:
+    """A ready-to-edit TOML joint map: every canonical joint, filled where placed.
+
+    ``partial`` maps canonical joints to ``(name or [names], why)``; the file's
+    own joints are listed in a comment.
+    """
+    partial = partial or {}
+    lines = [f"# mocapdb joint map{' for ' + source if source else ''}",
+             "# canonical joint = \"the file's joint\" (its origin), \"Joint/end\" (its End Site),",
+             "# or [\"A\", \"B\"] (the point between them). Use with: mocapdb ingest --joint-map FILE",
+             "# the file's joints: " + ", ".join(nm for nm, j in zip(tree.names, tree.is_joint) if j)]
+    for j in JOINT_NAMES:
+        name, why = partial.get(j, (None, None))
+        if isinstance(name, list):
+            lines.append(f"{j} = [" + ", ".join(f'"{x}"' for x in name) + "]")
+        elif name is not None:
+            lines.append(f'{j} = "{name}"')
+        elif why is not None:
+            lines.append(f'# {j}: {why} (automatic; name a joint to override)')
+        else:
+            lines.append(f'# {j} = ""   # could not place: fill in')
+    return "\n".join(lines) + "\n"

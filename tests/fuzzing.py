@@ -1,0 +1,54 @@
+"""Seeded mutations of real motion files (the fuzz tests' generator).
+
+Each case is one real file (a short AMC take, its ASF, BVH files of other
+tools) with one to three mutations: bytes changed, spans cut or repeated,
+truncation, a number replaced by a hostile one (NaN, 1e309, 5e-324, ``1x``, a
+frame count of 10^12), structural tokens inserted, line ends changed.
+"""
+import re
+
+import numpy as np
+
+HOSTILE_NUMBERS = [b"nan", b"NaN", b"inf", b"-inf", b"1e309", b"-1e308", b"5e-324", b"1e-320", b"1x", b"",
+                   b"999999999999999999999999", b"0", b"-0", b"1e12", b"1000000000000", b"0.0", b"+", b"-",
+                   b".", b"e5", b"0x10", b"1_000", b"\xff", b"12.5.3"]
+INSERTS = [b"{", b"}", b" JOINT x {", b"End Site { OFFSET 0 0 0 }", b"\nFrames: 1000000000000\n",
+           b"\nFrame Time: 5e-324\n", b"\n:DEGREES\n", b"\nroot 0 0 0 0 0 0\n", b"\n1\n", b"\x00",
+           b"\nbegin\n", b"\nend\n", b"CHANNELS 99 Xposition", b"OFFSET 1e300 0 0", b"\r",
+           b"\n:units\n  length 0\n", b"  length -1", b"\nFrame Time: 0\n", b"\nFrame Time: -1\n",
+           b"\n" + b"JOINT j {\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" * 3]
+_NUMBER = re.compile(rb"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def mutate(data: bytes, rng: np.random.Generator) -> bytes:
+    """One to three random mutations of ``data``."""
+    out = bytearray(data)
+    for _ in range(int(rng.integers(1, 4))):
+        op = int(rng.integers(0, 8))
+        n = len(out)
+        if n == 0:
+            out = bytearray(b"x")
+            n = 1
+        i = int(rng.integers(0, n))
+        if op == 0:    # change a few bytes
+            for _ in range(int(rng.integers(1, 6))):
+                out[int(rng.integers(0, n))] = int(rng.integers(0, 256))
+        elif op == 1:  # cut a span
+            j = min(n, i + int(rng.integers(1, 200)))
+            del out[i:j]
+        elif op == 2:  # repeat a span
+            j = min(n, i + int(rng.integers(1, 400)))
+            out[i:i] = out[i:j] * int(rng.integers(1, 4))
+        elif op == 3:  # truncate
+            del out[i:]
+        elif op == 4 or op == 5:  # a hostile number in place of a real one
+            nums = list(_NUMBER.finditer(bytes(out)))
+            if nums:
+                m = nums[int(rng.integers(0, len(nums)))]
+                out[m.start():m.end()] = HOSTILE_NUMBERS[int(rng.integers(0, len(HOSTILE_NUMBERS)))]
+        elif op == 6:  # insert a structural token
+            out[i:i] = INSERTS[int(rng.integers(0, len(INSERTS)))]
+        else:          # line ends: LF -> CR, CRLF or nothing
+            to = [b"\r", b"\r\n", b" "][int(rng.integers(0, 3))]
+            out = bytearray(bytes(out).replace(b"\n", to))
+    return bytes(out)

@@ -1,0 +1,114 @@
+"""Seeded mutation fuzzing of the readers and of ingest (READERS.md §4, issue 9).
+
+Real AMC/ASF/BVH files from ../shared/data are mutated (tests/fuzzing.py) and
+read: only a MocapdbError may leave a reader, an accepted motion is finite and
+its features compute, and an ingest of mutated files never raises, stores
+only what it reports and reports every file.
+"""
+import time
+
+import numpy as np
+import pytest
+
+import mocapdb
+from conftest import DATA
+from fuzzing import mutate
+from mocapdb.errors import MocapdbError
+from mocapdb.features import motion_features
+from mocapdb.readers import read_motion
+
+AMC = DATA / "hdm05_cut/kickLFront1Reps/HDM_bd_kickLFront1Reps_001_120.amc"
+ASF = DATA / "hdm05_cut/HDM_bd.asf"
+N_CASES = 2400
+
+
+def _short_amc(frames=40) -> bytes:
+    """The first ``frames`` frames of a real HDM05 take (fuzzing the whole take is slower, not wiser)."""
+    out, seen = [], 0
+    for line in AMC.read_bytes().split(b"\n"):
+        if line.strip().isdigit():
+            seen += 1
+            if seen > frames:
+                break
+        out.append(line)
+    return b"\n".join(out) + b"\n"
+
+
+@pytest.fixture(scope="module")
+def sources():
+    bvh = [p.read_bytes() for p in sorted((DATA / "foreign/bvh").glob("*.bvh"))]
+    assert len(bvh) == 5
+    amc = _short_amc()
+    fairmotion = (DATA / "foreign/amc/11_01.amc").read_bytes()[:20000]
+    return ([("amc", amc, ASF)] * 3 + [("asf", ASF.read_bytes(), None)] * 2 + [("bvh", b, None) for b in bvh]
+            + [("amc", fairmotion, DATA / "foreign/amc/11.asf")])
+
+
+def test_only_mocapdb_errors_leave_the_readers(sources, tmp_path):
+    rng = np.random.default_rng(20261125)
+    short = _short_amc()
+    escaped, accepted, refused = [], 0, 0
+    t = time.perf_counter()
+    for case in range(N_CASES):
+        kind, data, asf = sources[int(rng.integers(0, len(sources)))]
+        bad = mutate(data, rng)
+        if kind == "amc":
+            path, kw = tmp_path / "take.amc", {"asf": asf}
+            path.write_bytes(bad)
+        elif kind == "asf":
+            (tmp_path / "mutated.asf").write_bytes(bad)
+            path, kw = tmp_path / "with_mutated_asf.amc", {"asf": tmp_path / "mutated.asf"}
+            path.write_bytes(short)
+        else:
+            path, kw = tmp_path / "take.bvh", {}
+            path.write_bytes(bad)
+        try:
+            motion = read_motion(path, **kw)
+        except MocapdbError as exc:
+            refused += 1
+            named = str(kw["asf"]) if kind == "asf" else str(path)
+            assert named in str(exc) or str(path) in str(exc), f"case {case}: the error names no file: {exc}"
+            continue
+        except Exception as exc:  # noqa: BLE001 - the property under test
+            escaped.append((case, kind, f"{type(exc).__name__}: {exc}"))
+            continue
+        accepted += 1
+        assert np.isfinite(motion.joints).all(), f"case {case}: accepted non-finite joints"
+        assert 0 < motion.fps <= 10_000
+        words = motion_features(motion)  # features are defined for anything accepted
+        assert words.dtype == np.uint64 and len(words) >= 1
+    elapsed = time.perf_counter() - t
+    assert not escaped, escaped[:5]
+    # the mutations must exercise both outcomes, or the test proves nothing
+    assert accepted > 50 and refused > N_CASES // 2, (accepted, refused)
+    assert elapsed < 60, f"{N_CASES} cases took {elapsed:.0f} s"
+
+
+def test_ingest_of_mutated_files_never_raises_and_reports_every_file(sources, tmp_path):
+    rng = np.random.default_rng(7)
+    folder = tmp_path / "archive"
+    folder.mkdir()
+    (folder / "HDM_bd.asf").write_bytes(ASF.read_bytes())
+    names = []
+    for k in range(120):
+        kind, data, asf = sources[int(rng.integers(0, len(sources)))]
+        if kind == "asf" or asf not in (ASF, None):
+            continue
+        name = f"HDM_bd_m{k:03d}.{kind}"
+        (folder / name).write_bytes(mutate(data, rng) if k % 4 else data)  # every 4th file intact
+        names.append(name)
+    con = mocapdb.connect(tmp_path / "f.duckdb")
+    try:
+        report = mocapdb.ingest(con, [folder])
+        seen = ([p for p, *_ in report.ingested] + [p for p, _ in report.skipped] + [p for p, _ in report.failed])
+        assert sorted(seen) == sorted(str(folder / n) for n in names)
+        assert [p for p, _ in report.unsupported] == [str(folder / "HDM_bd.asf")]
+        assert report.ingested and report.failed
+        stored = con.execute("SELECT count(*), sum(n_frames) FROM motions").fetchall()[0]
+        assert stored[0] == len(report.ingested)
+        assert stored[1] == con.execute("SELECT count(*) FROM features").fetchall()[0][0]
+        # identical intact copies are stored once; identical broken ones fail alike
+        for path, reason in report.failed:
+            assert path in reason or "same bytes as" in reason
+    finally:
+        con.close()
