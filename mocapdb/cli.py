@@ -212,7 +212,7 @@ def _json_default(v):
 @silent_option
 @click.pass_context
 def ingest(ctx, paths, asf, joint_map, marker_map, silent):
-    """Read ASF/AMC and BVH files (or folders, recursively) into the database.
+    """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
 
     A broken file changes nothing and the others still go in; files already
     stored (same bytes) are skipped.

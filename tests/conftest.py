@@ -40,6 +40,14 @@ def amc_frame_count(path):
         return sum(1 for line in f if re.fullmatch(rb"\s*\d+\s*", line))
 
 
+def c3d_frame_count(path):
+    """Frames of a C3D file from its 512-byte header (last − first + 1), independent of ezc3d."""
+    import struct
+    with open(path, "rb") as f:
+        first, last = struct.unpack("<2H", f.read(10)[6:10])
+    return last - first + 1
+
+
 def truth_86_09_rows():
     """The 86_09 ground truth (labels/cmu86_segmentation) as dicts with trial, label, start_frame, end_frame."""
     return list(csv.DictReader((DATA / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv").open()))

@@ -245,7 +245,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     con : duckdb.DuckDBPyConnection
         A connection with the mocapdb schema.
     paths : iterable of str or Path
-        Files (``.amc``, ``.bvh``) or folders, searched recursively.
+        Files (``.amc``, ``.bvh``, ``.c3d``) or folders, searched recursively.
     asf : str or Path, optional, keyword-only
         Skeleton for every AMC file. By default each AMC's ASF is found by the
         dataset conventions (:func:`mocapdb.readers.find_skeleton`).
