@@ -20,6 +20,7 @@ CLI                           API
 ``mocapdb drop-index``        :func:`drop_index`
 ``mocapdb export-features``   :func:`export_features`
 ``mocapdb import-features``   :func:`import_features`
+``mocapdb ray-annotate``      :func:`ray_annotate`
 ``mocapdb sql``               ``connect(...).sql(query)``
 ============================  ==========================
 """
@@ -32,6 +33,8 @@ import numpy as np
 
 from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_segments, read_truth,
                                 segment_table, segments_to_rows)
+from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
+from mocapdb.distributed import ray_annotate as run_on_ray
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.evaluation import evaluate_annotation, parse_tau_grid
@@ -532,6 +535,38 @@ def import_features(con, directory) -> dict:
     return parquet.import_features(con, directory)
 
 
+def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
+                 asf=None, joint_map=None, marker_map=None, num_cpus=None, batch_files=BATCH_FILES,
+                 bucket_motions=BUCKET_MOTIONS, overwrite=False):
+    """``ingest`` + ``annotate`` on a Ray cluster, Parquet out (needs the ``ray`` extra).
+
+    Reads the recordings on Ray actors with the same readers, kernels and
+    model and writes the datasets ``motions``, ``features``, ``postings``,
+    ``annotations`` (the columns of the DuckDB tables) and ``errors``
+    (file, reason) under ``out``; :func:`import_features` loads them into a
+    database, and DuckDB queries them in place. See
+    :func:`mocapdb.distributed.ray_annotate` for every parameter.
+
+    Parameters
+    ----------
+    sources : iterable of str or Path
+        Files, folders or glob patterns, at the same path on every node.
+    out : str or Path
+        Archive folder (empty or absent unless ``overwrite``).
+    address : str, optional, keyword-only
+        Ray cluster address; default: a local Ray with ``num_cpus`` CPUs.
+    model, tau, keyframes
+        As :func:`annotate`; the model is a shipped one or one stored in ``database``.
+
+    Returns
+    -------
+    mocapdb.distributed.RayReport
+    """
+    return run_on_ray(sources, out, address=address, model=model, tau=tau, keyframes=keyframes, database=database,
+                      asf=asf, joint_map=joint_map, marker_map=marker_map, num_cpus=num_cpus,
+                      batch_files=batch_files, bucket_motions=bucket_motions, overwrite=overwrite)
+
+
 __all__ = ["connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "evaluate", "report", "view",
-           "create_index", "drop_index", "export_features", "import_features", "read_truth", "training_clips",
-           "FIGURES"]
+           "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
+           "training_clips", "FIGURES"]

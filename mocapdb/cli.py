@@ -18,6 +18,7 @@ from pathlib import Path
 
 import click
 
+from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
 from mocapdb.errors import MocapdbError
 
 # -- shared options ---------------------------------------------------------------
@@ -45,6 +46,18 @@ truth_help = ("Ground truth: a CSV document,label,start_frame,end_frame (native 
               "file (each annotation's value is the label; the document is the linked media file's stem).")
 map_option = click.option("--map", "label_map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                           help="CSV class,label renaming truth labels to model labels (e.g. walk -> move).")
+
+
+def reader_options(fn):
+    """``--asf``, ``--joint-map`` and ``--marker-map``: how files are read (ingest, ray-annotate)."""
+    fn = click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")(fn)
+    fn = click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the BVH joint (or two joints: their midpoint); "
+                           "overrides the automatic mapping of every BVH file.")(fn)
+    return click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                        help="Skeleton for every AMC file (default: found by the dataset conventions: "
+                             "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")(fn)
 
 
 _UDF_WRAPPER = re.compile(r"^Invalid Input Error: Python exception occurred while executing the UDF: "
@@ -206,14 +219,7 @@ def _json_default(v):
 
 @command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
-@click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Skeleton for every AMC file (default: found by the dataset conventions: "
-                   "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")
-@click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="TOML/JSON file: canonical joint = the BVH joint (or two joints: their midpoint); "
-                   "overrides the automatic mapping of every BVH file.")
-@click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")
+@reader_options
 @silent_option
 @click.pass_context
 def ingest(ctx, paths, asf, joint_map, marker_map, silent):
@@ -229,6 +235,11 @@ def ingest(ctx, paths, asf, joint_map, marker_map, silent):
     with _progress(len(motion_files(paths)), "ingest", silent) as bar:
         report = api_ingest(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
                             progress=lambda path, frames: bar.update(1))
+    _echo_report(ctx, report)
+
+
+def _echo_report(ctx, report):
+    """The files a run did not store, a line each, then its summary; exit 1 when every file failed."""
     for path, reason in report.unsupported:
         click.echo(f"not a motion file {path}: {reason}", err=True)
     for path, reason in report.skipped:
@@ -561,6 +572,45 @@ def import_features(ctx, directory):
     from mocapdb.api import import_features as api_import_features
 
     click.echo(f"{len(api_import_features(_open(ctx), directory))} motion(s) imported")
+
+
+@command("ray-annotate")
+@click.argument("sources", nargs=-1, required=True)
+@click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Archive folder for the Parquet datasets (on storage every node sees).")
+@click.option("--address", help="Ray cluster address (e.g. auto, ray://head:10001); default: a local Ray.")
+@model_option("Model name: a shipped model, or one stored in the --db database.")
+@tau_option
+@keyframes_option
+@reader_options
+@click.option("--num-cpus", type=int, help="CPUs of the local Ray (default: all cores).")
+@click.option("--batch-files", type=int, default=BATCH_FILES, show_default=True,
+              help="Files per batch: the unit of work, of retry and of the Parquet parts.")
+@click.option("--bucket-motions", type=int, default=BUCKET_MOTIONS, show_default=True,
+              help="Motions per motion_bucket partition of features, postings and annotations.")
+@click.option("--overwrite", is_flag=True, help="Replace an archive already in --out.")
+@click.pass_context
+def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_map, marker_map, num_cpus,
+                 batch_files, bucket_motions, overwrite):
+    """Ingest and annotate files, folders or glob patterns on a Ray cluster; write Parquet.
+
+    Needs the ray extra (pip install 'mocapdb[ray]'). Writes the datasets
+    motions, features, postings, annotations (the columns of the database
+    tables) and errors (file, reason) under --out; `import-features` loads
+    them into a database and DuckDB reads them in place.
+
+    \b
+    Example:
+      mocapdb ray-annotate '../shared/data/hdm05_cut/**/*.amc' --out archive
+      mocapdb --db archive.duckdb import-features archive
+    """
+    from mocapdb.api import ray_annotate as api_ray_annotate
+
+    report = api_ray_annotate(sources, out, address=address, model=model, tau=tau, keyframes=keyframes,
+                              database=ctx.obj.get("db"), asf=asf, joint_map=joint_map, marker_map=marker_map,
+                              num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
+                              overwrite=overwrite)
+    _echo_report(ctx, report)
 
 
 if __name__ == "__main__":  # pragma: no cover

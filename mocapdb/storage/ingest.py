@@ -115,7 +115,40 @@ def _fingerprint(path: Path, asf) -> _Prepared:
         raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
 
-def _compute(prep: _Prepared) -> _Prepared:
+def prepare_file(path, *, asf=None, maps=None):
+    """Fingerprint one file as ingest does, before reading it.
+
+    Parameters
+    ----------
+    path : str or Path
+    asf : str or Path, optional, keyword-only
+        Skeleton of an AMC file (default: found by the dataset conventions).
+    maps : dict, optional, keyword-only
+        :func:`reader_maps` output.
+
+    Returns
+    -------
+    record
+        ``path``, ``sha256``, ``skeleton_path`` and ``skeleton_sha256`` (the
+        ``motions`` key) and ``reader_options``; the input of :func:`compute_motion`.
+
+    Raises
+    ------
+    MocapdbError
+        If an AMC file's skeleton cannot be found, or the file cannot be read.
+    """
+    prep = _fingerprint(Path(path), asf)
+    prep.reader_options = _reader_options(prep.path, maps or {})
+    return prep
+
+
+def compute_motion(prep):
+    """Read a prepared file and compute its 30 Hz feature words, as ingest does.
+
+    Sets ``prep.motion`` (:class:`mocapdb.readers.Motion`) and ``prep.words``
+    ((n_frames,) uint64), or ``prep.error`` (the reader's message) when the
+    file cannot be read; returns ``prep``.
+    """
     # any failure stays with its file: a reader raises only MocapdbError, but a
     # bug must not stop the other files of an archive (READERS.md §4)
     try:
@@ -141,18 +174,20 @@ def _stored_keys(con) -> dict:
     return {(a, b): mid for mid, a, b in con.execute(_sql("stored_keys")).fetchall()}
 
 
-def store_motions(con, preps) -> list[int]:
-    """Insert computed motions — their ``motions`` rows, ``features`` rows and,
-    when the keyframe index exists, postings — in one transaction.
+def motions_table(preps) -> pa.Table:
+    """The ``motions`` rows of computed files (:func:`compute_motion`), without
+    ``motion_id`` and ``ingested_at``.
 
-    Returns the new motion ids in the order of ``preps``.
+    Raises
+    ------
+    MocapdbError
+        If a file's feature frames do not match its source frames.
     """
     for p in preps:
         n30 = int(p.words.shape[0])
         if n30 != feature_frame_count(p.motion.n_frames, p.motion.fps):
             raise MocapdbError(f"{p.path}: {n30} feature frames for {p.motion.n_frames} source frames")
-    meta = pa.table({
-        "ord": pa.array(np.arange(len(preps), dtype=np.int32)),
+    return pa.table({
         "name": pa.array([p.motion.name or p.path.stem for p in preps], pa.string()),
         "source_path": pa.array([str(p.path.resolve()) for p in preps], pa.string()),
         "format": pa.array([p.motion.source_format for p in preps], pa.string()),
@@ -167,6 +202,17 @@ def store_motions(con, preps) -> list[int]:
                                   pa.string()),
         "reader_options": pa.array([p.reader_options for p in preps], pa.string()),
     })
+
+
+
+def store_motions(con, preps) -> list[int]:
+    """Insert computed motions — their ``motions`` rows, ``features`` rows and,
+    when the keyframe index exists, postings — in one transaction.
+
+    Returns the new motion ids in the order of ``preps``.
+    """
+    meta = motions_table(preps)
+    meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
     return _insert(con, meta, [p.words for p in preps])
 
 
@@ -266,15 +312,14 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     """
     report = IngestReport()
     files = motion_files(paths, unsupported=report.unsupported)
-    maps = {"joint_map": load_mapping(joint_map, what="joint_map"),
-            "marker_map": load_mapping(marker_map, what="marker_map")}
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
     stored = _stored_keys(con)
     todo = []
     first_of = {}     # key -> the first file of this ingest with those bytes
     duplicates = []   # (path, key): decided once the first file is read
     for path in files:
         try:
-            prep = _fingerprint(path, asf)
+            prep = prepare_file(path, asf=asf, maps=maps)
         except MocapdbError as exc:
             report.failed.append((str(path), str(exc)))
             _tick(progress, path, 0)
@@ -287,7 +332,6 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
             duplicates.append((path, key))
         else:
             first_of[key] = str(path)
-            prep.reader_options = _reader_options(path, maps)
             todo.append(prep)
 
     batch = []
@@ -312,7 +356,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
         batch.clear()
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        for prep in pool.map(_compute, todo):
+        for prep in pool.map(compute_motion, todo):
             if prep.error is not None:
                 report.failed.append((str(prep.path), prep.error))
                 _tick(progress, prep.path, 0)
@@ -336,6 +380,12 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
 
 #: which reader option applies to which file type
 _OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d"}
+
+
+def reader_maps(*, joint_map=None, marker_map=None) -> dict:
+    """The reader options of an ingest, loaded and checked once (:func:`mocapdb.readers.load_mapping`)."""
+    return {"joint_map": load_mapping(joint_map, what="joint_map"),
+            "marker_map": load_mapping(marker_map, what="marker_map")}
 
 
 def _reader_options(path: Path, maps: dict) -> str | None:
@@ -367,4 +417,4 @@ def delete_motions(con, motion_ids) -> int:
 
 
 __all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "store_words", "delete_motions",
-           "MOTION_SUFFIXES"]
+           "MOTION_SUFFIXES", "prepare_file", "compute_motion", "motions_table", "reader_maps"]
