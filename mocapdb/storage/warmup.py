@@ -137,6 +137,7 @@ def wait_for_warmup(timeout: float = 120.0) -> None:
 
 
 def main(argv=None) -> None:
+    """``python -m mocapdb.storage.warmup PART``: compile one part, holding its lock meanwhile."""
     import fcntl
 
     part = (argv if argv is not None else sys.argv[1:] or ["search"])[0]
