@@ -388,23 +388,15 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
         weights[JOINT_INDEX[joint], point] = 1.0
         how[joint] = (tree.names[point], why)
 
-    for key in leg_keys:
-        s = sides[key]
-        top, mid, end, tip, why = limb[key][1]
-        put(f"{s}hip", top, why)
-        put(f"{s}knee", mid, why)
-        put(f"{s}ankle", end, why)
-        put(f"{s}toes", tip, "leaf")
-    arm_attach = {}
-    for (attach, first) in arms:
-        key = ("arm", first)
-        s = sides[key]
-        top, mid, end, tip, why = limb[key][1]
-        put(f"{s}shoulder", top, why)
-        put(f"{s}elbow", mid, why)
-        put(f"{s}wrist", end, why)
-        put(f"{s}fingers", tip, "leaf")
-        arm_attach[s] = (attach, first)
+    for keys, joints in ((leg_keys, ("hip", "knee", "ankle", "toes")),
+                         (arm_keys, ("shoulder", "elbow", "wrist", "fingers"))):
+        for key in keys:
+            s = sides[key]
+            top, mid, end, tip, why = limb[key][1]
+            for joint, point in zip(joints, (top, mid, end)):
+                put(f"{s}{joint}", point, why)
+            put(f"{s}{joints[3]}", tip, "leaf")
+    arm_attach = {sides[("arm", first)]: (attach, first) for attach, first in arms}
 
     put("root", pelvis, "pelvis: common ancestor of the feet")
     # head top: the highest leaf; head: the joint named Head on the spine path, else
