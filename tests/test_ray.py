@@ -35,11 +35,24 @@ RUN = {"batch_files": 16, "bucket_motions": 100}
 
 
 @pytest.fixture(scope="module")
-def local_ray():
-    """One local Ray with 2 CPUs for the whole module, started as ray_annotate starts one."""
-    with ray_session(require_ray(), num_cpus=2) as cpus:
+def local_ray(tmp_path_factory):
+    """One local Ray with 2 CPUs for the whole module, started as ray_annotate starts one.
+
+    Ray puts the driver's working directory first on its workers' sys.path; the
+    tests run from the checkout, whose ``mocapdb`` would then shadow the installed
+    package under test. So Ray starts from an empty folder."""
+    here = os.getcwd()
+    os.chdir(tmp_path_factory.mktemp("ray_cwd"))
+    try:
+        session = ray_session(require_ray(), num_cpus=2)
+        cpus = session.__enter__()
+    finally:
+        os.chdir(here)
+    try:
         assert cpus == 2
         yield
+    finally:
+        session.__exit__(None, None, None)
 
 
 @pytest.fixture(scope="module")

@@ -114,6 +114,31 @@ class BvhHierarchy:
     def children(self, k: int) -> list:
         return [i for i, j in enumerate(self.joints) if j.parent == k]
 
+    def arrays(self):
+        """The hierarchy as the FK kernel's arrays (built once per hierarchy):
+        parent, offset, channel start and count per joint, channel kind and axis,
+        End Site flag and offset."""
+        cached = self.__dict__.get("_arrays")
+        if cached is not None:
+            return cached
+        joints = self.joints
+        nj = len(joints)
+        kinds = np.zeros(self.n_channels, dtype=np.int64)
+        axes = np.zeros(self.n_channels, dtype=np.int64)
+        for j in joints:
+            for c, name in enumerate(j.channels):
+                kinds[j.channel_start + c], axes[j.channel_start + c] = CHANNELS[name.lower()]
+        out = (np.array([j.parent for j in joints], dtype=np.int64),
+               np.array([j.offset for j in joints], dtype=np.float64).reshape(nj, 3),
+               np.array([j.channel_start for j in joints], dtype=np.int64),
+               np.array([len(j.channels) for j in joints], dtype=np.int64),
+               kinds, axes,
+               np.array([j.end_site is not None for j in joints]),
+               np.array([j.end_site if j.end_site is not None else np.zeros(3) for j in joints],
+                        dtype=np.float64).reshape(nj, 3))
+        object.__setattr__(self, "_arrays", out)  # a frozen dataclass: a private memo
+        return out
+
     def tree(self) -> SkeletonTree:
         """Joint origins then End Sites, with rest-pose positions (OFFSETs accumulated)."""
         nj = len(self.joints)
@@ -187,12 +212,28 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
     return BvhData(hierarchy, values, frame_time, path)
 
 
+class _LazyLine:
+    """A line number counted only when a message prints it (counting costs a pass)."""
+
+    def __init__(self, data, pos):
+        self.data, self.pos = data, pos
+
+    def __int__(self):
+        return line_of(self.data, self.pos)
+
+    def __str__(self):
+        return str(int(self))
+
+    __format__ = lambda self, spec: format(int(self), spec)  # noqa: E731
+
+
 def _parse_motion_header(data, pos, path):
     head = data[pos:pos + 4096]
     fm = _FRAMES.search(head)
     if fm is None:
         raise ParseError(path, line_of(data, pos), "expected 'Frames:' after MOTION")
-    frames_line = line_of(data, pos + fm.start())
+    frames_at = pos + fm.start()
+    frames_line = _LazyLine(data, frames_at)
     tok = fm.group(1).decode("latin-1")
     if not tok.isdigit():
         raise ParseError(path, frames_line, f"Frames: expected a frame count, found {tok!r}")
@@ -201,8 +242,8 @@ def _parse_motion_header(data, pos, path):
         raise ParseError(path, frames_line, "no frames ('Frames: 0')")
     tm = _FRAME_TIME.search(head, fm.end())
     if tm is None:
-        raise ParseError(path, frames_line + 1, "expected 'Frame Time:' after 'Frames:'")
-    line = line_of(data, pos + tm.start())
+        raise ParseError(path, int(frames_line) + 1, "expected 'Frame Time:' after 'Frames:'")
+    line = _LazyLine(data, pos + tm.start())
     tok = tm.group(1).decode("latin-1")
     try:
         frame_time = float(tok)
@@ -435,20 +476,8 @@ def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0, needed=None):
         Global rotation of joint ``rotation_joint`` (default: the root).
     """
     hier = data.hierarchy
-    joints = hier.joints
-    nj = len(joints)
-    parent = np.array([j.parent for j in joints], dtype=np.int64)
-    offset = np.array([j.offset for j in joints], dtype=np.float64).reshape(nj, 3)
-    ch_start = np.array([j.channel_start for j in joints], dtype=np.int64)
-    ch_count = np.array([len(j.channels) for j in joints], dtype=np.int64)
-    kinds = np.zeros(hier.n_channels, dtype=np.int64)
-    axes = np.zeros(hier.n_channels, dtype=np.int64)
-    for j in joints:
-        for c, name in enumerate(j.channels):
-            kinds[j.channel_start + c], axes[j.channel_start + c] = CHANNELS[name.lower()]
-    has_end = np.array([j.end_site is not None for j in joints])
-    end_site = np.array([j.end_site if j.end_site is not None else np.zeros(3) for j in joints],
-                        dtype=np.float64).reshape(nj, 3)
+    nj = len(hier.joints)
+    parent, offset, ch_start, ch_count, kinds, axes, has_end, end_site = hier.arrays()
     values = np.ascontiguousarray(data.values, dtype=np.float64)
     n = values.shape[0]
     origins = np.empty((n, nj, 3))
@@ -665,16 +694,42 @@ def _combine(point, weight, end_of, origins, ends) -> np.ndarray:
     return out
 
 
+@jit
+def _steps_kernel(joints, out):  # pragma: no cover - compiled
+    """out[0] = the largest joint move from frame 0 to 1, out[1] = the largest
+    later frame-to-frame move, out[2] = the height range after frame 0."""
+    n, nj = joints.shape[0], joints.shape[1]
+    lo, hi = np.inf, -np.inf
+    out[0] = 0.0
+    out[1] = 0.0
+    for f in range(n - 1):
+        m = 0.0
+        for j in range(nj):
+            d = 0.0
+            for c in range(3):
+                x = joints[f + 1, j, c] - joints[f, j, c]
+                d += x * x
+            if d > m:
+                m = d
+            y = joints[f + 1, j, 1]
+            lo = min(lo, y)
+            hi = max(hi, y)
+        if f == 0:
+            out[0] = math.sqrt(m)
+        elif m > out[1] * out[1]:
+            out[1] = math.sqrt(m)
+    out[2] = hi - lo
+
+
 def _rest_frame(joints: np.ndarray) -> bool:
     """True when frame 0 is a converter's rest pose: its jump to frame 1 is far
     above every later frame-to-frame change (READERS.md §2)."""
-    n = joints.shape[0]
-    if n < 4:
+    if joints.shape[0] < 4:
         return False
-    step = np.linalg.norm(np.diff(joints, axis=0), axis=2).max(axis=1)
-    size = float(np.ptp(joints[1:, :, 1])) or 1.0
-    later = float(step[1:].max())
-    return bool(step[0] > 4.0 * later and step[0] > 0.05 * size)
+    out = np.empty(3)
+    _steps_kernel(joints, out)
+    first, later, size = out[0], out[1], out[2] or 1.0
+    return bool(first > 4.0 * later and first > 0.05 * size)
 
 
 def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:

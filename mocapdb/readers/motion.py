@@ -88,14 +88,20 @@ def check_finite_motion(joints: np.ndarray, path, *, first_line=None) -> None:
     """
     if joints.size == 0:
         raise ParseError(path, first_line, "no frames")
+    first = joints[0]
+    size = float(np.ptp(first, axis=0).max()) or 1.0
+    centre = first.mean(axis=0)
+    # whole-array reductions first (one C pass each); frames only for the message
+    lo, hi = joints.min(axis=(0, 1)), joints.max(axis=(0, 1))
+    if np.isfinite(lo).all() and np.isfinite(hi).all() and (np.abs(hi - centre) <= 1e6 * size).all() \
+            and (np.abs(lo - centre) <= 1e6 * size).all():
+        return
     finite = np.isfinite(joints).all(axis=(1, 2))
     if not finite.all():
         f = int(np.argmin(finite))
         raise ParseError(path, None if first_line is None else first_line + f,
                          "non-finite joint position (NaN or inf)", frame=f + 1)
-    first = joints[0]
-    size = float(np.ptp(first, axis=0).max()) or 1.0
-    far = np.abs(joints - first.mean(axis=0)).max(axis=(1, 2)) > 1e6 * size
+    far = np.abs(joints - centre).max(axis=(1, 2)) > 1e6 * size
     if far.any():
         f = int(np.argmax(far))
         raise ParseError(path, None if first_line is None else first_line + f,

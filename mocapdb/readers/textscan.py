@@ -248,9 +248,10 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
         values, or more lines than ``n_rows`` (file, line and frame named).
     """
     buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
-    # a header's row count is never trusted for allocation (READERS.md §4): at
-    # most as many rows as there are lines left, one more to detect extra lines
-    n_alloc = min(n_rows, data.count(b"\n", start) + 1)
+    # a header's row count is never trusted for allocation (READERS.md §4): a
+    # row of n_cols values takes at least 2·n_cols bytes, one more row detects
+    # extra lines
+    n_alloc = min(n_rows, max(len(data) - start, 0) // max(2 * n_cols, 1) + 2)
     cap = max(4096, n_alloc * n_cols // 16)  # slow-path tokens are rare; rerun if not
     while True:
         out = np.zeros((n_alloc, n_cols))
