@@ -24,6 +24,8 @@ NUM_OK, NUM_SLOW, NUM_BAD = 0, 1, 2
 
 _TWO53 = 2 ** 53
 _MANT_LIMIT = 10 ** 17
+_ZERO = np.uint8(48)
+_NINE = np.uint8(9)
 
 
 #: byte classes: 0 = token byte, 1 = blank (space, tab, CR, VT, FF), 2 = LF.
@@ -64,29 +66,32 @@ def _scan_number(buf, i, end):  # pragma: no cover - numba
     anyd = False
     bad = False
     c = 0
+    # one unsigned compare per digit (a byte below '0' wraps around above 9)
     while i < end:
-        c = int(buf[i])
-        if c < 48 or c > 57:
+        d = buf[i] - _ZERO
+        if d > _NINE:
             break
         anyd = True
         if m < _MANT_LIMIT:
-            m = m * 10 + (c - 48)
+            m = m * 10 + int(d)
         else:
             big = True
         i += 1
-    if i < end and c == 46:
+    c = int(buf[i]) if i < end else 0
+    if c == 46:
         i += 1
         while i < end:
-            c = int(buf[i])
-            if c < 48 or c > 57:
+            d = buf[i] - _ZERO
+            if d > _NINE:
                 break
             anyd = True
             if m < _MANT_LIMIT:
-                m = m * 10 + (c - 48)
+                m = m * 10 + int(d)
                 exp10 -= 1
             else:
                 big = True
             i += 1
+        c = int(buf[i]) if i < end else 0
     if not anyd:
         bad = True
     if i < end and (c == 101 or c == 69) and not bad:
