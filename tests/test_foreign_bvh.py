@@ -371,3 +371,32 @@ def test_other_naming_conventions_need_no_map(amc_120, tmp_path, convention):
     got = read_bvh(q)
     np.testing.assert_allclose(got.joints, ref.joints, atol=1e-9)
     assert (got.root_rotation is None) == (ref.root_rotation is None)
+
+
+def test_a_z_up_file_is_turned_to_y_up_not_mirrored(amc_120, tmp_path):
+    """The same take recorded Z-up (root position and rotation turned +90° about x):
+    read back Y-up, the joints are the Y-up reading's (a rotation, no mirror:
+    left stays left) and the features are the same."""
+    from dataclasses import replace as dc_replace
+
+    from mocapdb.readers import euler_angles
+    from mocapdb.readers.kinematics import euler_matrix
+
+    s, a = amc_120
+    full = write_bvh(tmp_path / "y_up.bvh", s, dc_replace(a, values=a.values[:600]), layout="cmu")
+    data = parse_bvh(full.read_bytes())
+    root = data.hierarchy.joints[0]
+    vals = data.values.copy()
+    r0 = euler_matrix(np.array([[np.pi / 2, 0.0, 0.0]]), "xyz")[0]  # +Y -> +Z
+    pos = [root.channel_start + i for i in range(3)]
+    rot = [root.channel_start + 3 + i for i in range(3)]
+    vals[:, pos] = vals[:, pos] @ r0.T
+    vals[:, rot] = np.degrees(euler_angles(r0 @ euler_matrix(np.radians(vals[:, rot]), "zyx"), "zyx"))
+    head = full.read_text().split("MOTION")[0]
+    body = "\n".join(" ".join(f"{x:.17g}" for x in row) for row in vals)
+    z_up = tmp_path / "z_up.bvh"
+    z_up.write_text(head + f"MOTION\nFrames: {len(vals)}\nFrame Time: 0.0083333\n{body}\n")
+    ref = read_bvh(full)
+    got = read_bvh(z_up)
+    np.testing.assert_allclose(got.joints, ref.joints, atol=1e-6)
+    np.testing.assert_array_equal(motion_features(got), motion_features(ref))

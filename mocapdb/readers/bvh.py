@@ -40,15 +40,15 @@ from __future__ import annotations
 import math
 import re
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.humanoid import (JointMap, MappingError, SkeletonTree, asf_axes_at_rest, map_humanoid,
-                                     mapping_template)
+from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, asf_axes_at_rest,
+                                     map_humanoid, mapping_template)
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
@@ -615,15 +615,24 @@ def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
     auto = _asf_map(hier, tree)
     problem = None
     if auto is None:
-        try:
-            auto = map_humanoid(tree)
-        except MappingError as exc:
-            problem = exc
-            if pose is not None:  # a rest pose on its side: judge the body by a frame
+        # Y up, as BVH has it; a rest pose on its side is judged by a frame of the
+        # motion; a Z-up file (some capture tools) is turned to Y up (READERS.md §2)
+        def poses():
+            yield tree.rest
+            if pose is not None:
+                yield pose()
+
+        for up in (None, Z_UP_TO_Y_UP):
+            for xyz in poses():
                 try:
-                    auto, problem = map_humanoid(tree, pose()), None
-                except MappingError as again:
-                    problem = again
+                    auto = map_humanoid(tree, xyz if up is None else xyz @ up.T)
+                except MappingError as exc:
+                    problem = problem or exc
+                    continue
+                auto, problem = (auto if up is None else replace(auto, up=up)), None
+                break
+            if auto is not None:
+                break
     if joint_map:
         result = _user_map(tree, joint_map, auto, path)
     elif auto is None:
@@ -721,6 +730,16 @@ def _steps_kernel(joints, out):  # pragma: no cover - compiled
     out[2] = hi - lo
 
 
+def _z_up(joints: np.ndarray) -> bool:
+    """True when the take stands along +Z: the spine (root → neck) of frame 1
+    and of the median frame points up the z axis, not the y axis. (A person
+    lying down for a whole Y-up take has no vertical spine at all.)"""
+    spine = joints[:, JOINT_INDEX["neck"]] - joints[:, JOINT_INDEX["root"]]
+    spine = spine / np.maximum(np.linalg.norm(spine, axis=1, keepdims=True), 1e-12)
+    med = np.median(spine, axis=0)
+    return bool(spine[0, 2] > 0.8 and med[2] > 0.8 and abs(spine[0, 1]) < 0.3)
+
+
 def _rest_frame(joints: np.ndarray) -> bool:
     """True when frame 0 is a converter's rest pose: its jump to frame 1 is far
     above every later frame-to-frame change (READERS.md §2)."""
@@ -789,6 +808,10 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
     jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, first_frame)
     origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point, needed=needed)
     joints = _combine(point, weight, end_of, origins, ends)
+    up = jm.up if jm.up is not None else (Z_UP_TO_Y_UP if _z_up(joints) else None)
+    if up is not None:  # a Z-up file: positions and the pelvis rotation turned to Y up
+        joints = np.ascontiguousarray(joints @ up.T)
+        rot = up @ rot
     # feature #40 may read the pelvis rotation only where its x axis is the hip axis
     # (ASF convention) in the take itself: R^T (lhip - rhip) along +x
     hips = joints[:, JOINT_INDEX["lhip"]] - joints[:, JOINT_INDEX["rhip"]]
