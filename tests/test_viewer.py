@@ -206,3 +206,21 @@ def test_poses_fall_back_to_int32_for_big_jumps():
     j[:, 12, 1] = 170.0  # a body of height 170
     j[2] += 1e6  # a teleport of ~6000 body sizes within a frame
     assert encode_poses(j[:2])["dtype"] == "int16" and encode_poses(j)["dtype"] == "int32"
+
+
+def test_all_lists_a_motion_whose_source_moved_without_a_page(tmp_path):
+    """A source file moved after ingest costs its own page only; the index says why."""
+    src = tmp_path / "takes"
+    src.mkdir()
+    for name in ("02.asf", "02_01.amc", "02_02.amc"):
+        shutil.copy(DATA / "cmu/02" / name, src / name)
+    con = mocapdb.connect(tmp_path / "moved.duckdb")
+    try:
+        assert len(mocapdb.ingest(con, [src]).ingested) == 2
+        (src / "02_02.amc").unlink()
+        written = mocapdb.view(con, all=tmp_path / "pages")
+        assert [p.name for p in written] == ["index.html", "02_01.html"]
+        index = written[0].read_text(encoding="utf-8")
+        assert 'class="unreadable"' in index and "02_02" in index and "no page:" in index
+    finally:
+        con.close()

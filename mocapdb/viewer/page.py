@@ -198,7 +198,8 @@ def render_index(entries, *, title="mocapdb motions"):
     ----------
     entries : sequence of dict
         ``href``, ``name``, ``seconds``, ``segments`` (count) and ``labels``
-        (label → colour of the labels found) per motion.
+        (label → colour of the labels found) per motion; or ``name`` and
+        ``error`` for a motion without a page.
 
     Returns
     -------
@@ -206,6 +207,11 @@ def render_index(entries, *, title="mocapdb motions"):
     """
     rows = []
     for e in entries:
+        if e.get("error"):
+            # a motion whose source cannot be re-read: listed, with the reason
+            rows.append(f'<tr class="unreadable"><td>{html.escape(e["name"])}</td><td class="num"></td>'
+                        f'<td class="num"></td><td>no page: {html.escape(e["error"])}</td></tr>')
+            continue
         chips = "".join(f'<span class="chip" style="background:{html.escape(c)}">{html.escape(lab)}</span>'
                         for lab, c in e["labels"].items())
         rows.append(f'<tr><td><a href="{html.escape(e["href"])}">{html.escape(e["name"])}</a></td>'

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from mocapdb.errors import MocapdbError
+
 from mocapdb.storage.annotations import file_stems, motion_sources
 from mocapdb.viewer.data import motion_poses, motion_view
 from mocapdb.viewer.page import label_colors, render_index, render_page
@@ -56,7 +58,8 @@ def write_pages(con, directory, *, motions=None, progress=None, **options):
     Returns
     -------
     list of Path
-        The index page first, then the motion pages.
+        The index page first, then the motion pages (a motion whose source
+        file cannot be re-read gets no page; the index says why).
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -66,7 +69,14 @@ def write_pages(con, directory, *, motions=None, progress=None, **options):
         progress(0, len(sources))
     for k, (src, stem) in enumerate(zip(sources, file_stems(sources))):
         path = directory / f"{stem}.html"
-        view = write_motion_page(con, src["motion_id"], path, index_href="index.html", **options)
+        try:
+            view = write_motion_page(con, src["motion_id"], path, index_href="index.html", **options)
+        except (MocapdbError, OSError) as exc:
+            # a moved or changed source file costs its own page only
+            entries.append({"name": stem, "error": str(exc)})
+            if progress is not None:
+                progress(k + 1, len(sources))
+            continue
         found = sorted({str(x) for x in view.segments["label"]}, key=list(view.labels).index)
         colors = label_colors(view.labels)
         entries.append({"href": path.name, "name": view.name, "seconds": view.n_frames / view.fps,
