@@ -6,22 +6,33 @@ Capture Data" (SCA 2009) on DuckDB. The sub-packages follow the pipeline
 → :mod:`~mocapdb.templates` → :mod:`~mocapdb.keyframes` →
 :mod:`~mocapdb.annotation` → :mod:`~mocapdb.learning` →
 :mod:`~mocapdb.evaluation`; :mod:`~mocapdb.storage` and
-:mod:`~mocapdb.extension` (the SQL functions) below :mod:`~mocapdb.api`, which
-the command line mirrors one to one. The most used functions are here:
+:mod:`~mocapdb.extension` (the SQL functions) and :mod:`~mocapdb.viewer` (HTML
+pages) below :mod:`~mocapdb.api`, which the command line mirrors one to one. The most used functions are here:
 
 - :func:`connect` — open a database (tables, shipped models, SQL functions)
 - :func:`ingest` / :func:`delete` — add and remove recordings
 - :func:`annotate` — label motions with a model
+- :func:`view` — a motion's skeleton and labels as a self-contained HTML page
 - :func:`read_motion` / :func:`motion_features` — a file to 24 joints to packed 30 Hz feature words
 """
-from mocapdb.api import annotate, connect, delete, evaluate, ingest, train
-from mocapdb.errors import MocapdbError, ParameterError, ParseError, SchemaError
-from mocapdb.features import motion_features, relational_features
-from mocapdb.readers import read_motion
+import os as _os
+
+# pip installs the top-level extension/ and sql/ of the repository as
+# mocapdb.extension and mocapdb.sql; a source checkout on sys.path (a Ray worker
+# started from it, ``python -m mocapdb.cli`` run there) finds them beside the package
+if not _os.path.isdir(_os.path.join(__path__[0], "extension")):
+    _root = _os.path.dirname(_os.path.abspath(__path__[0]))
+    if _os.path.isfile(_os.path.join(_root, "extension", "__init__.py")):
+        __path__.append(_root)
+
+from mocapdb.api import annotate, connect, delete, evaluate, ingest, train, view  # noqa: E402
+from mocapdb.errors import MocapdbError, ParameterError, ParseError, SchemaError  # noqa: E402
+from mocapdb.features import motion_features, relational_features  # noqa: E402
+from mocapdb.readers import read_motion  # noqa: E402
 
 __version__ = "0.2.0"
 
 __all__ = [
-    "connect", "ingest", "delete", "annotate", "train", "evaluate", "read_motion", "motion_features",
+    "connect", "ingest", "delete", "annotate", "train", "evaluate", "view", "read_motion", "motion_features",
     "relational_features", "MocapdbError", "ParameterError", "ParseError", "SchemaError",
 ]

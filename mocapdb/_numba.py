@@ -16,4 +16,14 @@ pjit = numba.njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 
 prange = numba.prange
 
-__all__ = ["jit", "pjit", "prange"]
+
+def limit_threads(n: int) -> None:
+    """Let the parallel kernels of the calling thread use at most ``n`` threads.
+
+    Numba keeps this setting per thread, so a worker calls it in the thread
+    that runs the kernels (e.g. a Ray actor with one CPU: 1).
+    """
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+
+
+__all__ = ["jit", "pjit", "prange", "limit_threads"]

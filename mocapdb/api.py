@@ -16,10 +16,12 @@ CLI                           API
 ``mocapdb annotate``          :func:`annotate`
 ``mocapdb evaluate``          :func:`evaluate`
 ``mocapdb report``            :func:`report`
+``mocapdb view``              :func:`view`
 ``mocapdb create-index``      :func:`create_index`
 ``mocapdb drop-index``        :func:`drop_index`
 ``mocapdb export-features``   :func:`export_features`
 ``mocapdb import-features``   :func:`import_features`
+``mocapdb ray-annotate``      :func:`ray_annotate`
 ``mocapdb sql``               ``connect(...).sql(query)``
 ============================  ==========================
 """
@@ -27,13 +29,14 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from pathlib import Path
 
 import numpy as np
 
-from mocapdb.annotation import annotate as annotate_words
-from mocapdb.annotation import (as_label_rows, class_labels, map_labels, native_factor, read_class_labels,
-                                read_labels, read_segments, segment_table, segments_to_rows, to_feature_grid)
-from mocapdb.features import TOOLBOX_RATE
+from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_segments, read_truth,
+                                segment_table, segments_to_rows)
+from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
+from mocapdb.distributed import ray_annotate as run_on_ray
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.evaluation import evaluate_annotation, evaluate_by_label, parse_tau_grid
@@ -42,7 +45,7 @@ from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
 from mocapdb.learning.class_definitions import compile_definitions, read_class_definitions
 from mocapdb.storage import parquet, postings
-from mocapdb.storage.annotations import annotate_documents, store_annotations, stored_preselection
+from mocapdb.storage.annotations import EXPORT_FORMATS, annotate_documents, export_segments, store_annotations
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.models import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows, keyframe_query_stats,
@@ -50,6 +53,7 @@ from mocapdb.storage.models import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics
 from mocapdb.storage.motions import documents_by_name, motion_documents, motion_ids
 from mocapdb.storage.schema import open_database
 from mocapdb.storage.sqltext import statement
+from mocapdb.viewer import motion_view, write_motion_page, write_pages
 
 log = logging.getLogger("mocapdb")
 
@@ -140,8 +144,8 @@ def delete(con, motions) -> int:
     return delete_motions(con, motion_ids(con, motions))
 
 
-def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True, min_length=None,
-             margin=None):
+def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True, format=None, out=None,
+             progress=None, min_length=None, margin=None):
     """Annotate motions of the database with a model.
 
     Parameters
@@ -157,6 +161,15 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
         on when the model has keyframe queries. False is the reference mode.
     store : bool, keyword-only
         Replace the ``annotations`` rows of these motions and this model.
+    format : {"parquet", "eaf"}, optional, keyword-only
+        Also write the segments to ``out``: one Parquet file, or ELAN files
+        (one ``.eaf`` per motion, a tier per label, the source file as linked
+        media; see :func:`mocapdb.storage.annotations.export_segments`).
+        Tables, CSV and JSON are printed by the CLI.
+    out : str or Path, optional, keyword-only
+        The file (or, for ELAN files of several motions, the directory).
+    progress : callable, optional, keyword-only
+        ``progress(n_motions_done, n_motions)`` while annotating.
     min_length : bool, optional, keyword-only
         Drop segments shorter than their label's minimum (the model's
         ``min_frames``); default on (models without minimums keep everything).
@@ -172,15 +185,25 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     """
     if tau is not None and not (np.isfinite(tau) and tau >= 0):
         raise ParameterError(f"tau must be a non-negative number, got {tau!r}")
+    if (format is None) != (out is None) or (format is not None and format not in EXPORT_FORMATS):
+        raise ParameterError(f"format and out go together, format one of {', '.join(EXPORT_FORMATS)}; "
+                             f"got format={format!r}, out={out!r}")
     cache = connection_cache(con)
     key, m = cache.model(model)
     docs = motion_documents(con, None if motions is None else motion_ids(con, motions))
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes,
-                              min_length=min_length, margin=margin)
+                              progress=progress, min_length=min_length, margin=margin)
     table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
     if store:
         store_annotations(con, table, docs.motion_ids, model=model, tau=tau, keyframes=keyframes)
+    if out is not None:
+        export_segments(con, table, out, format=format, motion_ids=docs.motion_ids)
     return table
+
+
+def _native_rates(docs):
+    """Document name → native frame rate (reads ELAN times onto native frames)."""
+    return dict(zip(docs.names, docs.source_fps.tolist()))
 
 
 def _class_label_mapping(class_labels_arg, classes):
@@ -207,9 +230,8 @@ def training_clips(con, *, folder=None, labels=None, progress=None):
         raise ParameterError("give exactly one of folder (--folder) and labels (--labels)")
     if folder is not None:
         return clips_from_folders(folder, progress=progress), f"folder {folder}"
-    native = read_labels(labels)
-    docs = documents_by_name(con, set(native["document"]))
-    rows = to_feature_grid(native, factor=_native_factors(docs, native))
+    docs = documents_by_name(con, set(label_documents(labels)))
+    rows = read_truth(labels, fps=_native_rates(docs))
     return clips_from_segments({n: docs.words_of(n) for n in docs.names}, rows), f"labels {labels}"
 
 
@@ -227,8 +249,9 @@ def train(con, *, model, folder=None, labels=None, class_labels=None, delta=0.05
         (files read directly, not from the database).
     labels : str or Path, optional, keyword-only
         A label file ``document,label,start_frame,end_frame`` (native frames,
-        1-based inclusive) cutting clips out of ingested documents; the label
-        column names the class. Exactly one of ``folder``/``labels``.
+        1-based inclusive) or an ELAN ``.eaf`` file cutting clips out of
+        ingested documents; the label names the class. Exactly one of
+        ``folder``/``labels``.
     class_labels : str, Path or dict, optional, keyword-only
         Class → coarse label mapping (CSV ``class,label``); default the shipped
         HDM05 mapping when it covers every class, else each class its own label.
@@ -372,27 +395,6 @@ def learn_keyframes(con, *, model=DEFAULT_MODEL, folder=None, labels=None, class
     return learned
 
 
-def _native_factors(docs, rows):
-    """Native frames per 30 Hz frame for each label row, from its document's source rate."""
-    rate = dict(zip(docs.names, docs.source_fps.tolist()))
-    return native_factor([rate.get(d, TOOLBOX_RATE) for d in rows["document"]])
-
-
-def read_truth(path, *, label_map=None, n_frames=None, docs=None):
-    """A ground-truth file (native frames, 1-based) on the 30 Hz grid, labels mapped.
-
-    ``label_map`` (CSV ``class,label`` path or dict) renames truth labels to the
-    model's (e.g. 86_09's ``walk`` → ``move``); unmapped labels are kept.
-    ``docs`` (:class:`~mocapdb.storage.motions.Documents`) gives each
-    document's source rate (default: 120 Hz).
-    """
-    native = read_labels(path, n_frames=n_frames)
-    rows = to_feature_grid(native, factor=4 if docs is None else _native_factors(docs, native))
-    if label_map is not None:
-        rows = map_labels(rows, label_map if isinstance(label_map, dict) else read_class_labels(label_map))
-    return rows
-
-
 def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=None, label_map=None,
              vocabulary=None, sweep_tau=None, by_label=False, min_length=None, margin=None):
     """Score an annotation against ground truth with the paper's measures (Eq. 5–8).
@@ -402,8 +404,8 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
     con : duckdb.DuckDBPyConnection or None
         Needed unless ``pred`` is given.
     truth : str or Path
-        ``document,label,start_frame,end_frame`` (native frames, 1-based);
-        documents are motion names in the database.
+        ``document,label,start_frame,end_frame`` (native frames, 1-based) or
+        an ELAN ``.eaf`` file; documents are motion names in the database.
     pred : str or Path, optional
         Score this annotation CSV (as written by ``annotate --format csv``, 30 Hz
         frames) instead of annotating the truth's documents from the database.
@@ -438,9 +440,9 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
         raise ParameterError("give pred (an annotation CSV), or a database to annotate the truth's documents")
     cache = connection_cache(con)
     key, m = cache.model(model)
-    docs = documents_by_name(con, set(as_label_rows(read_labels(truth))["document"]))
+    docs = documents_by_name(con, set(label_documents(truth)))
     truth_rows = read_truth(truth, label_map=label_map, n_frames=dict(zip(docs.names, docs.n_source_frames)),
-                            docs=docs)
+                            fps=_native_rates(docs))
     vocab = m.labels if vocabulary is None else tuple(vocabulary)
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau,
                               keyframes=keyframes, taus=taus, min_length=min_length, margin=margin)
@@ -458,47 +460,126 @@ def _scores(truth_rows, auto_rows, vocabulary, by_label):
     return {"all": total, **evaluate_by_label(truth_rows, auto_rows, labels=vocabulary)}
 
 
-FIGURES = ("ga", "annotation")
+#: the figures of ``report``; ``annotation`` is the former name of ``timeline``
+FIGURES = ("ga", "delta", "template", "tau", "timeline", "annotation")
 
 
-def report(con, figure, out, *, model=DEFAULT_MODEL, motion=None, keyframes=None):
-    """Draw a figure of the paper from the database (needs the ``plot`` extra).
+def report(con, figure, out, *, model=DEFAULT_MODEL, motion=None, keyframes=None, tau=None, truth=None,
+           label_map=None, class_name=None, sweep_tau=None):
+    """Draw a figure of the paper from the database as an image (needs the ``plot`` extra).
 
     Parameters
     ----------
-    figure : {"ga", "annotation"}
-        ``ga``: paper Fig. 5 from the model's stored GA statistics;
-        ``annotation``: one motion's labels over time with Δ̄^τ per label (Fig. 6).
+    figure : {"ga", "delta", "template", "tau", "timeline", "annotation"}
+        ``ga``: GA precision/recall/fitness over generations from the model's
+        stored GA statistics (paper Fig. 5); ``delta``: one motion's Δ̄^τ per
+        class as a heat map, white above τ, with the segments below (Fig. 3a/b);
+        ``template``: a class's motion template, real-valued and quantized
+        (Fig. 1c/d); ``tau``: precision, recall and F over τ against ground
+        truth, frame- and segment-based (Fig. 8); ``timeline`` (formerly
+        ``annotation``): one motion's labels over time with Δ̄^τ per label,
+        and the ground truth when given (Figs. 6, 7).
     out : str or Path
         Image file (format from the suffix).
     model : str, keyword-only
     motion : int or str, optional
-        The motion of the annotation figure.
+        The motion of ``delta`` and ``timeline``.
     keyframes : bool, optional
-        Keyframe preselection (annotation figure).
+        Keyframe preselection (``delta``, ``timeline``, ``tau``).
+    tau : float, optional
+        One hit threshold for every class (``delta``, ``timeline``).
+    truth : str or Path, optional
+        Ground truth, label CSV or ELAN file (``tau``; optional for ``timeline``, ``delta``).
+    label_map : str, Path or dict, optional
+        Truth label → model label, as :func:`evaluate`.
+    class_name : str, optional
+        The class of ``template``.
+    sweep_tau : str or sequence of float, optional
+        The τ values of ``tau`` (default ``"0.05:0.25:0.01"``, as the paper).
     """
     from mocapdb.evaluation import figures  # matplotlib is the optional plot extra
 
     if figure not in FIGURES:
         raise ParameterError(f"figure must be one of {', '.join(FIGURES)}, got {figure!r}")
-    cache = connection_cache(con)
-    key, m = cache.model(model)
+    _, m = connection_cache(con).model(model)
     if figure == "ga":
         rows = con.execute(statement("models.sql", "ga_curve"), {"model": model}).fetchnumpy()
         if len(rows["generation"]) == 0:
             raise SchemaError(f"model {model!r} has no GA statistics; learn its keyframe queries with "
                               "`mocapdb learn-keyframes`")
         figures.plot_ga_curve(rows, out, title=f"model {model}: averages over {int(rows['n_runs'][0])} GA runs")
-        return
-    if motion is None:
-        raise ParameterError("the annotation figure needs a motion (--motion ID or NAME)")
-    docs = motion_documents(con, motion_ids(con, [motion])[:1])
-    pre = stored_preselection(cache, key, m, docs.motion_ids, docs.lengths, keyframes=keyframes)
-    ann = annotate_words(docs.words, m, doc_lengths=docs.lengths, preselection=pre, keep_deltas=True,
-                         keep_hits=False)
-    figures.plot_annotation(ann.segments, m.labels, int(docs.lengths[0]), label_delta=ann.label_delta,
-                            fps=float(docs.fps[0]), path=out,
-                            title=f"{docs.names[0]} — model {model}{' with keyframes' if pre is not None else ''}")
+    elif figure == "template":
+        if class_name not in m.class_names:
+            raise ParameterError(f"the template figure needs a class of model {model!r} (--class NAME), got "
+                                 f"{class_name!r}; its classes: {', '.join(m.class_names)}")
+        c = m.classes[m.class_names.index(class_name)]
+        figures.plot_template(c.quantized.dense(), None if c.template is None else c.template.real, path=out,
+                              title=f"{c.name} (model {model}, δ={c.delta:g})")
+    elif figure == "tau":
+        if truth is None:
+            raise ParameterError("the tau figure needs ground truth (--truth FILE: label CSV or ELAN file)")
+        results = evaluate(con, truth, model=model, keyframes=keyframes, label_map=label_map,
+                           sweep_tau="0.05:0.25:0.01" if sweep_tau is None else sweep_tau)
+        taus = sorted({c.tau for c in m.classes})
+        figures.plot_tau_sweep(results, tau=taus[0] if len(taus) == 1 else None, path=out,
+                               title=f"model {model} against {Path(truth).name}")
+    else:
+        if motion is None:
+            raise ParameterError(f"the {figure} figure needs a motion (--motion ID or NAME)")
+        v = motion_view(con, motion, model=model, tau=tau, keyframes=keyframes, truth=truth, label_map=label_map)
+        title = f"{v.name} — model {model}{' with keyframes' if v.keyframes else ''}"
+        if figure == "delta":
+            figures.plot_delta(v.class_delta, v.class_names, v.taus, fps=v.fps, segments=v.segments,
+                               class_labels=v.class_labels, truth=v.truth, path=out, title=title)
+        else:
+            figures.plot_timeline(v.segments, v.labels, v.n_frames, label_delta=v.label_delta, fps=v.fps,
+                                  truth=v.truth, path=out, title=title)
+
+
+def view(con, motion=None, *, out=None, all=None, model=DEFAULT_MODEL, tau=None, keyframes=None, truth=None,
+         label_map=None, progress=None):
+    """Write a self-contained HTML page showing a motion: the skeleton animated above its labels.
+
+    The page (no network, no libraries: inline CSS, JavaScript and data)
+    shows the skeleton in 3-D (orbit, zoom, play/pause, scrubber, speed),
+    the annotation as a timeline with one colour per label, the ground truth
+    in a lane of its own, and Δ̄^τ per label as a heat map (paper Fig. 3);
+    clicking a segment seeks the animation there. The poses are re-read
+    from the source file (:func:`mocapdb.viewer.motion_poses`).
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    motion : int or str, optional
+        The motion (id or name) of one page, written to ``out``.
+    out : str or Path, optional, keyword-only
+        The page of ``motion``.
+    all : str or Path, optional, keyword-only
+        Instead: a folder receiving one page per motion and ``index.html``.
+    model : str, keyword-only
+    tau, keyframes
+        As :func:`annotate` (the page shows the segments it gives).
+    truth : str or Path, optional
+        Ground truth (label CSV or ELAN file) for the truth lane.
+    label_map : str, Path or dict, optional
+        Truth label → model label, as :func:`evaluate`.
+    progress : callable, optional
+        ``progress(n_done, n_total)`` per page of ``all``.
+
+    Returns
+    -------
+    list of Path
+        The files written (with ``all``: the index first).
+    """
+    options = {"model": model, "tau": tau, "keyframes": keyframes, "truth": truth, "label_map": label_map}
+    if all is not None:
+        if motion is not None or out is not None:
+            raise ParameterError("give either a motion and out (--out FILE), or all (--all DIR)")
+        return write_pages(con, all, progress=progress, **options)
+    if motion is None or out is None:
+        raise ParameterError("give a motion and out (--out FILE), or all (--all DIR) for every motion")
+    write_motion_page(con, motion, out, **options)
+    return [Path(out)]
 
 
 def create_index(con) -> int:
@@ -539,6 +620,39 @@ def import_features(con, directory) -> dict:
     return parquet.import_features(con, directory)
 
 
+def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
+                 asf=None, joint_map=None, marker_map=None, num_cpus=None, batch_files=BATCH_FILES,
+                 bucket_motions=BUCKET_MOTIONS, overwrite=False):
+    """``ingest`` + ``annotate`` on a Ray cluster, Parquet out (needs the ``ray`` extra).
+
+    Reads the recordings on Ray actors with the same readers, kernels and
+    model and writes the datasets ``motions``, ``features``, ``postings``,
+    ``annotations`` (the columns of the DuckDB tables) and ``errors``
+    (file, reason) under ``out``; :func:`import_features` loads them into a
+    database, and DuckDB queries them in place. See
+    :func:`mocapdb.distributed.ray_annotate` for every parameter.
+
+    Parameters
+    ----------
+    sources : iterable of str or Path
+        Files, folders or glob patterns, at the same path on every node.
+    out : str or Path
+        Archive folder (empty or absent unless ``overwrite``).
+    address : str, optional, keyword-only
+        Ray cluster address; default: a local Ray with ``num_cpus`` CPUs.
+    model, tau, keyframes
+        As :func:`annotate`; the model is a shipped one or one stored in ``database``.
+
+    Returns
+    -------
+    mocapdb.distributed.RayReport
+    """
+    return run_on_ray(sources, out, address=address, model=model, tau=tau, keyframes=keyframes, database=database,
+                      asf=asf, joint_map=joint_map, marker_map=marker_map, num_cpus=num_cpus,
+                      batch_files=batch_files, bucket_motions=bucket_motions, overwrite=overwrite)
+
+
 __all__ = ["connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate", "report",
-           "create_index", "drop_index", "export_features", "import_features", "read_truth", "training_clips",
-           "FIGURES"]
+           "view",
+           "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
+           "training_clips", "FIGURES"]

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import click
 
+from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
 from mocapdb.errors import MocapdbError
 
 # -- shared options ---------------------------------------------------------------
@@ -46,7 +47,23 @@ folder_option = click.option("--folder", type=click.Path(exists=True, file_okay=
                              help="Clips in the HDM05 cut layout: one folder per class (files read directly).")
 labels_option = click.option("--labels", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                              help="Label file document,label,start_frame,end_frame (native frames, 1-based) "
-                                  "cutting clips out of ingested documents.")
+                                  "or ELAN .eaf file cutting clips out of ingested documents.")
+truth_help = ("Ground truth: a CSV document,label,start_frame,end_frame (native frames, 1-based) or an ELAN .eaf "
+              "file (each annotation's value is the label; the document is the linked media file's stem).")
+map_option = click.option("--map", "label_map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                          help="CSV class,label renaming truth labels to model labels (e.g. walk -> move).")
+
+
+def reader_options(fn):
+    """``--asf``, ``--joint-map`` and ``--marker-map``: how files are read (ingest, ray-annotate)."""
+    fn = click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")(fn)
+    fn = click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the BVH joint (or two joints: their midpoint); "
+                           "overrides the automatic mapping of every BVH file.")(fn)
+    return click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                        help="Skeleton for every AMC file (default: found by the dataset conventions: "
+                             "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")(fn)
 
 
 _UDF_WRAPPER = re.compile(r"^Invalid Input Error: Python exception occurred while executing the UDF: "
@@ -103,16 +120,35 @@ def _progress(total, label, silent, unit="file"):
                 leave=False)
 
 
-def _say_when_compiling():
-    """Say once that kernels compile when numba's cache is still empty (first run only)."""
-    cache = os.environ.get("NUMBA_CACHE_DIR")
-    root = Path(__file__).parent
-    if cache:
-        has_cache = any(Path(cache).rglob("*.nbi"))
-    else:
-        has_cache = any(root.glob("*/__pycache__/*.nbi"))
-    if not has_cache:
-        click.echo("Compiling the numba kernels (first run only, about a minute)…", err=True)
+def _set_bar(bar):
+    """A ``progress(n_done, n_total, ...)`` callback of the API that moves ``bar``."""
+    def progress(done, total, *_):
+        bar.total, bar.n = total, done
+        bar.refresh()
+    return progress
+
+
+#: commands that annotate: they use the kernels the background warm-up compiles
+_ANNOTATING = {"annotate", "evaluate", "sql", "view", "report", "learn-keyframes", "train"}
+
+
+def _say_when_compiling(command):
+    """Say once that kernels compile when numba's cache is still empty (first run only).
+
+    A first command that does not annotate (``ingest``) also starts the
+    annotation kernels compiling on the other core
+    (:mod:`mocapdb.storage.warmup`); a command that annotates waits for that
+    rather than compiling the same kernels again.
+    """
+    from mocapdb.storage.warmup import cache_is_cold, start_warmup, wait_for_warmup
+
+    if cache_is_cold():
+        if command != "sql":  # a query need not compile anything; its output stays clean
+            click.echo("Compiling the numba kernels (first run only, about 15 s)…", err=True)
+        if command not in _ANNOTATING:
+            start_warmup()
+    elif command in _ANNOTATING:
+        wait_for_warmup()
 
 
 # -- the group --------------------------------------------------------------------
@@ -133,8 +169,8 @@ def main(ctx, db):
     """
     ctx.ensure_object(dict)
     ctx.obj["db"] = db
-    if ctx.invoked_subcommand not in (None, "sql", "delete", "drop-index", "export-features"):
-        _say_when_compiling()
+    if ctx.invoked_subcommand not in (None, "delete", "drop-index", "export-features", "joint-map-template"):
+        _say_when_compiling(ctx.invoked_subcommand)
 
 
 # -- output -----------------------------------------------------------------------
@@ -189,18 +225,11 @@ def _json_default(v):
 
 @command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
-@click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Skeleton for every AMC file (default: found by the dataset conventions: "
-                   "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")
-@click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="TOML/JSON file: canonical joint = the BVH joint (or two joints: their midpoint); "
-                   "overrides the automatic mapping of every BVH file.")
-@click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")
+@reader_options
 @silent_option
 @click.pass_context
 def ingest(ctx, paths, asf, joint_map, marker_map, silent):
-    """Read ASF/AMC and BVH files (or folders, recursively) into the database.
+    """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
 
     A broken file changes nothing and the others still go in; files already
     stored (same bytes) are skipped.
@@ -212,6 +241,11 @@ def ingest(ctx, paths, asf, joint_map, marker_map, silent):
     with _progress(len(motion_files(paths)), "ingest", silent) as bar:
         report = api_ingest(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
                             progress=lambda path, frames: bar.update(1))
+    _echo_report(ctx, report)
+
+
+def _echo_report(ctx, report):
+    """The files a run did not store, a line each, then its summary; exit 1 when every file failed."""
     for path, reason in report.unsupported:
         click.echo(f"not a motion file {path}: {reason}", err=True)
     for path, reason in report.skipped:
@@ -302,12 +336,8 @@ def train(ctx, model, folder, labels, class_labels, delta, tau, replace, definit
 
     con = _open(ctx)
     with _progress(None, "train", silent, unit="step") as bar:
-        def progress(done, total, what):
-            bar.total, bar.n = total, done
-            bar.refresh()
-
         m = api_train(con, model=model, folder=folder, labels=labels, class_labels=class_labels, delta=delta,
-                      tau=tau, replace=replace, progress=progress, definitions=list(definitions) or None)
+                      tau=tau, replace=replace, progress=_set_bar(bar), definitions=list(definitions) or None)
     for c in m.classes:
         click.echo(f"{c.name:32s} -> {c.label:12s} K={len(c.quantized):4d}  clips={getattr(c.template, 'n_clips', None)}")
     click.echo(f"model {model!r}: {len(m.classes)} classes, {len(m.labels)} labels")
@@ -386,23 +416,38 @@ def define_class(ctx, definitions, model, replace):
 @keyframes_option
 @min_length_option
 @margin_option
-@format_option
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), help="Write to a file instead of stdout.")
+@click.option("--format", "fmt", type=click.Choice(FORMATS + ("parquet", "eaf")), default="table",
+              show_default=True, help="table/csv/json print (or write --out); parquet writes the segments to "
+                                      "--out; eaf writes ELAN files (one tier per label, the source file as "
+                                      "linked media): --out FILE.eaf for one motion, else a directory.")
+@click.option("--out", type=click.Path(path_type=Path), help="Write to a file (a directory for eaf of several "
+                                                             "motions) instead of stdout.")
+@silent_option
 @click.pass_context
-def annotate(ctx, motions, model, tau, keyframes, min_length, margin, fmt, out):
+def annotate(ctx, motions, model, tau, keyframes, min_length, margin, fmt, out, silent):
     """Annotate motions (ids or names; default all) and store the segments in `annotations`.
 
     Frames are 30 Hz frames, 1-based inclusive; CSV columns
     document,label,start_frame,end_frame,start_s,end_s,cost.
 
     \b
-    Example:
+    Examples:
       mocapdb --db a.duckdb annotate --format csv --out segments.csv
+      mocapdb --db a.duckdb annotate 86_09 --format eaf --out 86_09.eaf
+      mocapdb --db a.duckdb annotate --format parquet --out segments.parquet
     """
     from mocapdb.api import annotate as api_annotate
 
-    table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes,
-                         min_length=min_length, margin=margin)
+    export = fmt in ("parquet", "eaf")
+    if export and out is None:
+        raise click.UsageError(f"--format {fmt} writes files: give --out")
+    with _progress(None, "annotate", silent, unit="motion") as bar:
+        table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes,
+                             format=fmt if export else None, out=out if export else None, progress=_set_bar(bar),
+                             min_length=min_length, margin=margin)
+    if export:
+        click.echo(f"{table.num_rows} segment(s) written to {out}")
+        return
     cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
     write_rows(list(zip(*(table.column(c).to_pylist() for c in cols))), cols, fmt, out)
 
@@ -422,12 +467,11 @@ def _print_scores(rows):
 
 @command("evaluate")
 @click.option("--truth", required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Ground truth: document,label,start_frame,end_frame (native frames, 1-based).")
+              help=truth_help)
 @click.option("--pred", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Score this annotation (as written by `annotate --format csv`, 30 Hz frames); "
                    "without it the truth's documents are annotated from the database.")
-@click.option("--map", "label_map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="CSV class,label renaming truth labels to model labels (e.g. walk -> move).")
+@map_option
 @click.option("--vocabulary", help="Comma-separated labels to score (default: the model's labels; with "
                                    "--pred: every truth label).")
 @model_option()
@@ -466,27 +510,73 @@ def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, min
 
 
 @command()
-@click.option("--figure", type=click.Choice(["ga", "annotation"]), required=True,
-              help="ga: GA precision/recall/fitness over generations (paper Fig. 5); "
-                   "annotation: the labels of one motion over time (paper Fig. 6).")
+@click.option("--figure", type=click.Choice(["ga", "delta", "template", "tau", "timeline", "annotation"]),
+              required=True,
+              help="ga: GA precision/recall/fitness over generations (paper Fig. 5); delta: a motion's distance "
+                   "functions per class, white above tau (Fig. 3a); template: a class template, real and "
+                   "quantized (Fig. 1c/d); tau: P/R/F over tau against --truth (Fig. 8); timeline: a motion's "
+                   "labels over time, against --truth if given (Figs. 6/7; 'annotation' is its former name).")
 @click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Image file (format from the suffix: .png, .pdf, .svg).")
 @model_option()
-@click.option("--motion", help="Motion id or name (for --figure annotation).")
+@click.option("--motion", help="Motion id or name (delta, timeline).")
+@click.option("--class", "class_name", help="Class of the model (template).")
+@click.option("--truth", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Ground truth for tau and timeline: " + truth_help)
+@map_option
+@tau_option
 @keyframes_option
+@click.option("--sweep-tau", help="START:STOP:STEP of the tau figure (default 0.05:0.25:0.01).")
 @click.pass_context
-def report(ctx, figure, out, model, motion, keyframes):
-    """Draw a figure from the database (needs the 'plot' extra: pip install 'mocapdb[plot]').
+def report(ctx, figure, out, model, motion, class_name, truth, label_map, tau, keyframes, sweep_tau):
+    """Draw a figure of the paper from the database (needs the 'plot' extra: pip install 'mocapdb[plot]').
 
     \b
     Examples:
       mocapdb --db a.duckdb report --figure ga --out fig5.png
-      mocapdb --db a.duckdb report --figure annotation --motion 86_09 --out 86_09.png
+      mocapdb --db a.duckdb report --figure delta --motion 86_09 --out fig3.png
+      mocapdb --db a.duckdb report --figure template --class squat1Reps --out fig1.png
+      mocapdb --db a.duckdb report --figure tau --truth truth.csv --map walk_is_move.csv --out fig8.png
+      mocapdb --db a.duckdb report --figure timeline --motion 86_09 --truth truth.eaf --out fig7.png
     """
     from mocapdb.api import report as api_report
 
-    api_report(_open(ctx), figure, out, model=model, motion=motion, keyframes=keyframes)
+    api_report(_open(ctx), figure, out, model=model, motion=motion, keyframes=keyframes, tau=tau, truth=truth,
+               label_map=label_map, class_name=class_name, sweep_tau=sweep_tau)
     click.echo(f"written {out}")
+
+
+@command()
+@click.argument("motion", required=False)
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), help="The HTML page of MOTION.")
+@click.option("--all", "all", type=click.Path(file_okay=False, path_type=Path),
+              help="Instead: write one page per motion and index.html into this directory.")
+@model_option()
+@tau_option
+@keyframes_option
+@click.option("--truth", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Ground truth for the truth lane: " + truth_help)
+@map_option
+@silent_option
+@click.pass_context
+def view(ctx, motion, out, all, model, tau, keyframes, truth, label_map, silent):
+    """Write a self-contained HTML page: the skeleton animated above its labels over time.
+
+    The page works offline (no libraries, no network): drag to orbit, wheel to
+    zoom, play/pause, scrubber and speed; the annotation, the ground truth and
+    the distance functions (paper Fig. 3) as lanes; click a segment to jump there.
+
+    \b
+    Examples:
+      mocapdb --db a.duckdb view 86_09 --out 86_09.html
+      mocapdb --db a.duckdb view --all pages/ --truth truth.csv
+    """
+    from mocapdb.api import view as api_view
+
+    with _progress(None, "view", silent, unit="page") as bar:
+        written = api_view(_open(ctx), motion, out=out, all=all, model=model, tau=tau, keyframes=keyframes,
+                           truth=truth, label_map=label_map, progress=_set_bar(bar))
+    click.echo(f"written {written[0]}" + (f" and {len(written) - 1} page(s)" if all is not None else ""))
 
 
 @command("create-index")
@@ -530,6 +620,45 @@ def import_features(ctx, directory):
     from mocapdb.api import import_features as api_import_features
 
     click.echo(f"{len(api_import_features(_open(ctx), directory))} motion(s) imported")
+
+
+@command("ray-annotate")
+@click.argument("sources", nargs=-1, required=True)
+@click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Archive folder for the Parquet datasets (on storage every node sees).")
+@click.option("--address", help="Ray cluster address (e.g. auto, ray://head:10001); default: a local Ray.")
+@model_option("Model name: a shipped model, or one stored in the --db database.")
+@tau_option
+@keyframes_option
+@reader_options
+@click.option("--num-cpus", type=int, help="CPUs of the local Ray (default: all cores).")
+@click.option("--batch-files", type=int, default=BATCH_FILES, show_default=True,
+              help="Files per batch: the unit of work, of retry and of the Parquet parts.")
+@click.option("--bucket-motions", type=int, default=BUCKET_MOTIONS, show_default=True,
+              help="Motions per motion_bucket partition of features, postings and annotations.")
+@click.option("--overwrite", is_flag=True, help="Replace an archive already in --out.")
+@click.pass_context
+def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_map, marker_map, num_cpus,
+                 batch_files, bucket_motions, overwrite):
+    """Ingest and annotate files, folders or glob patterns on a Ray cluster; write Parquet.
+
+    Needs the ray extra (pip install 'mocapdb[ray]'). Writes the datasets
+    motions, features, postings, annotations (the columns of the database
+    tables) and errors (file, reason) under --out; `import-features` loads
+    them into a database and DuckDB reads them in place.
+
+    \b
+    Example:
+      mocapdb ray-annotate '../shared/data/hdm05_cut/**/*.amc' --out archive
+      mocapdb --db archive.duckdb import-features archive
+    """
+    from mocapdb.api import ray_annotate as api_ray_annotate
+
+    report = api_ray_annotate(sources, out, address=address, model=model, tau=tau, keyframes=keyframes,
+                              database=ctx.obj.get("db"), asf=asf, joint_map=joint_map, marker_map=marker_map,
+                              num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
+                              overwrite=overwrite)
+    _echo_report(ctx, report)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -19,7 +19,8 @@ class ParseError(MocapdbError, ValueError):
 
     def __init__(self, path, line, message, *, frame=None):
         self.path = str(path)
-        self.line = line
+        self.line = None if line is None else int(line)  # int(): readers may pass a lazily counted line
+        line = self.line
         self.frame = frame
         where = f"{self.path}:{line}" if line is not None else self.path
         if frame is not None:

@@ -16,6 +16,10 @@ SELECT bits FROM features WHERE $ids IS NULL OR motion_id IN (SELECT unnest($ids
 -- name: source
 SELECT source_path, skeleton_path, reader_options FROM motions WHERE motion_id = $id;
 
+-- name: by_file_name
+-- a document named by its file (86_09.amc) where the stem names several motions
+SELECT motion_id FROM motions WHERE regexp_extract(source_path, '[^/\\]+$') = $name ORDER BY motion_id;
+
 -- name: name_counts
 SELECT name, count(*) AS n FROM motions GROUP BY name;
 

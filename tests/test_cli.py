@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from mocapdb.cli import main
 
-from conftest import DATA, REPO, amc_frame_count
+from conftest import DATA, REPO, amc_frame_count, write_truth_86_09
 
 
 @pytest.fixture
@@ -160,16 +160,6 @@ def test_a_locked_database_is_one_line_naming_the_process(tmp_path):
         holder.wait()
 
 
-def _truth_86_09(path):
-    rows = list(csv.DictReader((DATA / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv").open()))
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["document", "label", "start_frame", "end_frame"])
-        for r in rows:
-            w.writerow([r["trial"], r["label"], r["start_frame"], r["end_frame"]])
-    return path
-
-
 def _scores(output):
     line = next(ln for ln in output.splitlines() if ln.startswith("all "))
     return [float(x) for x in line.split()[1:7]]
@@ -178,7 +168,7 @@ def _scores(output):
 def test_eval_from_database_equals_eval_of_the_written_predictions(run, tmp_path):
     from importlib import resources
 
-    truth = _truth_86_09(tmp_path / "truth.csv")
+    truth = write_truth_86_09(tmp_path / "truth.csv")
     walk_is_move = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
     run("ingest", DATA / "cmu" / "86", "--silent")
     pred = tmp_path / "pred.csv"
@@ -201,7 +191,7 @@ def test_eval_from_database_equals_eval_of_the_written_predictions(run, tmp_path
 def test_eval_counts_a_missing_segment(tmp_path):
     """Predictions = the truth on the 30 Hz grid minus its longest segment: P1 = P2 = 1 and
     R2 = (n − 1)/n exactly; R1 = the frames kept over all truth frames."""
-    truth = _truth_86_09(tmp_path / "truth.csv")
+    truth = write_truth_86_09(tmp_path / "truth.csv")
     from mocapdb.annotation.labels import read_labels, to_feature_grid
 
     rows = to_feature_grid(read_labels(truth))
@@ -267,7 +257,7 @@ def test_report_figures(run, tmp_path):
 
 def test_train_from_a_label_csv_over_ingested_documents(run, tmp_path):
     """Classes cut out of ingested documents by a label CSV (native frames); the model finds them again."""
-    truth = _truth_86_09(tmp_path / "truth.csv")
+    truth = write_truth_86_09(tmp_path / "truth.csv")
     run("ingest", DATA / "cmu" / "86", "--silent")
     r = run("train", "--model", "cmu86", "--labels", truth, "--silent")
     assert r.exit_code == 0, r.output

@@ -12,7 +12,7 @@ from mocapdb import ingest
 from mocapdb.storage.ingest import motion_files
 from mocapdb.readers import read_motion
 
-from conftest import DATA, amc_frame_count
+from conftest import DATA, amc_frame_count, c3d_frame_count
 
 CMU_ASF = DATA / "cmu" / "02" / "02.asf"
 NO_ASF_DIRS = (DATA / "cmu" / "13", DATA / "cmu" / "14")
@@ -34,18 +34,21 @@ def archive(tmp_path_factory):
 def test_whole_data_ingests_with_right_frame_counts(archive):
     con, first, second = archive
     amcs = [p for p in motion_files(ARCHIVE) if p.suffix == ".amc"]
+    c3ds = [p for p in motion_files(ARCHIVE) if p.suffix == ".c3d"]  # HDM05 and CMU marker files
     # the only failures of the first pass are the takes without an ASF, with a reason naming the fix
     assert sorted(p for p, _ in first.failed) == sorted(str(p) for p in amcs if p.parent in NO_ASF_DIRS)
     assert all("--asf" in reason for _, reason in first.failed)
     assert not second.failed
     rows = dict(con.execute("SELECT source_path, n_source_frames FROM motions").fetchall())
-    assert sorted(rows) == sorted(str(p) for p in amcs)
+    assert len(c3ds) == 5 and sorted(rows) == sorted(str(p) for p in amcs + c3ds)
     for path in amcs:
         assert rows[str(path)] == amc_frame_count(path), path
+    for path in c3ds:
+        assert rows[str(path)] == c3d_frame_count(path), path
     counts = con.execute("""
         SELECT m.source_path, m.n_source_frames, m.n_frames, count(f.frame), min(f.frame), max(f.frame)
         FROM motions m JOIN features f USING (motion_id) GROUP BY ALL""").fetchall()
-    assert len(counts) == len(amcs)
+    assert len(counts) == len(amcs) + len(c3ds)
     for path, native, n30, rows30, lo, hi in counts:
         assert n30 == rows30 == math.ceil(native / 4) == hi and lo == 1, path
     assert con.execute("SELECT sum(n_source_frames) FROM motions WHERE source_path LIKE '%hdm05_cut%'"
@@ -54,7 +57,7 @@ def test_whole_data_ingests_with_right_frame_counts(archive):
 
 def test_stored_words_are_the_features_of_the_file(archive):
     con = archive[0]
-    for name in ("86_09", "HDM_bd_kickLFront1Reps_001_120", "13_29"):
+    for name in ("86_09", "HDM_bd_kickLFront1Reps_001_120", "13_29", "85_02"):
         path, asf = con.execute("SELECT source_path, skeleton_path FROM motions WHERE name = ?", [name]).fetchall()[0]
         stored = con.execute("SELECT bits FROM features f JOIN motions m USING (motion_id) "
                              "WHERE m.name = ? ORDER BY frame", [name]).fetchnumpy()["bits"]
@@ -165,3 +168,21 @@ def test_delete_removes_everything_of_a_motion(tmp_path):
         assert len(ingest(con, [DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps"]).ingested) == 5
     finally:
         con.close()
+
+
+def test_a_take_in_two_formats_is_named_by_its_file(archive):
+    """hdm05_full holds the dg excerpt as .amc and as .c3d: both are stored, the
+    stem names two motions, and a label file names either by its file name."""
+    from mocapdb.errors import SchemaError
+    from mocapdb.storage.motions import documents_by_name
+
+    con = archive[0]
+    stem = "HDM_dg_06-03_03_120"
+    assert con.execute("SELECT count(*) FROM motions WHERE name = ?", [stem]).fetchall()[0][0] == 2
+    with pytest.raises(SchemaError, match=r"name several motions .*name the file instead"):
+        documents_by_name(con, [stem])
+    docs = documents_by_name(con, [f"{stem}.amc", f"{stem}.c3d", "86_09"])
+    assert sorted(docs.names) == sorted([f"{stem}.amc", f"{stem}.c3d", "86_09"])
+    fmt = dict(con.execute("SELECT motion_id, format FROM motions").fetchall())
+    assert {n: fmt[int(m)] for n, m in zip(docs.names, docs.motion_ids)} == {
+        f"{stem}.amc": "amc", f"{stem}.c3d": "c3d", "86_09": "amc"}

@@ -312,3 +312,91 @@ def test_deep_hierarchies_and_huge_frame_counts_are_refused_clearly(tmp_path):
     p.write_text(re.sub(r"Frame Time:\s*\S+", "Frame Time: 5e-324", text))
     with pytest.raises(ParseError, match=r"huge\.bvh:\d+: Frame Time: expected a time of at least 0.0001 s"):
         read_motion(p)
+
+
+#: the cmuconvert joint names in other tools' conventions (READERS.md §2): the
+#: same skeleton renamed must give the same canonical joints without a map
+CONVENTIONS = {
+    "mixamo": lambda n: "mixamorig:" + n,
+    "unreal": {"Hips": "pelvis", "LHipJoint": "hip_root_l", "LeftUpLeg": "thigh_l", "LeftLeg": "calf_l",
+               "LeftFoot": "foot_l", "LeftToeBase": "ball_l", "LowerBack": "spine_01", "Spine": "spine_02",
+               "Spine1": "spine_03", "Neck": "neck_01", "Neck1": "neck_02", "Head": "head",
+               "LeftShoulder": "clavicle_l", "LeftArm": "upperarm_l", "LeftForeArm": "lowerarm_l",
+               "LeftHand": "hand_l", "LeftFingerBase": "middle_metacarpal_l", "LeftHandIndex1": "index_01_l",
+               "LThumb": "thumb_01_l"},
+    "biped": {"Hips": "Bip01 Pelvis", "LHipJoint": "Bip01 L HipRoot", "LeftUpLeg": "Bip01 L Thigh",
+              "LeftLeg": "Bip01 L Calf", "LeftFoot": "Bip01 L Foot", "LeftToeBase": "Bip01 L Toe0",
+              "LowerBack": "Bip01 Spine", "Spine": "Bip01 Spine1", "Spine1": "Bip01 Spine2", "Neck": "Bip01 Neck",
+              "Neck1": "Bip01 Neck1", "Head": "Bip01 Head", "LeftShoulder": "Bip01 L Clavicle",
+              "LeftArm": "Bip01 L UpperArm", "LeftForeArm": "Bip01 L Forearm", "LeftHand": "Bip01 L Hand",
+              "LeftFingerBase": "Bip01 L Finger2", "LeftHandIndex1": "Bip01 L Finger21",
+              "LThumb": "Bip01 L Finger0"},
+    "smpl": {"Hips": "pelvis", "LHipJoint": "left_hip_root", "LeftUpLeg": "left_hip", "LeftLeg": "left_knee",
+             "LeftFoot": "left_ankle", "LeftToeBase": "left_foot", "LowerBack": "spine1", "Spine": "spine2",
+             "Spine1": "spine3", "Neck": "neck", "Neck1": "neck_upper", "Head": "head", "LeftShoulder": "left_collar",
+             "LeftArm": "left_shoulder", "LeftForeArm": "left_elbow", "LeftHand": "left_wrist",
+             "LeftFingerBase": "left_hand", "LeftHandIndex1": "left_index1", "LThumb": "left_thumb1"},
+    "studio": lambda n: "joint_" + n.replace("Left", "").replace("Right", "") + (
+        "LT" if n.startswith(("Left", "L")) and n not in ("LowerBack",) else
+        "RT" if n.startswith(("Right", "R")) else ""),
+}
+
+
+def _rename(name, convention):
+    rule = CONVENTIONS[convention]
+    if callable(rule):
+        return rule(name)
+    if name in rule:
+        return rule[name]
+    # the right side mirrors the left one's names
+    left = "Left" + name[5:] if name.startswith("Right") else "L" + name[1:] if name.startswith("R") else None
+    out = rule[left]
+    return (out.replace("_l", "_r").replace(" L ", " R ").replace("left", "right") if left in rule else out)
+
+
+@pytest.mark.parametrize("convention", sorted(CONVENTIONS))
+def test_other_naming_conventions_need_no_map(amc_120, tmp_path, convention):
+    s, a = amc_120
+    from dataclasses import replace as dc_replace
+    p = write_bvh(tmp_path / "cmu.bvh", s, dc_replace(a, values=a.values[:120]), layout="cmu")
+    text = p.read_text()
+    names = re.findall(r"(?:ROOT|JOINT) (\w+)", text)
+    renamed = {n: _rename(n, convention) for n in names}
+    assert len(set(renamed.values())) == len(names)
+    for n in sorted(names, key=len, reverse=True):
+        text = re.sub(rf"((?:ROOT|JOINT) ){n}\n", lambda m, n=n: m.group(1) + renamed[n] + "\n", text)
+    q = tmp_path / f"{convention}.bvh"
+    q.write_text(text)
+    ref = read_bvh(p)
+    got = read_bvh(q)
+    np.testing.assert_allclose(got.joints, ref.joints, atol=1e-9)
+    assert (got.root_rotation is None) == (ref.root_rotation is None)
+
+
+def test_a_z_up_file_is_turned_to_y_up_not_mirrored(amc_120, tmp_path):
+    """The same take recorded Z-up (root position and rotation turned +90° about x):
+    read back Y-up, the joints are the Y-up reading's (a rotation, no mirror:
+    left stays left) and the features are the same."""
+    from dataclasses import replace as dc_replace
+
+    from mocapdb.readers import euler_angles
+    from mocapdb.readers.kinematics import euler_matrix
+
+    s, a = amc_120
+    full = write_bvh(tmp_path / "y_up.bvh", s, dc_replace(a, values=a.values[:600]), layout="cmu")
+    data = parse_bvh(full.read_bytes())
+    root = data.hierarchy.joints[0]
+    vals = data.values.copy()
+    r0 = euler_matrix(np.array([[np.pi / 2, 0.0, 0.0]]), "xyz")[0]  # +Y -> +Z
+    pos = [root.channel_start + i for i in range(3)]
+    rot = [root.channel_start + 3 + i for i in range(3)]
+    vals[:, pos] = vals[:, pos] @ r0.T
+    vals[:, rot] = np.degrees(euler_angles(r0 @ euler_matrix(np.radians(vals[:, rot]), "zyx"), "zyx"))
+    head = full.read_text().split("MOTION")[0]
+    body = "\n".join(" ".join(f"{x:.17g}" for x in row) for row in vals)
+    z_up = tmp_path / "z_up.bvh"
+    z_up.write_text(head + f"MOTION\nFrames: {len(vals)}\nFrame Time: 0.0083333\n{body}\n")
+    ref = read_bvh(full)
+    got = read_bvh(z_up)
+    np.testing.assert_allclose(got.joints, ref.joints, atol=1e-6)
+    np.testing.assert_array_equal(motion_features(got), motion_features(ref))

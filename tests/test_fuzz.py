@@ -3,10 +3,9 @@
 Real AMC/ASF/BVH files from ../shared/data are mutated (tests/fuzzing.py) and
 read: only a MocapdbError may leave a reader, an accepted motion is finite and
 its features compute, and an ingest of mutated files never raises, stores
-only what it reports and reports every file.
+only what it reports and reports every file. (The 2,400 cases take ~20 s on
+2 cores; benchmarks/bench_bvh.py times the same generator.)
 """
-import time
-
 import numpy as np
 import pytest
 
@@ -48,7 +47,6 @@ def test_only_mocapdb_errors_leave_the_readers(sources, tmp_path):
     rng = np.random.default_rng(20261125)
     short = _short_amc()
     escaped, accepted, refused = [], 0, 0
-    t = time.perf_counter()
     for case in range(N_CASES):
         kind, data, asf = sources[int(rng.integers(0, len(sources)))]
         bad = mutate(data, rng)
@@ -77,11 +75,9 @@ def test_only_mocapdb_errors_leave_the_readers(sources, tmp_path):
         assert 0 < motion.fps <= 10_000
         words = motion_features(motion)  # features are defined for anything accepted
         assert words.dtype == np.uint64 and len(words) >= 1
-    elapsed = time.perf_counter() - t
     assert not escaped, escaped[:5]
     # the mutations must exercise both outcomes, or the test proves nothing
     assert accepted > 50 and refused > N_CASES // 2, (accepted, refused)
-    assert elapsed < 60, f"{N_CASES} cases took {elapsed:.0f} s"
 
 
 def test_ingest_of_mutated_files_never_raises_and_reports_every_file(sources, tmp_path):

@@ -4,6 +4,8 @@ A label (or ground-truth) CSV has the columns ``document,label,start_frame,end_f
 (DESIGN.md §5): one labelled segment per row, frames at the document's
 **native** rate, 1-based and inclusive, as in the HDM05 annotations. Extra
 columns are ignored; blank lines and lines starting with ``#`` are skipped.
+An ELAN ``.eaf`` file is read wherever a label CSV is (:func:`read_labels`
+dispatches on the suffix; the rules are in :mod:`mocapdb.annotation.elan`).
 
 In memory a set of segments is a structured array of :data:`LABEL_DTYPE`
 (``document``, ``label``, ``start``, ``end``). Which frame grid ``start`` and
@@ -45,11 +47,13 @@ from pathlib import Path
 
 import numpy as np
 
+from mocapdb.annotation.elan import eaf_document, eaf_source_fps, is_eaf, read_eaf
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE
+from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE, TOOLBOX_RATE
 
 __all__ = [
-    "LABEL_COLUMNS", "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "read_segments",
+    "LABEL_COLUMNS", "LABEL_DTYPE", "label_rows", "as_label_rows", "read_labels", "label_documents",
+    "read_segments", "read_truth",
     "write_labels",
     "native_to_feature_frames", "feature_to_native_frames", "to_feature_grid",
     "to_native_grid", "segments_to_rows", "map_labels", "read_class_labels",
@@ -204,15 +208,20 @@ def _int_field(path, line, name, text):
                          f"got {text!r}") from None
 
 
-def read_labels(path, *, n_frames=None):
-    """Read a label / ground-truth CSV (``document,label,start_frame,end_frame``).
+def read_labels(path, *, n_frames=None, fps=None):
+    """Read a label / ground-truth CSV (``document,label,start_frame,end_frame``) or an ELAN file.
 
     Parameters
     ----------
     path : str or Path
+        A CSV, or an ELAN ``.eaf`` file (by the suffix; the tier → label and
+        time → frame rules are in :mod:`mocapdb.annotation.elan`).
     n_frames : mapping of str to int, optional
         Native frame count per document; rows of these documents must end
         within it (other documents are not checked).
+    fps : float or mapping of str to float, optional
+        ELAN files only: the document's native frame rate (default: the
+        file's ``mocapdb:source_fps`` property).
 
     Returns
     -------
@@ -231,6 +240,13 @@ def read_labels(path, *, n_frames=None):
     ----------
     DESIGN.md §5.
     """
+    if is_eaf(path):
+        rows = read_eaf(path, fps=fps)
+        for doc, _, _, e in rows:
+            if n_frames is not None and doc in n_frames and e > int(n_frames[doc]):
+                raise ParseError(path, None, f"an annotation ends at native frame {e}, beyond the last frame "
+                                 f"of document {doc!r} ({int(n_frames[doc])} frames)")
+        return as_label_rows(rows)
     out = []
     for line, rec in _csv_records(path, LABEL_COLUMNS):
         doc, lab = rec["document"], rec["label"]
@@ -249,6 +265,20 @@ def read_labels(path, *, n_frames=None):
                              f"{doc!r} ({int(n_frames[doc])} frames at the native rate)")
         out.append((doc, lab, s, e))
     return as_label_rows(out)
+
+
+def label_documents(path):
+    """The documents a label file (CSV or ELAN) names, in first-appearance order.
+
+    For an ELAN file this needs no frame rate (the rows need one).
+
+    Returns
+    -------
+    list of str
+    """
+    if is_eaf(path):
+        return [eaf_document(path)]
+    return list(dict.fromkeys(read_labels(path)["document"]))
 
 
 def read_segments(path):
@@ -484,6 +514,38 @@ def segments_to_rows(segments, documents):
     out["label"] = [str(x) for x in segments["label"]]
     out["start"], out["end"] = segments["start"], segments["end"]
     return out
+
+
+def read_truth(path, *, label_map=None, n_frames=None, fps=None):
+    """A ground-truth or label file (CSV or ELAN, native frames) on the 30 Hz grid, labels mapped.
+
+    Parameters
+    ----------
+    path : str or Path
+    label_map : str, Path or dict, optional
+        Truth label → model label (CSV ``class,label`` or a dict), e.g.
+        86_09's ``walk`` → ``move``; unmapped labels are kept.
+    n_frames : mapping of str to int, optional
+        As :func:`read_labels`.
+    fps : float or mapping of str to float, optional
+        Each document's native rate (a database's ``motions.source_fps``):
+        places ELAN times on native frames and native frames on the 30 Hz
+        grid (:func:`native_factor`). Default: an ELAN file's
+        ``mocapdb:source_fps`` property, else 120 Hz.
+
+    Returns
+    -------
+    ndarray of LABEL_DTYPE
+        30 Hz feature frames, 0-based inclusive.
+    """
+    native = read_labels(path, n_frames=n_frames, fps=fps)
+    default = (eaf_source_fps(path) if is_eaf(path) else None) or TOOLBOX_RATE
+    rates = [float(fps) if fps is not None and not isinstance(fps, dict) else (fps or {}).get(d, default)
+             for d in native["document"]]
+    rows = to_feature_grid(native, factor=native_factor(rates) if rates else DOWNSAMPLING_FACTOR)
+    if label_map is not None:
+        rows = map_labels(rows, label_map if isinstance(label_map, dict) else read_class_labels(label_map))
+    return rows
 
 
 def map_labels(rows, mapping):

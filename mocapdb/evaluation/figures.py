@@ -11,7 +11,8 @@ import numpy as np
 from mocapdb.errors import ParameterError
 from mocapdb.learning import GAStatistics
 
-__all__ = ["plot_ga_statistics", "plot_ga_curve", "plot_annotation"]
+__all__ = ["plot_ga_statistics", "plot_ga_curve", "plot_annotation", "plot_timeline", "plot_delta", "plot_template",
+           "plot_tau_sweep"]
 
 
 def _pyplot():
@@ -149,3 +150,170 @@ def plot_annotation(segments, labels, n_frames, *, label_delta=None, fps=30.0, t
     ax.set_ylim(-0.6, n - 0.4)
     ax.set_xlabel("time [s]")
     return _finish(fig, ax, title, path, dpi)
+
+
+#: paper Fig. 6/7 is a timeline of labels: the name ``report --figure timeline`` uses
+plot_timeline = plot_annotation
+
+
+def plot_delta(class_delta, class_names, taus, *, fps=30.0, segments=None, class_labels=None, truth=None,
+               path=None, title=None, dpi=150):
+    """Δ̄^τ per class over time as a heat map, white above τ (paper Fig. 3a), with the segments below (Fig. 3b).
+
+    Parameters
+    ----------
+    class_delta : (n_classes, n_frames) float
+        Δ̄^τ per class (``annotate(..., keep_deltas=True).classification_delta``):
+        finite values are ≤ the class's τ, inf elsewhere.
+    class_names : sequence of str
+        Row names.
+    taus : (n_classes,) float
+        The τ of each class; the colour scale runs from 0 to the largest and
+        the colour bar marks each τ.
+    fps : float, default 30
+    segments : ndarray of SEGMENT_DTYPE, optional
+        The resulting annotation (red blocks, Fig. 3b) in a panel below, one
+        row per label (needs ``class_labels``).
+    class_labels : sequence of str, optional
+        Label of each class (the rows of the lower panel, in order of first use).
+    truth : ndarray of LABEL_DTYPE, optional
+        Ground truth on the same grid (black blocks under the red ones).
+    path, title, dpi
+        As :func:`plot_annotation`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    plt = _pyplot()
+    d = np.asarray(class_delta, np.float64)
+    taus = np.broadcast_to(np.asarray(taus, np.float64), (d.shape[0],))
+    if d.ndim != 2 or d.shape[0] != len(class_names):
+        raise ParameterError(f"class_delta must have one row per class ({len(class_names)}), got shape {d.shape}")
+    n_cls, n = d.shape
+    top = float(taus.max()) if taus.size else 1.0
+    shown = np.ma.masked_where(~np.isfinite(d) | (d > taus[:, None]), d)
+    has_blocks = segments is not None or truth is not None
+    fig, axes = plt.subplots(2 if has_blocks else 1, 1, figsize=(8.0, 0.3 * n_cls + (2.4 if has_blocks else 1.4)),
+                             sharex=True, squeeze=False,
+                             gridspec_kw={"height_ratios": [n_cls, max(2, n_cls // 2)]} if has_blocks else None)
+    ax = axes[0, 0]
+    cmap = plt.get_cmap("jet").with_extremes(bad="white")  # above τ: white, as in the paper
+    im = ax.imshow(shown, aspect="auto", interpolation="nearest", cmap=cmap, vmin=0.0, vmax=top,
+                   extent=(0, n / fps, n_cls - 0.5, -0.5))
+    ax.set_yticks(range(n_cls))
+    ax.set_yticklabels(list(class_names), fontsize=7)
+    bar = fig.colorbar(im, ax=axes[:, 0].tolist(), pad=0.01, fraction=0.04)
+    for t in np.unique(taus):
+        bar.ax.axhline(t, color="black", linewidth=1.2)
+    bar.set_ticks(sorted({0.0, *np.unique(taus).tolist()}))
+    bar.set_ticklabels(["0"] + [f"τ={t:g}" for t in np.unique(taus)])
+    bar.set_label("Δ̄^τ (white: above τ)")
+    if has_blocks:
+        bx = axes[1, 0]
+        lab = list(dict.fromkeys(class_labels)) if class_labels is not None else []
+        rows = {x: k for k, x in enumerate(lab)}
+        for rows_arr, color, h in ((truth, "black", 0.8), (segments, "red", 0.45)):
+            if rows_arr is None:
+                continue
+            for r in rows_arr:
+                y = rows.get(str(r["label"]))
+                if y is not None:
+                    bx.barh(y, (r["end"] - r["start"] + 1) / fps, left=r["start"] / fps, height=h, color=color,
+                            edgecolor="none")
+        bx.set_yticks(range(len(lab)))
+        bx.set_yticklabels(lab, fontsize=7)
+        bx.set_ylim(len(lab) - 0.5, -0.5)
+        bx.set_xlabel("time [s]")
+    else:
+        ax.set_xlabel("time [s]")
+    ax.set_xlim(0, max(n / fps, 1e-3))
+    if title:
+        ax.set_title(title)
+    if path is not None:
+        fig.savefig(path, dpi=dpi, bbox_inches="tight")
+    return fig
+
+
+def plot_template(quantized, real=None, *, feature_names=None, fps=30.0, path=None, title=None, dpi=150):
+    """A class motion template, real-valued and quantized (paper Fig. 1c/d).
+
+    Parameters
+    ----------
+    quantized : (K, 40) float
+        The quantized template as 0 / 1 / 0.5 (wildcard), e.g.
+        ``QuantizedTemplate.dense()``: black 0, white 1, red wildcard.
+    real : (K', 40) float, optional
+        The real-valued template (values in [0, 1]): black 0, white 1,
+        colours in between (inconsistent across the training clips).
+    feature_names : sequence of str, optional
+        Row labels (default: the feature numbers 1–40).
+    fps : float, default 30
+        Columns per second, for the time axis.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.colors import ListedColormap
+
+    plt = _pyplot()
+    panels = [("real", np.asarray(real, np.float64))] if real is not None else []
+    panels.append(("quantized", np.asarray(quantized, np.float64)))
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.0, 3.4 * len(panels)), squeeze=False)
+    for ax, (kind, m) in zip(axes[:, 0], panels):
+        if m.ndim != 2 or m.shape[1] != 40:
+            raise ParameterError(f"the {kind} template must have shape (K, 40), got {m.shape}")
+        k = m.shape[0]
+        if kind == "real":
+            im = ax.imshow(m.T, aspect="auto", interpolation="nearest", cmap="hot", vmin=0, vmax=1,
+                           extent=(0, k / fps, 40.5, 0.5))
+            fig.colorbar(im, ax=ax, pad=0.01, fraction=0.04)
+            ax.set_title("real-valued MT (Fig. 1c)" if not title else f"{title}: real-valued (Fig. 1c)")
+        else:
+            cmap = ListedColormap(["black", "tab:red", "white"])
+            ax.imshow(m.T, aspect="auto", interpolation="nearest", cmap=cmap, vmin=0, vmax=1,
+                      extent=(0, k / fps, 40.5, 0.5))
+            ax.set_title("quantized MT, red = wildcard (Fig. 1d)" if not title
+                         else f"{title}: quantized, red = wildcard (Fig. 1d)")
+        ticks = [1, 14, 15, 26, 27, 40]
+        ax.set_yticks(ticks)
+        ax.set_yticklabels([feature_names[t - 1] for t in ticks] if feature_names is not None else ticks,
+                           fontsize=6)
+        ax.set_ylabel("feature")
+    axes[-1, 0].set_xlabel("template time [s]")
+    return _finish(fig, axes[0, 0], None, path, dpi)
+
+
+def plot_tau_sweep(results, *, tau=None, path=None, title=None, dpi=150):
+    """Precision, recall and F-measure over τ, frame- and segment-based (paper Fig. 8).
+
+    Parameters
+    ----------
+    results : sequence of (float, Scores)
+        As ``mocapdb.api.evaluate(..., sweep_tau=...)`` returns.
+    tau : float, optional
+        The τ in use, marked by a dashed line.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    plt = _pyplot()
+    if not results:
+        raise ParameterError("results must hold at least one (tau, Scores) pair")
+    t = np.array([r[0] for r in results], np.float64)
+    fig, axes = plt.subplots(1, 2, figsize=(8.0, 3.2), sharey=True)
+    for ax, (kind, keys) in zip(axes, (("frame-based", ("p1", "r1", "f1")), ("segment-based", ("p2", "r2", "f2")))):
+        for key, color, name in zip(keys, ("black", "red", "green"), ("precision", "recall", "F-measure")):
+            ax.plot(t, [getattr(sc, key) for _, sc in results], color=color, marker=".", label=name)
+        if tau is not None:
+            ax.axvline(tau, color="0.5", linestyle="--", linewidth=0.8)
+        ax.set_title(kind)
+        ax.set_xlabel("τ")
+        ax.set_ylim(0, 1.02)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="lower right", fontsize=8)
+    if title:
+        fig.suptitle(title)
+    return _finish(fig, axes[0], None, path, dpi)

@@ -24,7 +24,7 @@ from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 
 __all__ = ["FEATURE_RATE", "TOOLBOX_RATE", "RATE_METHODS", "feature_frame_count", "feature_grid",
-           "grid_source_frames", "resample_joints"]
+           "grid_source_frames", "resample_joints", "check_fps"]
 
 #: rate of the feature words (Hz)
 FEATURE_RATE = 30.0
@@ -37,7 +37,8 @@ RATE_METHODS = ("resample", "native")
 _EPS = 1e-9
 
 
-def _check_rate(fps) -> float:
+def check_fps(fps) -> float:
+    """``fps`` as a float if it is a positive finite rate (Hz), else ParameterError."""
     try:
         fps = float(fps)
     except (TypeError, ValueError):
@@ -53,7 +54,7 @@ def feature_frame_count(n_frames: int, fps: float) -> int:
     ``floor((n − 1)·30/fps) + 1`` (0 for an empty take): every grid time
     k/30 up to the last source frame. At 120 Hz this is ``ceil(n/4)``.
     """
-    fps = _check_rate(fps)
+    fps = check_fps(fps)
     n = int(n_frames)
     if n <= 0:
         return 0
@@ -73,7 +74,7 @@ def grid_source_frames(n_frames: int, fps: float) -> np.ndarray:
     At 120 Hz these are frames 0, 4, 8, … exactly; used to show a source
     pose per feature frame (viewer) and by the ``native`` rate method.
     """
-    fps = _check_rate(fps)
+    fps = check_fps(fps)
     idx = np.rint(feature_grid(n_frames, fps) * fps).astype(np.int64)
     return np.minimum(idx, max(int(n_frames) - 1, 0))
 
@@ -136,8 +137,8 @@ def resample_joints(joints, root_rotation, fps, *, target: float = TOOLBOX_RATE)
         Interpolated entry-wise, then made orthonormal again (polar
         decomposition via SVD).
     """
-    fps = _check_rate(fps)
-    target = _check_rate(target)
+    fps = check_fps(fps)
+    target = check_fps(target)
     j = np.ascontiguousarray(joints, dtype=np.float64)
     n = j.shape[0]
     if n == 0:

@@ -22,8 +22,8 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
-from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, feature_frame_count, grid_source_frames,
-                                    resample_joints)
+from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, feature_frame_count,
+                                    grid_source_frames, resample_joints)
 from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
 from mocapdb.readers import JOINT_INDEX
 
@@ -604,12 +604,7 @@ def relational_features(joints, root_rotation, fps, *,
         raise ParameterError(f"joints must be numeric, got dtype {j.dtype}")
     j = np.ascontiguousarray(j, dtype=np.float64)
     n = j.shape[0]
-    try:
-        fps = float(fps)
-    except (TypeError, ValueError):
-        raise ParameterError(f"fps must be a positive number (Hz), got {fps!r}") from None
-    if not (math.isfinite(fps) and fps > 0.0):
-        raise ParameterError(f"fps must be a positive number (Hz), got {fps!r}")
+    fps = check_fps(fps)
     ang_thr = _check_threshold_pair(root_ang_vel_thresholds)
     if root_rotation is not None:
         r = np.asarray(root_rotation)

@@ -1,8 +1,10 @@
 """Readers (DESIGN.md §1, FEATURES.md §2, READERS.md): files → the 24 canonical joints.
 
 ASF/AMC (:mod:`~mocapdb.readers.asf`, :mod:`~mocapdb.readers.amc`, forward
-kinematics in :mod:`~mocapdb.readers.kinematics`) and BVH
-(:mod:`~mocapdb.readers.bvh`) become a :class:`Motion` (joint positions, root
+kinematics in :mod:`~mocapdb.readers.kinematics`), BVH
+(:mod:`~mocapdb.readers.bvh`) and C3D marker files (:mod:`~mocapdb.readers.c3d`:
+points through ezc3d in :mod:`~mocapdb.readers.c3dfile`, marker rules in
+:mod:`~mocapdb.readers.c3d_rules`) become a :class:`Motion` (joint positions, root
 rotation, rate); :func:`read_motion` dispatches on the file type
 (:mod:`~mocapdb.readers.files`). Text is scanned by the numba kernels of
 :mod:`~mocapdb.readers.textscan`.
@@ -17,6 +19,8 @@ from mocapdb.readers.bvh import (BvhData, BvhHierarchy, BvhJoint, bvh_joint_map,
                                  joint_map_template, parse_bvh, read_bvh)
 from mocapdb.readers.bvh_write import (CMU_BONE_NAMES, euler_angles, write_bvh)
 from mocapdb.readers.mapping import (load_mapping)
+from mocapdb.readers.c3dfile import (C3dPoints, read_c3d_points)
+from mocapdb.readers.c3d import (fit_bone_lengths, read_c3d)
 from mocapdb.readers.files import (SUPPORTED_EXTENSIONS, find_skeleton, load_skeleton, read_asf_amc, read_motion, skeleton_candidates)
 
 __all__ = [
@@ -28,4 +32,5 @@ __all__ = [
     "map_humanoid", "snap_rate", "check_rate", "check_finite_motion", "COMMON_RATES", "MAX_RATE", "parse_bvh", "bvh_node_positions", "bvh_to_motion",
     "write_bvh", "euler_angles", "CMU_BONE_NAMES", "read_motion", "read_asf_amc", "find_skeleton",
     "skeleton_candidates", "load_skeleton", "SUPPORTED_EXTENSIONS", "load_mapping",
+    "C3dPoints", "read_c3d_points", "read_c3d", "fit_bone_lengths",
 ]

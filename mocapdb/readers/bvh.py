@@ -40,15 +40,15 @@ from __future__ import annotations
 import math
 import re
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.humanoid import (JointMap, MappingError, SkeletonTree, asf_axes_at_rest, map_humanoid,
-                                     mapping_template)
+from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, asf_axes_at_rest,
+                                     map_humanoid, mapping_template)
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
@@ -113,6 +113,31 @@ class BvhHierarchy:
 
     def children(self, k: int) -> list:
         return [i for i, j in enumerate(self.joints) if j.parent == k]
+
+    def arrays(self):
+        """The hierarchy as the FK kernel's arrays (built once per hierarchy):
+        parent, offset, channel start and count per joint, channel kind and axis,
+        End Site flag and offset."""
+        cached = self.__dict__.get("_arrays")
+        if cached is not None:
+            return cached
+        joints = self.joints
+        nj = len(joints)
+        kinds = np.zeros(self.n_channels, dtype=np.int64)
+        axes = np.zeros(self.n_channels, dtype=np.int64)
+        for j in joints:
+            for c, name in enumerate(j.channels):
+                kinds[j.channel_start + c], axes[j.channel_start + c] = CHANNELS[name.lower()]
+        out = (np.array([j.parent for j in joints], dtype=np.int64),
+               np.array([j.offset for j in joints], dtype=np.float64).reshape(nj, 3),
+               np.array([j.channel_start for j in joints], dtype=np.int64),
+               np.array([len(j.channels) for j in joints], dtype=np.int64),
+               kinds, axes,
+               np.array([j.end_site is not None for j in joints]),
+               np.array([j.end_site if j.end_site is not None else np.zeros(3) for j in joints],
+                        dtype=np.float64).reshape(nj, 3))
+        object.__setattr__(self, "_arrays", out)  # a frozen dataclass: a private memo
+        return out
 
     def tree(self) -> SkeletonTree:
         """Joint origins then End Sites, with rest-pose positions (OFFSETs accumulated)."""
@@ -187,12 +212,28 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
     return BvhData(hierarchy, values, frame_time, path)
 
 
+class _LazyLine:
+    """A line number counted only when a message prints it (counting costs a pass)."""
+
+    def __init__(self, data, pos):
+        self.data, self.pos = data, pos
+
+    def __int__(self):
+        return line_of(self.data, self.pos)
+
+    def __str__(self):
+        return str(int(self))
+
+    __format__ = lambda self, spec: format(int(self), spec)  # noqa: E731
+
+
 def _parse_motion_header(data, pos, path):
     head = data[pos:pos + 4096]
     fm = _FRAMES.search(head)
     if fm is None:
         raise ParseError(path, line_of(data, pos), "expected 'Frames:' after MOTION")
-    frames_line = line_of(data, pos + fm.start())
+    frames_at = pos + fm.start()
+    frames_line = _LazyLine(data, frames_at)
     tok = fm.group(1).decode("latin-1")
     if not tok.isdigit():
         raise ParseError(path, frames_line, f"Frames: expected a frame count, found {tok!r}")
@@ -201,8 +242,8 @@ def _parse_motion_header(data, pos, path):
         raise ParseError(path, frames_line, "no frames ('Frames: 0')")
     tm = _FRAME_TIME.search(head, fm.end())
     if tm is None:
-        raise ParseError(path, frames_line + 1, "expected 'Frame Time:' after 'Frames:'")
-    line = line_of(data, pos + tm.start())
+        raise ParseError(path, int(frames_line) + 1, "expected 'Frame Time:' after 'Frames:'")
+    line = _LazyLine(data, pos + tm.start())
     tok = tm.group(1).decode("latin-1")
     try:
         frame_time = float(tok)
@@ -373,10 +414,11 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
 
 @jit
 def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
-                   end_site, has_end, origins, ends, rotations, rot_joint):  # pragma: no cover
+                   end_site, has_end, needed, origins, ends, rotations, rot_joint):  # pragma: no cover
     """Joint origins (n, nj, 3), End Sites (n, nj, 3) and the global rotation of
     joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring.
-    Sine and cosine are taken here, of rotation channels only (no temporaries)."""
+    Sine and cosine are taken here, of rotation channels only (no temporaries);
+    joints not ``needed`` (nor below a needed one) are skipped."""
     n = values.shape[0]
     nj = parent.shape[0]
     h = np.empty((nj, 3, 3))
@@ -384,6 +426,8 @@ def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
     deg = math.pi / 180.0
     for f in range(n):
         for j in range(nj):
+            if not needed[j]:
+                continue
             p = parent[j]
             for i in range(3):
                 for k in range(3):
@@ -417,8 +461,11 @@ def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
                         rotations[f, i, k] = h[j, i, k]
 
 
-def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0):
+def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0, needed=None):
     """Forward kinematics of a parsed BVH file.
+
+    ``needed`` (bool per joint, closed under parents) limits the work to those
+    joints; the others' origins and End Sites are left undefined.
 
     Returns
     -------
@@ -429,27 +476,17 @@ def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0):
         Global rotation of joint ``rotation_joint`` (default: the root).
     """
     hier = data.hierarchy
-    joints = hier.joints
-    nj = len(joints)
-    parent = np.array([j.parent for j in joints], dtype=np.int64)
-    offset = np.array([j.offset for j in joints], dtype=np.float64).reshape(nj, 3)
-    ch_start = np.array([j.channel_start for j in joints], dtype=np.int64)
-    ch_count = np.array([len(j.channels) for j in joints], dtype=np.int64)
-    kinds = np.zeros(hier.n_channels, dtype=np.int64)
-    axes = np.zeros(hier.n_channels, dtype=np.int64)
-    for j in joints:
-        for c, name in enumerate(j.channels):
-            kinds[j.channel_start + c], axes[j.channel_start + c] = CHANNELS[name.lower()]
-    has_end = np.array([j.end_site is not None for j in joints])
-    end_site = np.array([j.end_site if j.end_site is not None else np.zeros(3) for j in joints],
-                        dtype=np.float64).reshape(nj, 3)
+    nj = len(hier.joints)
+    parent, offset, ch_start, ch_count, kinds, axes, has_end, end_site = hier.arrays()
     values = np.ascontiguousarray(data.values, dtype=np.float64)
     n = values.shape[0]
     origins = np.empty((n, nj, 3))
     ends = np.full((n, nj, 3), np.nan)
     rot = np.empty((n, 3, 3))
+    if needed is None:
+        needed = np.ones(nj, dtype=np.bool_)
     _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
-                   has_end, origins, ends, rot, rotation_joint)
+                   has_end, needed, origins, ends, rot, rotation_joint)
     return origins, ends, rot
 
 
@@ -530,25 +567,72 @@ def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<b
         the message names the file's joints and the canonical joints it
         could not place, and how to get a mapping template.
     """
-    key = (tuple((j.name, j.parent, j.offset.tobytes(), None if j.end_site is None else j.end_site.tobytes())
-                 for j in hier.joints), None if joint_map is None else repr(sorted(joint_map.items())))
+    return _plan(hier, joint_map, path, pose)[0]
+
+
+def _plan(hier: BvhHierarchy, joint_map, path, pose):
+    """(JointMap, gather arrays, joints FK must compute), cached per parsed hierarchy.
+
+    Hierarchies are cached per header (:func:`_cached_hierarchy`), so the
+    files of one skeleton share one object and one plan.
+    """
+    key = (id(hier), None if joint_map is None else repr(sorted(joint_map.items())))
     with _MAP_LOCK:
         hit = _MAP_CACHE.get(key)
-    if hit is not None:
-        return hit
+    if hit is not None and hit[0] is hier:
+        return hit[1]
+    jm = _map_skeleton(hier, joint_map, path, pose)
+    plan = (jm, *_gather(jm, hier))
+    with _MAP_LOCK:
+        if len(_MAP_CACHE) > 256:
+            _MAP_CACHE.clear()
+        _MAP_CACHE[key] = (hier, plan)
+    return plan
+
+
+def _gather(jm: JointMap, hier: BvhHierarchy):
+    """Per canonical joint its points and weights; the joints FK needs (used points and their ancestors)."""
+    nj = len(hier.joints)
+    width = max(1, int((jm.weights != 0).sum(axis=1).max()))
+    point = np.zeros((len(JOINT_NAMES), width), dtype=np.int64)
+    weight = np.zeros((len(JOINT_NAMES), width))
+    for j in range(len(JOINT_NAMES)):
+        nz = np.flatnonzero(jm.weights[j])
+        point[j, :len(nz)] = nz
+        weight[j, :len(nz)] = jm.weights[j, nz]
+    end_of = np.array([k for k, j in enumerate(hier.joints) if j.end_site is not None] or [0], dtype=np.int64)
+    needed = np.zeros(nj, dtype=np.bool_)
+    for p in set(point[weight != 0].tolist()) | {jm.rotation_point}:
+        k = p if p < nj else int(end_of[p - nj])
+        while k >= 0 and not needed[k]:
+            needed[k] = True
+            k = hier.joints[k].parent
+    return point, weight, end_of, needed
+
+
+def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
     tree = hier.tree()
     auto = _asf_map(hier, tree)
     problem = None
     if auto is None:
-        try:
-            auto = map_humanoid(tree)
-        except MappingError as exc:
-            problem = exc
-            if pose is not None:  # a rest pose on its side: judge the body by a frame
+        # Y up, as BVH has it; a rest pose on its side is judged by a frame of the
+        # motion; a Z-up file (some capture tools) is turned to Y up (READERS.md §2)
+        def poses():
+            yield tree.rest
+            if pose is not None:
+                yield pose()
+
+        for up in (None, Z_UP_TO_Y_UP):
+            for xyz in poses():
                 try:
-                    auto, problem = map_humanoid(tree, pose()), None
-                except MappingError as again:
-                    problem = again
+                    auto = map_humanoid(tree, xyz if up is None else xyz @ up.T)
+                except MappingError as exc:
+                    problem = problem or exc
+                    continue
+                auto, problem = (auto if up is None else replace(auto, up=up)), None
+                break
+            if auto is not None:
+                break
     if joint_map:
         result = _user_map(tree, joint_map, auto, path)
     elif auto is None:
@@ -560,10 +644,6 @@ def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<b
                          f"mocapdb joint-map-template {path} > map.toml) and ingest with --joint-map map.toml")
     else:
         result = auto
-    with _MAP_LOCK:
-        if len(_MAP_CACHE) > 256:
-            _MAP_CACHE.clear()
-        _MAP_CACHE[key] = result
     return result
 
 
@@ -616,31 +696,59 @@ def _combine_kernel(origins, ends, point, end_of, weight, out):  # pragma: no co
                         out[f, j, c] += w * ends[f, end_of[p - nj], c]
 
 
-def _combine(jm: JointMap, origins, ends, hier) -> np.ndarray:
+def _combine(point, weight, end_of, origins, ends) -> np.ndarray:
     """The 24 canonical joints from the FK points (a gather: most rows are one point)."""
-    width = max(1, int((jm.weights != 0).sum(axis=1).max()))
-    point = np.zeros((len(JOINT_NAMES), width), dtype=np.int64)
-    weight = np.zeros((len(JOINT_NAMES), width))
-    for j in range(len(JOINT_NAMES)):
-        nz = np.flatnonzero(jm.weights[j])
-        point[j, :len(nz)] = nz
-        weight[j, :len(nz)] = jm.weights[j, nz]
-    end_of = np.array([k for k, j in enumerate(hier.joints) if j.end_site is not None] or [0], dtype=np.int64)
     out = np.empty((origins.shape[0], len(JOINT_NAMES), 3))
     _combine_kernel(origins, ends, point, end_of, weight, out)
     return out
 
 
+@jit
+def _steps_kernel(joints, out):  # pragma: no cover - compiled
+    """out[0] = the largest joint move from frame 0 to 1, out[1] = the largest
+    later frame-to-frame move, out[2] = the height range after frame 0."""
+    n, nj = joints.shape[0], joints.shape[1]
+    lo, hi = np.inf, -np.inf
+    out[0] = 0.0
+    out[1] = 0.0
+    for f in range(n - 1):
+        m = 0.0
+        for j in range(nj):
+            d = 0.0
+            for c in range(3):
+                x = joints[f + 1, j, c] - joints[f, j, c]
+                d += x * x
+            if d > m:
+                m = d
+            y = joints[f + 1, j, 1]
+            lo = min(lo, y)
+            hi = max(hi, y)
+        if f == 0:
+            out[0] = math.sqrt(m)
+        elif m > out[1] * out[1]:
+            out[1] = math.sqrt(m)
+    out[2] = hi - lo
+
+
+def _z_up(joints: np.ndarray) -> bool:
+    """True when the take stands along +Z: the spine (root → neck) of frame 1
+    and of the median frame points up the z axis, not the y axis. (A person
+    lying down for a whole Y-up take has no vertical spine at all.)"""
+    spine = joints[:, JOINT_INDEX["neck"]] - joints[:, JOINT_INDEX["root"]]
+    spine = spine / np.maximum(np.linalg.norm(spine, axis=1, keepdims=True), 1e-12)
+    med = np.median(spine, axis=0)
+    return bool(spine[0, 2] > 0.8 and med[2] > 0.8 and abs(spine[0, 1]) < 0.3)
+
+
 def _rest_frame(joints: np.ndarray) -> bool:
     """True when frame 0 is a converter's rest pose: its jump to frame 1 is far
     above every later frame-to-frame change (READERS.md §2)."""
-    n = joints.shape[0]
-    if n < 4:
+    if joints.shape[0] < 4:
         return False
-    step = np.linalg.norm(np.diff(joints, axis=0), axis=2).max(axis=1)
-    size = float(np.ptp(joints[1:, :, 1])) or 1.0
-    later = float(step[1:].max())
-    return bool(step[0] > 4.0 * later and step[0] > 0.05 * size)
+    out = np.empty(3)
+    _steps_kernel(joints, out)
+    first, later, size = out[0], out[1], out[2] or 1.0
+    return bool(first > 4.0 * later and first > 0.05 * size)
 
 
 def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
@@ -697,9 +805,13 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
         with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
         return np.concatenate([o[0], e[0, with_end]])
 
-    jm = bvh_joint_map(hier, joint_map=joint_map, path=data.path, pose=first_frame)
-    origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point)
-    joints = _combine(jm, origins, ends, hier)
+    jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, first_frame)
+    origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point, needed=needed)
+    joints = _combine(point, weight, end_of, origins, ends)
+    up = jm.up if jm.up is not None else (Z_UP_TO_Y_UP if _z_up(joints) else None)
+    if up is not None:  # a Z-up file: positions and the pelvis rotation turned to Y up
+        joints = np.ascontiguousarray(joints @ up.T)
+        rot = up @ rot
     # feature #40 may read the pelvis rotation only where its x axis is the hip axis
     # (ASF convention) in the take itself: R^T (lhip - rhip) along +x
     hips = joints[:, JOINT_INDEX["lhip"]] - joints[:, JOINT_INDEX["rhip"]]

@@ -20,6 +20,7 @@ import numpy as np
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.bvh import read_bvh
+from mocapdb.readers.c3d import read_c3d
 from mocapdb.errors import MocapdbError, ParseError
 from mocapdb.readers.kinematics import asf_forward_kinematics
 from mocapdb.readers.mapping import load_mapping
@@ -28,7 +29,7 @@ from mocapdb.readers.motion import Motion, check_finite_motion
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates",
            "load_skeleton", "SUPPORTED_EXTENSIONS"]
 
-SUPPORTED_EXTENSIONS = (".amc", ".bvh")
+SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d")
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
@@ -114,14 +115,15 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
     Parameters
     ----------
     path : str or Path
-        ``.amc`` (Acclaim motion; needs a skeleton) or ``.bvh``.
+        ``.amc`` (Acclaim motion; needs a skeleton), ``.bvh`` or ``.c3d``.
     asf : str, Path or Skeleton, optional, keyword-only
         Skeleton of an AMC file; default: :func:`find_skeleton`. Ignored for BVH.
     joint_map : dict, str or Path, optional, keyword-only
         BVH only: canonical joint → the file's joint(s), overriding the
         automatic mapping (:func:`~mocapdb.readers.mapping.load_mapping`).
     marker_map : dict, str or Path, optional, keyword-only
-        C3D only: canonical joint → the markers whose mean it is.
+        C3D only: canonical joint → the markers whose mean it is
+        (:func:`~mocapdb.readers.c3d.read_c3d`).
 
     Returns
     -------
@@ -172,5 +174,7 @@ def _read(path, asf, joint_map, marker_map) -> Motion:
         return read_asf_amc(path, asf)
     if ext == ".bvh":
         return read_bvh(path, joint_map=load_mapping(joint_map, what="joint_map"))
+    if ext == ".c3d":
+        return read_c3d(path, marker_map=load_mapping(marker_map, what="marker_map"))
     raise ParseError(path, None, f"unsupported file type {path.suffix!r} (expected "
                      + " or ".join(SUPPORTED_EXTENSIONS) + ")")

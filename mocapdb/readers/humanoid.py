@@ -45,7 +45,10 @@ import numpy as np
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
-           "mapping_template", "asf_axes_at_rest"]
+           "mapping_template", "asf_axes_at_rest", "Z_UP_TO_Y_UP"]
+
+#: rotation of -90° about x: +Z (up in many capture tools) becomes +Y, +Y becomes -Z
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 #: rig prefixes stripped from joint names (after any ``namespace:``)
 _PREFIXES = {"mixamorig", "bip01", "bip001", "bip02", "bip", "character1", "character", "joint", "jnt",
@@ -144,12 +147,16 @@ class JointMap:
         the root rotation; otherwise it uses the hip axis (READERS.md §2).
     how : dict
         Canonical joint → how it was placed (for messages and templates).
+    up : ndarray, shape (3, 3), or None
+        A rotation to apply to the positions when the skeleton is Z-up (a
+        proper rotation taking +Z to +Y: never a mirror); None when Y is up.
     """
 
     weights: np.ndarray
     rotation_point: int
     asf_axes: bool
     how: dict
+    up: np.ndarray | None = None
 
 
 class MappingError(Exception):
@@ -388,23 +395,15 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
         weights[JOINT_INDEX[joint], point] = 1.0
         how[joint] = (tree.names[point], why)
 
-    for key in leg_keys:
-        s = sides[key]
-        top, mid, end, tip, why = limb[key][1]
-        put(f"{s}hip", top, why)
-        put(f"{s}knee", mid, why)
-        put(f"{s}ankle", end, why)
-        put(f"{s}toes", tip, "leaf")
-    arm_attach = {}
-    for (attach, first) in arms:
-        key = ("arm", first)
-        s = sides[key]
-        top, mid, end, tip, why = limb[key][1]
-        put(f"{s}shoulder", top, why)
-        put(f"{s}elbow", mid, why)
-        put(f"{s}wrist", end, why)
-        put(f"{s}fingers", tip, "leaf")
-        arm_attach[s] = (attach, first)
+    for keys, joints in ((leg_keys, ("hip", "knee", "ankle", "toes")),
+                         (arm_keys, ("shoulder", "elbow", "wrist", "fingers"))):
+        for key in keys:
+            s = sides[key]
+            top, mid, end, tip, why = limb[key][1]
+            for joint, point in zip(joints, (top, mid, end)):
+                put(f"{s}{joint}", point, why)
+            put(f"{s}{joints[3]}", tip, "leaf")
+    arm_attach = {sides[("arm", first)]: (attach, first) for attach, first in arms}
 
     put("root", pelvis, "pelvis: common ancestor of the feet")
     # head top: the highest leaf; head: the joint named Head on the spine path, else

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mocapdb._numba import jit
 from mocapdb.errors import ParseError
 
 
@@ -77,6 +78,24 @@ def check_rate(fps, path, line=None) -> float:
     return float(fps)
 
 
+@jit
+def _extent_kernel(points, centre, out):  # pragma: no cover - compiled
+    """out[0] = 1 if any coordinate is not finite, out[1] = the largest |x - centre|."""
+    bad = 0.0
+    far = 0.0
+    for k in range(points.shape[0]):
+        for c in range(3):
+            x = points[k, c]
+            if not math.isfinite(x):
+                bad = 1.0
+            else:
+                d = abs(x - centre[c])
+                if d > far:
+                    far = d
+    out[0] = bad
+    out[1] = far
+
+
 def check_finite_motion(joints: np.ndarray, path, *, first_line=None) -> None:
     """Refuse non-finite joint positions or positions absurdly far from the body.
 
@@ -88,14 +107,20 @@ def check_finite_motion(joints: np.ndarray, path, *, first_line=None) -> None:
     """
     if joints.size == 0:
         raise ParseError(path, first_line, "no frames")
+    first = joints[0]
+    size = float(np.ptp(first, axis=0).max()) or 1.0
+    centre = first.mean(axis=0)
+    # one pass over the whole array first; frames only for the message
+    extent = np.empty(2)
+    _extent_kernel(np.ascontiguousarray(joints, dtype=np.float64).reshape(-1, 3), centre, extent)
+    if extent[0] == 0.0 and extent[1] <= 1e6 * size:
+        return
     finite = np.isfinite(joints).all(axis=(1, 2))
     if not finite.all():
         f = int(np.argmin(finite))
         raise ParseError(path, None if first_line is None else first_line + f,
                          "non-finite joint position (NaN or inf)", frame=f + 1)
-    first = joints[0]
-    size = float(np.ptp(first, axis=0).max()) or 1.0
-    far = np.abs(joints - first.mean(axis=0)).max(axis=(1, 2)) > 1e6 * size
+    far = np.abs(joints - centre).max(axis=(1, 2)) > 1e6 * size
     if far.any():
         f = int(np.argmax(far))
         raise ParseError(path, None if first_line is None else first_line + f,

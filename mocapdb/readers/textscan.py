@@ -23,7 +23,10 @@ _P10 = np.array([10.0 ** k for k in range(23)])
 NUM_OK, NUM_SLOW, NUM_BAD = 0, 1, 2
 
 _TWO53 = 2 ** 53
-_MANT_LIMIT = 10 ** 17
+_ZERO = np.uint8(48)
+#: digits that always fit the int64 mantissa (10**17 < 2**63)
+_MAX_DIGITS = 17
+_NINE = np.uint8(9)
 
 
 #: byte classes: 0 = token byte, 1 = blank (space, tab, CR, VT, FF), 2 = LF.
@@ -60,33 +63,33 @@ def _scan_number(buf, i, end):  # pragma: no cover - numba
         i += 1
     m = 0
     exp10 = 0
-    big = False
-    anyd = False
     bad = False
-    c = 0
+    # the digit loops do one unsigned compare per byte (a byte below '0' wraps
+    # around above 9) and count digits instead of checking m: more than 17
+    # digits may overflow m and take Python's float (the slow path) anyway
+    first = i
     while i < end:
-        c = int(buf[i])
-        if c < 48 or c > 57:
+        d = buf[i] - _ZERO
+        if d > _NINE:
             break
-        anyd = True
-        if m < _MANT_LIMIT:
-            m = m * 10 + (c - 48)
-        else:
-            big = True
+        m = m * 10 + int(d)
         i += 1
-    if i < end and c == 46:
+    nd = i - first
+    c = int(buf[i]) if i < end else 0
+    if c == 46:
         i += 1
+        first = i
         while i < end:
-            c = int(buf[i])
-            if c < 48 or c > 57:
+            d = buf[i] - _ZERO
+            if d > _NINE:
                 break
-            anyd = True
-            if m < _MANT_LIMIT:
-                m = m * 10 + (c - 48)
-                exp10 -= 1
-            else:
-                big = True
+            m = m * 10 + int(d)
             i += 1
+        exp10 -= i - first
+        nd += i - first
+        c = int(buf[i]) if i < end else 0
+    anyd = nd > 0
+    big = nd > _MAX_DIGITS
     if not anyd:
         bad = True
     if i < end and (c == 101 or c == 69) and not bad:
@@ -249,11 +252,11 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
     """
     buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
     # a header's row count is never trusted for allocation (READERS.md §4): at
-    # most as many rows as there are lines left, one more to detect extra lines
+    # most the lines there are (one C pass), one more to detect extra lines
     n_alloc = min(n_rows, data.count(b"\n", start) + 1)
-    cap = max(4096, n_alloc * n_cols // 16)  # slow-path tokens are rare; rerun if not
+    cap = max(256, n_alloc * n_cols // 16)  # slow-path tokens are rare; rerun if not
     while True:
-        out = np.zeros((n_alloc, n_cols))
+        out = np.empty((n_alloc, n_cols))  # every returned row is written
         fb_index = np.zeros(cap, dtype=np.int64)
         fb_start = np.zeros(cap, dtype=np.int64)
         fb_end = np.zeros(cap, dtype=np.int64)

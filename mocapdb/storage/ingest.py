@@ -115,7 +115,40 @@ def _fingerprint(path: Path, asf) -> _Prepared:
         raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
 
 
-def _compute(prep: _Prepared) -> _Prepared:
+def prepare_file(path, *, asf=None, maps=None):
+    """Fingerprint one file as ingest does, before reading it.
+
+    Parameters
+    ----------
+    path : str or Path
+    asf : str or Path, optional, keyword-only
+        Skeleton of an AMC file (default: found by the dataset conventions).
+    maps : dict, optional, keyword-only
+        :func:`reader_maps` output.
+
+    Returns
+    -------
+    record
+        ``path``, ``sha256``, ``skeleton_path`` and ``skeleton_sha256`` (the
+        ``motions`` key) and ``reader_options``; the input of :func:`compute_motion`.
+
+    Raises
+    ------
+    MocapdbError
+        If an AMC file's skeleton cannot be found, or the file cannot be read.
+    """
+    prep = _fingerprint(Path(path), asf)
+    prep.reader_options = _reader_options(prep.path, maps or {})
+    return prep
+
+
+def compute_motion(prep):
+    """Read a prepared file and compute its 30 Hz feature words, as ingest does.
+
+    Sets ``prep.motion`` (:class:`mocapdb.readers.Motion`) and ``prep.words``
+    ((n_frames,) uint64), or ``prep.error`` (the reader's message) when the
+    file cannot be read; returns ``prep``.
+    """
     # any failure stays with its file: a reader raises only MocapdbError, but a
     # bug must not stop the other files of an archive (READERS.md §4)
     try:
@@ -141,18 +174,20 @@ def _stored_keys(con) -> dict:
     return {(a, b): mid for mid, a, b in con.execute(_sql("stored_keys")).fetchall()}
 
 
-def store_motions(con, preps) -> list[int]:
-    """Insert computed motions — their ``motions`` rows, ``features`` rows and,
-    when the keyframe index exists, postings — in one transaction.
+def motions_table(preps) -> pa.Table:
+    """The ``motions`` rows of computed files (:func:`compute_motion`), without
+    ``motion_id`` and ``ingested_at``.
 
-    Returns the new motion ids in the order of ``preps``.
+    Raises
+    ------
+    MocapdbError
+        If a file's feature frames do not match its source frames.
     """
     for p in preps:
         n30 = int(p.words.shape[0])
         if n30 != feature_frame_count(p.motion.n_frames, p.motion.fps):
             raise MocapdbError(f"{p.path}: {n30} feature frames for {p.motion.n_frames} source frames")
-    meta = pa.table({
-        "ord": pa.array(np.arange(len(preps), dtype=np.int32)),
+    return pa.table({
         "name": pa.array([p.motion.name or p.path.stem for p in preps], pa.string()),
         "source_path": pa.array([str(p.path.resolve()) for p in preps], pa.string()),
         "format": pa.array([p.motion.source_format for p in preps], pa.string()),
@@ -167,21 +202,70 @@ def store_motions(con, preps) -> list[int]:
                                   pa.string()),
         "reader_options": pa.array([p.reader_options for p in preps], pa.string()),
     })
+
+
+
+def store_motions(con, preps) -> list[int]:
+    """Insert computed motions — their ``motions`` rows, ``features`` rows and,
+    when the keyframe index exists, postings — in one transaction.
+
+    Returns the new motion ids in the order of ``preps``.
+    """
+    meta = motions_table(preps)
+    meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
+    return _insert(con, meta, [p.words for p in preps])
+
+
+def _insert(con, meta: pa.Table, words: list) -> list[int]:
+    """Insert ``motions`` rows (``meta``, with ``ord``) with their words, features and postings: one transaction."""
     with transaction(con):
         with registered(con, mocap_new_motions=meta):
             rows = con.execute(_sql("insert_motions")).fetchall()
         by_key = {(a, b): mid for mid, a, b in rows}
-        ids = [by_key[(p.sha256, p.skeleton_sha256)] for p in preps]
-        counts = np.array([p.words.shape[0] for p in preps], dtype=np.int64)
+        ids = [by_key[k] for k in zip(meta.column("sha256").to_pylist(), meta.column("skeleton_sha256").to_pylist())]
+        counts = np.array([len(w) for w in words], dtype=np.int64)
         feats = pa.table({
             "motion_id": pa.array(np.repeat(np.array(ids, dtype=np.int32), counts)),
             "frame": pa.array(np.concatenate([np.arange(1, c + 1, dtype=np.int32) for c in counts])),
-            "bits": pa.array(np.concatenate([p.words for p in preps]).astype(np.uint64, copy=False)),
+            "bits": pa.array(np.concatenate(words).astype(np.uint64, copy=False)),
         })
         with registered(con, mocap_new_features=feats):
             con.execute(_sql("insert_features"))
-        index_motions(con, dict(zip(ids, (p.words for p in preps))))
+        index_motions(con, dict(zip(ids, words)))
     return ids
+
+
+def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: str = "words") -> list[int]:
+    """Store motions given only as 30 Hz feature words (computed elsewhere, or synthetic).
+
+    Each becomes a ``motions`` row (format ``words``, no source file to re-read:
+    ``source_path`` is ``"<source>:<name>"``), its ``features`` rows and its
+    postings, in one transaction.
+
+    Returns
+    -------
+    list of int
+        The new motion ids, in the order of ``words_by_name``.
+    """
+    names = list(words_by_name)
+    words = [np.ascontiguousarray(words_by_name[n], dtype=np.uint64) for n in names]
+    n30 = np.array([len(w) for w in words], dtype=np.int64)
+    meta = pa.table({
+        "ord": pa.array(np.arange(len(names), dtype=np.int32)),
+        "name": pa.array(names, pa.string()),
+        "source_path": pa.array([f"{source}:{n}" for n in names], pa.string()),
+        "format": pa.array(["words"] * len(names), pa.string()),
+        "sha256": pa.array([hashlib.sha256(w.tobytes()).hexdigest() for w in words], pa.string()),
+        "skeleton_sha256": pa.array([None] * len(names), pa.string()),
+        "source_fps": pa.array([float(fps)] * len(names), pa.float64()),
+        "fps": pa.array([FEATURE_RATE] * len(names), pa.float64()),
+        "n_source_frames": pa.array(((n30 - 1) * fps / FEATURE_RATE + 1).astype(np.int32), pa.int32()),
+        "n_frames": pa.array(n30.astype(np.int32), pa.int32()),
+        "skeleton": pa.array([None] * len(names), pa.string()),
+        "skeleton_path": pa.array([None] * len(names), pa.string()),
+        "reader_options": pa.array([None] * len(names), pa.string()),
+    })
+    return _insert(con, meta, words)
 
 
 #: computed files are stored in batches, one transaction per batch, once a batch
@@ -200,7 +284,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     con : duckdb.DuckDBPyConnection
         A connection with the mocapdb schema.
     paths : iterable of str or Path
-        Files (``.amc``, ``.bvh``) or folders, searched recursively.
+        Files (``.amc``, ``.bvh``, ``.c3d``) or folders, searched recursively.
     asf : str or Path, optional, keyword-only
         Skeleton for every AMC file. By default each AMC's ASF is found by the
         dataset conventions (:func:`mocapdb.readers.find_skeleton`).
@@ -228,15 +312,14 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     """
     report = IngestReport()
     files = motion_files(paths, unsupported=report.unsupported)
-    maps = {"joint_map": load_mapping(joint_map, what="joint_map"),
-            "marker_map": load_mapping(marker_map, what="marker_map")}
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
     stored = _stored_keys(con)
     todo = []
     first_of = {}     # key -> the first file of this ingest with those bytes
     duplicates = []   # (path, key): decided once the first file is read
     for path in files:
         try:
-            prep = _fingerprint(path, asf)
+            prep = prepare_file(path, asf=asf, maps=maps)
         except MocapdbError as exc:
             report.failed.append((str(path), str(exc)))
             _tick(progress, path, 0)
@@ -249,7 +332,6 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
             duplicates.append((path, key))
         else:
             first_of[key] = str(path)
-            prep.reader_options = _reader_options(path, maps)
             todo.append(prep)
 
     batch = []
@@ -274,7 +356,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
         batch.clear()
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        for prep in pool.map(_compute, todo):
+        for prep in pool.map(compute_motion, todo):
             if prep.error is not None:
                 report.failed.append((str(prep.path), prep.error))
                 _tick(progress, prep.path, 0)
@@ -298,6 +380,12 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
 
 #: which reader option applies to which file type
 _OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d"}
+
+
+def reader_maps(*, joint_map=None, marker_map=None) -> dict:
+    """The reader options of an ingest, loaded and checked once (:func:`mocapdb.readers.load_mapping`)."""
+    return {"joint_map": load_mapping(joint_map, what="joint_map"),
+            "marker_map": load_mapping(marker_map, what="marker_map")}
 
 
 def _reader_options(path: Path, maps: dict) -> str | None:
@@ -328,4 +416,5 @@ def delete_motions(con, motion_ids) -> int:
         return len(con.execute(_sql("delete_motions"), ids).fetchall())
 
 
-__all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "delete_motions", "MOTION_SUFFIXES"]
+__all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "store_words", "delete_motions",
+           "MOTION_SUFFIXES", "prepare_file", "compute_motion", "motions_table", "reader_maps"]

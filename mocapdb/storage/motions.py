@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -92,23 +92,39 @@ def motion_documents(con, ids=None) -> Documents:
 
 
 def documents_by_name(con, names) -> Documents:
-    """The motions named ``names`` (each must name exactly one motion).
+    """The motions named ``names``: a motion name (the file stem) that names one
+    motion, or a file name (``HDM_dg_06-03_03_120.c3d``) where the stem names
+    several (the same take as AMC and C3D). ``Documents.names`` are the names
+    as given.
 
     Raises
     ------
     SchemaError
-        A name matches no motion, or several (give unique names).
+        A name matches no motion, or several (name the file instead).
     """
     count = dict(con.execute(_sql("name_counts")).fetchall())
     wanted = sorted(set(names))
-    missing = [n for n in wanted if n not in count]
+    ids, missing, dup = {}, [], []
+    for n in wanted:
+        if count.get(n, 0) == 1:
+            ids[n] = con.execute(_sql("by_name"), {"name": n}).fetchall()[0][0]
+            continue
+        by_file = [r[0] for r in con.execute(_sql("by_file_name"), {"name": n}).fetchall()]
+        if len(by_file) == 1:
+            ids[n] = by_file[0]
+        elif count.get(n, 0) > 1 or len(by_file) > 1:
+            dup.append(n)
+        else:
+            missing.append(n)
     if missing:
         raise SchemaError(f"documents {missing} are not in the database; ingest them first "
-                          "(document = motion name, the file stem)")
-    dup = [n for n in wanted if count[n] > 1]
+                          "(document = motion name, the file stem, or the file name)")
     if dup:
-        raise SchemaError(f"documents {dup} name several motions; rename or delete duplicates")
-    return motion_documents(con, motion_ids(con, wanted))
+        raise SchemaError(f"documents {dup} name several motions (e.g. the same take as .amc and .c3d); "
+                          "name the file instead (86_09.amc), or delete duplicates")
+    docs = motion_documents(con, sorted(set(ids.values())))
+    given = {mid: n for n, mid in ids.items()}
+    return replace(docs, names=[given[int(m)] for m in docs.motion_ids])
 
 
 def source_motion(con, motion_id):

@@ -4,6 +4,14 @@ Layout written by :func:`export_features` (DuckDB reads it in place)::
 
     DIR/motions.parquet                       one row per motion (the motions table)
     DIR/features/motion_id=<id>/*.parquet     frame, bits of that motion (hive partitioning)
+
+:func:`import_features` also reads the archives that ``mocapdb.distributed``
+writes on a Ray cluster, whose datasets have the columns of the tables
+(:func:`table_schemas`)::
+
+    DIR/motions/*.parquet                              the motions table
+    DIR/features/motion_bucket=<k>/*.parquet           motion_id, frame, bits
+    DIR/annotations/motion_bucket=<k>/*.parquet        the annotations table (imported too)
 """
 from __future__ import annotations
 
@@ -15,6 +23,7 @@ import pyarrow.parquet as pq
 
 from mocapdb.errors import ParameterError
 from mocapdb.storage.postings import index_motions
+from mocapdb.storage.schema import open_database
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
@@ -67,8 +76,43 @@ def features_sql(directory) -> str:
             f"FROM read_parquet({_quote(d / 'features' / '*' / '*.parquet')}, hive_partitioning = true)")
 
 
+#: the DuckDB table each Parquet dataset of an archive mirrors (:func:`table_schemas`)
+ARCHIVE_TABLES = ("motions", "features", "postings", "annotations")
+
+
+def table_schemas() -> dict:
+    """The Arrow schemas of the tables an archive on Parquet mirrors, read from DuckDB.
+
+    Returns
+    -------
+    dict of str to pyarrow.Schema
+        For each of :data:`ARCHIVE_TABLES`: the columns and types of the table
+        (``postings``: ``mocap_index.postings``) as ``sql/schema.sql`` and
+        ``sql/index.sql`` create it.
+    """
+    con = open_database(":memory:")
+    try:
+        return {t: con.sql(_sql(f"empty_{t}")).to_arrow_table().schema for t in ARCHIVE_TABLES}
+    finally:
+        con.close()
+
+
+def _motions_file(d: Path):
+    """The motions of an export (one file) or of a Ray archive (a folder of parts)."""
+    for f in (d / "motions.parquet", d / "motions"):
+        if f.exists():
+            return f
+    raise ParameterError(f"directory: {str(d)!r} has no motions.parquet or motions/ (written by "
+                         "export_features or ray_annotate)")
+
+
 def import_features(con, directory) -> dict[int, int]:
-    """Load an export back (one transaction): motions not yet present (by sha256) get new ids.
+    """Load an export, or an archive written by ``ray_annotate``, back (one transaction):
+    motions not yet present (by sha256) get new ids.
+
+    The features of the new motions are imported (and indexed, when the
+    keyframe index exists) and, from a ``ray_annotate`` archive, their
+    annotations.
 
     Returns
     -------
@@ -76,9 +120,7 @@ def import_features(con, directory) -> dict[int, int]:
         Exported motion id → motion id in this database, for the motions added.
     """
     d = Path(directory)
-    if not (d / "motions.parquet").is_file():
-        raise ParameterError(f"directory: {str(d)!r} has no motions.parquet (written by export_features)")
-    motions = pq.read_table(d / "motions.parquet")
+    motions = pq.read_table(_motions_file(d))
     stored = {(a, b) for _, a, b in con.execute(statement("motions.sql", "stored_keys")).fetchall()}
     keys = zip(motions.column("sha256").to_pylist(), motions.column("skeleton_sha256").to_pylist())
     new = motions.filter(pa.array([k not in stored for k in keys], pa.bool_()))
@@ -93,10 +135,12 @@ def import_features(con, directory) -> dict[int, int]:
         id_map = pa.table({"old": pa.array(old_ids, pa.int32()), "new": pa.array(new_ids, pa.int32())})
         with registered(con, mocap_id_map=id_map):
             con.execute(_sql("import_features"), {"features": str(d / "features" / "*" / "*.parquet")})
+            if (d / "annotations").is_dir():
+                con.execute(_sql("import_annotations"), {"annotations": str(d / "annotations" / "*" / "*.parquet")})
         rows = con.execute(_sql("words_of_motions"), {"ids": new_ids}).fetchnumpy()
         ids, starts = np.unique(rows["motion_id"], return_index=True)
         index_motions(con, dict(zip(ids.tolist(), np.split(np.asarray(rows["bits"], np.uint64), starts[1:]))))
     return mapping
 
 
-__all__ = ["export_features", "import_features", "features_sql"]
+__all__ = ["export_features", "import_features", "features_sql", "table_schemas", "ARCHIVE_TABLES"]

@@ -1,0 +1,344 @@
+"""The pipeline on a local Ray (the `ray` extra, which CI installs: without Ray this
+module fails, it does not skip): the Parquet archive equals ingest + annotate on
+the same files, broken files become rows of `errors`, a worker killed mid-run
+changes nothing, and the archive is usable from SQL."""
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import duckdb
+import pyarrow.parquet as pq
+import pytest
+import ray  # noqa: F401  (the extra must be installed: an ImportError here fails the module)
+from click.testing import CliRunner
+
+import mocapdb
+from mocapdb import api
+from mocapdb.cli import main
+from mocapdb.distributed import (DATASETS, ERRORS_SCHEMA, MissingExtraError, MotionWorker, expand_sources,
+                                 ray_annotate, ray_session, require_ray)
+from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.storage.models import load_model
+from mocapdb.storage.parquet import table_schemas
+
+from conftest import DATA, REPO
+
+#: Ray Data's own DataContext warns about its deprecated fields whenever it copies itself
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context")
+
+SOURCES = [DATA / "hdm05_cut", DATA / "cmu" / "02"]
+#: small batches and buckets, so that batches cross bucket borders (100 is not a multiple of 16)
+RUN = {"batch_files": 16, "bucket_motions": 100}
+
+
+@pytest.fixture(scope="module")
+def local_ray(tmp_path_factory):
+    """One local Ray with 2 CPUs for the whole module, started as ray_annotate starts one.
+
+    Ray puts the driver's working directory first on its workers' sys.path; the
+    tests run from the checkout, whose ``mocapdb`` would then shadow the installed
+    package under test. So Ray starts from an empty folder."""
+    here = os.getcwd()
+    os.chdir(tmp_path_factory.mktemp("ray_cwd"))
+    try:
+        session = ray_session(require_ray(), num_cpus=2)
+        cpus = session.__enter__()
+    finally:
+        os.chdir(here)
+    try:
+        assert cpus == 2
+        yield
+    finally:
+        session.__exit__(None, None, None)
+
+
+@pytest.fixture(scope="module")
+def single(tmp_path_factory):
+    """The single-machine path on the same files: ingest, then annotate (stored)."""
+    con = mocapdb.connect(tmp_path_factory.mktemp("single") / "single.duckdb")
+    report = mocapdb.ingest(con, SOURCES)
+    assert not report.failed
+    mocapdb.annotate(con)
+    yield con
+    con.close()
+
+
+@pytest.fixture(scope="module")
+def archive(local_ray, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ray") / "archive"
+    return out, ray_annotate(SOURCES, out, **RUN)
+
+
+def _views(con, out, prefix):
+    """Views ``<prefix>_<dataset>`` over an archive's Parquet, as plain DuckDB reads it."""
+    for name in DATASETS:
+        glob = f"{out}/{name}/*/*.parquet" if name in ("features", "postings", "annotations") else \
+            f"{out}/{name}/*.parquet"
+        con.execute(f"CREATE OR REPLACE TEMP VIEW {prefix}_{name} AS "
+                    f"SELECT * FROM read_parquet('{glob}', hive_partitioning = true)")
+
+
+#: rows by source file (motion ids differ between databases), without the timestamps
+QUERIES = {
+    "motions": "SELECT * EXCLUDE (motion_id, ingested_at) FROM {motions}",
+    "features": "SELECT m.source_path, f.frame, f.bits FROM {features} f JOIN {motions} m USING (motion_id)",
+    "postings": "SELECT m.source_path, p.* EXCLUDE (motion_id) FROM {postings} p JOIN {motions} m USING (motion_id)",
+    "annotations": "SELECT m.source_path, a.* EXCLUDE (motion_id, annotated_at) "
+                   "FROM {annotations} a JOIN {motions} m USING (motion_id)",
+}
+DB_TABLES = {"motions": "motions", "features": "features", "postings": "mocap_index.postings",
+             "annotations": "annotations"}
+
+
+def _rows(con, dataset, tables):
+    rel = con.sql(QUERIES[dataset].format(**tables))
+    keep = [f'"{c}"' for c in rel.columns if c != "motion_bucket"]  # the hive partition column
+    return sorted(rel.project(", ".join(keep)).fetchall(), key=repr)
+
+
+def _archive_rows(con, out, prefix, dataset):
+    _views(con, out, prefix)
+    return _rows(con, dataset, {k: f"{prefix}_{k}" for k in DB_TABLES})
+
+
+def test_the_archive_equals_ingest_and_annotate(single, archive):
+    out, report = archive
+    n = single.execute("SELECT count(*) FROM motions").fetchall()[0][0]
+    assert len(report.ingested) == n == 241 and not report.failed and not report.skipped
+    for dataset in DB_TABLES:
+        want = _rows(single, dataset, DB_TABLES)
+        got = _archive_rows(single, out, "r", dataset)
+        assert len(got) == len(want) > 0, dataset
+        assert got == want, f"{dataset}: the archive differs from ingest + annotate"
+    # segment for segment: same motions, labels, frames and costs (default model, keyframes as stored)
+    segs = single.execute("SELECT count(*), count(DISTINCT label) FROM annotations").fetchall()[0]
+    assert report.segments == segs[0] > 200 and segs[1] > 5
+
+
+def test_motion_ids_follow_the_file_list_and_parts_their_buckets(archive):
+    out, report = archive
+    files = expand_sources(SOURCES)
+    assert [(f, i) for f, i, _ in report.ingested] == [(str(f), k + 1) for k, f in enumerate(files)]
+    schemas = {**table_schemas(), "errors": ERRORS_SCHEMA}
+    for name in DATASETS:
+        parts = sorted((out / name).rglob("*.parquet"))
+        assert parts, name
+        for part in parts:
+            assert pq.read_schema(part).remove_metadata() == schemas[name], part
+            if name in ("features", "postings", "annotations"):
+                bucket = int(re.fullmatch(r"motion_bucket=(\d+)", part.parent.name).group(1))
+                first, last = map(int, re.fullmatch(r"part-(\d+)-(\d+)\.parquet", part.name).groups())
+                ids = pq.read_table(part).column("motion_id").to_pylist()
+                assert all(bucket * 100 < i <= (bucket + 1) * 100 and first <= i <= last for i in ids), part
+    assert sorted(p.name for p in (out / "features").iterdir()) == [f"motion_bucket={k}" for k in range(3)]
+    assert not [p for p in out.rglob("*") if p.name.startswith(".")]  # no temporary files left
+
+
+def test_every_format_and_every_failure_as_ingest(local_ray, tmp_path):
+    """Foreign recordings (BVH of other tools, an AMC of another lab): the same motions and
+    rows as ingest + annotate, and the files ingest refuses are the errors, with its reasons."""
+    sources = [DATA / "foreign"]
+    con = mocapdb.connect()
+    try:
+        report = mocapdb.ingest(con, sources)
+        mocapdb.annotate(con)
+        out = tmp_path / "archive"
+        ray_report = ray_annotate(sources, out)
+        assert len(ray_report.ingested) == len(report.ingested) > 0
+        for dataset in DB_TABLES:
+            assert _archive_rows(con, out, "f", dataset) == _rows(con, dataset, DB_TABLES), dataset
+        errors = pq.read_table(out / "errors").to_pylist()
+        assert sorted((e["file"], e["reason"]) for e in errors) == sorted(report.failed) == sorted(ray_report.failed)
+    finally:
+        con.close()
+
+
+def _broken_folder(tmp_path):
+    """Real HDM05 files, a truncated copy of one (cut inside a frame) and a byte-identical copy."""
+    d = tmp_path / "mixed"
+    (d / "kick").mkdir(parents=True)
+    shutil.copy(DATA / "hdm05_cut" / "HDM_bd.asf", d)
+    good = sorted((DATA / "hdm05_cut" / "kickLFront1Reps").glob("HDM_bd_*.amc"))[:3]
+    for p in good:
+        shutil.copy(p, d / "kick")
+    text = good[0].read_bytes()
+    (d / "kick" / "HDM_bd_truncated_120.amc").write_bytes(text[: len(text) // 2 - 7])
+    shutil.copy(good[1], d / "kick" / "HDM_bd_zcopy_120.amc")
+    return d, good
+
+
+def test_broken_files_become_rows_of_errors_and_the_rest_goes_on(local_ray, tmp_path):
+    d, good = _broken_folder(tmp_path)
+    out = tmp_path / "archive"
+    report = ray_annotate([d], out, batch_files=2)
+    broken = str(d / "kick" / "HDM_bd_truncated_120.amc")
+    errors = pq.read_table(out / "errors").to_pylist()
+    assert [e["file"] for e in errors] == [broken] == [f for f, _ in report.failed]
+    assert re.match(rf"{re.escape(broken)}:\d+", errors[0]["reason"]), errors[0]["reason"]
+    # the good files are in, the byte-identical copy once (skipped, as ingest does)
+    names = sorted(pq.read_table(out / "motions").column("name").to_pylist())
+    assert names == sorted(p.stem for p in good)
+    assert report.skipped == [(str(d / "kick" / "HDM_bd_zcopy_120.amc"),
+                               f"same bytes as {d / 'kick' / good[1].name} of this run")]
+    con = duckdb.connect()
+    try:
+        _views(con, out, "a")
+        ids = con.execute("SELECT DISTINCT motion_id FROM a_features ORDER BY 1").fetchall()
+        assert ids == con.execute("SELECT motion_id FROM a_motions ORDER BY 1").fetchall()
+        assert len(ids) == 3
+    finally:
+        con.close()
+    # the same through the CLI: one line per failed file, the summary, exit 0 (some files went in)
+    r = CliRunner().invoke(main, ["ray-annotate", str(d), "--out", str(out), "--overwrite", "--batch-files", "2"])
+    assert r.exit_code == 0, r.output
+    assert f"failed  {broken}:" in r.output and "3 motions" in r.output and "1 skipped, 1 failed" in r.output
+
+
+def _dies_once(victim: str, marker: Path):
+    """A MotionWorker that kills its own process once, after writing the features and
+    postings parts of the batch holding ``victim`` (the marker file says it did)."""
+
+    class DiesOnce(MotionWorker):
+        def __call__(self, batch):
+            self.paths = batch.column("path").to_pylist()
+            return super().__call__(batch)
+
+        def write_part(self, relative, table):
+            super().write_part(relative, table)
+            if relative.startswith("postings/") and victim in self.paths and not marker.exists():
+                marker.write_text(str(os.getpid()))
+                os._exit(1)
+
+    return DiesOnce
+
+
+def test_a_worker_killed_mid_run_changes_nothing(local_ray, archive, single, tmp_path):
+    out, clean = archive
+    files = expand_sources(SOURCES)
+    victim = str(files[len(files) // 2])
+    marker = tmp_path / "died"
+    killed = tmp_path / "archive"
+    report = ray_annotate(SOURCES, killed, worker=_dies_once(victim, marker), **RUN)
+    assert marker.exists()  # a worker did die, after writing part of its batch
+    assert report.ingested == clean.ingested and report.segments == clean.segments
+    for dataset in DB_TABLES:
+        assert _archive_rows(single, killed, "k", dataset) == _archive_rows(single, out, "c", dataset), dataset
+    # no duplicates: one row per motion and per (motion, frame); every part once
+    assert single.execute("SELECT count(*) = count(DISTINCT motion_id) FROM k_motions").fetchall()[0][0]
+    assert single.execute("SELECT count(*) = count(DISTINCT (motion_id, frame)) FROM k_features").fetchall()[0][0]
+    assert sorted(p.relative_to(killed) for p in killed.rglob("*") if p.is_file()) == \
+        sorted(p.relative_to(out) for p in out.rglob("*") if p.is_file())
+
+
+def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, tmp_path):
+    out, report = archive
+    con = api.connect(tmp_path / "imported.duckdb")
+    try:
+        assert len(api.import_features(con, out)) == len(report.ingested)
+        by_file = ("SELECT m.source_path, s.label, s.start_frame, s.end_frame, s.cost FROM motions m, "
+                   "LATERAL (SELECT unnest(annotate(m.motion_id), recursive := true)) s")
+        sql = sorted(con.execute(by_file).fetchall())
+        assert sql == sorted(single.execute(by_file).fetchall()) and len(sql) == report.segments
+        # the Ray annotations came along into the annotations table
+        assert _rows(con, "annotations", DB_TABLES) == _rows(single, "annotations", DB_TABLES)
+        for c in load_model(con).class_names:
+            q = (f"SELECT m.source_path, k.start_frame, k.end_frame FROM keyframe_search('{c}') k "
+                 "JOIN motions m USING (motion_id)")
+            assert sorted(con.execute(q).fetchall()) == sorted(single.execute(q).fetchall()), c
+        assert api.import_features(con, out) == {}  # the same motions again: nothing new
+    finally:
+        con.close()
+
+
+def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, tmp_path):
+    """`mocapdb --db DB ray-annotate --model NAME --tau … --no-keyframes`: the model comes from the
+    database; the segments equal `annotate` with the same options in that database."""
+    root = tmp_path / "cut"
+    root.mkdir()
+    for asf in (DATA / "hdm05_cut").glob("HDM_*.asf"):
+        (root / asf.name).symlink_to(asf)
+    for c in ("squat1Reps", "kickLFront1Reps"):
+        (root / c).symlink_to(DATA / "hdm05_cut" / c, target_is_directory=True)
+    db = tmp_path / "trained.duckdb"
+    con = api.connect(db)
+    try:
+        api.train(con, model="two", folder=root)
+        api.ingest(con, [DATA / "cmu" / "02", root])
+        want = api.annotate(con, model="two", tau=0.2, keyframes=False, store=True)
+        single = _rows(con, "annotations", DB_TABLES)
+    finally:
+        con.close()
+    out = tmp_path / "archive"
+    r = CliRunner().invoke(main, ["--db", str(db), "ray-annotate", str(DATA / "cmu" / "02"), str(root), "--out",
+                                  str(out), "--model", "two", "--tau", "0.2", "--no-keyframes"])
+    assert r.exit_code == 0, r.output
+    assert f"{want.num_rows} segments written to {out}" in r.output
+    con = duckdb.connect()
+    try:
+        _views(con, out, "t")
+        assert _rows(con, "annotations", {k: f"t_{k}" for k in DB_TABLES}) == single
+        assert con.execute("SELECT DISTINCT model, tau, keyframes FROM t_annotations").fetchall() == [("two", 0.2, False)]
+    finally:
+        con.close()
+
+
+def test_the_readme_example_queries_the_parquet_in_place(archive, tmp_path, monkeypatch):
+    """The README section's Python block, run where `archive` is the archive."""
+    out, report = archive
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## Archives larger than one machine", 1)[1].split("\n## ", 1)[0]
+    code = re.findall(r"```python\n(.*?)```", section, flags=re.S)
+    assert len(code) == 1
+    assert re.search(r"mocapdb ray-annotate .* --out archive", section)
+    assert "mocapdb --db archive.duckdb import-features archive" in section
+    (tmp_path / "archive").symlink_to(out, target_is_directory=True)
+    monkeypatch.chdir(tmp_path)
+    scope = {}
+    exec(code[0], scope)
+    rows = scope["seconds"].fetchall()
+    assert sum(n for _, n, _ in rows) == report.segments and all(s > 0 for _, _, s in rows)
+
+
+def test_sources_expand_like_ingest_and_globs(tmp_path):
+    cmu = DATA / "cmu" / "02"
+    assert expand_sources([cmu]) == expand_sources([f"{cmu}/*.amc"]) == sorted(cmu.glob("*.amc"))
+    assert expand_sources([f"{DATA}/hdm05_cut/**/*.amc"]) == sorted(expand_sources([DATA / "hdm05_cut"]))
+    assert expand_sources([cmu, cmu / "02_01.amc"]) == expand_sources([cmu])  # listed twice: once
+    with pytest.raises(ParameterError, match="matches no motion file"):
+        expand_sources([f"{cmu}/*.nothing"])
+    with pytest.raises(ParameterError, match="does not exist"):
+        expand_sources([tmp_path / "nowhere"])
+
+
+def test_parameters_are_checked_before_any_work(tmp_path):
+    with pytest.raises(SchemaError, match="no model 'nope'"):
+        ray_annotate(SOURCES, tmp_path / "a", model="nope")
+    with pytest.raises(ParameterError, match="database: .* does not exist"):
+        ray_annotate(SOURCES, tmp_path / "a", database=tmp_path / "none.duckdb")
+    with pytest.raises(ParameterError, match="batch_files must be a positive integer"):
+        ray_annotate(SOURCES, tmp_path / "a", batch_files=0)
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("")
+    r = CliRunner().invoke(main, ["ray-annotate", str(DATA / "cmu" / "02"), "--out", str(tmp_path / "full")])
+    assert r.exit_code == 1
+    assert r.output.strip() == f"Error: out: {str(tmp_path / 'full')!r} is not empty; pass overwrite=True " \
+                               "(--overwrite) to replace the archive in it"
+
+
+def test_without_ray_one_clear_error(monkeypatch, tmp_path):
+    monkeypatch.setitem(sys.modules, "ray", None)  # what `import ray` sees without the extra
+    with pytest.raises(MissingExtraError, match=re.escape("pip install 'mocapdb[ray]'")):
+        require_ray()
+    r = CliRunner().invoke(main, ["ray-annotate", str(DATA / "cmu" / "02"), "--out", str(tmp_path / "a")])
+    assert r.exit_code == 1
+    assert r.output == "Error: ray_annotate needs Ray, which is not installed: pip install 'mocapdb[ray]'\n"
+
+
+def test_the_base_package_does_not_import_ray():
+    code = ("import sys, mocapdb, mocapdb.api, mocapdb.cli, mocapdb.distributed; "
+            "loaded = [m for m in sys.modules if m == 'ray' or m.startswith('ray.')]; "
+            "assert not loaded, loaded")
+    subprocess.run([sys.executable, "-P", "-c", code], check=True)
