@@ -103,7 +103,7 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--runs", type=int, default=20, help="GA runs per class (paper: 100-500)")
     ap.add_argument("--generations", type=int, default=100)
-    ap.add_argument("--inner-runs", type=int, default=5, help="GA runs per class and held-out group")
+    ap.add_argument("--inner-runs", type=int, default=3, help="GA runs per class and held-out group")
     ap.add_argument("--inner-generations", type=int, default=50)
     ap.add_argument("--jobs", type=int, default=None, help="GA worker processes (default: all cores)")
     ap.add_argument("--json", type=Path, default=REPO / "benchmarks" / "eval_quality.json",

@@ -42,11 +42,11 @@ from mocapdb.annotation.preselection import preselection_for
 from mocapdb.errors import ParameterError
 from mocapdb.evaluation.documents import (CLIPS_PER_DOCUMENT, MOCAP6_TRIALS, DocumentSet, _loao_from_clips,
                                           cmu86_documents, cmu_stretches, concatenate_motions, loao_documents,
-                                          mirror_document_set, mocap6_documents)
+                                          mirror_document_set, mocap6_documents, pose_clips)
 from mocapdb.evaluation.metrics import evaluate_annotation
 from mocapdb.features import motion_features
 from mocapdb.learning.cutting import clips_from_stretches
-from mocapdb.learning.recipe import Clip
+from mocapdb.learning.recipe import Clip, default_recipe
 from mocapdb.learning.training import clip_actor, clip_files, train_model
 from mocapdb.readers import read_motion
 
@@ -78,12 +78,15 @@ class DevelopmentData:
         The stretches (30 Hz, 0-based inclusive), labelled with their class.
     cmu_groups : dict of str to str
         CMU document → subject.
+    poses : dict of str to list of Clip
+        Poses held still in HDM05 full documents (:func:`mocapdb.evaluation.documents.pose_clips`).
     """
 
     hdm05: dict
     cmu_words: dict = field(default_factory=dict)
     cmu_rows: np.ndarray = field(default_factory=lambda: np.empty(0, LABEL_DTYPE))
     cmu_groups: dict = field(default_factory=dict)
+    poses: dict = field(default_factory=dict)
 
     @property
     def actors(self):
@@ -96,6 +99,8 @@ class DevelopmentData:
         so the cut (its anchor feature) never sees the held-out document.
         """
         out = {c: [clip for clip, _ in cl if clip.group != without_actor] for c, cl in self.hdm05.items()}
+        for c, cl in self.poses.items():
+            out[c] = [clip for clip in cl if clip.group != without_actor and clip.document != without_document]
         out = {c: v for c, v in out.items() if v}
         rows = self.cmu_rows[self.cmu_rows["document"] != without_document] if without_document else self.cmu_rows
         if rows.size:
@@ -105,7 +110,7 @@ class DevelopmentData:
         return out
 
 
-def development_data(data_dir, *, classes=None, cmu_training=True) -> DevelopmentData:
+def development_data(data_dir, *, classes=None, cmu_training=True, definitions=None) -> DevelopmentData:
     """Read the training material of the development folds.
 
     Parameters
@@ -114,7 +119,10 @@ def development_data(data_dir, *, classes=None, cmu_training=True) -> Developmen
     classes : sequence of str, optional
         HDM05 classes (default all).
     cmu_training : bool, default True
-        Also the CMU training stretches (:func:`mocapdb.evaluation.documents.cmu_stretches`).
+        Also the CMU training stretches (:func:`mocapdb.evaluation.documents.cmu_stretches`)
+        and the poses of the HDM05 full documents (:func:`mocapdb.evaluation.documents.pose_clips`).
+    definitions : sequence of ClassDefinition, optional
+        The definitions that find the poses (default the shipped ones).
     """
     files = clip_files(Path(data_dir) / "hdm05_cut", classes=classes)
     hdm05 = {}
@@ -126,7 +134,8 @@ def development_data(data_dir, *, classes=None, cmu_training=True) -> Developmen
     if not cmu_training:
         return DevelopmentData(hdm05)
     words, rows, groups = cmu_stretches(data_dir)
-    return DevelopmentData(hdm05, words, rows, groups)
+    defs = default_recipe().definitions if definitions is None else definitions
+    return DevelopmentData(hdm05, words, rows, groups, pose_clips(data_dir, defs))
 
 
 # ---------------------------------------------------------------------------

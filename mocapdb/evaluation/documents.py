@@ -44,6 +44,12 @@ Judgement calls (documented here, data not code where possible):
   stretch each, whole; 86_09 gives its two walk segments; mocap6 every run
   of one action that has a class (:data:`CMU_STRETCH_CLASSES`). The group
   of a stretch (for leave-one-out folds) is the CMU subject.
+* Poses (:func:`pose_clips`): in the uncut HDM05 documents of
+  ``hdm05_full`` (C3D) the runs of frames that match the one phase of the
+  ``tpose`` / ``standStill`` class definitions for at least the phase's
+  minimum duration are training clips of ``tpose1000`` / ``standStill2000``
+  (group: the HDM05 actor). No frame numbers are typed: the definition is the
+  rule.
 * Mirrored LOAO documents: the words of each document mirrored
   (:func:`mocapdb.features.mirror_words`); the truth keeps its labels except
   the right-handed ones (``throwR``, ``grabDepR``), which become left-handed
@@ -67,11 +73,14 @@ from mocapdb.features import DOWNSAMPLING_FACTOR, mirror_words, motion_features
 from mocapdb.readers import read_motion
 from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.motion import Motion
-from mocapdb.learning.training import clip_files
+from mocapdb.learning.class_definitions import compile_definition
+from mocapdb.learning.cutting import matching_runs
+from mocapdb.learning.recipe import Clip
+from mocapdb.learning.training import clip_actor, clip_files
 
 __all__ = ["DocumentSet", "concatenate_motions", "loao_documents", "cmu86_documents", "mocap6_documents",
-           "mirror_document_set", "cmu_stretches", "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "CMU_STRETCH_CLASSES",
-           "CMU_WHOLE_DOCUMENTS", "RIGHT_HANDED_LABELS"]
+           "mirror_document_set", "cmu_stretches", "pose_clips", "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT",
+           "CMU_STRETCH_CLASSES", "CMU_WHOLE_DOCUMENTS", "RIGHT_HANDED_LABELS", "POSE_CLASSES"]
 
 #: clips per LOAO document (3–5 documents of ≈ 30–45 s per actor)
 CLIPS_PER_DOCUMENT = 15
@@ -90,6 +99,10 @@ CMU_STRETCH_CLASSES = {
     "ArmCircle": "cmuArmCircle1Reps", "ToeTouchOneHand": "cmuToeTouchOneHand1Reps",
     "ToeTouchTwoHands": "cmuToeTouchTwoHands1Reps", "SideBend": "cmuSideBend1Reps", "Box": "cmuBox1Reps",
 }
+
+#: poses held still at the start of HDM05 full documents (read from C3D) -> the class
+#: definition whose phase finds them (the authors' fine classes tpose1000, standStill2000)
+POSE_CLASSES = {"tpose1000": "tpose", "standStill2000": "standStill"}
 
 _ROOT = JOINT_INDEX["root"]
 _FLOOR = [0, 2]  # x and z: the floor plane (Y is up)
@@ -466,3 +479,41 @@ def cmu_stretches(data_dir, *, classes=CMU_STRETCH_CLASSES):
     native = native[np.isin(native["label"], list(classes))]
     native = map_labels(native, dict(classes))
     return words, to_feature_grid(native, factor=DOWNSAMPLING_FACTOR), {d: _subject(d) for d in words}
+
+
+def pose_clips(data_dir, definitions, *, classes=POSE_CLASSES):
+    """Poses held still in the HDM05 full documents (C3D), found by class definitions.
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        The development data folder (``hdm05_full/*.c3d``).
+    definitions : sequence of ClassDefinition
+        Must hold the single-phase definitions named in ``classes``.
+    classes : mapping of str to str
+        Learned class → the definition that finds its poses.
+
+    Returns
+    -------
+    dict of str to list of Clip
+        Class → its clips (group = the HDM05 actor, document = the file stem).
+    """
+    by_name = {d.name: d for d in definitions}
+    missing = sorted(set(classes.values()) - set(by_name))
+    if missing:
+        raise ParameterError(f"the definitions lack {missing}, which find the poses")
+    rules = {}
+    for cls, name in classes.items():
+        d = by_name[name]
+        if len(d.phases) != 1:
+            raise ParameterError(f"definition {name!r} has {len(d.phases)} phases; a pose is one")
+        q = compile_definition(d).quantized
+        rules[cls] = (int(q.mask[0]), int(q.value[0]), int(np.ceil(d.phases[0].min_frames)))
+    out = {c: [] for c in classes}
+    for path in sorted((Path(data_dir) / "hdm05_full").glob("*.c3d")):
+        words = motion_features(read_motion(path))
+        actor = clip_actor(path.stem) or path.stem
+        for cls, (mask, value, shortest) in rules.items():
+            for a, b in matching_runs(words, mask, value, min_frames=shortest):
+                out[cls].append(Clip(f"{path.stem}[{a}:{b}]", words[a:b + 1].copy(), actor, path.stem))
+    return {c: v for c, v in out.items() if v}

@@ -22,6 +22,11 @@ class, with no frame numbers typed by hand:
    ``[P/tolerance, tolerance·P]``.
 
 :func:`clips_from_stretches` applies it to label rows over documents.
+
+Poses held still (a T-pose, a neutral stand) do not repeat; :func:`matching_runs`
+finds them by the fuzzy word that defines them (e.g. the one phase of a class
+definition): the runs of frames that match it, at least as long as the
+definition asks.
 """
 from __future__ import annotations
 
@@ -35,7 +40,7 @@ from mocapdb.features import FEATURE_RATE, N_FEATURES, unpack_words
 
 log = logging.getLogger("mocapdb")
 
-__all__ = ["onsets", "period", "choose_anchor", "cut_repetitions", "clips_from_stretches"]
+__all__ = ["onsets", "period", "choose_anchor", "cut_repetitions", "clips_from_stretches", "matching_runs"]
 
 
 def onsets(x, *, min_off=2):
@@ -225,3 +230,25 @@ def clips_from_stretches(words_by_document, label_rows, *, groups=None, **cut_pa
             group = doc if groups is None else groups(doc)
             out[lab].append((f"{doc}[{s + a}:{s + b}]", group, doc, w[a:b + 1].copy()))
     return out
+
+
+def matching_runs(words, mask, value, *, min_frames=1):
+    """Maximal runs of frames whose word matches a fuzzy word (``w & mask == value``).
+
+    Parameters
+    ----------
+    words : (n,) uint64
+    mask, value : int
+        40-bit fuzzy word (mask bit 0 = wildcard).
+    min_frames : int, default 1
+        Shorter runs are dropped.
+
+    Returns
+    -------
+    list of (int, int)
+        ``(start, end)``, 0-based inclusive.
+    """
+    w = np.asarray(words, dtype=np.uint64)
+    ok = (w & np.uint64(mask)) == np.uint64(value)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], ok.astype(np.int8), [0]))))
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_frames]

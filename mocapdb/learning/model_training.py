@@ -73,7 +73,7 @@ def half_median_template(model: Model) -> Model:
                                                     for c in model.classes))
 
 
-def train_recipe(clips, recipe, *, name, keyframes=True, runs=20, generations=100, inner_runs=5,
+def train_recipe(clips, recipe, *, name, keyframes=True, runs=20, generations=100, inner_runs=3,
                  inner_generations=50, min_recall=1.0, min_coverage=0.95, learn_tau=True, tau_grid=TAU_GRID_DEFAULT,
                  max_false_rate=0.0, min_length=True, margin=0.0, seed=0, n_jobs=None, cache=None,
                  progress=None) -> TrainedModel:

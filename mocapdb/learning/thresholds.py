@@ -18,7 +18,8 @@ them — on actors the templates did not see:
 3. τ_c maximises F1 of those counts over a grid; a designed class (no clips
    of its own) takes the largest τ up to its definition's whose false
    positives stay at most ``max_false_rate`` of the other clips (so does a
-   reversed class).
+   reversed class, and a learned class whose clips all come from one group:
+   no template of it exists without that group).
 
 Designed classes therefore never take more than their author gave them, and
 learned ones get the τ at which unseen actors' clips are told apart best.
@@ -139,11 +140,11 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, c
         neg = own_label != c.label
         claims = m[k][:, None] <= grid[None, :]                     # (n_clips, n_grid)
         fp = (claims[neg] & (m[k, neg] < own_best[neg])[:, None]).sum(axis=0)
-        if pos.any():
+        if pos.any() and np.isfinite(m[k, pos]).any():
             tp = claims[pos].sum(axis=0)
             f = _f_beta(tp, pos.sum() - tp, fp, beta)
             out[c.name] = float(grid[int(np.flatnonzero(f == f.max())[-1])])  # ties: the larger τ
-        else:  # no clips of its own (designed, reversed): its own τ at most, few false claims
+        else:  # no held-out clips of its own (designed, reversed, one group): its own τ at most, few false claims
             allowed = grid[(fp <= max_false_rate * max(1, neg.sum())) & (grid <= c.tau + 1e-12)]
             out[c.name] = float(allowed.max()) if allowed.size else float(grid.min())
     return out
