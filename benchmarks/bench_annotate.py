@@ -7,7 +7,8 @@ the cost; a 100 h archive in ≤ 60 s with peak RSS ≤ 2 GB).
 
 (a) Every ASF/AMC take of ../shared/data is ingested into a temporary DuckDB
     file (cmu/13 and cmu/14 with cmu/02/02.asf) and annotated with the
-    default model (the toolbox's 11 HDM05 templates), no keyframes, through
+    shipped model ``toolbox`` (the toolbox's 11 HDM05 templates; the shipped
+    ``default`` model has its own benchmark, bench_default_model.py), no keyframes, through
     ``annotate_motions(store=False)``, the SQL ``annotate(motion_id)`` macro
     and the in-memory core ``annotate_words``. Figures are warm (best
     of N); the first call in this process is reported separately, and so is
@@ -203,7 +204,7 @@ def header():
           f"{'segments':>9s}")
 
 
-def sql_annotate(con, model="default"):
+def sql_annotate(con, model="toolbox"):
     return con.sql(SQL_ANNOTATE.format(model=model)).to_arrow_table()
 
 
@@ -211,7 +212,7 @@ def cold_compile(npz):
     """First ``annotate_words`` call in a fresh process: empty numba cache, then warm cache."""
     code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
             "import time, numpy as np, mocapdb; from timing import annotate_words; "
-            "from mocapdb.storage.models import load_model; m = load_model(mocapdb.connect(), 'default'); "
+            "from mocapdb.storage.models import load_model; m = load_model(mocapdb.connect(), 'toolbox'); "
             f"z = np.load(r'{npz}'); t = time.perf_counter(); "
             "annotate_words(z['words'], z['lengths'], m, keyframes=False); "
             "print(time.perf_counter() - t)")
@@ -239,7 +240,7 @@ def scale_child(npz, n_frames, n_classes):
     from mocapdb.storage.models import load_model
 
     con = mocapdb.connect()
-    model = load_model(con, "default")
+    model = load_model(con, "toolbox")
     if n_classes == 15:
         model = mirrored_model(model)
     z = np.load(npz)
@@ -327,13 +328,13 @@ def main():
     con, t_ingest = ingest_all(tmpdir / "all.duckdb")
     words, lengths = stored_words(con)
     n_all = len(words)
-    model = load_model(con, "default")
+    model = load_model(con, "toolbox")
     print(f"\n## (a) all of ../shared/data ingested: {len(lengths)} motions, {n_all:,} frames at 30 Hz "
-          f"({n_all / 1800:.1f} min) in {t_ingest:.1f} s; default model, {len(model.classes)} classes "
+          f"({n_all / 1800:.1f} min) in {t_ingest:.1f} s; toolbox model, {len(model.classes)} classes "
           f"(ΣK = {sum(len(c.quantized) for c in model.classes)}), no keyframes; warm = best of {rep_small}; "
           f"{load_now()}")
     header()
-    first, best, tab = timed(lambda: annotate_motions(con, store=False, keyframes=False), rep_small)
+    first, best, tab = timed(lambda: annotate_motions(con, model="toolbox", store=False, keyframes=False), rep_small)
     row("Python annotate_motions(store=False)", n_all, first, best, tab.num_rows)
     first, best, sql = timed(lambda: sql_annotate(con), rep_small)
     row("SQL unnest(annotate(motion_id))", n_all, first, best, sql.num_rows)
@@ -360,14 +361,14 @@ def main():
     w_syn, l_syn = repeat_documents(words, lengths, n_syn)
     con, t_insert = synthetic_db(tmpdir / f"synthetic_{hours}h.duckdb", w_syn, l_syn)
     save_model(con, model15)
-    load_model(con, "default")  # stores the shipped default model in the new database
+    load_model(con, "toolbox")  # stores the shipped toolbox model in the new database
     print(f"\n## (b, c) synthetic {hours} h: the real documents repeated, {len(l_syn):,} documents, "
           f"{n_syn:,} frames (inserted via Arrow in {t_insert:.1f} s); warm = best of {rep_big}; {load_now()}")
     header()
     first, best, segs = timed(lambda: annotate_words(w_syn, l_syn, model, keyframes=False), rep_big)
-    row("core, default model (11 classes)", n_syn, first, best, len(segs))
+    row("core, toolbox model (11 classes)", n_syn, first, best, len(segs))
     first, best, sql = timed(lambda: sql_annotate(con), rep_big)
-    row("SQL, default model (11 classes)", n_syn, first, best, sql.num_rows)
+    row("SQL, toolbox model (11 classes)", n_syn, first, best, sql.num_rows)
     first, best, segs15 = timed(lambda: annotate_words(w_syn, l_syn, model15, keyframes=False),
                                 rep_big)
     row("core, 15-class model", n_syn, first, best, len(segs15), TARGET_FPS)

@@ -172,7 +172,7 @@ def main():
     tmpdir = Path(tmp.name)
     con, t_ingest = ingest_all(tmpdir / "all.duckdb")
     words, lengths = stored_words(con)
-    model = toolbox_keyframe_queries(load_model(con, "default"), queries_dir=QUERIES_DIR)
+    model = toolbox_keyframe_queries(load_model(con, "toolbox"), queries_dir=QUERIES_DIR)
     queries = [(c.name, "hand-made" if has_toolbox_query(QUERIES_DIR, c.name) else "heuristic",
                 c.keyframe_query, *annot_margins(c.keyframe_query)) for c in model.classes]
 

@@ -77,7 +77,11 @@ def main():
                 if r is not None:
                     stats[c.name].update(fitness=r.fitness, precision=r.precision, recall=r.recall)
             n_clips = sum(len(v) for v in clips.values())
-            save_model(con, model, replace=True, keyframe_stats=stats,
+            ga = [(name, run, g, st.mean_precision[g], st.mean_recall[g], st.mean_fitness[g], st.best_fitness[g],
+                   st.mean_keyframes[g])
+                  for name, r in trained.queries.items() for run, st in enumerate(r.statistics)
+                  for g in range(st.generations + 1)]
+            save_model(con, model, replace=True, keyframe_stats=stats, ga_statistics=ga,
                        description="The paper's 15 labels (Table 1): HDM05 and CMU classes learned from "
                                    "../shared/data, mirrored, reversed and designed classes, robust keyframe "
                                    "queries, tau per class, minimum segment lengths",

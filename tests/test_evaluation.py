@@ -5,7 +5,7 @@ import pytest
 from mocapdb.annotation import annotate
 from mocapdb.errors import ParameterError
 from mocapdb.evaluation import (
-    CLIPS_PER_DOCUMENT, cmu86_documents, concatenate_motions, development_evaluation,
+    CLIPS_PER_DOCUMENT, cmu86_documents, concatenate_motions, development_data, development_evaluation,
     loao_documents, mocap6_documents)
 from mocapdb.annotation.labels import class_labels
 from mocapdb.evaluation.metrics import evaluate_by_label
@@ -147,3 +147,37 @@ def test_real_documents_annotated_with_the_full_model():
     assert len(res.auto["cmu86_09"]) == len(ann.segments)
     assert res.scores["cmu"].truth_segments == (res.scores["cmu86_09"].truth_segments
                                                 + res.scores["mocap6"].truth_segments)
+
+
+def test_cmu_documents_are_annotated_by_models_that_never_saw_them(data_dir):
+    """Leave-one-document-out: a CMU document whose stretches train templates is annotated by a model
+    built without them; modes annotate every fold's model several ways; mirrored LOAO documents."""
+    from mocapdb.learning.recipe import PAPER_LABELS, Recipe, build_model
+
+    recipe = Recipe(labels={"squat1Reps": "exercise", "cmuJumpingJack1Reps": "jump", "cmuWalk2Steps": "move"})
+    seen = {}
+
+    def build(clips, name):
+        seen[name] = {x.document for v in clips.values() for x in v}
+        return build_model(clips, recipe, name=name)
+
+    data = development_data(data_dir, classes=["squat1Reps"])
+    res = development_evaluation(data_dir, data=data, held_out=["bk"], build=build, mirrored=True,
+                                 vocabulary=PAPER_LABELS,
+                                 modes={"plain": {}, "tau 0.05": {"tau": 0.05}, "margin": {"margin": 0.02}})
+    assert set(res) == {"plain", "tau 0.05", "margin"}
+    for name in ("86_09", "13_29", "13_30", "13_31", "14_14", "14_20"):
+        assert f"without_{name}" in seen and name not in seen[f"without_{name}"]
+        assert name in seen["all"]
+    assert not any(d.startswith("HDM_bk_") for d in seen["without_bk"])
+    plain = res["plain"]
+    assert set(plain.scores) == {"loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all"}
+    assert plain.vocabulary["cmu"] == PAPER_LABELS
+    assert (res["tau 0.05"].scores["mocap6"].auto_frames <= plain.scores["mocap6"].auto_frames)
+    assert res["margin"].scores["all"].auto_frames <= plain.scores["all"].auto_frames
+    # the mirrored documents drop the right-handed truth (left-handed motions no label covers)
+    assert "grabDepR" not in set(plain.truth["loao_mirrored"]["label"])
+    assert len(plain.documents["loao_mirrored"].names) == len(plain.documents["loao"].names)
+    # preselected rows: without keyframe queries every class is matched on whole documents
+    pre = plain.preselected["mocap6"]
+    assert set(pre["label"]) == {"exercise", "jump", "move"}

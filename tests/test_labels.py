@@ -5,6 +5,8 @@ import re
 import numpy as np
 import pytest
 
+from mocapdb.learning.recipe import PAPER_LABELS
+
 from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import motion_features
 from mocapdb.annotation.labels import (
@@ -146,9 +148,11 @@ def test_shipped_cmu_mappings_name_real_actions():
                (DATA / "labels" / "cmu_mocap6" / "action_names.txt").read_text().splitlines()
                if line and not line.startswith("#")}
     m6 = class_labels("cmu_mocap6")
-    assert set(m6) <= actions and set(m6.values()) <= set(class_labels("hdm05").values())
-    assert m6 == {"Squat": "exercise", "Jog": "move", "JumpJack": "jump",
-                  "ArmCircle": "rotateArms"}
+    assert set(m6) <= actions and set(m6.values()) <= set(PAPER_LABELS)
+    assert m6 == {"Squat": "exercise", "Jog": "move", "JumpJack": "jump", "ArmCircle": "rotateArms",
+                  "Box": "punch", "KneeRaise": "exercise", "SideBend": "exercise", "ToeTouchOneHand": "exercise",
+                  "ToeTouchTwoHands": "exercise"}
+    assert actions - set(m6) == {"Twist", "SideReach", "UpDown"}           # 'others': no label fits
     assert class_labels("cmu86") == {"walk": "move"}
     assert {lab for _, lab, _, _ in _rows_86()} >= set(class_labels("cmu86"))
     with pytest.raises(ParameterError, match="name must be one of"):

@@ -83,9 +83,9 @@ def test_mt_distance_reproduces_the_toolbox(db):
         np.testing.assert_allclose(got[np.isfinite(got)], want[np.isfinite(want[:, k]), k], rtol=0, atol=1e-9)
 
 
-def test_default_model_is_the_toolbox_reference(db):
-    """The shipped default model's templates are the toolbox's; without keyframes it is the reference mode."""
-    model = load_model(db, "default")
+def test_toolbox_model_is_the_reference(db):
+    """The shipped toolbox model's templates are the toolbox's; it is the reference mode."""
+    model = load_model(db, "toolbox")
     for c in model.classes:
         q = quantized_template(ORACLE / "templates" / c.name)
         np.testing.assert_array_equal(c.quantized.mask, q.mask, err_msg=c.name)
@@ -93,7 +93,7 @@ def test_default_model_is_the_toolbox_reference(db):
         np.testing.assert_array_equal(c.quantized.weights, q.weights, err_msg=c.name)
     for doc in DOCS:
         got = db.execute("""SELECT label, start_frame, end_frame, cost FROM (
-                              SELECT unnest(annotate(m.motion_id, keyframes := false), recursive := true)
+                              SELECT unnest(annotate(m.motion_id, model := 'toolbox'), recursive := true)
                               FROM motions m WHERE m.name = ?) ORDER BY ALL""", [doc]).fetchall()
         check_segments(got, oracle_segments(doc))
 

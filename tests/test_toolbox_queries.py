@@ -31,9 +31,10 @@ def queries_dir(oracle_dir):
 
 @pytest.fixture(scope="module")
 def default_model():
+    """The toolbox's 11 templates (the shipped model ``toolbox``), which the toolbox's queries belong to."""
     con = mocapdb.connect()
     try:
-        return load_model(con, "default")
+        return load_model(con, "toolbox")
     finally:
         con.close()
 

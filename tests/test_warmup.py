@@ -21,7 +21,7 @@ def test_the_warmup_compiles_what_annotate_needs(tmp_path):
     warm = [subprocess.Popen(exe + ["mocapdb.storage.warmup", part], env=env) for part in ("search", "segments")]
     assert [p.wait(timeout=600) for p in warm] == [0, 0]
     warmed = _cached(cache)
-    assert any(n.startswith("search_kernels.") for n in warmed) and any(n.startswith("chain.") for n in warmed)
+    assert any(n.startswith("search_kernels.") for n in warmed) and any(n.startswith("chain_kernels.") for n in warmed)
     db = str(tmp_path / "demo.duckdb")
     r = subprocess.run(exe + ["mocapdb.cli", "--db", db, "ingest", str(DATA / "cmu/86/86_09.amc")], env=env,
                        capture_output=True, text=True, timeout=600)

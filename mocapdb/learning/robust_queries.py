@@ -56,6 +56,8 @@ class RobustQuery:
         segments (the search's hits widened by the annotation margins).
     fitness, precision, recall : float
         Training fitness of the GA's consensus (before generalising).
+    statistics : tuple of GAStatistics
+        Per-generation statistics of the final runs (paper Fig. 5).
     """
 
     query: object
@@ -66,6 +68,7 @@ class RobustQuery:
     fitness: float
     precision: float
     recall: float
+    statistics: tuple = ()
 
     @property
     def held_out_recall(self):
@@ -182,7 +185,7 @@ def learn_robust_queries(clips, *, classes=None, labels=None, templates=None, ru
         keep = n > 0 and h >= min_recall * n and cov >= min_coverage
         lq = final[c]
         out[c] = RobustQuery(general[c] if keep else None, general[c], h, n, cov, lq.fitness, lq.precision,
-                             lq.recall)
+                             lq.recall, tuple(r.statistics for r in lq.runs))
     return out
 
 

@@ -1,0 +1,235 @@
+"""Hand-designed classes (paper Sect. 8): the definition format, its compiler, its errors, its CLI."""
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import REPO
+from mocapdb.annotation import annotate, preselection_for
+from mocapdb.cli import main
+from mocapdb.errors import ParseError
+from mocapdb.features import FEATURE_NAMES, MIRROR_FEATURES, N_FEATURES, pack_words
+from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, build_index, keyframe_search
+from mocapdb.learning.class_definitions import (WARP, compile_definition, mirror_definition, parse_class_definitions,
+                                                read_class_definitions, reverse_definition)
+from mocapdb.learning.recipe import PAPER_LABELS
+from mocapdb.templates import QuantizedTemplate
+
+F = {name: k for k, name in enumerate(FEATURE_NAMES)}
+SHIPPED = REPO / "mocapdb" / "models" / "classes"
+
+TWO_PHASES = """
+# a hand-written class: lift the right foot, then hop on the left leg
+[[class]]
+name = "liftThenHop"
+label = "hopOneLeg"
+tau = 0.1
+default = 0
+
+[[class.phase]]
+frames = 6
+foot_right_raised_rel_y_body_min = 1
+root_high_vel = "*"
+keyframe = ["foot_right_raised_rel_y_body_min"]
+
+[[class.phase]]
+seconds = [0.2, 0.6]
+foot_right_raised_rel_y_body_min = 1
+root_high_vel = 1
+"""
+
+
+def _dense(values, n):
+    row = [0.5 if v is None else float(v) for v in values]
+    return [row] * n
+
+
+def test_a_compiled_definition_is_the_hand_built_template_and_query():
+    (d,) = parse_class_definitions(TWO_PHASES, "two.toml")
+    c = compile_definition(d)
+    assert (c.name, c.label, c.tau) == ("liftThenHop", "hopOneLeg", 0.1)
+    # by hand: phase 1 = 6 columns, all features 0 except foot raised (1) and root velocity (*);
+    # phase 2 = round(30 * sqrt(0.2 * 0.6)) = 10 columns with foot raised and root velocity 1
+    p1 = [0] * N_FEATURES
+    p1[F["foot_right_raised_rel_y_body_min"]] = 1
+    p1[F["root_high_vel"]] = None
+    p2 = [0] * N_FEATURES
+    p2[F["foot_right_raised_rel_y_body_min"]] = 1
+    p2[F["root_high_vel"]] = 1
+    n2 = round(30 * math.sqrt(0.2 * 0.6))
+    expected = QuantizedTemplate.from_dense(np.array(_dense(p1, 6) + _dense(p2, n2)), np.ones(6 + n2))
+    for a in ("mask", "value", "weights"):
+        np.testing.assert_array_equal(getattr(c.quantized, a), getattr(expected, a))
+    # the keyframe query: phase 1's keyframe fixes only the foot; phase 2's all 40 features;
+    # keyframes at the phases' middle columns; the gap admits the last frame of phase 1 and
+    # the first of phase 2: adjacent phases -> [1, 1]
+    q = c.keyframe_query
+    foot = 1 << F["foot_right_raised_rel_y_body_min"]
+    assert q.mask.tolist() == [foot, (1 << N_FEATURES) - 1]
+    assert q.value.tolist() == [foot, foot | (1 << F["root_high_vel"])]
+    assert q.positions.tolist() == [2, 6 + (n2 - 1) // 2]
+    assert q.d_min.tolist() == [1] and q.d_max.tolist() == [1]
+    assert q.template_length == 6 + n2
+    # the shortest motion the definition allows: 6 frames / 2 (a single duration warps by 2) + 0.2 s
+    assert c.min_frames == math.floor(6 / WARP + 0.2 * 30)
+
+
+def test_gap_bounds_span_the_phases_between_keyframes():
+    text = """
+[[class]]
+name = "a"
+label = "b"
+[[class.phase]]
+seconds = 0.5
+knee_right_bent = 1
+[[class.phase]]
+frames = [3, 12]
+keyframe = false
+knee_right_bent = "*"
+[[class.phase]]
+frames = [5, inf]
+knee_right_bent = 0
+"""
+    q = compile_definition(parse_class_definitions(text)[0]).keyframe_query
+    assert q.n_keyframes == 2                             # the middle phase has none
+    assert q.d_min.tolist() == [1 + 3] and q.d_max.tolist() == [1 + 12]
+    text_inf = text.replace("frames = [3, 12]", "frames = [3, inf]")
+    q = compile_definition(parse_class_definitions(text_inf)[0]).keyframe_query
+    assert q.d_max.tolist() == [UNBOUNDED]
+
+
+def test_the_keyframe_query_finds_the_motion_it_describes():
+    """A document that does what the phases say contains the compiled chain; without the hop it does not."""
+    (d,) = parse_class_definitions(TWO_PHASES)
+    c = compile_definition(d)
+    still = np.zeros((20, N_FEATURES), bool)
+    lift = still[:6].copy()
+    lift[:, F["foot_right_raised_rel_y_body_min"]] = True
+    hop = lift[:1].repeat(9, axis=0)
+    hop[:, F["root_high_vel"]] = True
+    doc = pack_words(np.vstack([still, lift, hop, still]))
+    no_hop = pack_words(np.vstack([still, lift, lift, still]))
+    index = build_index([doc, no_hop], feature_sets=("full",))
+    found = keyframe_search(index, c.keyframe_query)
+    assert set(found.doc.tolist()) == {0}
+    words, lengths = np.concatenate([doc, no_hop]), [doc.size, no_hop.size]
+    ann = annotate(words, _model(c), doc_lengths=lengths, preselection=preselection_for(words, lengths, _model(c)))
+    assert ann.segments["doc"].tolist() == [0]
+    # without the keyframe query the template alone also takes the lift without a hop: one
+    # feature of 40 differs, far below τ — the query carries what the motion must do
+    ann = annotate(words, _model(c), doc_lengths=lengths)
+    assert sorted(set(ann.segments["doc"].tolist())) == [0, 1]
+
+
+def _model(*classes):
+    from mocapdb.annotation import Model
+    return Model("designed", classes)
+
+
+def test_mirror_and_reverse_are_the_compiled_templates_mirrored_and_reversed():
+    (d,) = parse_class_definitions(TWO_PHASES)
+    c = compile_definition(d)
+    m = compile_definition(mirror_definition(d, "liftThenHopMirrored"))
+    np.testing.assert_array_equal(m.quantized.mask, c.quantized.mirrored().mask)
+    np.testing.assert_array_equal(m.quantized.value, c.quantized.mirrored().value)
+    assert m.quantized.dense()[0, F["foot_left_raised_rel_y_body_min"]] == 1
+    assert [MIRROR_FEATURES[F["foot_left_raised_rel_y_body_min"]]] == [F["foot_right_raised_rel_y_body_min"]]
+    r = compile_definition(reverse_definition(d, "hopThenLower", "standUp"))
+    np.testing.assert_array_equal(r.quantized.mask, c.quantized.reversed().mask)
+    np.testing.assert_array_equal(r.quantized.value, c.quantized.reversed().value)
+    assert r.label == "standUp" and len(r.quantized) == len(c.quantized)
+
+
+def test_mirror_and_reverse_keys_add_classes():
+    text = TWO_PHASES.replace('label = "hopOneLeg"',
+                              'label = "hopOneLeg"\nmirror = "m"\nreverse = { name = "r", label = "x" }')
+    names = [(d.name, d.label) for d in parse_class_definitions(text)]
+    assert names == [("liftThenHop", "hopOneLeg"), ("m", "hopOneLeg"), ("r", "x"), ("rMirrored", "x")]
+
+
+def test_the_shipped_definitions_cover_the_labels_no_example_motion_gives():
+    defs = read_class_definitions(SHIPPED)
+    labels = {d.label for d in defs}
+    assert {"neutral", "tpose", "turn", "standUp", "hopOneLeg", "punch", "cartwheel"} <= labels
+    assert labels <= set(PAPER_LABELS)
+    for d in defs:
+        c = compile_definition(d)
+        assert c.keyframe_query is not None and c.min_frames > 0
+        assert c.keyframe_query.template_length == len(c.quantized)
+    names = {d.name for d in defs}
+    assert {"punchLFront1Reps", "hopRLeg1hops", "cartwheelRHandStart1Reps", "standUpSitChair"} <= names
+
+
+@pytest.mark.parametrize("text, line, match", [
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n[[class.phase]]\nseconds = 1\nknee_rigth_bent = 1\n", 6,
+     "unknown feature 'knee_rigth_bent'; did you mean knee_right_bent"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n[[class.phase]]\nseconds = 1\nknee_right_bent = 2\n", 6,
+     "must be 0, 1 or"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n\n[[class.phase]]\nknee_right_bent = 1\n", 5,
+     "exactly one of seconds"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n[[class.phase]]\nseconds = [2, 1]\nknee_right_bent = 1\n", 5,
+     "min <= max"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n[[class.phase]]\nseconds = 1\nknee_right_bent = = 1\n", 6,
+     "not valid TOML"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\nknee_right_bent = 1\n[[class.phase]]\nseconds = 1\n", 4,
+     "outside a phase"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n[[class.phase]]\nseconds = 1\nknee_right_bent = 1\n"
+     "keyframe = ['knee_left_bent']\n", 7, "leaves as wildcards"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n[[class.phase]]\nseconds = 1\nknee_right_bent = 1\n"
+     "[[class]]\nname = 'x'\nlabel = 'z'\n[[class.phase]]\nseconds = 1\nknee_right_bent = 1\n", 7,
+     "defined twice"),
+    ("[[class]]\nname = 'x'\nlabel = 'y'\n[[class.phase]]\nseconds = 1\n", 1, "fixes no feature"),
+    ("[[class]]\nname = 'x'\n[[class.phase]]\nseconds = 1\nknee_right_bent = 1\n", 1, "label"),
+])
+def test_errors_name_file_and_line(text, line, match):
+    with pytest.raises(ParseError, match=match) as e:
+        parse_class_definitions(text, "mine.toml")
+    assert str(e.value).startswith(f"mine.toml:{line}: ")
+    assert e.value.line == line
+
+
+def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir):
+    db = tmp_path / "a.duckdb"
+    runner = CliRunner()
+    r = runner.invoke(main, ["--db", str(db), "ingest", str(data_dir / "cmu" / "86" / "86_09.amc")])
+    assert r.exit_code == 0, r.output
+    mine = tmp_path / "mine.toml"
+    mine.write_text(TWO_PHASES)
+    r = runner.invoke(main, ["--db", str(db), "define-class", str(mine), str(SHIPPED / "turn.toml"),
+                             "--model", "mine"])
+    assert r.exit_code == 0, r.output
+    assert "liftThenHop" in r.output and "turnAround" in r.output and "2 classes" in r.output
+    r = runner.invoke(main, ["--db", str(db), "annotate", "--model", "mine", "--format", "csv"])
+    assert r.exit_code == 0, r.output
+    labels = {line.split(",")[1] for line in r.output.strip().splitlines()[1:]}
+    assert labels <= {"turn", "hopOneLeg"} and "turn" in labels          # 86_09 turns around between walks
+    r = runner.invoke(main, ["--db", str(db), "define-class", str(mine), "--model", "mine"])
+    assert r.exit_code == 1 and "already has the classes ['liftThenHop']" in r.output
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TWO_PHASES.replace("root_high_vel = 1", "root_high_velocity = 1"))
+    r = runner.invoke(main, ["--db", str(db), "define-class", str(bad), "--model", "mine"])
+    assert r.exit_code == 1
+    assert r.output.strip() == (f"Error: {bad}:18: unknown feature 'root_high_velocity'; did you mean "
+                                "root_high_vel, root_high_ang_vel, foot_left_high_vel?")
+
+
+def test_train_with_definitions_adds_the_designed_classes(tmp_path, data_dir):
+    import mocapdb
+    from mocapdb.api import train
+
+    con = mocapdb.connect(tmp_path / "t.duckdb")
+    try:
+        m = train(con, model="m", folder=data_dir / "hdm05_cut", definitions=[SHIPPED / "turn.toml"])
+        assert "turnAround" in m.class_names and "turn" in m.labels and len(m.classes) == 12
+        stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'm' AND class = 'turnAround'")
+        assert stored.fetchall() == [("class definition",)]
+    finally:
+        con.close()
+
+
+def test_a_definition_keyframe_query_is_valid(tmp_path):
+    for d in read_class_definitions(SHIPPED):
+        q = compile_definition(d).keyframe_query
+        assert isinstance(q, KeyframeQuery)
+        assert (q.d_min <= q.d_max).all()
