@@ -734,10 +734,13 @@ def _z_up(joints: np.ndarray) -> bool:
     """True when the take stands along +Z: the spine (root → neck) of frame 1
     and of the median frame points up the z axis, not the y axis. (A person
     lying down for a whole Y-up take has no vertical spine at all.)"""
+    first = joints[0, JOINT_INDEX["neck"]] - joints[0, JOINT_INDEX["root"]]
+    first = first / max(float(np.linalg.norm(first)), 1e-12)
+    if not (first[2] > 0.8 and abs(first[1]) < 0.3):
+        return False  # the usual case, decided by one frame
     spine = joints[:, JOINT_INDEX["neck"]] - joints[:, JOINT_INDEX["root"]]
     spine = spine / np.maximum(np.linalg.norm(spine, axis=1, keepdims=True), 1e-12)
-    med = np.median(spine, axis=0)
-    return bool(spine[0, 2] > 0.8 and med[2] > 0.8 and abs(spine[0, 1]) < 0.3)
+    return bool(np.median(spine, axis=0)[2] > 0.8)
 
 
 def _rest_frame(joints: np.ndarray) -> bool:
