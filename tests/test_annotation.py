@@ -278,3 +278,21 @@ def test_model_validation():
     assert m.labels == ("x", "w")
     np.testing.assert_array_equal(m.label_index, [0, 1, 0])
     assert set(CLASSES) == {c for cs in COARSE.values() for c in cs}
+
+
+def test_margin_equals_naive_on_random_label_deltas():
+    """The margin filter (annotation.postprocess) against a plain loop: a frame whose best label beats
+    the second best by less than the margin loses every label; single finite labels stay."""
+    from mocapdb.annotation.postprocess import apply_margin
+
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        cd = np.round(rng.uniform(0, 0.2, size=(5, 200)), 2)
+        cd[rng.random(cd.shape) < 0.5] = np.inf
+        margin = float(rng.choice([0.0, 0.01, 0.03]))
+        want = cd.copy()
+        for f in range(cd.shape[1]):
+            col = np.sort(cd[:, f])
+            if np.isfinite(col[0]) and col[1] - col[0] < margin:
+                want[:, f] = np.inf
+        np.testing.assert_array_equal(apply_margin(np.ascontiguousarray(cd.copy()), margin), want)
