@@ -208,3 +208,31 @@ def test_mirror_class_mirrors_everything(cut_clips):
     np.testing.assert_array_equal(m.quantized.mask, mirror_words(c.quantized.mask))
     np.testing.assert_array_equal(m.template.real[:, F["foot_right_raised_rel_y_body_min"]],
                                   c.template.real[:, F["foot_left_raised_rel_y_body_min"]])
+
+
+def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
+    """Step 4 of learn_taus: a class that moves claims at most max_still_rate of the
+    held-out actors' still poses; without the cap the sneak template (slow steps)
+    claims many of them. Static classes (T-pose) are left alone."""
+    from mocapdb.learning.thresholds import clip_costs, is_static, still_clips, with_taus
+
+    names = ("sneak2StepsLStart", "kickLFront1Reps", "squat1Reps", "hopBothLegs1hops")
+    clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c]] for c in names}
+    recipe = Recipe(labels={"sneak2StepsLStart": "move", "kickLFront1Reps": "kick", "squat1Reps": "exercise",
+                            "hopBothLegs1hops": "jump"})
+    stills = [s for v in clips.values() for x in v for s in still_clips(x.words)]
+    assert len(stills) == 3 * sum(len(v) for v in clips.values())
+    velocity = np.uint64(sum(1 << (f - 1) for f in (13, 14, 25, 26, 39, 40)))
+    assert all(s.size == 60 and not (s & velocity).any() and (s == s[0]).all() for s in stills)
+    model = build_model(clips, recipe, name="m")
+    claimed = {}
+    for rate in (None, 0.05):
+        m = with_taus(model, learn_taus(clips, recipe, max_false_rate=0.0, max_still_rate=rate))
+        costs = clip_costs(m, stills)
+        claimed[rate] = {c.name: float((costs[k] <= c.tau).mean()) for k, c in enumerate(m.classes)}
+    assert claimed[None]["sneak2StepsLStart"] > 0.15          # the problem: slow steps look like standing
+    # the cap holds on held-out actors; the full model has seen every actor, so allow a little more
+    assert all(v <= 0.10 for v in claimed[0.05].values()), claimed[0.05]
+    assert not any(is_static(c) for c in model.classes)
+    tpose = [d for d in default_recipe().definitions if d.name == "tpose"]
+    assert is_static(build_model({}, Recipe(labels={}, definitions=tuple(tpose)), name="t").classes[0])

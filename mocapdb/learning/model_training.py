@@ -75,8 +75,8 @@ def half_median_template(model: Model) -> Model:
 
 def train_recipe(clips, recipe, *, name, keyframes=True, runs=20, generations=100, inner_runs=3,
                  inner_generations=50, min_recall=1.0, min_coverage=0.95, learn_tau=True, tau_grid=TAU_GRID_DEFAULT,
-                 max_false_rate=0.0, min_length=True, margin=0.0, seed=0, n_jobs=None, cache=None,
-                 progress=None) -> TrainedModel:
+                 max_false_rate=0.0, max_still_rate=0.05, min_length=True, margin=0.0, seed=0, n_jobs=None,
+                 cache=None, progress=None) -> TrainedModel:
     """Train a model from clips and a recipe (module docstring).
 
     Parameters
@@ -95,6 +95,9 @@ def train_recipe(clips, recipe, *, name, keyframes=True, runs=20, generations=10
     tau_grid : sequence of float
     max_false_rate : float, default 0.0
         Designed (and reversed) classes may claim no held-out clip of another label.
+    max_still_rate : float or None, default 0.05
+        A moving class claims at most this share of still poses (None: off);
+        see :func:`mocapdb.learning.thresholds.learn_taus`.
     min_length : bool, default True
         ``min_frames`` by :func:`half_median_template`.
     margin : float, default 0.0
@@ -127,7 +130,7 @@ def train_recipe(clips, recipe, *, name, keyframes=True, runs=20, generations=10
         progress("classes")
     if learn_tau:
         model = with_taus(model, learn_taus(clips, recipe, grid=tau_grid, max_false_rate=max_false_rate,
-                                            cache=cache))
+                                            max_still_rate=max_still_rate, cache=cache))
         if progress is not None:
             progress("tau")
     if min_length:

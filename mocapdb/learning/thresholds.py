@@ -21,6 +21,15 @@ them — on actors the templates did not see:
    reversed class, and a learned class whose clips all come from one group:
    no template of it exists without that group).
 
+4. **Still poses.** The training clips are class motions only, but a real
+   recording also holds stretches where nobody does anything in particular
+   (standing, looking around: the authors' ``others``). A template that
+   matches a motionless pose would label them. So every clip also gives
+   *still clips*: a pose of it (at 1/4, 1/2 and 3/4 of the clip) held for
+   2 s, its velocity features off (:func:`still_clips`). A class whose
+   template moves (:func:`is_static` is false) takes no τ at which it claims
+   more than ``max_still_rate`` of the held-out actors' still clips.
+
 Designed classes therefore never take more than their author gave them, and
 learned ones get the τ at which unseen actors' clips are told apart best.
 """
@@ -32,13 +41,46 @@ import numpy as np
 
 from mocapdb.annotation.model import Model
 from mocapdb.errors import ParameterError
+from mocapdb.features import FEATURE_NAMES
 from mocapdb.learning.recipe import build_model, recipe_clips
 from mocapdb.templates import ANNOTATION_STEPS, mt_distance_slices
 
-__all__ = ["TAU_GRID", "clip_costs", "learn_taus", "with_taus"]
+__all__ = ["TAU_GRID", "VELOCITY_FEATURES", "clip_costs", "learn_taus", "with_taus", "still_clips", "is_static"]
 
 #: the τ values tried (the paper's Fig. 8 sweep: 0.05 … 0.25)
 TAU_GRID = tuple(np.round(np.arange(0.04, 0.2501, 0.01), 2).tolist())
+
+
+#: features that need motion (velocities, FEATURES.md §6): all off when the body is still
+VELOCITY_FEATURES = tuple(FEATURE_NAMES.index(n) + 1 for n in (
+    "hand_right_to_front_rel_torso", "hand_left_to_front_rel_torso", "hand_right_to_top_rel_spine",
+    "hand_left_to_top_rel_spine", "hands_move_together", "hand_right_move_apart_rel_root",
+    "hand_left_move_apart_rel_root", "hand_right_high_vel", "hand_left_high_vel", "feet_move_together_rel_hips",
+    "feet_move_apart_rel_hips", "foot_right_high_vel", "foot_left_high_vel", "root_high_vel",
+    "root_high_ang_vel"))
+_VELOCITY_MASK = np.uint64(sum(1 << (f - 1) for f in VELOCITY_FEATURES))
+#: how a still clip is made: poses at these fractions of a clip, held this many 30 Hz frames
+STILL_AT = (0.25, 0.5, 0.75)
+STILL_FRAMES = 60
+
+
+def still_clips(words) -> list:
+    """Motionless stretches made from a clip: a few of its poses, each held 2 s with the velocity features off."""
+    w = np.asarray(words, dtype=np.uint64)
+    if w.size == 0:
+        return []
+    return [np.full(STILL_FRAMES, w[min(int(w.size * f), w.size - 1)] & ~_VELOCITY_MASK, dtype=np.uint64)
+            for f in STILL_AT]
+
+
+def is_static(cls) -> bool:
+    """True for a class of a motionless pose (neutral, T-pose): no velocity feature is
+    on in any column of its template (its quantized template where no real one exists)."""
+    idx = np.array(VELOCITY_FEATURES) - 1
+    if cls.template is not None:
+        return bool((np.asarray(cls.template.real)[:, idx] < 0.5).all())
+    q = cls.quantized
+    return not bool((q.value & _VELOCITY_MASK).any())
 
 
 def clip_costs(model: Model, clips) -> np.ndarray:
@@ -77,7 +119,7 @@ def _f_beta(tp, fn, fp, beta):
     return np.where(den > 0, (1 + b2) * tp / np.maximum(den, 1e-300), 0.0)
 
 
-def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, cache=None):
+def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, max_still_rate=0.05, cache=None):
     """τ per class of the model a recipe builds from ``clips`` (module docstring).
 
     Parameters
@@ -92,6 +134,9 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, c
     beta : float, default 1.0
         Learned classes maximise F_β of the clip counts (β < 1 weighs
         precision more).
+    max_still_rate : float or None, default 0.05
+        A class that moves claims at most this share of the held-out still
+        clips (step 4 of the module docstring); None: no still clips.
     cache : dict, optional
         Templates kept across builds (:func:`build_model`).
 
@@ -111,22 +156,25 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, c
     full = build_model(clips, recipe, name="taus", cache=cache)
     names = full.class_names
     label_of = {c.name: c.label for c in full.classes}
-    costs, owner = [], []
+    costs, owner, still_costs = [], [], []
     for g in groups:
         rest = {c: [x for x in v if x.group != g] for c, v in clips.items()}
         model = build_model(rest, recipe, name=f"without_{g}", cache=cache)
         held = [(c, x) for c, v in every.items() for x in v if x.group == g]
         if not held:
             continue
-        m = clip_costs(model, [x.words for _, x in held])
+        stills = [s for _, x in held for s in still_clips(x.words)] if max_still_rate is not None else []
+        m = clip_costs(model, [x.words for _, x in held] + stills)
         row = {c: k for k, c in enumerate(model.class_names)}
-        full_m = np.full((len(names), len(held)), np.inf)
+        full_m = np.full((len(names), m.shape[1]), np.inf)
         for k, c in enumerate(names):
             if c in row:
                 full_m[k] = m[row[c]]
-        costs.append(full_m)
+        costs.append(full_m[:, :len(held)])
+        still_costs.append(full_m[:, len(held):])
         owner += [c for c, _ in held]
     m = np.concatenate(costs, axis=1)
+    still = np.concatenate(still_costs, axis=1)
     owner = np.array(owner, dtype=object)
     own_label = np.array([label_of.get(c, c) for c in owner], dtype=object)
     # the best cost of each clip among the classes of its own label
@@ -136,18 +184,30 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, c
         own_best[mine] = np.minimum(own_best[mine], m[k, mine])
     out = {}
     for k, c in enumerate(full.classes):
-        pos = owner == c.name
-        neg = own_label != c.label
-        claims = m[k][:, None] <= grid[None, :]                     # (n_clips, n_grid)
-        fp = (claims[neg] & (m[k, neg] < own_best[neg])[:, None]).sum(axis=0)
-        if pos.any() and np.isfinite(m[k, pos]).any():
-            tp = claims[pos].sum(axis=0)
-            f = _f_beta(tp, pos.sum() - tp, fp, beta)
-            out[c.name] = float(grid[int(np.flatnonzero(f == f.max())[-1])])  # ties: the larger τ
-        else:  # no held-out clips of its own (designed, reversed, one group): its own τ at most, few false claims
-            allowed = grid[(fp <= max_false_rate * max(1, neg.sum())) & (grid <= c.tau + 1e-12)]
-            out[c.name] = float(allowed.max()) if allowed.size else float(grid.min())
+        if still.shape[1] and not is_static(c):
+            # the largest τ claiming few still poses caps the class (step 4)
+            claimed = (still[k][:, None] <= grid[None, :]).mean(axis=0)
+            ok = grid[claimed <= max_still_rate]
+            cap = float(ok.max()) if ok.size else float(grid.min())
+        else:
+            cap = float(grid.max())
+        out[c.name] = min(_class_tau(k, c, m, owner, own_label, own_best, grid, beta, max_false_rate), cap)
     return out
+
+
+def _class_tau(k, c, m, owner, own_label, own_best, grid, beta, max_false_rate) -> float:
+    """Steps 2–3 for class k: F_β-best τ on its held-out clips, or the false-claim rule."""
+    pos = owner == c.name
+    neg = own_label != c.label
+    claims = m[k][:, None] <= grid[None, :]                     # (n_clips, n_grid)
+    fp = (claims[neg] & (m[k, neg] < own_best[neg])[:, None]).sum(axis=0)
+    if pos.any() and np.isfinite(m[k, pos]).any():
+        tp = claims[pos].sum(axis=0)
+        f = _f_beta(tp, pos.sum() - tp, fp, beta)
+        return float(grid[int(np.flatnonzero(f == f.max())[-1])])  # ties: the larger τ
+    # no held-out clips of its own (designed, reversed, one group): its own τ at most, few false claims
+    allowed = grid[(fp <= max_false_rate * max(1, neg.sum())) & (grid <= c.tau + 1e-12)]
+    return float(allowed.max()) if allowed.size else float(grid.min())
 
 
 def with_taus(model: Model, taus) -> Model:
