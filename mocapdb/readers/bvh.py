@@ -47,7 +47,7 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, asf_axes_at_rest,
+from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, hip_axis_is_x,
                                      map_humanoid, mapping_template)
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
@@ -516,7 +516,7 @@ def _asf_map(hier: BvhHierarchy, tree: SkeletonTree) -> JointMap | None:
                 point = kids[0]
         weights[JOINT_INDEX[j], point] = 1.0
         how[j] = (tree.names[point], "ASF bone names")
-    return JointMap(weights, names["root"], True, how)
+    return JointMap(weights, names["root"], how)
 
 
 def _user_map(tree: SkeletonTree, joint_map: dict, auto: JointMap | None, path) -> JointMap:
@@ -546,8 +546,7 @@ def _user_map(tree: SkeletonTree, joint_map: dict, auto: JointMap | None, path) 
         rot_point = auto.rotation_point if auto is not None else 0
     if not tree.is_joint[rot_point]:
         rot_point = int(tree.parent[rot_point])
-    axis = (weights[JOINT_INDEX["lhip"]] - weights[JOINT_INDEX["rhip"]]) @ tree.rest
-    return JointMap(weights, rot_point, asf_axes_at_rest(axis), how)
+    return JointMap(weights, rot_point, how)
 
 
 _MAP_CACHE: dict = {}
@@ -610,41 +609,45 @@ def _gather(jm: JointMap, hier: BvhHierarchy):
     return point, weight, end_of, needed
 
 
+def _auto_map(hier: BvhHierarchy, tree: SkeletonTree, pose=None):
+    """(JointMap or None, the MappingError of the first failure or None): ASF bone
+    names exactly, else the humanoid mapper — Y up, as BVH has it; a rest pose on
+    its side judged by a frame of the motion (``pose``); a Z-up file turned to Y
+    up (READERS.md §2)."""
+    exact = _asf_map(hier, tree)
+    if exact is not None:
+        return exact, None
+
+    def poses():
+        yield tree.rest
+        if pose is not None:
+            yield pose()
+
+    problem = None
+    for up in (None, Z_UP_TO_Y_UP):
+        for xyz in poses():
+            try:
+                found = map_humanoid(tree, xyz if up is None else xyz @ up.T)
+            except MappingError as exc:
+                problem = problem or exc
+                continue
+            return (found if up is None else replace(found, up=up)), None
+    return None, problem
+
+
 def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
     tree = hier.tree()
-    auto = _asf_map(hier, tree)
-    problem = None
-    if auto is None:
-        # Y up, as BVH has it; a rest pose on its side is judged by a frame of the
-        # motion; a Z-up file (some capture tools) is turned to Y up (READERS.md §2)
-        def poses():
-            yield tree.rest
-            if pose is not None:
-                yield pose()
-
-        for up in (None, Z_UP_TO_Y_UP):
-            for xyz in poses():
-                try:
-                    auto = map_humanoid(tree, xyz if up is None else xyz @ up.T)
-                except MappingError as exc:
-                    problem = problem or exc
-                    continue
-                auto, problem = (auto if up is None else replace(auto, up=up)), None
-                break
-            if auto is not None:
-                break
+    auto, problem = _auto_map(hier, tree, pose)
     if joint_map:
-        result = _user_map(tree, joint_map, auto, path)
-    elif auto is None:
+        return _user_map(tree, joint_map, auto, path)
+    if auto is None:
         own = [n for n, j in zip(tree.names, tree.is_joint) if j]
         missing = problem.missing or [j for j in JOINT_NAMES if j not in problem.partial]
         raise ParseError(path, None, f"not a humanoid skeleton mocapdb can map: {problem}; "
                          f"its {len(own)} joints: {', '.join(own[:40])}{' …' if len(own) > 40 else ''}; "
                          f"could not place: {', '.join(missing)}. Write a joint map (template: "
                          f"mocapdb joint-map-template {path} > map.toml) and ingest with --joint-map map.toml")
-    else:
-        result = auto
-    return result
+    return auto
 
 
 def joint_map_template(path) -> str:
@@ -660,16 +663,8 @@ def joint_map_template(path) -> str:
     m = _MOTION.search(data)
     hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
     tree = hier.tree()
-    partial = {}
-    auto = _asf_map(hier, tree)
-    if auto is None:
-        try:
-            auto = map_humanoid(tree)
-        except MappingError as exc:
-            partial = exc.partial
-    if auto is not None:
-        partial = auto.how
-    return mapping_template(tree, partial, source=str(path))
+    auto, problem = _auto_map(hier, tree)
+    return mapping_template(tree, auto.how if auto is not None else problem.partial, source=str(path))
 
 
 # ----------------------------------------------------------------------------
@@ -818,7 +813,7 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
     # feature #40 may read the pelvis rotation only where its x axis is the hip axis
     # (ASF convention) in the take itself: R^T (lhip - rhip) along +x
     hips = joints[:, JOINT_INDEX["lhip"]] - joints[:, JOINT_INDEX["rhip"]]
-    asf_axes = asf_axes_at_rest(np.einsum("fji,fj->i", rot, hips) / max(len(hips), 1))
+    asf_axes = hip_axis_is_x(np.einsum("fji,fj->i", rot, hips) / max(len(hips), 1))
     kind = ("joint_map" if joint_map else
             "asf" if all(w[1] == "ASF bone names" for w in jm.how.values()) else "humanoid")
     meta = {"bvh_family": kind, "frame_time": data.frame_time,

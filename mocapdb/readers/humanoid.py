@@ -45,7 +45,7 @@ import numpy as np
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
-           "mapping_template", "asf_axes_at_rest", "Z_UP_TO_Y_UP"]
+           "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP"]
 
 #: rotation of -90° about x: +Z (up in many capture tools) becomes +Y, +Y becomes -Z
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -141,10 +141,6 @@ class JointMap:
         ``joints[f] = weights @ points[f]``; every row sums to 1.
     rotation_point : int
         The pelvis joint: its global rotation is the root rotation.
-    asf_axes : bool
-        True when the pelvis's axes follow the ASF convention (x from the
-        right hip to the left one in the rest pose): then feature #40 may use
-        the root rotation; otherwise it uses the hip axis (READERS.md §2).
     how : dict
         Canonical joint → how it was placed (for messages and templates).
     up : ndarray, shape (3, 3), or None
@@ -154,7 +150,6 @@ class JointMap:
 
     weights: np.ndarray
     rotation_point: int
-    asf_axes: bool
     how: dict
     up: np.ndarray | None = None
 
@@ -162,11 +157,10 @@ class JointMap:
 class MappingError(Exception):
     """No humanoid mapping: ``missing`` lists canonical joints it could not place."""
 
-    def __init__(self, message, missing, partial, *, upright=True):
+    def __init__(self, message, missing, partial):
         super().__init__(message)
         self.missing = list(missing)
         self.partial = dict(partial)
-        self.upright = upright
 
 
 # ----------------------------------------------------------------------------
@@ -279,8 +273,7 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
     ------
     MappingError
         The tree is not a humanoid (no two legs, two arms and a head), with
-        the canonical joints it could not place; ``upright`` is False when the
-        pose is not an upright body (then try a frame of the motion).
+        the canonical joints it could not place.
     """
     n = tree.n
     rest = tree.rest  # lengths: the same in any pose
@@ -314,7 +307,7 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
     up = pose[head_leaf] - pose[pelvis]
     if up[1] < 0.5 * np.linalg.norm(up) or any(pose[i, 1] >= pose[pelvis, 1] for i in feet):
         raise MappingError("the pose is not an upright body (head above the pelvis, feet below)", JOINT_NAMES,
-                           partial, upright=False)
+                           partial)
     branches = {}
     for i in feet:
         branches.setdefault(paths[i][depth], []).append(i)
@@ -461,13 +454,12 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
                 how[joint] = (None, f"at {frac * 3:.0f}/3 of the spine from the pelvis to the neck")
                 break
             acc += L
-    axis = (weights[JOINT_INDEX["lhip"]] - weights[JOINT_INDEX["rhip"]]) @ rest
-    return JointMap(weights, int(pelvis), asf_axes_at_rest(axis), how)
+    return JointMap(weights, int(pelvis), how)
 
 
-def asf_axes_at_rest(hip_axis) -> bool:
-    """True when a hip axis (lhip − rhip) in the pelvis's own frame runs along +x
-    (within 20°): the ASF root convention that feature #40 relies on."""
+def hip_axis_is_x(hip_axis) -> bool:
+    """True when a hip axis (lhip − rhip), expressed in the pelvis's own frame,
+    runs along +x (within 20°): the ASF root convention feature #40 relies on."""
     a = np.asarray(hip_axis, dtype=np.float64)
     norm = float(np.linalg.norm(a))
     return bool(norm > 0 and a[0] / norm > np.cos(np.radians(20.0)))
