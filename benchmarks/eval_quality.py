@@ -13,9 +13,9 @@ annotation):
 * **new default** — :func:`mocapdb.learning.model_training.train_recipe`
   with :func:`mocapdb.learning.recipe.default_recipe` on each fold's
   clips: learned HDM05 and CMU-stretch classes, mirrored and reversed
-  classes, the designed classes of ``mocapdb/models/classes``, robust
-  keyframe queries, τ per class, minimum segment length — annotated in its
-  default mode and with each addition switched off.
+  classes, the designed classes and keyframes of ``mocapdb/models/classes``
+  (``--ga``: also robust GA keyframe queries), τ per class, minimum segment
+  length — annotated in its default mode and with each addition switched off.
 
 Folds: leave-one-actor-out on hdm05_cut (loao; its mirror image
 loao_mirrored), and CMU 86_09 / mocap6, each CMU document annotated by a
@@ -23,7 +23,7 @@ model built without its own stretches (leave-one-document-out). The
 preselection check compares, per label, the truth segments the default
 mode's preselection removes with those the reference mode misses.
 
-Usage: python benchmarks/eval_quality.py [--runs 20] [--generations 100]
+Usage: python benchmarks/eval_quality.py [--ga] [--runs 20] [--generations 100]
        [--inner-runs 5] [--inner-generations 50] [--seed 0] [--jobs 2]
        [--json benchmarks/eval_quality.json] [--quick]
 """
@@ -77,7 +77,8 @@ def new_default(args, report):
 
     def build(clips, name):
         t = time.perf_counter()
-        trained = train_recipe(clips, recipe, name=name, runs=args.runs, generations=args.generations,
+        trained = train_recipe(clips, recipe, name=name, keyframes=args.ga, runs=args.runs,
+                               generations=args.generations,
                                inner_runs=args.inner_runs, inner_generations=args.inner_generations, seed=args.seed,
                                n_jobs=args.jobs, cache=cache)
         kept = sum(1 for q in trained.queries.values() if q.query is not None)
@@ -109,6 +110,8 @@ def main():
     ap.add_argument("--json", type=Path, default=REPO / "benchmarks" / "eval_quality.json",
                     help="write the figures here (the tests read them)")
     ap.add_argument("--quick", action="store_true", help="5 GA runs of 50 generations, 3 inner runs (a look)")
+    ap.add_argument("--ga", action="store_true",
+                    help="the new default with GA keyframe queries for its learned classes (off in the shipped one)")
     args = ap.parse_args()
     if args.quick:
         args.runs, args.generations, args.inner_runs = 5, 50, 3
@@ -180,7 +183,7 @@ def main():
         out = {"settings": {m: {s: {k: getattr(sc, k) for k in MEASURES} for s, sc in r.scores.items()}
                             for m, r in results.items()},
                "per_label": per_label, "queries": sources.get("all", {}),
-               "parameters": {k: getattr(args, k) for k in ("seed", "runs", "generations", "inner_runs",
+               "parameters": {k: getattr(args, k) for k in ("seed", "runs", "generations", "inner_runs", "ga",
                                                             "inner_generations")},
                "seconds": total}
         args.json.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")

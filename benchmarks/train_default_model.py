@@ -8,8 +8,9 @@ Run: ``python benchmarks/train_default_model.py [--runs 20] [--seed 0] [--jobs N
   of labelled CMU stretches (walks, jogs, the mocap6 exercise sets, one
   repetition each), their mirror images and reversals, and the designed
   classes of ``mocapdb/models/classes/*.toml``
-  (:func:`mocapdb.learning.recipe.default_recipe`); robust GA keyframe
-  queries, τ per class and minimum segment lengths
+  (:func:`mocapdb.learning.recipe.default_recipe`); designed keyframe
+  queries (``--ga``: also robust GA queries), τ per class and minimum
+  segment lengths
   (:func:`mocapdb.learning.model_training.train_recipe`). Every random step
   is seeded: the same seed gives the same Parquet files, whatever ``--jobs``.
 * ``toolbox`` — the 11 HDM05 templates, identical to the authors' toolbox
@@ -47,7 +48,8 @@ def main():
     ap.add_argument("--inner-generations", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=None, help="GA worker processes (default: all cores)")
-    ap.add_argument("--no-keyframes", action="store_true", help="no learned keyframe queries")
+    ap.add_argument("--ga", action="store_true",
+                    help="also learn GA keyframe queries for learned classes (off in the shipped model)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         con = mocapdb.connect(Path(tmp) / "train.duckdb")
@@ -62,7 +64,7 @@ def main():
             t = time.perf_counter()
             data = development_data(DATA)
             clips = data.clips()
-            trained = train_recipe(clips, default_recipe(), name="default", keyframes=not args.no_keyframes,
+            trained = train_recipe(clips, default_recipe(), name="default", keyframes=args.ga,
                                    runs=args.runs, generations=args.generations, inner_runs=args.inner_runs,
                                    inner_generations=args.inner_generations, seed=args.seed, n_jobs=args.jobs,
                                    progress=lambda what: print(f"  {what} ({time.perf_counter() - t:.0f} s)",
@@ -83,12 +85,12 @@ def main():
                   for g in range(st.generations + 1)]
             save_model(con, model, replace=True, keyframe_stats=stats, ga_statistics=ga,
                        description="The paper's 15 labels (Table 1): HDM05 and CMU classes learned from "
-                                   "../shared/data, mirrored, reversed and designed classes, robust keyframe "
+                                   "../shared/data, mirrored, reversed and designed classes, designed keyframe "
                                    "queries, tau per class, minimum segment lengths",
                        source=f"benchmarks/train_default_model.py: {n_clips} clips (hdm05_cut, CMU stretches), "
-                              f"class definitions mocapdb/models/classes, GA {args.runs} runs x "
-                              f"{args.generations} generations (inner {args.inner_runs} x "
-                              f"{args.inner_generations}), seed {args.seed}")
+                              f"class and keyframe definitions mocapdb/models/classes"
+                              + (f", GA {args.runs} runs x {args.generations} generations (inner "
+                                 f"{args.inner_runs} x {args.inner_generations}), seed {args.seed}" if args.ga else ""))
             print(f"default: {len(model.classes)} classes, {len(model.labels)} labels in "
                   f"{time.perf_counter() - t:.0f} s")
             missing = sorted(set(PAPER_LABELS) - set(model.labels))

@@ -43,7 +43,7 @@ from mocapdb.evaluation import evaluate_annotation, evaluate_by_label, parse_tau
 from mocapdb.extension import register
 from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
-from mocapdb.learning.class_definitions import compile_definitions, read_class_definitions
+from mocapdb.learning.class_definitions import attach_keyframes, compile_definitions, read_definitions
 from mocapdb.storage import parquet, postings
 from mocapdb.storage.annotations import EXPORT_FORMATS, annotate_documents, export_segments, store_annotations
 from mocapdb.storage.cache import connection_cache
@@ -283,14 +283,22 @@ def train(con, *, model, folder=None, labels=None, class_labels=None, delta=0.05
 
 
 def _with_definitions(model, definitions, *, replace=False):
-    """``model`` with the compiled classes of definition files added (or replaced)."""
-    designed = compile_definitions(read_class_definitions(definitions))
+    """``model`` with the compiled classes of definition files added (or replaced), and the
+    keyframe definitions' queries attached to the classes they name."""
+    defs, keyframes = read_definitions(definitions)
+    designed = compile_definitions(defs)
     clash = sorted({c.name for c in designed} & set(model.class_names))
     if clash and not replace:
         raise ParameterError(f"model {model.name!r} already has the classes {clash}; pass replace=True "
                              "(--replace) to redefine them")
     new = {c.name for c in designed}
     classes = tuple(c for c in model.classes if c.name not in new) + tuple(designed)
+    by_class = {k.cls: k for k in keyframes}
+    unknown = sorted(set(by_class) - {c.name for c in classes})
+    if unknown:
+        raise ParameterError(f"keyframe definitions name classes {unknown} that model {model.name!r} does not "
+                             f"have; its classes: {', '.join(c.name for c in classes)}")
+    classes = tuple(attach_keyframes(c, by_class[c.name]) if c.name in by_class else c for c in classes)
     labels = tuple(dict.fromkeys(list(model.labels) + [c.label for c in designed]))
     return dataclasses.replace(model, classes=classes, labels=labels)
 
@@ -326,9 +334,12 @@ def define_class(con, definitions, *, model=DEFAULT_MODEL, replace=False, descri
     else:
         base, meta, stats, ga = Model(model, ()), {"description": description, "source": ""}, {}, []
     new = _with_definitions(base, definitions, replace=replace)
+    before = {c.name: c.keyframe_query for c in base.classes}
     for c in new.classes:
         if c.template is None and c.keyframe_query is not None and c.name not in base.class_names:
             stats[c.name] = {"source": "class definition"}
+        elif c.name in before and c.keyframe_query is not before[c.name]:
+            stats[c.name] = {"source": "keyframe definition"}
     save_model(con, new, replace=True, description=description or meta["description"],
                source=f"{meta['source']}; class definitions {definitions}".lstrip("; "), keyframe_stats=stats,
                ga_statistics=ga)

@@ -11,8 +11,10 @@ from mocapdb.cli import main
 from mocapdb.errors import ParseError
 from mocapdb.features import FEATURE_NAMES, MIRROR_FEATURES, N_FEATURES, pack_words
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, build_index, keyframe_search
-from mocapdb.learning.class_definitions import (WARP, compile_definition, mirror_definition, parse_class_definitions,
-                                                read_class_definitions, reverse_definition)
+from mocapdb.annotation import ClassModel
+from mocapdb.learning.class_definitions import (WARP, KeyframeDefinition, attach_keyframes, compile_definition,
+                                                mirror_definition, parse_class_definitions, parse_definitions,
+                                                read_class_definitions, read_definitions, reverse_definition)
 from mocapdb.learning.recipe import PAPER_LABELS
 from mocapdb.templates import QuantizedTemplate
 
@@ -233,3 +235,102 @@ def test_a_definition_keyframe_query_is_valid(tmp_path):
         q = compile_definition(d).keyframe_query
         assert isinstance(q, KeyframeQuery)
         assert (q.d_min <= q.d_max).all()
+
+
+KICK_KEYFRAMES = """
+[[class]]
+name = "standStillHere"
+label = "neutral"
+[[class.phase]]
+seconds = 1
+root_high_vel = 0
+
+# two keyframes for a learned class
+[[keyframes]]
+class = "kickish"
+description = "lift, then stretch"
+
+[[keyframes.keyframe]]
+name = "lift"
+knee_left_bent = 1
+
+[[keyframes.keyframe]]
+foot_left_raised_rel_y_body_min = 1
+knee_left_bent = 0
+"""
+
+
+def _template_class(real):
+    from mocapdb.templates import MotionTemplate
+
+    real = np.asarray(real, dtype=float)
+    mt = MotionTemplate(real, np.ones(real.shape[0]))
+    return ClassModel("kickish", "kick", template=mt)
+
+
+def test_keyframe_definitions_sit_where_the_template_has_them():
+    classes, (k,) = parse_definitions(KICK_KEYFRAMES, "k.toml")
+    assert [d.name for d in classes] == ["standStillHere"]
+    assert parse_class_definitions(KICK_KEYFRAMES, "k.toml") == classes   # the classes alone
+    assert (k.cls, k.names, k.description) == ("kickish", ("lift", "keyframe 2"), "lift, then stretch")
+    assert k.source == "k.toml:10"
+    knee, foot = 1 << F["knee_left_bent"], 1 << F["foot_left_raised_rel_y_body_min"]
+    assert k.keyframes == ((knee, knee), (knee | foot, foot))
+    # a 20-column template: the knee bends around column 5, the foot is up with the knee straight at 14
+    real = np.full((20, N_FEATURES), 0.5)
+    real[:, F["knee_left_bent"]] = 0.1
+    real[4:7, F["knee_left_bent"]] = [0.8, 0.95, 0.8]
+    real[:, F["foot_left_raised_rel_y_body_min"]] = 0.05
+    real[12:16, F["foot_left_raised_rel_y_body_min"]] = [0.6, 0.9, 0.99, 0.7]
+    real[14, F["knee_left_bent"]] = 0.0
+    q = attach_keyframes(_template_class(real), k).keyframe_query
+    assert q.positions.tolist() == [5, 14] and q.template_length == 20
+    assert (q.d_min.tolist(), q.d_max.tolist()) == ([math.ceil(9 / WARP)], [9 * WARP])
+    assert q.mask.tolist() == [knee, knee | foot] and q.value.tolist() == [knee, foot]
+    # later keyframes never go before earlier ones: a foot keyframe best at column 2 is pushed to the knee's 5
+    real[2, F["foot_left_raised_rel_y_body_min"]] = 1.0
+    real[12:16, F["foot_left_raised_rel_y_body_min"]] = 0.05
+    q = attach_keyframes(_template_class(real), k).keyframe_query
+    assert q.positions[1] >= q.positions[0] == 5
+    # a class with only a quantized template: the columns that agree
+    (d,) = parse_class_definitions(TWO_PHASES)
+    c = compile_definition(d)
+    one = KeyframeDefinition("liftThenHop", (((1 << F["root_high_vel"]), (1 << F["root_high_vel"])),))
+    q = attach_keyframes(c, one).keyframe_query
+    assert q.positions.tolist() == [6] and q.template_length == len(c.quantized)     # the first hop column
+
+
+@pytest.mark.parametrize("text, line, match", [
+    ("[[keyframes]]\nclass = 'k'\n[[keyframes.keyframe]]\nknee_left_bnet = 1\n", 4,
+     "unknown feature 'knee_left_bnet'; did you mean knee_left_bent"),
+    ("[[keyframes]]\nclass = 'k'\n[[keyframes.keyframe]]\nname = 'empty'\n", 3, "fixes no feature"),
+    ("[[keyframes]]\nclass = 'k'\nknee_left_bent = 1\n", 3, "go into \\[\\[keyframes.keyframe\\]\\]"),
+    ("[[keyframes]]\nclass = 'k'\n", 1, "no \\[\\[keyframes.keyframe\\]\\]"),
+    ("[[keyframes]]\nclass = 'k'\n[[keyframes.keyframe]]\nknee_left_bent = 1\n"
+     "[[keyframes]]\nclass = 'k'\n[[keyframes.keyframe]]\nknee_left_bent = 0\n", 5, "given twice"),
+    ("title = 'x'\n", 1, "unknown top-level key 'title'"),
+])
+def test_keyframe_definition_errors_name_file_and_line(text, line, match):
+    with pytest.raises(ParseError, match=match) as e:
+        parse_definitions(text, "kf.toml")
+    assert str(e.value).startswith(f"kf.toml:{line}: ")
+
+
+def test_define_class_attaches_keyframes_to_a_model_s_classes(tmp_path):
+    import mocapdb
+    from mocapdb.api import define_class
+    from mocapdb.errors import ParameterError
+
+    con = mocapdb.connect(tmp_path / "k.duckdb")
+    try:
+        m = define_class(con, [SHIPPED / "kick.toml"], model="toolbox")
+        kick = m.classes[m.class_names.index("kickLFront1Reps")]
+        q = kick.keyframe_query
+        assert q.n_keyframes == 1 and q.template_length == len(kick.template.real)
+        stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'toolbox' "
+                             "AND class = 'kickLFront1Reps'").fetchall()
+        assert stored == [("keyframe definition",)]
+        with pytest.raises(ParameterError, match="name classes \\['kickLFront1Reps'\\] that model 'empty'"):
+            define_class(con, [SHIPPED / "kick.toml", SHIPPED / "turn.toml"], model="empty")
+    finally:
+        con.close()

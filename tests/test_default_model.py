@@ -55,25 +55,41 @@ def test_the_development_figures_belong_to_the_shipped_model(shipped):
     model, _ = shipped
     figures = json.loads(FIGURES.read_text())
     # the evaluation's model of all folds' data is the shipped one (same recipe, seed and GA runs)
-    with_query = {c for c, src in figures["queries"].items() if src.startswith(("ga", "class definition"))}
+    with_query = {c for c, src in figures["queries"].items()
+                  if src.startswith(("ga", "class definition", "keyframe definition"))}
     assert with_query == {c.name for c in model.classes if c.keyframe_query is not None
                           and not any(c.name == m for m in DEFAULT_MIRRORS.values())
                           and c.name not in {n for n, _ in DEFAULT_REVERSALS.values()}}
-    assert figures["parameters"] == {"seed": 0, "runs": 20, "generations": 100, "inner_runs": 3,
+    assert figures["parameters"] == {"seed": 0, "runs": 20, "generations": 100, "inner_runs": 3, "ga": False,
                                      "inner_generations": 50}
 
 
-def test_the_new_default_beats_the_reference_except_on_the_clip_documents():
-    """Stored figures of benchmarks/eval_quality.py (RESULTS.md, issue 11): the new default's F1 and
-    F2 beat the reference mode's on the mirrored clip documents and on every CMU setting. On the
-    leave-one-actor-out clip documents it does not (their truth has 8 of the 15 labels, and a
-    stand, a turn or a punch inside a clip counts as an error): it stays within 0.03."""
+def test_the_new_default_beats_the_reference_on_every_setting():
+    """Stored figures of benchmarks/eval_quality.py (RESULTS.md, issue 11): the new default's F1 beats
+    the reference mode's on every setting, and its F2 on every setting but the leave-one-actor-out clip
+    documents, where it is within one segment in a hundred (their truth has 8 of the 15 labels: a
+    stand, a turn or a punch inside a clip counts as an error)."""
     s = json.loads(FIGURES.read_text())["settings"]
     new, ref = s["new default"], s["reference"]
-    for setting in ("loao_mirrored", "cmu86_09", "mocap6", "cmu", "all"):
+    for setting in ("loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all"):
         assert new[setting]["f1"] > ref[setting]["f1"], setting
-        assert new[setting]["f2"] >= ref[setting]["f2"], setting
-    assert ref["loao"]["f1"] - 0.03 <= new["loao"]["f1"] < ref["loao"]["f1"]
-    assert ref["loao"]["f2"] - 0.04 <= new["loao"]["f2"]
+        if setting != "loao":
+            assert new[setting]["f2"] >= ref[setting]["f2"], setting
+    assert new["loao"]["f2"] >= ref["loao"]["f2"] - 0.01
     # the previous default lost recall on new actors; the new default keeps it
     assert new["loao"]["r1"] > s["previous default"]["loao"]["r1"]
+
+
+def test_the_kicks_are_preselected_by_their_designed_keyframe(shipped):
+    """mocapdb/models/classes/kick.toml: both kick classes carry the stretched-leg keyframe (the right
+    kick's mirrored), and the kick segments of the development evaluation are all found."""
+    model, _ = shipped
+    by = {c.name: c for c in model.classes}
+    left, right = by["kickLFront1Reps"].keyframe_query, by["kickRFront1Reps"].keyframe_query
+    assert left is not None and left.n_keyframes == 1
+    mirrored = left.mirrored()
+    assert (right.mask, right.value, right.positions) == (mirrored.mask, mirrored.value, mirrored.positions)
+    figures = json.loads(FIGURES.read_text())
+    assert figures["queries"]["kickLFront1Reps"] == "keyframe definition"
+    kick = figures["per_label"]["loao"]["new default"]["kick"]
+    assert kick["r2"] == 1.0 and kick["f1"] > figures["per_label"]["loao"]["reference"]["kick"]["f1"]

@@ -88,7 +88,21 @@ def test_timeline_with_truth(db, tmp_path, figure):
 
 
 def test_ga_curve(db, tmp_path):
+    """Fig. 5 of a model whose keyframe queries the GA learned (the shipped default's are designed)."""
+    from mocapdb.api import learn_keyframes, train
+
     path, _ = db
+    con = mocapdb.connect(path)
+    try:
+        folder = tmp_path / "cut"                   # two real classes, symlinked (never copied)
+        folder.mkdir()
+        for f in [*(DATA / "hdm05_cut").glob("HDM_*.asf"), DATA / "hdm05_cut" / "squat1Reps",
+                  DATA / "hdm05_cut" / "kickLFront1Reps"]:
+            (folder / f.name).symlink_to(f, target_is_directory=f.is_dir())
+        train(con, model="ga", folder=folder)
+        learn_keyframes(con, model="ga", folder=folder, runs=2, generations=5, jobs=1)
+    finally:
+        con.close()
     out = tmp_path / "fig5.png"
-    assert report(path, "--figure", "ga", "--out", out).exit_code == 0
+    assert report(path, "--figure", "ga", "--model", "ga", "--out", out).exit_code == 0
     drawn(out)

@@ -236,3 +236,63 @@ def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
     assert not any(is_static(c) for c in model.classes)
     tpose = [d for d in default_recipe().definitions if d.name == "tpose"]
     assert is_static(build_model({}, Recipe(labels={}, definitions=tuple(tpose)), name="t").classes[0])
+
+
+def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
+    """The shipped kick keyframe (mocapdb/models/classes/kick.toml: the raised leg stretched) holds in
+    every kick clip of every actor and in no clip of walking, jogging, sneaking, hopping, squats,
+    elbow-to-knee, throwing, grabbing or arm rotations (lying on the back may show it), nor in the CMU
+    walks and jogs; its mirror holds in no HDM05 clip but a lie-down (no right kicks here)."""
+    from mocapdb.evaluation.development import development_data
+
+    (k,) = default_recipe().keyframes
+    (mask, value), = k.keyframes
+    mask, value = np.uint64(mask), np.uint64(value)
+    mirror = mirror_class(build_model({"kickLFront1Reps": [Clip(n, w) for n, w in cut_clips["kickLFront1Reps"]]},
+                                      Recipe(labels={"kickLFront1Reps": "kick"},
+                                             keyframes=(k,)), name="k").classes[0], "kickR").keyframe_query
+
+    def holds(q_mask, q_value, w):
+        return bool(((np.asarray(w, np.uint64) & q_mask) == q_value).any())
+
+    for c, clips in cut_clips.items():
+        hits = [holds(mask, value, w) for _, w in clips]
+        if c == "kickLFront1Reps":
+            assert all(hits)
+        elif c != "lieDownFloor":
+            assert not any(hits), c
+        if c != "lieDownFloor":
+            assert not any(holds(mirror.mask[0], mirror.value[0], w) for _, w in clips), c
+    cmu = development_data(data_dir).clips()
+    for c in ("cmuWalk2Steps", "cmuJog2Steps", "cmuKneeRaise1Reps"):
+        assert cmu[c] and not any(holds(mask, value, x.words) or holds(mirror.mask[0], mirror.value[0], x.words)
+                                  for x in cmu[c]), c
+
+
+def test_clip_costs_through_the_preselection_equal_annotation_with_keyframes(cut_clips):
+    """clip_costs(preselect=…): Δ of a class with a query only where its keyframes let annotation
+    match it — the same minima as annotate() with the keyframe preselection, clip by clip."""
+    from mocapdb.annotation import preselection_for
+    from mocapdb.learning.thresholds import clip_costs
+
+    names = ("kickLFront1Reps", "squat1Reps", "sneak2StepsLStart")
+    clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c][:6]] for c in names}
+    recipe = dataclasses.replace(default_recipe(), labels={c: default_recipe().labels[c] for c in names},
+                                 mirrors={"kickLFront1Reps": "kickRFront1Reps"}, reversals={})
+    model = build_model(clips, recipe, name="m")
+    assert model.classes[model.class_names.index("kickRFront1Reps")].keyframe_query is not None
+    words = [x.words for v in clips.values() for x in v]
+    lengths = np.array([w.size for w in words])
+    queried = [k for k, c in enumerate(model.classes) if c.keyframe_query is not None]
+    costs = clip_costs(model, words, preselect=[model.classes[k].name for k in queried])
+    plain = clip_costs(model, words)
+    flat = np.concatenate(words)
+    ann = annotate(flat, model, doc_lengths=lengths, keep_deltas=True,
+                   preselection=preselection_for(flat, lengths, model, True))
+    bounds = np.concatenate(([0], np.cumsum(lengths)))
+    brute = np.array([[ann.delta[k, a:b].min() for a, b in zip(bounds[:-1], bounds[1:])]
+                      for k in range(len(model.classes))])
+    np.testing.assert_array_equal(costs, brute)
+    others = [k for k in range(len(model.classes)) if k not in queried]
+    np.testing.assert_array_equal(costs[others], plain[others])       # no query: whole clips
+    assert np.isinf(costs[queried]).any() and (costs[queried] >= plain[queried]).all()

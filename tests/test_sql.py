@@ -21,7 +21,7 @@ def db(tmp_path_factory):
     """The five oracle documents and a few HDM05 clips, with the toolbox's own templates as model 'oracle'."""
     con = mocapdb.connect(tmp_path_factory.mktemp("sql") / "t.duckdb")
     ingest(con, [DATA / "cmu" / "86", *(DATA / "cmu" / "02" / f"{d}.amc" for d in DOCS if d.startswith("02")),
-                 DATA / "hdm05_cut" / "squat1Reps"])
+                 DATA / "hdm05_cut" / "squat1Reps", DATA / "hdm05_cut" / "kickLFront1Reps"])
     save_model(con, oracle_model(), description="toolbox templates (oracle)")
     yield con
     con.close()
@@ -131,7 +131,9 @@ def test_example_queries_run(db, name):
         assert all(r[1] == "kick" and r[4] > 1.0 for r in rows)
     if name == "seconds_per_label.sql":
         assert {r[0] for r in rows} >= {"86_09"}
-    if name == "squat_keyframe_chain.sql":
-        # the default model's squat query finds every squat clip and nothing in the CMU documents
+    if name == "kicks.sql":
+        # the designed kick keyframe finds every (left) kick clip, and nothing in the squats, the
+        # CMU walks, runs, jumps, swordplay and washing, or 86_09
         names = {r[0] for r in rows}
-        assert names == {r[0] for r in db.execute("SELECT name FROM motions WHERE name LIKE '%squat%'").fetchall()}
+        assert names == {r[0] for r in db.execute("SELECT name FROM motions WHERE name LIKE '%kick%'").fetchall()}
+        assert {r[1] for r in rows} == {"left"}

@@ -69,7 +69,7 @@ from mocapdb.annotation.labels import (
     LABEL_DTYPE, read_text, class_labels as shipped_class_labels, label_rows,
     map_labels, to_feature_grid)
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.features import DOWNSAMPLING_FACTOR, mirror_words, motion_features
+from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE, mirror_words, motion_features
 from mocapdb.readers import read_motion
 from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.motion import Motion
@@ -103,6 +103,9 @@ CMU_STRETCH_CLASSES = {
 #: poses held still at the start of HDM05 full documents (read from C3D) -> the class
 #: definition whose phase finds them (the authors' fine classes tpose1000, standStill2000)
 POSE_CLASSES = {"tpose1000": "tpose", "standStill2000": "standStill"}
+#: the shortest pose a learned pose class takes (seconds): the authors' standStill2000 is a stand of
+#: 2000 ms (the neutral definition, which finds it, also admits shorter stands)
+POSE_MIN_SECONDS = {"standStill2000": 2.0}
 
 _ROOT = JOINT_INDEX["root"]
 _FLOOR = [0, 2]  # x and z: the floor plane (Y is up)
@@ -508,7 +511,8 @@ def pose_clips(data_dir, definitions, *, classes=POSE_CLASSES):
         if len(d.phases) != 1:
             raise ParameterError(f"definition {name!r} has {len(d.phases)} phases; a pose is one")
         q = compile_definition(d).quantized
-        rules[cls] = (int(q.mask[0]), int(q.value[0]), int(np.ceil(d.phases[0].min_frames)))
+        shortest = max(d.phases[0].min_frames, POSE_MIN_SECONDS.get(cls, 0.0) * FEATURE_RATE)
+        rules[cls] = (int(q.mask[0]), int(q.value[0]), int(np.ceil(shortest)))
     out = {c: [] for c in classes}
     for path in sorted((Path(data_dir) / "hdm05_full").glob("*.c3d")):
         words = motion_features(read_motion(path))

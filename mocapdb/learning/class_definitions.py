@@ -42,10 +42,27 @@ Compilation (:func:`compile_definition`):
   A single duration d stands for ``[d/2, 2d]``: the time warp the annotation's
   DTW steps allow. ``keyframes = false`` on the class gives no query.
 
+**Keyframes for a learned class** (:class:`KeyframeDefinition`,
+:func:`attach_keyframes`): the same files may hold ``[[keyframes]]`` tables
+that give a class with a template (a learned one) a hand-designed keyframe
+query — the moment that makes the motion what it is, where a learned
+template only says how it goes on average::
+
+    [[keyframes]]
+    class = "kickLFront1Reps"
+    [[keyframes.keyframe]]          # one per keyframe, in time order
+    foot_left_raised_rel_y_body_min = 1
+    femur_left_abduct_rel_spine = 1
+    knee_left_bent = 0
+
+Each keyframe is placed at the template column where it most probably
+holds; a mirrored class takes the query mirrored.
+
 Errors are :class:`~mocapdb.errors.ParseError` naming the file and line.
 """
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import re
@@ -62,8 +79,9 @@ from mocapdb.features import FEATURE_NAMES, FEATURE_RATE, MIRROR_FEATURES, N_FEA
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery
 from mocapdb.templates import QuantizedTemplate
 
-__all__ = ["Phase", "ClassDefinition", "parse_class_definitions", "read_class_definitions",
-           "compile_definition", "compile_definitions", "mirror_definition", "reverse_definition", "WILDCARD"]
+__all__ = ["Phase", "ClassDefinition", "KeyframeDefinition", "parse_class_definitions", "parse_definitions",
+           "read_class_definitions", "read_definitions", "compile_definition", "compile_definitions",
+           "attach_keyframes", "mirror_definition", "reverse_definition", "WILDCARD"]
 
 #: the wildcard value of a feature in a definition
 WILDCARD = "*"
@@ -134,18 +152,44 @@ class ClassDefinition:
         return sum(_columns(p) for p in self.phases)
 
 
+@dataclass(frozen=True)
+class KeyframeDefinition:
+    """Hand-designed keyframes for a class that has a template already (a ``[[keyframes]]`` table).
+
+    A learned template says how a motion goes on average; what makes it *this*
+    motion is often one moment (a kick: the raised leg stretched). Such a
+    moment, written as feature values, becomes the class's keyframe query
+    (:func:`attach_keyframes`): the template is then matched only around it.
+
+    Attributes
+    ----------
+    cls : str
+        The class it is for (learned, in the recipe or the model).
+    keyframes : tuple of (int, int)
+        Per keyframe, in time order, (mask, value) as 40-bit words.
+    names : tuple of str
+    description, source : str
+    """
+
+    cls: str
+    keyframes: tuple
+    names: tuple = ()
+    description: str = ""
+    source: str = ""
+
+
 # ---------------------------------------------------------------------------
 # parsing
 
 
-def _locate(text):
-    """Line numbers of the ``[[class]]`` and ``[[class.phase]]`` headers: [(class line, [phase lines])]."""
+def _locate(text, table="class", sub="phase"):
+    """Line numbers of the ``[[table]]`` and ``[[table.sub]]`` headers: [(table line, [sub lines])]."""
     out = []
     for k, line in enumerate(text.splitlines(), 1):
         s = line.strip()
-        if re.match(r"^\[\[\s*class\s*\]\]", s):
+        if re.match(r"^\[\[\s*" + table + r"\s*\]\]", s):
             out.append((k, []))
-        elif re.match(r"^\[\[\s*class\s*\.\s*phase\s*\]\]", s) and out:
+        elif re.match(r"^\[\[\s*" + table + r"\s*\.\s*" + sub + r"\s*\]\]", s) and out:
             out[-1][1].append(k)
     return out
 
@@ -165,10 +209,10 @@ def _key_line(lines, start, key):
 class _Where:
     """Turns a (class, phase, key) position into a ParseError with file and line."""
 
-    def __init__(self, path, text):
+    def __init__(self, path, text, table="class", sub="phase"):
         self.path = path
         self.lines = text.splitlines()
-        self.headers = _locate(text)
+        self.headers = _locate(text, table, sub)
 
     def line(self, ci=None, pi=None, key=None):
         if ci is None or ci >= len(self.headers):
@@ -263,6 +307,13 @@ def _string(cls, key, where, ci, *, required=True):
     return v.strip()
 
 
+def _description(table, where, ci):
+    description = table.get("description", "")
+    if not isinstance(description, str):
+        raise where.error("description must be a string", ci, None, "description")
+    return description
+
+
 def _class(cls, where, ci):
     if not isinstance(cls, dict):
         raise where.error("expected a table [[class]]", ci)
@@ -283,9 +334,7 @@ def _class(cls, where, ci):
     keyframes = cls.get("keyframes", True)
     if not isinstance(keyframes, bool):
         raise where.error(f"keyframes = {keyframes!r}: expected true or false", ci, None, "keyframes")
-    description = cls.get("description", "")
-    if not isinstance(description, str):
-        raise where.error("description must be a string", ci, None, "description")
+    description = _description(cls, where, ci)
     phases = cls.get("phase")
     if not isinstance(phases, list) or not phases:
         raise where.error(f"class {name!r} has no phases; add [[class.phase]] tables", ci)
@@ -311,19 +360,51 @@ def _class(cls, where, ci):
     return out
 
 
-def parse_class_definitions(text, path="<string>"):
-    """Class definitions from TOML text (see the module docstring).
+_KEYFRAMES_KEYS = {"class", "description", "keyframe"}
 
-    Parameters
-    ----------
-    text : str
-    path : str or Path
-        Named in errors.
+
+def _keyframes(table, where, ki):
+    """A ``[[keyframes]]`` table: KeyframeDefinition."""
+    if not isinstance(table, dict):
+        raise where.error("expected a table [[keyframes]]", ki)
+    unknown = sorted(set(table) - _KEYFRAMES_KEYS)
+    if unknown:
+        hint = "; features go into [[keyframes.keyframe]] tables" if unknown[0] in _FEATURE else ""
+        raise where.error(f"unknown key {unknown[0]!r} in [[keyframes]]; allowed: "
+                          f"{', '.join(sorted(_KEYFRAMES_KEYS))}{hint}", ki, None, unknown[0])
+    cls = _string(table, "class", where, ki)
+    description = _description(table, where, ki)
+    frames = table.get("keyframe")
+    if not isinstance(frames, list) or not frames:
+        raise where.error(f"keyframes for {cls!r} hold no [[keyframes.keyframe]] table", ki)
+    words, names = [], []
+    for pi, kf in enumerate(frames):
+        if not isinstance(kf, dict):
+            raise where.error("a keyframe must be a table [[keyframes.keyframe]]", ki, pi)
+        values = [None] * N_FEATURES
+        for key, v in kf.items():
+            if key != "name":
+                values[_feature(key, where, ki, pi)] = _value(v, where, ki, pi, key)
+        mask, value = _words(values)
+        if not mask:
+            raise where.error("a keyframe fixes no feature (all wildcards match every frame)", ki, pi)
+        name = kf.get("name", f"keyframe {pi + 1}")
+        if not isinstance(name, str):
+            raise where.error(f"name = {name!r}: expected a string", ki, pi, "name")
+        words.append((mask, value))
+        names.append(name)
+    return KeyframeDefinition(cls, tuple(words), tuple(names), description, f"{where.path}:{where.line(ki)}")
+
+
+def parse_definitions(text, path="<string>"):
+    """Class definitions and keyframe definitions from TOML text (see the module docstring).
 
     Returns
     -------
-    list of ClassDefinition
+    classes : list of ClassDefinition
         In file order; a class with ``mirror`` is followed by its mirror image.
+    keyframes : list of KeyframeDefinition
+        The ``[[keyframes]]`` tables, in file order.
 
     Raises
     ------
@@ -338,13 +419,14 @@ def parse_class_definitions(text, path="<string>"):
         m = re.search(r"at line (\d+)", str(e))
         raise ParseError(path, int(m.group(1)) if m else None, f"not valid TOML: {e}") from None
     where = _Where(path, text)
-    unknown = sorted(set(doc) - {"class"})
+    unknown = sorted(set(doc) - {"class", "keyframes"})
     if unknown:
         raise ParseError(path, _key_line(where.lines, 1, unknown[0]),
-                         f"unknown top-level key {unknown[0]!r}; a definition file holds [[class]] tables")
-    classes = doc.get("class")
-    if not isinstance(classes, list) or not classes:
-        raise ParseError(path, 1, "no [[class]] table; see README \"Class definitions\"")
+                         f"unknown top-level key {unknown[0]!r}; a definition file holds [[class]] and "
+                         "[[keyframes]] tables")
+    classes, tables = doc.get("class", []), doc.get("keyframes", [])
+    if not isinstance(classes, list) or not isinstance(tables, list) or not (classes or tables):
+        raise ParseError(path, 1, "no [[class]] or [[keyframes]] table; see README \"Class definitions\"")
     out, seen = [], {}
     for ci, cls in enumerate(classes):
         for d in _class(cls, where, ci):
@@ -352,16 +434,35 @@ def parse_class_definitions(text, path="<string>"):
                 raise where.error(f"class {d.name!r} is defined twice (first at {seen[d.name]})", ci)
             seen[d.name] = d.source
             out.append(d)
-    return out
+    kwhere = _Where(path, text, "keyframes", "keyframe")
+    keyframes, kseen = [], {}
+    for ki, table in enumerate(tables):
+        k = _keyframes(table, kwhere, ki)
+        if k.cls in kseen:
+            raise kwhere.error(f"keyframes for class {k.cls!r} are given twice (first at {kseen[k.cls]})", ki)
+        kseen[k.cls] = k.source
+        keyframes.append(k)
+    return out, keyframes
 
 
-def read_class_definitions(paths):
-    """Class definitions from one or more TOML files (or folders of ``*.toml``, in name order).
+def parse_class_definitions(text, path="<string>"):
+    """The class definitions of TOML text (:func:`parse_definitions` without the keyframe tables)."""
+    return parse_definitions(text, path)[0]
+
+
+def read_definitions(paths):
+    """Class and keyframe definitions from one or more TOML files (or folders of ``*.toml``, in name order).
+
+    Returns
+    -------
+    classes : list of ClassDefinition
+    keyframes : list of KeyframeDefinition
 
     Raises
     ------
     ParseError
-        As :func:`parse_class_definitions`; also for a class defined in two files.
+        As :func:`parse_definitions`; also for a class (or a class's keyframes)
+        defined in two files.
     ParameterError
         A path that does not exist or a folder without definition files.
     """
@@ -378,15 +479,24 @@ def read_class_definitions(paths):
             files.append(p)
         else:
             raise ParameterError(f"class definition file {str(p)!r} does not exist")
-    out, seen = [], {}
+    out, keyframes, seen = [], [], {}
     for f in files:
-        for d in parse_class_definitions(read_text(f), f):
-            if d.name in seen:
+        classes, tables = parse_definitions(read_text(f), f)
+        for d in classes + tables:
+            key = d.name if isinstance(d, ClassDefinition) else ("keyframes", d.cls)
+            if key in seen:
                 path, _, line = d.source.rpartition(":")
-                raise ParseError(path, int(line), f"class {d.name!r} is already defined at {seen[d.name]}")
-            seen[d.name] = d.source
-            out.append(d)
-    return out
+                what = f"class {d.name!r} is" if isinstance(d, ClassDefinition) else f"keyframes for {d.cls!r} are"
+                raise ParseError(path, int(line), f"{what} already defined at {seen[key]}")
+            seen[key] = d.source
+        out += classes
+        keyframes += tables
+    return out, keyframes
+
+
+def read_class_definitions(paths):
+    """The class definitions of files or folders (:func:`read_definitions` without the keyframe tables)."""
+    return read_definitions(paths)[0]
 
 
 # ---------------------------------------------------------------------------
@@ -481,3 +591,43 @@ def compile_definition(defn: ClassDefinition) -> ClassModel:
 def compile_definitions(definitions) -> list:
     """:func:`compile_definition` of each definition, in order."""
     return [compile_definition(d) for d in definitions]
+
+
+def attach_keyframes(cls: ClassModel, kdef: KeyframeDefinition) -> ClassModel:
+    """``cls`` with the keyframe query of a keyframe definition.
+
+    Each keyframe sits at the template column where it is most likely to
+    hold: for a learned template, the product over its fixed features of
+    the column's probability of that value (the real-valued template);
+    otherwise the columns of the quantized template that agree with it.
+    Keyframes keep their order (each at or after the one before); the gap
+    between two admits their column distance d warped as the DTW steps
+    allow, [⌈d / 2⌉, 2 d] (at least 1 frame).
+    """
+    if not isinstance(kdef, KeyframeDefinition):
+        raise ParameterError(f"expected a KeyframeDefinition, got {type(kdef).__name__}")
+    if cls.template is not None:
+        prob = np.asarray(cls.template.real, dtype=np.float64)            # (L, 40): P(feature on)
+    else:
+        q = cls.quantized.expand()
+        m, v = q.mask, q.value
+        bits = np.arange(N_FEATURES, dtype=np.uint64)
+        fixed = ((m[:, None] >> bits) & np.uint64(1)).astype(bool)
+        on = ((v[:, None] >> bits) & np.uint64(1)).astype(float)
+        prob = np.where(fixed, on, 0.5)
+    L = prob.shape[0]
+    pos, start = [], 0
+    for mask, value in kdef.keyframes:
+        fit = np.ones(L)
+        for f in range(N_FEATURES):
+            if (mask >> f) & 1:
+                fit *= prob[:, f] if (value >> f) & 1 else 1.0 - prob[:, f]
+        fit[:start] = -1.0
+        start = int(np.argmax(fit))
+        pos.append(start)
+    gaps = np.diff(pos)
+    d_min = np.maximum(1, np.ceil(gaps / WARP)).astype(np.int64)
+    d_max = np.maximum(d_min, np.floor(gaps * WARP)).astype(np.int64)
+    q = KeyframeQuery(np.array([m for m, _ in kdef.keyframes], np.uint64),
+                      np.array([v for _, v in kdef.keyframes], np.uint64), np.array(pos, np.int64), d_min, d_max, L)
+    return dataclasses.replace(cls, keyframe_query=q)

@@ -16,10 +16,12 @@ The paper's authors assembled each of their 15 classes from fine classes
 * **designed** classes: hand-written class definitions
   (:mod:`mocapdb.learning.class_definitions`, paper Sect. 8).
 
-Keyframe queries (:func:`attach_keyframe_queries`): learned classes by the
+Keyframe queries (:func:`build_model`'s ``keyframes``): learned classes by the
 genetic algorithm (paper Sect. 6), with T− = the clips of every other learned
-class and of the mirror images; a mirrored or reversed class takes its
-source's query mirrored or reversed; a designed class its definition's.
+class and of the mirror images, unless a keyframe definition (a
+``[[keyframes]]`` table) designs the class's query by hand; a mirrored or
+reversed class takes its source's query mirrored or reversed; a designed
+class its definition's.
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ from mocapdb.annotation.labels import class_labels
 from mocapdb.annotation.model import DEFAULT_DELTA, DEFAULT_TAU, ClassModel, Model
 from mocapdb.errors import ParameterError
 from mocapdb.features import mirror_words
-from mocapdb.learning.class_definitions import compile_definition, read_class_definitions
+from mocapdb.learning.class_definitions import attach_keyframes, compile_definition, read_definitions
 from mocapdb.templates import learn_template
 
 __all__ = ["Clip", "Recipe", "PAPER_LABELS", "build_model", "mirror_class", "reverse_class", "clip_words",
@@ -91,6 +93,10 @@ class Recipe:
         Learned class → (name, label) of its time-reversed class.
     definitions : tuple of ClassDefinition
         Designed classes.
+    keyframes : tuple of KeyframeDefinition
+        Hand-designed keyframe queries of learned classes (they replace a
+        learned query; mirrored and reversed classes take them mirrored /
+        reversed).
     label_order : tuple of str
         Label order of the model (Δarg ties); labels not in it follow in
         order of appearance.
@@ -102,6 +108,7 @@ class Recipe:
     mirrors: Mapping = field(default_factory=dict)
     reversals: Mapping = field(default_factory=dict)
     definitions: tuple = ()
+    keyframes: tuple = ()
     label_order: tuple = PAPER_LABELS
     delta: float = DEFAULT_DELTA
     tau: float = DEFAULT_TAU
@@ -137,7 +144,8 @@ def reverse_class(c: ClassModel, name: str, label: str) -> ClassModel:
 def _check(recipe, clips):
     if not isinstance(recipe, Recipe):
         raise ParameterError(f"recipe must be a mocapdb.learning.recipe.Recipe, got {type(recipe).__name__}")
-    for what, keys in (("mirrors", recipe.mirrors), ("reversals", recipe.reversals)):
+    for what, keys in (("mirrors", recipe.mirrors), ("reversals", recipe.reversals),
+                       ("keyframes", [k.cls for k in recipe.keyframes])):
         unknown = sorted(set(keys) - set(recipe.labels))
         if unknown:
             raise ParameterError(f"recipe.{what} names classes {unknown} that recipe.labels does not learn")
@@ -202,6 +210,8 @@ def build_model(clips, recipe, *, name, keyframes=None, cache=None):
     if keyframes is not None and learned:
         queries = keyframes(Model(name, tuple(learned)), recipe_clips(clips, recipe))
         learned = [dataclasses.replace(c, keyframe_query=queries.get(c.name, c.keyframe_query)) for c in learned]
+    designed_queries = {k.cls: k for k in recipe.keyframes}
+    learned = [attach_keyframes(c, designed_queries[c.name]) if c.name in designed_queries else c for c in learned]
     by_name = {c.name: c for c in learned}
     derived = [mirror_class(by_name[c], m) for c, m in recipe.mirrors.items() if c in by_name]
     derived += [reverse_class(by_name[c], n, lab) for c, (n, lab) in recipe.reversals.items() if c in by_name]
@@ -225,13 +235,14 @@ def default_recipe(definitions=None) -> Recipe:
 
     Learned classes and labels from the shipped ``default`` mapping
     (``mocapdb/models/default_labels.csv``), :data:`DEFAULT_MIRRORS`,
-    :data:`DEFAULT_REVERSALS`, and the class definitions shipped in
-    ``mocapdb/models/classes/`` (or ``definitions``: files or folders).
+    :data:`DEFAULT_REVERSALS`, and the class and keyframe definitions
+    shipped in ``mocapdb/models/classes/`` (or ``definitions``: files or
+    folders).
     """
     if definitions is None:
         with resources.as_file(resources.files("mocapdb.models").joinpath(DEFINITIONS_DIR)) as d:
-            defs = read_class_definitions(d)
+            defs, keyframes = read_definitions(d)
     else:
-        defs = read_class_definitions(definitions)
+        defs, keyframes = read_definitions(definitions)
     return Recipe(labels=class_labels("default"), mirrors=dict(DEFAULT_MIRRORS), reversals=dict(DEFAULT_REVERSALS),
-                  definitions=tuple(defs))
+                  definitions=tuple(defs), keyframes=tuple(keyframes))

@@ -30,6 +30,12 @@ them — on actors the templates did not see:
    template moves (:func:`is_static` is false) takes no τ at which it claims
    more than ``max_still_rate`` of the held-out actors' still clips.
 
+5. **Keyframes** (``keyframes=True``): a learned class with a designed
+   keyframe query (a keyframe definition) is matched only where its
+   preselection lets annotation match it, so a clip its keyframes miss is
+   no claim — a strict query (the kick's stretched leg) buys the class the
+   τ its template alone could not afford.
+
 Designed classes therefore never take more than their author gave them, and
 learned ones get the τ at which unseen actors' clips are told apart best.
 """
@@ -40,6 +46,7 @@ import dataclasses
 import numpy as np
 
 from mocapdb.annotation.model import Model
+from mocapdb.annotation.preselection import preselection_for
 from mocapdb.errors import ParameterError
 from mocapdb.features import FEATURE_NAMES
 from mocapdb.learning.recipe import build_model, recipe_clips
@@ -83,13 +90,18 @@ def is_static(cls) -> bool:
     return not bool((q.value & _VELOCITY_MASK).any())
 
 
-def clip_costs(model: Model, clips) -> np.ndarray:
+def clip_costs(model: Model, clips, *, preselect=()) -> np.ndarray:
     """``m[c, d]``: the smallest Δ of class c's template on clip d (+inf if none ends).
 
     Parameters
     ----------
     model : Model
     clips : sequence of (n_d,) uint64
+    preselect : collection of str, default ()
+        Classes (with keyframe queries) matched only where their keyframe
+        preselection lets annotation match them
+        (:func:`mocapdb.annotation.preselection.preselection_for`): a clip
+        their keyframes miss costs +inf, as in annotation with keyframes.
 
     Returns
     -------
@@ -99,18 +111,36 @@ def clip_costs(model: Model, clips) -> np.ndarray:
     if not words:
         return np.zeros((len(model.classes), 0))
     flat = np.concatenate(words)
-    bounds = np.concatenate(([0], np.cumsum([w.size for w in words]))).astype(np.int64)
+    lengths = np.array([w.size for w in words], dtype=np.int64)
+    bounds = np.concatenate(([0], np.cumsum(lengths))).astype(np.int64)
     n_cls, n_doc = len(model.classes), len(words)
-    tc = np.repeat(np.arange(n_cls, dtype=np.int64), n_doc)
-    ta = np.tile(bounds[:-1], n_cls)
-    tb = np.tile(bounds[1:], n_cls)
+    preselect = set(preselect)
+    unknown = sorted(preselect - set(model.class_names))
+    if unknown:
+        raise ParameterError(f"preselect names classes {unknown} the model does not have")
+    pre = preselection_for(flat, lengths, model, True) if preselect else None
+    tc, ta, tb = [], [], []
+    for k in range(n_cls):
+        sl = None if pre is None or model.classes[k].name not in preselect else pre[k]
+        if sl is None:                                   # whole clips
+            tc.append(np.full(n_doc, k))
+            ta.append(bounds[:-1])
+            tb.append(bounds[1:])
+        else:
+            sl = np.asarray(sl, dtype=np.int64).reshape(-1, 2)
+            tc.append(np.full(len(sl), k))
+            ta.append(sl[:, 0])
+            tb.append(sl[:, 1] + 1)
+    tc, ta, tb = (np.concatenate(x).astype(np.int64) for x in (tc, ta, tb))
     delta, offsets, _ = mt_distance_slices(flat, [c.quantized for c in model.classes], tc, ta, tb,
                                            steps=ANNOTATION_STEPS, rule="toolbox", return_starts=True)
-    out = np.empty(n_cls * n_doc)
-    for q in range(n_cls * n_doc):
+    out = np.full((n_cls, n_doc), np.inf)
+    doc = np.searchsorted(bounds, ta, side="right") - 1
+    for q in range(tc.size):
         seg = delta[offsets[q]:offsets[q + 1]]
-        out[q] = seg.min() if seg.size else np.inf
-    return out.reshape(n_cls, n_doc)
+        if seg.size:
+            out[tc[q], doc[q]] = min(out[tc[q], doc[q]], seg.min())
+    return out
 
 
 def _f_beta(tp, fn, fp, beta):
@@ -119,7 +149,8 @@ def _f_beta(tp, fn, fp, beta):
     return np.where(den > 0, (1 + b2) * tp / np.maximum(den, 1e-300), 0.0)
 
 
-def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, max_still_rate=0.05, cache=None):
+def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, max_still_rate=0.05, cache=None,
+               keyframes=False):
     """τ per class of the model a recipe builds from ``clips`` (module docstring).
 
     Parameters
@@ -139,6 +170,12 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
         clips (step 4 of the module docstring); None: no still clips.
     cache : dict, optional
         Templates kept across builds (:func:`build_model`).
+    keyframes : bool, default False
+        Measure learned classes with a keyframe query (a keyframe
+        definition's; GA queries are not part of these models) through
+        their preselection, as annotation with keyframes meets them
+        (:func:`clip_costs`). Designed classes keep the false-claim rule on
+        whole clips: nothing but their author vouches for their queries.
 
     Returns
     -------
@@ -164,7 +201,9 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
         if not held:
             continue
         stills = [s for _, x in held for s in still_clips(x.words)] if max_still_rate is not None else []
-        m = clip_costs(model, [x.words for _, x in held] + stills)
+        through = [c.name for c in model.classes if keyframes and c.template is not None
+                   and c.keyframe_query is not None]
+        m = clip_costs(model, [x.words for _, x in held] + stills, preselect=through)
         row = {c: k for k, c in enumerate(model.class_names)}
         full_m = np.full((len(names), m.shape[1]), np.inf)
         for k, c in enumerate(names):
