@@ -312,7 +312,9 @@ def define_class(con, definitions, *, model=DEFAULT_MODEL, replace=False, descri
     definitions : str, Path or sequence of them
         TOML class definition files, or folders of ``*.toml`` (README
         "Class definitions"); each class compiles to a quantized template
-        and a keyframe query (:mod:`mocapdb.learning.class_definitions`).
+        and a keyframe query (:mod:`mocapdb.learning.class_definitions`);
+        a ``[[keyframes]]`` table gives a class of the model a designed
+        keyframe query.
     model : str, keyword-only
         The model to add them to; a model the database does not have is
         created with just these classes.
