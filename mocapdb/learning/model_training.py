@@ -4,11 +4,12 @@
 
 1. **classes** — :func:`mocapdb.learning.recipe.build_model`: learned,
    mirrored, reversed and designed classes;
-2. **keyframe queries** (``keyframes=True``; off by default) —
-   :func:`mocapdb.learning.robust_queries.learn_robust_queries` for the learned classes (GA, generalised, kept only if they found every
-   held-out group's clip, ``min_recall = 1``, and kept 95 % of their frames
-   in the preselection, ``min_coverage = 0.95``) — unless a keyframe
-   definition designs the query; mirrored and reversed classes take their
+2. **keyframe queries** — a keyframe definition's for the learned classes
+   it names; with ``keyframes=True`` (off by default) the other learned
+   classes get :func:`mocapdb.learning.robust_queries.learn_robust_queries`
+   (GA, generalised, kept only if they found every held-out group's clip,
+   ``min_recall = 1``, and kept 95 % of their frames in the preselection,
+   ``min_coverage = 0.95``); mirrored and reversed classes take their
    source's query mirrored / reversed; designed classes their definition's;
 3. **τ per class** — :func:`mocapdb.learning.thresholds.learn_taus`
    (leave-one-group-out on the clips);
@@ -76,8 +77,7 @@ def half_median_template(model: Model) -> Model:
 def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=100, inner_runs=3,
                  inner_generations=50, min_recall=1.0, min_coverage=0.95, learn_tau=True, tau_grid=TAU_GRID_DEFAULT,
                  max_false_rate=0.0, max_still_rate=0.05, tau_keyframes=True, min_length=True, margin=0.0, seed=0,
-                 n_jobs=None,
-                 cache=None, progress=None) -> TrainedModel:
+                 n_jobs=None, cache=None, progress=None) -> TrainedModel:
     """Train a model from clips and a recipe (module docstring).
 
     Parameters
@@ -104,8 +104,9 @@ def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=1
         A moving class claims at most this share of still poses (None: off);
         see :func:`mocapdb.learning.thresholds.learn_taus`.
     tau_keyframes : bool, default True
-        τ of classes with designed keyframe queries measured through their
-        preselection (the default annotation mode uses keyframes).
+        τ of learned classes with a keyframe definition measured through
+        their preselection (the default annotation mode uses keyframes);
+        designed classes keep the whole-clip rule.
     min_length : bool, default True
         ``min_frames`` by :func:`half_median_template`.
     margin : float, default 0.0
