@@ -57,6 +57,7 @@ NEW_MODES = {
     "  no keyframes": {"keyframes": False},
     "  tau 0.13 for all": {"tau": 0.13},
     "  no minimum length": {"min_length": False},
+    "  no won-frames rule": {"min_won": False},
     "  margin 0.01": {"margin": 0.01},
 }
 MEASURES = ("p1", "r1", "f1", "p2", "r2", "f2")

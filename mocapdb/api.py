@@ -145,7 +145,7 @@ def delete(con, motions) -> int:
 
 
 def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True, format=None, out=None,
-             progress=None, min_length=None, margin=None):
+             progress=None, min_length=None, min_won=None, margin=None):
     """Annotate motions of the database with a model.
 
     Parameters
@@ -173,6 +173,10 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     min_length : bool, optional, keyword-only
         Drop segments shorter than their label's minimum (the model's
         ``min_frames``); default on (models without minimums keep everything).
+    min_won : bool, optional, keyword-only
+        Drop segments whose label is the best label on fewer than a third of
+        its minimum (:func:`mocapdb.annotation.postprocess.drop_unwon_segments`);
+        default on (models without minimums keep everything).
     margin : float, optional, keyword-only
         Leave frames unlabelled where the best label wins by less than this;
         default the model's margin.
@@ -192,7 +196,7 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     key, m = cache.model(model)
     docs = motion_documents(con, None if motions is None else motion_ids(con, motions))
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes,
-                              progress=progress, min_length=min_length, margin=margin)
+                              progress=progress, min_length=min_length, min_won=min_won, margin=margin)
     table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
     if store:
         store_annotations(con, table, docs.motion_ids, model=model, tau=tau, keyframes=keyframes)
@@ -409,7 +413,7 @@ def learn_keyframes(con, *, model=DEFAULT_MODEL, folder=None, labels=None, class
 
 
 def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=None, label_map=None,
-             vocabulary=None, sweep_tau=None, by_label=False, min_length=None, margin=None):
+             vocabulary=None, sweep_tau=None, by_label=False, min_length=None, min_won=None, margin=None):
     """Score an annotation against ground truth with the paper's measures (Eq. 5–8).
 
     Parameters
@@ -434,7 +438,7 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
         or ``"start:stop:step"`` (e.g. ``"0.05:0.25:0.01"``).
     by_label : bool, keyword-only
         Also score each label of the vocabulary on its own.
-    min_length, margin : optional, keyword-only
+    min_length, min_won, margin : optional, keyword-only
         The segment filters, as :func:`annotate`.
 
     Returns
@@ -458,7 +462,8 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
                             fps=_native_rates(docs))
     vocab = m.labels if vocabulary is None else tuple(vocabulary)
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau,
-                              keyframes=keyframes, taus=taus, min_length=min_length, margin=margin)
+                              keyframes=keyframes, taus=taus, min_length=min_length, min_won=min_won,
+                              margin=margin)
     if taus is not None:
         return [(float(t), _scores(truth_rows, segments_to_rows(s, docs.names), vocab, by_label))
                 for t, s in zip(taus, segs)]

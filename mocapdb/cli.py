@@ -39,6 +39,9 @@ silent_option = click.option("--silent", is_flag=True, help="No progress bar.")
 min_length_option = click.option("--min-length/--no-min-length", default=None,
                                  help="Drop segments shorter than their label's minimum (default: on; models "
                                       "without minimums, as the toolbox's, keep every segment).")
+min_won_option = click.option("--min-won/--no-min-won", default=None,
+                              help="Drop segments whose label is the best label on fewer than a third of its "
+                                   "minimum length (default: on; no effect on models without minimums).")
 margin_option = click.option("--margin", type=float,
                              help="Leave frames unlabelled where the best label wins by less than this "
                                   "(default: the model's; 0 = the paper).")
@@ -416,6 +419,7 @@ def define_class(ctx, definitions, model, replace):
 @tau_option
 @keyframes_option
 @min_length_option
+@min_won_option
 @margin_option
 @click.option("--format", "fmt", type=click.Choice(FORMATS + ("parquet", "eaf")), default="table",
               show_default=True, help="table/csv/json print (or write --out); parquet writes the segments to "
@@ -425,7 +429,7 @@ def define_class(ctx, definitions, model, replace):
                                                              "motions) instead of stdout.")
 @silent_option
 @click.pass_context
-def annotate(ctx, motions, model, tau, keyframes, min_length, margin, fmt, out, silent):
+def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, fmt, out, silent):
     """Annotate motions (ids or names; default all) and store the segments in `annotations`.
 
     Frames are 30 Hz frames, 1-based inclusive; CSV columns
@@ -445,7 +449,7 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, margin, fmt, out, 
     with _progress(None, "annotate", silent, unit="motion") as bar:
         table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes,
                              format=fmt if export else None, out=out if export else None, progress=_set_bar(bar),
-                             min_length=min_length, margin=margin)
+                             min_length=min_length, min_won=min_won, margin=margin)
     if export:
         click.echo(f"{table.num_rows} segment(s) written to {out}")
         return
@@ -479,12 +483,13 @@ def _print_scores(rows):
 @tau_option
 @keyframes_option
 @min_length_option
+@min_won_option
 @margin_option
 @click.option("--sweep-tau", help="START:STOP:STEP, e.g. 0.05:0.25:0.01 — P/R/F per τ (paper Fig. 8).")
 @click.option("--by-label", is_flag=True, help="Also score every label on its own.")
 @click.pass_context
-def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, min_length, margin, sweep_tau,
-             by_label):
+def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, min_length, min_won, margin,
+             sweep_tau, by_label):
     """Frame-level P1/R1/F1 and segment-level P2/R2/F2 against ground truth (paper Eq. 5-8).
 
     All documents are concatenated, as in the paper; truth frames are
@@ -501,7 +506,7 @@ def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, min
     vocab = [v.strip() for v in vocabulary.split(",")] if vocabulary else None
     result = api_evaluate(con, truth, pred=pred, model=model, tau=tau, keyframes=keyframes, label_map=label_map,
                           vocabulary=vocab, sweep_tau=sweep_tau, by_label=by_label, min_length=min_length,
-                          margin=margin)
+                          min_won=min_won, margin=margin)
     if not sweep_tau:
         _print_scores(list(result.items()) if by_label else [("all", result)])
     elif by_label:

@@ -280,6 +280,37 @@ def test_model_validation():
     assert set(CLASSES) == {c for cs in COARSE.values() for c in cs}
 
 
+def test_won_frames_equals_naive_on_random_label_deltas():
+    """The won-frames filter (annotation.postprocess) against a plain loop: a segment keeps its
+    label's frames where that label is the first minimal finite cd, and is dropped below the need."""
+    from mocapdb.annotation import SEGMENT_DTYPE, form_segments
+    from mocapdb.annotation.postprocess import drop_unwon_segments, won_frames
+
+    rng = np.random.default_rng(11)
+    labels = ("a", "b", "c", "d")
+    for _ in range(20):
+        lengths = rng.integers(20, 120, size=3)
+        cd = np.round(rng.uniform(0, 0.2, size=(4, lengths.sum())), 2)
+        cd[rng.random(cd.shape) < 0.4] = np.inf
+        bounds = np.concatenate(([0], np.cumsum(lengths)))
+        seg = form_segments(cd, doc_lengths=lengths, labels=labels)
+        want = []
+        for x in seg:
+            a, b = bounds[x["doc"]] + x["start"], bounds[x["doc"]] + x["end"]
+            n = 0
+            for f in range(a, b + 1):
+                col = cd[:, f]
+                if np.isfinite(col).any() and labels[int(np.argmin(col))] == x["label"]:
+                    n += 1
+            want.append(n)
+        np.testing.assert_array_equal(won_frames(seg, cd, bounds, labels), want)
+        need = rng.integers(0, 6, size=4)
+        kept = drop_unwon_segments(seg, cd, bounds, labels, need)
+        mask = np.array([w >= need[labels.index(x["label"])] for w, x in zip(want, seg)], dtype=bool)
+        np.testing.assert_array_equal(kept, seg[mask] if seg.size else seg)
+        assert kept.dtype == SEGMENT_DTYPE
+
+
 def test_margin_equals_naive_on_random_label_deltas():
     """The margin filter (annotation.postprocess) against a plain loop: a frame whose best label beats
     the second best by less than the margin loses every label; single finite labels stay."""

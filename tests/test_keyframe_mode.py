@@ -52,10 +52,17 @@ def reference_segments(docs, model):
             li = model.labels.index(c.label)
             cd[li] = np.minimum(cd[li], cls_cd)
         cd_docs.append(cd)
-    # the minimum length of a label's segments: the least of its classes' (0 = none)
+    # the minimum length of a label's segments: the least of its classes' (0 = none); the label
+    # must also be the frame's best (first minimal cd) on a third of that many frames
     shortest = {lab: min(c.min_frames for c in model.classes if c.label == lab) for lab in model.labels}
+
+    def won(label, d, s, e):
+        cd = cd_docs[d][:, s:e + 1]
+        best = [int(np.argmin(col)) if np.isfinite(col).any() else -1 for col in cd.T]
+        return best.count(model.labels.index(label))
+
     return [(label, d, s, e, cost) for label, d, s, e, cost in naive_segments(cd_docs, list(model.labels))
-            if e - s + 1 >= shortest[label]]
+            if e - s + 1 >= shortest[label] and 3 * won(label, d, s, e) >= shortest[label]]
 
 
 def test_default_keyframe_mode_equals_the_brute_force_reference(db):

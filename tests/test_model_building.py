@@ -172,7 +172,8 @@ def test_the_toolbox_model_ignores_the_filters(cut_clips, data_dir):
     assert label_min_frames(toolbox).tolist() == [0] * len(toolbox.labels) and toolbox.margin == 0
     docs = mocap6_documents(data_dir, trials=("13_30",))
     on = annotate(docs.words, toolbox, doc_lengths=docs.doc_lengths).segments
-    off = annotate(docs.words, toolbox, doc_lengths=docs.doc_lengths, min_length=False, margin=0.0).segments
+    off = annotate(docs.words, toolbox, doc_lengths=docs.doc_lengths, min_length=False, min_won=False,
+                   margin=0.0).segments
     np.testing.assert_array_equal(on, off)
     longer = half_median_template(toolbox)
     squat = longer.classes[longer.class_names.index("squat1Reps")]
@@ -245,7 +246,7 @@ def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
     walks and jogs; its mirror holds in no HDM05 clip but a lie-down (no right kicks here)."""
     from mocapdb.evaluation.development import development_data
 
-    (k,) = default_recipe().keyframes
+    k = next(k for k in default_recipe().keyframes if k.cls == "kickLFront1Reps")
     (mask, value), = k.keyframes
     mask, value = np.uint64(mask), np.uint64(value)
     mirror = mirror_class(build_model({"kickLFront1Reps": [Clip(n, w) for n, w in cut_clips["kickLFront1Reps"]]},
@@ -277,8 +278,10 @@ def test_clip_costs_through_the_preselection_equal_annotation_with_keyframes(cut
 
     names = ("kickLFront1Reps", "squat1Reps", "sneak2StepsLStart")
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c][:6]] for c in names}
-    recipe = dataclasses.replace(default_recipe(), labels={c: default_recipe().labels[c] for c in names},
-                                 mirrors={"kickLFront1Reps": "kickRFront1Reps"}, reversals={})
+    base = default_recipe()
+    recipe = dataclasses.replace(base, labels={c: base.labels[c] for c in names},
+                                 mirrors={"kickLFront1Reps": "kickRFront1Reps"}, reversals={},
+                                 keyframes=tuple(k for k in base.keyframes if k.cls in names))
     model = build_model(clips, recipe, name="m")
     assert model.classes[model.class_names.index("kickRFront1Reps")].keyframe_query is not None
     words = [x.words for v in clips.values() for x in v]
@@ -296,3 +299,34 @@ def test_clip_costs_through_the_preselection_equal_annotation_with_keyframes(cut
     others = [k for k in range(len(model.classes)) if k not in queried]
     np.testing.assert_array_equal(costs[others], plain[others])       # no query: whole clips
     assert np.isinf(costs[queried]).any() and (costs[queried] >= plain[queried]).all()
+
+
+def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
+    """The shipped throw keyframe (mocapdb/models/classes/throw.toml: the ball held up) holds in every
+    throwBasketball clip of every actor, but also in some hops, kicks and lie-downs: it is not specific
+    (specific_queries), so learn_taus(keyframes=True) gives the throw the τ of its template alone, while
+    the kick's query — in no other clip — earns the kick its τ through the preselection."""
+    from mocapdb.learning.thresholds import specific_queries
+
+    k = next(k for k in default_recipe().keyframes if k.cls == "throwBasketball")
+    (mask, value), = k.keyframes
+    assert all(((np.asarray(w, np.uint64) & np.uint64(mask)) == np.uint64(value)).any()
+               for _, w in cut_clips["throwBasketball"])
+    names = ("kickLFront1Reps", "throwBasketball", "hopBothLegs1hops", "squat1Reps", "lieDownFloor")
+    base = default_recipe()
+    recipe = dataclasses.replace(base, labels={c: base.labels[c] for c in names}, mirrors={}, reversals={},
+                                 definitions=())
+    clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c]] for c in names}
+    spec = specific_queries(build_model(clips, recipe, name="m"), clips)
+    assert set(spec) == {"kickLFront1Reps", "throwBasketball"}
+    assert spec["kickLFront1Reps"] == (0.0, True)
+    rate, ok = spec["throwBasketball"]
+    assert rate > 0.02 and not ok
+    plain = learn_taus(clips, recipe, max_false_rate=0.0)
+    through = learn_taus(clips, recipe, max_false_rate=0.0, keyframes=True)
+    assert through["throwBasketball"] == plain["throwBasketball"]
+    assert through["kickLFront1Reps"] > plain["kickLFront1Reps"]
+    # the share is what the bound is held against
+    model = build_model(clips, recipe, name="m")
+    assert specific_queries(model, clips, max_rate=rate)["throwBasketball"] == (rate, True)
+    assert specific_queries(model, clips, max_rate=0.0)["kickLFront1Reps"] == (0.0, True)

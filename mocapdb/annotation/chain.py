@@ -23,7 +23,8 @@ from mocapdb.annotation.chain_kernels import (_count_candidates_kernel, _extract
                                               _merge_kernel, _scatter_kernel, _segments_kernel, _sort_by_key)
 from mocapdb.errors import ParameterError
 from mocapdb.annotation.model import DEFAULT_TAU, Model
-from mocapdb.annotation.postprocess import apply_margin, drop_short_segments, label_min_frames
+from mocapdb.annotation.postprocess import (apply_margin, drop_short_segments, drop_unwon_segments, label_min_frames,
+                                           label_min_won)
 from mocapdb.features import as_words as _as_words
 from mocapdb.templates import ANNOTATION_STEPS, DEFAULT_CHUNK, mt_distance_slices
 
@@ -393,7 +394,7 @@ def _batches(bounds, n_frames):
 
 
 def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max, steps, rule,
-                    *, tiled, keep_hits, keep_deltas, margin=0.0):
+                    *, tiled, keep_hits, keep_deltas, margin=0.0, min_won=None):
     """:func:`annotate` on documents g0..g1-1 for every row of ``taus``.
 
     Δ is computed once; hits, Δ̄^τ and segments once per τ (Δ does not depend
@@ -445,7 +446,10 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
             _label_scatter_kernel(cd, offsets, tc, ta - f0, model.label_index, np.full(f1 - f0, -1, np.int64),
                                   label_cd)
         apply_margin(label_cd, margin)
-        segs = _form_segments(label_cd, bounds[g0:g1 + 1] - bounds[g0], labels)
+        doc_bounds = bounds[g0:g1 + 1] - bounds[g0]
+        segs = _form_segments(label_cd, doc_bounds, labels)
+        if min_won is not None:
+            segs = drop_unwon_segments(segs, label_cd, doc_bounds, labels, min_won)
         segs["doc"] += g0
         out.append((segs, hits, kept))
     return out
@@ -460,24 +464,26 @@ def _sort_by_label(segments, labels):
     return segments[np.argsort(rank, kind="stable")]
 
 
-def _filters(model, min_length, margin):
-    """(per-label minimum lengths or None, margin) from the switches (None: the model's)."""
-    if min_length is not None and not isinstance(min_length, (bool, np.bool_)):
-        raise ParameterError(f"min_length must be True, False or None (the model's), got {min_length!r}")
+def _filters(model, min_length, min_won, margin):
+    """(per-label minimum lengths or None, per-label won frames or None, margin) from the switches (None: the model's)."""
+    for name, v in (("min_length", min_length), ("min_won", min_won)):
+        if v is not None and not isinstance(v, (bool, np.bool_)):
+            raise ParameterError(f"{name} must be True, False or None (the model's), got {v!r}")
     lengths = None if min_length is False else label_min_frames(model)
+    won = None if min_won is False else label_min_won(model)
     margin = model.margin if margin is None else margin
     if isinstance(margin, bool) or not isinstance(margin, (int, float, np.floating)) or not (
             np.isfinite(margin) and margin >= 0):
         raise ParameterError(f"margin must be a non-negative number or None (the model's), got {margin!r}")
-    return lengths, float(margin)
+    return lengths, won, float(margin)
 
 
 def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, steps, rule, keep_deltas, keep_hits,
-           min_length=None, margin=None):
+           min_length=None, min_won=None, margin=None):
     """The annotation chain for one or several τ settings: one Annotation per setting."""
     if not isinstance(model, Model):
         raise ParameterError(f"model must be a mocapdb.annotation.Model, got {type(model).__name__}")
-    min_frames, margin = _filters(model, min_length, margin)
+    min_frames, won, margin = _filters(model, min_length, min_won, margin)
     w = _as_words(words)
     bounds = _doc_bounds(doc_lengths, w.shape[0])
     limit = _check_limit(match_num_max)
@@ -495,7 +501,7 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
     for g0, g1 in groups:
         results = _annotate_batch(
             w, model, bounds, g0, g1, tasks, taus, limit, match_num_max, steps, rule,
-            tiled=preselection is None, keep_hits=keep_hits, keep_deltas=keep_deltas, margin=margin)
+            tiled=preselection is None, keep_hits=keep_hits, keep_deltas=keep_deltas, margin=margin, min_won=won)
         for k, (segs, hits, kept) in enumerate(results):
             per_tau[k][0].append(segs)
             if keep_hits:
@@ -523,7 +529,7 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
 
 def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
              match_num_max=MATCH_NUM_MAX, steps=ANNOTATION_STEPS, rule="toolbox",
-             keep_deltas=False, keep_hits=True, min_length=None, margin=None):
+             keep_deltas=False, keep_hits=True, min_length=None, min_won=None, margin=None):
     """Annotate documents with a model of motion templates (the whole chain).
 
     For every class: Δ of its quantized template on every document (or only
@@ -560,6 +566,11 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
         Drop segments shorter than their label's ``min_frames``
         (:mod:`mocapdb.annotation.postprocess`); default True (a class
         without ``min_frames`` keeps everything, as the toolbox).
+    min_won : bool, optional
+        Drop segments whose label is the best label (Δarg) on fewer than a
+        third of its ``min_frames`` frames
+        (:func:`mocapdb.annotation.postprocess.drop_unwon_segments`);
+        default True (no effect without ``min_frames``).
     margin : float, optional
         Leave frames unlabelled where the best label wins by less than this;
         default the model's ``margin`` (0 for the toolbox model).
@@ -579,11 +590,11 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
     """
     return _chain(words, model, [tau], doc_lengths=doc_lengths, preselection=preselection,
                   match_num_max=match_num_max, steps=steps, rule=rule, keep_deltas=keep_deltas,
-                  keep_hits=keep_hits, min_length=min_length, margin=margin)[0]
+                  keep_hits=keep_hits, min_length=min_length, min_won=min_won, margin=margin)[0]
 
 
 def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, match_num_max=MATCH_NUM_MAX,
-                   steps=ANNOTATION_STEPS, rule="toolbox", min_length=None, margin=None):
+                   steps=ANNOTATION_STEPS, rule="toolbox", min_length=None, min_won=None, margin=None):
     """Annotation segments for many hit thresholds τ, computing Δ once (paper Fig. 8).
 
     The same chain as :func:`annotate`: Δ does not depend on τ, so each batch
@@ -595,7 +606,7 @@ def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, m
     model : Model
     taus : sequence of float
         One hit threshold for every class per entry.
-    doc_lengths, preselection, match_num_max, steps, rule, min_length, margin
+    doc_lengths, preselection, match_num_max, steps, rule, min_length, min_won, margin
         As in :func:`annotate`.
 
     Returns
@@ -608,4 +619,5 @@ def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, m
         _check_tau(t, "taus")
     return [a.segments for a in _chain(words, model, taus, doc_lengths=doc_lengths, preselection=preselection,
                                        match_num_max=match_num_max, steps=steps, rule=rule, keep_deltas=False,
-                                       keep_hits=False, min_length=min_length, margin=margin)]
+                                       keep_hits=False, min_length=min_length, min_won=min_won,
+                                       margin=margin)]

@@ -239,3 +239,25 @@ def _margin_kernel(cdl, margin):  # pragma: no cover
         if best < np.inf and second - best < margin:
             for p in range(L):
                 cdl[p, f] = np.inf
+
+
+@jit
+def _won_kernel(cdl, seg_label, seg_first, seg_last, out):  # pragma: no cover
+    """out[s] = frames of [seg_first[s], seg_last[s]] whose Δarg is seg_label[s].
+
+    Δarg as the segmenter's (§10.3): the first label with the minimal cd; a
+    frame where every label is +inf belongs to none.
+    """
+    L = cdl.shape[0]
+    for s in range(seg_label.shape[0]):
+        n = 0
+        for f in range(seg_first[s], seg_last[s] + 1):
+            lab = -1
+            best = np.inf
+            for p in range(L):
+                if cdl[p, f] < best:
+                    best = cdl[p, f]
+                    lab = p
+            if lab == seg_label[s]:
+                n += 1
+        out[s] = n

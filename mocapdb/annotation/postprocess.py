@@ -6,20 +6,33 @@
   at most twice), so a shorter run of Δarg is a leftover where the label won
   only briefly between others. A label keeps segments as short as its most
   lenient class allows.
+* **won frames** (:func:`won_frames`, :func:`drop_unwon_segments`): a
+  segment's label must be the best label (Δarg) on at least a third of its
+  ``min_frames`` (:data:`WON_FRACTION`). The segmenter extends a run of
+  Δarg as far as the label's Δ̄^τ does not rise, which is the whole range
+  of its best hit: a weak, long hit that wins a handful of frames between
+  better labels (a lie-down template over a deposit on the floor, a throw
+  over a squat) becomes a segment as long as a real one. What it won is
+  what the annotation knows of it.
 * **margin** (:func:`apply_margin`): a frame where the best label's Δ̄^τ
   beats the second best by less than ``Model.margin`` is left unlabelled —
   two labels fit about equally well, so neither is trusted.
 
-Both run inside :func:`mocapdb.annotation.annotate` (``min_length``,
-``margin``); a model without ``min_frames`` and with ``margin = 0`` (the
-toolbox model) annotates exactly as the paper's chain.
+All run inside :func:`mocapdb.annotation.annotate` (``min_length``,
+``min_won``, ``margin``); a model without ``min_frames`` and with
+``margin = 0`` (the toolbox model) annotates exactly as the paper's chain.
 """
 import numpy as np
 
-from mocapdb.annotation.chain_kernels import _margin_kernel
+from mocapdb.annotation.chain_kernels import _margin_kernel, _won_kernel
 from mocapdb.errors import ParameterError
 
-__all__ = ["label_min_frames", "drop_short_segments", "apply_margin"]
+__all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
+           "apply_margin", "WON_FRACTION"]
+
+#: a segment's label must win (be Δarg on) this share of its ``min_frames``
+#: (development evaluation, RESULTS.md issue 11: 1/4 to 1/3 best everywhere)
+WON_FRACTION = 1 / 3
 
 
 def label_min_frames(model) -> np.ndarray:
@@ -51,6 +64,71 @@ def drop_short_segments(segments, labels, min_frames):
         return segments
     lo = np.array([need.get(lab, 0) for lab in segments["label"]], dtype=np.int64)
     return segments[segments["end"] - segments["start"] + 1 >= lo]
+
+
+def label_min_won(model) -> np.ndarray:
+    """(n_labels,) int64: frames a segment of each label must win, ⌈:data:`WON_FRACTION` · min_frames⌉."""
+    return np.ceil(label_min_frames(model) * WON_FRACTION - 1e-9).astype(np.int64)
+
+
+def won_frames(segments, label_cd, doc_bounds, labels) -> np.ndarray:
+    """Frames of each segment on which its label is Δarg.
+
+    Parameters
+    ----------
+    segments : ndarray of SEGMENT_DTYPE
+        Frames within documents.
+    label_cd : (n_labels, N) float64
+        Δ̄^τ per label over the concatenated documents (the segmenter's input).
+    doc_bounds : (n_docs + 1,) int
+        Document starts in ``label_cd`` and its end.
+    labels : sequence of str
+        Label order of ``label_cd``.
+
+    Returns
+    -------
+    (n_segments,) int64
+    """
+    cdl = np.ascontiguousarray(label_cd, dtype=np.float64)
+    li = {lab: k for k, lab in enumerate(labels)}
+    unknown = sorted(set(segments["label"].tolist()) - set(li))
+    if unknown:
+        raise ParameterError(f"segments have labels {unknown} that label_cd has no row for")
+    lab = np.array([li[x] for x in segments["label"]], dtype=np.int64)
+    first = np.asarray(doc_bounds, dtype=np.int64)[segments["doc"]] + segments["start"]
+    last = np.asarray(doc_bounds, dtype=np.int64)[segments["doc"]] + segments["end"]
+    if segments.size and (first.min() < 0 or last.max() >= cdl.shape[1] or (last < first).any()):
+        raise ParameterError("segments must lie within their documents")
+    out = np.zeros(segments.size, np.int64)
+    _won_kernel(cdl, lab, first.astype(np.int64), last.astype(np.int64), out)
+    return out
+
+
+def drop_unwon_segments(segments, label_cd, doc_bounds, labels, min_won):
+    """Segments whose label wins at least its ``min_won`` frames (see :func:`won_frames`).
+
+    Parameters
+    ----------
+    segments, label_cd, doc_bounds, labels
+        As :func:`won_frames`.
+    min_won : (n_labels,) int
+        Per label (``labels`` order); 0 keeps every segment of the label.
+
+    Returns
+    -------
+    ndarray of SEGMENT_DTYPE
+        The segments kept, in their order.
+    """
+    need = np.asarray(min_won, dtype=np.int64)
+    if not segments.size or not need.any():
+        return segments
+    lo = dict(zip(labels, need.tolist()))
+    want = np.array([lo[x] for x in segments["label"]], dtype=np.int64)
+    check = want > 0
+    keep = np.ones(segments.size, dtype=bool)
+    if check.any():
+        keep[check] = won_frames(segments[check], label_cd, doc_bounds, labels) >= want[check]
+    return segments[keep]
 
 
 def apply_margin(label_cd, margin):

@@ -34,7 +34,13 @@ them — on actors the templates did not see:
    keyframe query (a keyframe definition) is matched only where its
    preselection lets annotation match it, so a clip its keyframes miss is
    no claim — a strict query (the kick's stretched leg) buys the class the
-   τ its template alone could not afford.
+   τ its template alone could not afford. Only a *specific* query earns
+   that: one that holds in at most ``max_keyframe_rate`` of the other
+   labels' training clips (:func:`specific_queries`). A query that also
+   holds in other motions (the throw's ball held up: jumping jacks, knee
+   raises) only filters; the class keeps the τ of its template alone,
+   because the clips it is measured on are short and a long recording of
+   those motions gives the template the chances the clips do not.
 
 Designed classes therefore never take more than their author gave them, and
 learned ones get the τ at which unseen actors' clips are told apart best.
@@ -52,7 +58,8 @@ from mocapdb.features import FEATURE_NAMES
 from mocapdb.learning.recipe import build_model, recipe_clips
 from mocapdb.templates import ANNOTATION_STEPS, mt_distance_slices
 
-__all__ = ["TAU_GRID", "VELOCITY_FEATURES", "clip_costs", "learn_taus", "with_taus", "still_clips", "is_static"]
+__all__ = ["TAU_GRID", "VELOCITY_FEATURES", "clip_costs", "learn_taus", "with_taus", "still_clips", "is_static",
+           "specific_queries"]
 
 #: the τ values tried (the paper's Fig. 8 sweep: 0.05 … 0.25)
 TAU_GRID = tuple(np.round(np.arange(0.04, 0.2501, 0.01), 2).tolist())
@@ -143,6 +150,47 @@ def clip_costs(model: Model, clips, *, preselect=()) -> np.ndarray:
     return out
 
 
+def specific_queries(model: Model, clips, *, max_rate=0.02) -> dict:
+    """How often each learned class's keyframe query holds in other labels' clips, and whether it is specific.
+
+    Parameters
+    ----------
+    model : Model
+    clips : mapping of str to sequence of Clip
+        Clips per class name (:func:`mocapdb.learning.recipe.recipe_clips`);
+        a name the model does not have is its own label.
+    max_rate : float, default 0.02
+        A query is specific if its preselection holds (a slice starts) in
+        at most this share of the clips of other labels.
+
+    Returns
+    -------
+    dict of str to (float, bool)
+        Class → (share of other labels' clips the query holds in, specific),
+        for the classes with a template and a keyframe query.
+    """
+    ks = [k for k, c in enumerate(model.classes) if c.template is not None and c.keyframe_query is not None]
+    owners = [name for name, v in clips.items() for _ in v]
+    words = [np.asarray(x.words, dtype=np.uint64) for v in clips.values() for x in v]
+    if not ks or not words:
+        return {}
+    lengths = np.array([w.size for w in words], dtype=np.int64)
+    bounds = np.concatenate(([0], np.cumsum(lengths)))
+    pre = preselection_for(np.concatenate(words), lengths, model, True)
+    label_of = {c.name: c.label for c in model.classes}
+    owner_label = np.array([label_of.get(n, n) for n in owners], dtype=object)
+    out = {}
+    for k in ks:
+        c = model.classes[k]
+        neg = owner_label != c.label
+        held = np.zeros(len(owners), dtype=bool)
+        sl = np.asarray(pre[k] if pre[k] is not None else [], dtype=np.int64).reshape(-1, 2)
+        held[np.searchsorted(bounds, sl[:, 0], side="right") - 1] = True
+        rate = float(held[neg].mean()) if neg.any() else 0.0
+        out[c.name] = (rate, rate <= max_rate)
+    return out
+
+
 def _f_beta(tp, fn, fp, beta):
     b2 = beta * beta
     den = (1 + b2) * tp + b2 * fn + fp
@@ -150,7 +198,7 @@ def _f_beta(tp, fn, fp, beta):
 
 
 def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, max_still_rate=0.05, cache=None,
-               keyframes=False):
+               keyframes=False, max_keyframe_rate=0.02):
     """τ per class of the model a recipe builds from ``clips`` (module docstring).
 
     Parameters
@@ -176,6 +224,9 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
         their preselection, as annotation with keyframes meets them
         (:func:`clip_costs`). Designed classes keep the false-claim rule on
         whole clips: nothing but their author vouches for their queries.
+    max_keyframe_rate : float, default 0.02
+        With ``keyframes``: only a query that holds in at most this share
+        of other labels' clips is specific enough (:func:`specific_queries`).
 
     Returns
     -------
@@ -192,6 +243,8 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
         raise ParameterError(f"learning τ needs clips of at least two groups (actors), got {groups}")
     full = build_model(clips, recipe, name="taus", cache=cache)
     names = full.class_names
+    through = ([c for c, (_, ok) in specific_queries(full, every, max_rate=max_keyframe_rate).items() if ok]
+               if keyframes else [])
     label_of = {c.name: c.label for c in full.classes}
     costs, owner, still_costs = [], [], []
     for g in groups:
@@ -201,9 +254,8 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
         if not held:
             continue
         stills = [s for _, x in held for s in still_clips(x.words)] if max_still_rate is not None else []
-        through = [c.name for c in model.classes if keyframes and c.template is not None
-                   and c.keyframe_query is not None]
-        m = clip_costs(model, [x.words for _, x in held] + stills, preselect=through)
+        m = clip_costs(model, [x.words for _, x in held] + stills,
+                       preselect=[c for c in through if c in model.class_names])
         row = {c: k for k, c in enumerate(model.class_names)}
         full_m = np.full((len(names), m.shape[1]), np.inf)
         for k, c in enumerate(names):

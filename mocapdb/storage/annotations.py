@@ -31,7 +31,8 @@ PROGRESS_FRAMES = 300_000
 
 
 def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=None, keyframes=None,
-                       index_version=UNKNOWN, taus=None, progress=None, min_length=None, margin=None):
+                       index_version=UNKNOWN, taus=None, progress=None, min_length=None, min_won=None,
+                       margin=None):
     """Segments of stored motions (0-based inclusive, ``doc`` indexing ``motion_ids``).
 
     Parameters
@@ -53,7 +54,7 @@ def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=Non
         ``progress(n_motions_done, n_motions)``: the motions are then
         annotated in pieces of about :data:`PROGRESS_FRAMES` frames (whole
         motions; the segments are the same).
-    min_length, margin : optional
+    min_length, min_won, margin : optional
         The segment filters (:func:`mocapdb.annotation.annotate`; default the model's).
 
     Returns
@@ -64,14 +65,14 @@ def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=Non
     if progress is not None:
         return _annotate_in_pieces(cache, key, model, words, lengths, motion_ids, tau=tau, keyframes=keyframes,
                                    index_version=index_version, taus=taus, progress=progress,
-                                   min_length=min_length, margin=margin)
+                                   min_length=min_length, min_won=min_won, margin=margin)
     pre = stored_preselection(cache, key, model, motion_ids, lengths, keyframes=keyframes,
                               index_version=index_version)
     if taus is not None:
         return annotate_sweep(words, model, taus, doc_lengths=lengths, preselection=pre, min_length=min_length,
-                              margin=margin)
+                              min_won=min_won, margin=margin)
     return annotate(words, model, doc_lengths=lengths, preselection=pre, tau=tau, keep_hits=False,
-                    min_length=min_length, margin=margin).segments
+                    min_length=min_length, min_won=min_won, margin=margin).segments
 
 
 def _annotate_in_pieces(cache, key, model, words, lengths, motion_ids, *, progress, taus, **kwargs):
