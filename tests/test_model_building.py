@@ -315,7 +315,8 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     names = ("kickLFront1Reps", "throwBasketball", "hopBothLegs1hops", "squat1Reps", "lieDownFloor")
     base = default_recipe()
     recipe = dataclasses.replace(base, labels={c: base.labels[c] for c in names}, mirrors={}, reversals={},
-                                 definitions=())
+                                 definitions=(), keyframes=tuple(k for k in base.keyframes
+                                                                 if k.cls in ("kickLFront1Reps", "throwBasketball")))
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c]] for c in names}
     spec = specific_queries(build_model(clips, recipe, name="m"), clips)
     assert set(spec) == {"kickLFront1Reps", "throwBasketball"}
@@ -330,3 +331,22 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     model = build_model(clips, recipe, name="m")
     assert specific_queries(model, clips, max_rate=rate)["throwBasketball"] == (rate, True)
     assert specific_queries(model, clips, max_rate=0.0)["kickLFront1Reps"] == (0.0, True)
+
+
+def test_the_lie_down_keyframe_holds_in_every_lie_down_and_its_reverse_starts_lying(cut_clips):
+    """mocapdb/models/classes/lie_down.toml: the spine horizontal holds in every lieDownFloor clip, near
+    the template's end; the reversed class (standing up from the floor) takes it near its start."""
+    k = next(k for k in default_recipe().keyframes if k.cls == "lieDownFloor")
+    (mask, value), = k.keyframes
+    assert all(((np.asarray(w, np.uint64) & np.uint64(mask)) == np.uint64(value)).any()
+               for _, w in cut_clips["lieDownFloor"])
+    base = default_recipe()
+    recipe = dataclasses.replace(base, labels={"lieDownFloor": "sitLieDown"}, mirrors={}, definitions=(),
+                                 reversals={"lieDownFloor": base.reversals["lieDownFloor"]},
+                                 keyframes=(k,))
+    model = build_model({"lieDownFloor": [Clip(n, w) for n, w in cut_clips["lieDownFloor"]]}, recipe, name="l")
+    down, up = model.classes
+    assert up.label == "standUp"
+    n = down.keyframe_query.template_length
+    assert down.keyframe_query.positions[0] > 0.75 * n
+    assert up.keyframe_query.positions[0] == n - 1 - down.keyframe_query.positions[0]
