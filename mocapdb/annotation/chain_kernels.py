@@ -115,6 +115,18 @@ def _extract_hits_kernel(delta, starts, offsets, task_first, tau, limit, cap_off
 
 
 @jit
+def _best_label(cdl, f):  # pragma: no cover
+    """Δarg at frame f: the first label with the minimal cd, -1 where all are +inf."""
+    lab = -1
+    best = np.inf
+    for p in range(cdl.shape[0]):
+        if cdl[p, f] < best:
+            best = cdl[p, f]
+            lab = p
+    return lab
+
+
+@jit
 def _segments_kernel(cdl, bounds, out_label, out_doc, out_start, out_end,
                      out_cost):  # pragma: no cover
     """Runs of Δarg extended along their label's cd (§10.3), per document.
@@ -122,7 +134,6 @@ def _segments_kernel(cdl, bounds, out_label, out_doc, out_start, out_end,
     cdl (n_labels, N); documents bounds[d]:bounds[d+1]. Writes one record per
     run (label, doc, start, end in N's frames, cost); returns the count.
     """
-    L = cdl.shape[0]
     r = 0
     for d in range(bounds.shape[0] - 1):
         a = bounds[d]
@@ -131,14 +142,7 @@ def _segments_kernel(cdl, bounds, out_label, out_doc, out_start, out_end,
         prev = -1
         run_start = a
         while f <= b:
-            # Δarg: first label with the minimal cd, -1 where all are +inf
-            lab = -1
-            if f < b:
-                best = np.inf
-                for p in range(L):
-                    if cdl[p, f] < best:
-                        best = cdl[p, f]
-                        lab = p
+            lab = _best_label(cdl, f) if f < b else -1
             if f == b or lab != prev:
                 if prev >= 0 and f > a:
                     # run [run_start, f-1] of label prev: extend outward while the
@@ -248,16 +252,9 @@ def _won_kernel(cdl, seg_label, seg_first, seg_last, out):  # pragma: no cover
     Δarg as the segmenter's (§10.3): the first label with the minimal cd; a
     frame where every label is +inf belongs to none.
     """
-    L = cdl.shape[0]
     for s in range(seg_label.shape[0]):
         n = 0
         for f in range(seg_first[s], seg_last[s] + 1):
-            lab = -1
-            best = np.inf
-            for p in range(L):
-                if cdl[p, f] < best:
-                    best = cdl[p, f]
-                    lab = p
-            if lab == seg_label[s]:
+            if _best_label(cdl, f) == seg_label[s]:
                 n += 1
         out[s] = n
