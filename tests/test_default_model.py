@@ -99,7 +99,7 @@ def test_won_frames_drop_segments_their_label_barely_won(shipped, data_dir):
     exactly those of the unfiltered annotation whose label is the frame's best on at least a third
     of its minimum length, and it does drop some (a long weak hit extended over better labels)."""
     from mocapdb.annotation import annotate, preselection_for
-    from mocapdb.annotation.postprocess import label_min_won, won_frames
+    from mocapdb.annotation.postprocess import label_min_frames, label_min_won, won_frames
     from mocapdb.evaluation import mocap6_documents
 
     model, _ = shipped
@@ -110,12 +110,14 @@ def test_won_frames_drop_segments_their_label_barely_won(shipped, data_dir):
     on = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre).segments
     bounds = np.concatenate(([0], np.cumsum(docs.doc_lengths)))
     won = won_frames(off.segments, off.label_delta, bounds, model.labels)
-    need = label_min_won(model)[[model.labels.index(x) for x in off.segments["label"]]]
+    rows = [model.labels.index(x) for x in off.segments["label"]]
+    need = label_min_won(model)[rows]
+    assert (need == np.ceil(label_min_frames(model)[rows] / 3)).all()
     np.testing.assert_array_equal(on, off.segments[won >= need])
     assert 0 < len(off.segments) - len(on) < len(off.segments) / 2
     # some of the dropped ones are long enough for the minimum length: only what they won tells
     dropped = off.segments[won < need]
-    min_len = 3 * need[won < need]
+    min_len = label_min_frames(model)[rows][won < need]
     assert ((dropped["end"] - dropped["start"] + 1) >= min_len).any()
 
 
