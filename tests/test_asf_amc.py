@@ -21,11 +21,16 @@ from mocapdb.readers.asf import parse_asf, read_asf
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import (asf_forward_kinematics, euler_matrix, node_positions,
                                 orientation_matrix, sincos)
+from mocapdb.errors import ParseError
 from mocapdb.readers import find_skeleton, read_motion
 from naive_kinematics import naive_amc_values, naive_asf_fk
 
 ALL_AMC = sorted(DATA.glob("**/*.amc"))
 ALL_ASF = sorted(DATA.glob("**/*.asf"))
+# the CMU and HDM05 skeletons as their databases published them (30 bones each);
+# foreign/ and foreign2/ hold other writers' dialects, checked on their own below
+PUBLISHED_ASF = [p for p in ALL_ASF if p.relative_to(DATA).parts[0] in ("cmu", "hdm05_cut", "hdm05_full")]
+MASS_KG = DATA / "foreign2/amc/test_mass_kg.asf"
 SQUAT = DATA / "hdm05_cut/squat1Reps/HDM_bd_squat1Reps_001_120.amc"
 CMU86 = DATA / "cmu/86/86_09.amc"
 
@@ -56,7 +61,7 @@ def fk(asf_text, amc_bytes, path="x"):
 # ----------------------------------------------------------------------------
 # ASF
 
-@pytest.mark.parametrize("asf", ALL_ASF, ids=lambda p: str(p.relative_to(DATA)))
+@pytest.mark.parametrize("asf", PUBLISHED_ASF, ids=lambda p: str(p.relative_to(DATA)))
 def test_asf_reads_as_published(asf):
     s = read_asf(asf)
     text = asf.read_bytes().decode("latin-1")
@@ -72,6 +77,57 @@ def test_asf_reads_as_published(asf):
     assert s.children("thorax") == ("lowerneck", "lclavicle", "rclavicle")
     assert s.bone("lfoot").dof == ("rx", "rz")
     assert list(s.topological_order()) == list(range(30))
+
+
+def test_every_asf_reads():
+    for asf in ALL_ASF:
+        s = read_asf(asf)
+        assert len(s.bones) >= 15 and s.topological_order() is not None, asf
+
+
+def test_named_and_unknown_units_read():
+    # foreign2: `:units mass kg / length m / angle deg`, and `fps:30` in :documentation
+    s = read_asf(MASS_KG)
+    assert s.angle_unit == "deg" and s.documented_fps == 30.0
+    assert s.length_unit == pytest.approx(2.54 / 100)  # metres, in the toolbox's centimetres
+    assert s.bone("Head").length == pytest.approx(123.9 * 100)
+    assert any("mass" in n for n in s.notes)
+    text = """:version 1.10
+:name x
+:units
+  mass 1.0
+  length mm
+  angle deg
+  time sec
+:documentation
+  recorded at 60 fps by a lab
+:root
+  order TX TY TZ RX RY RZ
+  axis XYZ
+  position 0 0 0
+  orientation 0 0 0
+:bonedata
+  begin
+    id 1
+    name lfemur
+    direction 0 -1 0
+    length 400
+    axis 0 0 0 XYZ
+  end
+:hierarchy
+  begin
+    root lfemur
+  end
+"""
+    s = parse_asf(text, path="t.asf")
+    assert s.length_unit == pytest.approx(25.4) and s.bone("lfemur").length == pytest.approx(40.0)
+    assert s.documented_fps == 60.0 and any("time" in n for n in s.notes)
+    m = parse_amc(b":FULLY-SPECIFIED\n1\nroot 0 0 0 0 0 0\nlfemur\n", s, path="t.amc")
+    assert m.fps == 60.0  # no :SAMPLES-PER-SECOND: the documented rate
+    m = parse_amc(b":SAMPLES-PER-SECOND 50\n1\nroot 0 0 0 0 0 0\nlfemur\n", s, path="t.amc")
+    assert m.fps == 50.0  # the AMC's own rate wins
+    with pytest.raises(ParseError, match="t.asf:5: units length: expected a positive number"):
+        parse_asf(text.replace("length mm", "length -2"), path="t.asf")
 
 
 def test_asf_offsets_follow_the_toolbox_rounding():
@@ -96,11 +152,14 @@ def test_every_amc_reads_with_the_right_frame_count():
         m = read_amc(amc, s)
         data = amc.read_bytes()
         assert m.n_frames == len(frame_line.findall(data)), amc
-        assert m.fps == 120.0 and m.angle_unit == "deg" and m.first_frame == 1
+        # the PyAsfAmc pair notes its rate in the ASF's :documentation (fps:30)
+        assert m.fps == (30.0 if amc.stem == "test_mass_kg" else 120.0), amc
+        assert m.angle_unit == "deg" and m.first_frame == 1
         assert np.all(np.isfinite(m.values))
         total += m.n_frames
-    # 248 HDM05/CMU takes (92,061 frames) and the fairmotion CMU take foreign/amc/11_01 (597)
-    assert len(ALL_AMC) == 249 and total == 92061 + 597
+    # 248 HDM05/CMU takes (92,061 frames), the fairmotion CMU take foreign/amc/11_01 (597)
+    # and the PyAsfAmc take foreign2/amc/test_mass_kg (300)
+    assert len(ALL_AMC) == 250 and total == 92061 + 597 + 300
     assert read_amc(CMU86, read_asf(DATA / "cmu/86/86.asf")).n_frames == 4794
 
 
@@ -419,3 +478,13 @@ def test_motion_from_read_motion():
     assert m.joints.shape == (m.n_frames, 24, 3) and m.root_rotation.shape == (m.n_frames, 3, 3)
     m13 = read_motion(DATA / "cmu/13/13_29.amc", asf=DATA / "cmu/02/02.asf")
     assert m13.skeleton == "02" and m13.n_frames > 1000
+
+
+def test_a_folders_only_asf_is_the_skeleton(tmp_path):
+    # names that follow neither the CMU nor the HDM05 pattern
+    (tmp_path / "subject.asf").write_bytes(MASS_KG.read_bytes())
+    amc = tmp_path / "take 3.amc"
+    amc.write_bytes(MASS_KG.with_suffix(".amc").read_bytes())
+    assert find_skeleton(amc) == tmp_path / "subject.asf"
+    (tmp_path / "other.asf").write_bytes(MASS_KG.read_bytes())
+    assert find_skeleton(amc) is None  # two candidates: no guess

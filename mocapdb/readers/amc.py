@@ -63,7 +63,8 @@ class AmcMotion:
     dof_names : dict str -> tuple of str
         DOF names of each bone's columns (``"tx"``, ..., ``"rz"``).
     fps : float
-        ``:SAMPLES-PER-SECOND`` or 120.
+        ``:SAMPLES-PER-SECOND``, else the rate the ASF's ``:documentation`` notes,
+        else 120.
     angle_unit : str
         ``"deg"`` or ``"rad"``.
     first_frame : int
@@ -343,6 +344,10 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     """Parse the bytes of an AMC file. See :func:`read_amc`."""
     path = str(path)
     start, fps, unit = _parse_header(data, path)
+    if fps is None:
+        # no :SAMPLES-PER-SECOND: the rate the ASF's documentation notes, else
+        # the toolbox's default
+        fps = skeleton.documented_fps or DEFAULT_FPS
     if unit is None:
         unit = skeleton.angle_unit
     elif unit != skeleton.angle_unit:
@@ -430,9 +435,9 @@ def _first_frame_number(data: bytes, start: int) -> int:
 def _parse_header(data: bytes, path: str):
     """Header keywords up to the first frame number line.
 
-    Returns ``(byte offset of the first frame line, fps, angle unit or None)``.
+    Returns ``(byte offset of the first frame line, fps or None, angle unit or None)``.
     """
-    fps = DEFAULT_FPS
+    fps = None
     unit = None
     pos = 3 if data.startswith(b"\xef\xbb\xbf") else 0  # UTF-8 byte order mark
     size = len(data)

@@ -19,6 +19,7 @@ position/orientation); toolbox ``tools/parser/ASFAMCparser/readASF.m``,
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +39,14 @@ ROOT_DOFS = ("tx", "ty", "tz", "rx", "ry", "rz")
 #: rotational DOFs a bone may have; Acclaim also allows tx/ty/tz/l on bones,
 #: which the toolbox ignores and we reject (they would silently change nothing)
 BONE_DOFS = ("rx", "ry", "rz")
+
+#: centimetres per named length unit (``:units length m``, a non-Acclaim dialect)
+_LENGTH_CM = {"m": 100.0, "meter": 100.0, "meters": 100.0, "metre": 100.0, "metres": 100.0,
+              "cm": 1.0, "mm": 0.1, "in": 2.54, "inch": 2.54, "inches": 2.54, "ft": 30.48, "feet": 30.48}
+
+#: a frame rate noted in ``:documentation`` (``fps:30``, ``frame rate = 60``, ``120 fps``)
+_DOC_RATE = re.compile(r"(?i)(?:\bfps|frame[ _-]?rate|samples[ _-]per[ _-]second)\s*[:=]?\s*"
+                       r"(\d+(?:\.\d+)?)|(?<![\w.])(\d+(?:\.\d+)?)\s*fps\b")
 
 _ANGLE_UNITS = {"deg": "deg", "degree": "deg", "degrees": "deg",
                 "rad": "rad", "radian": "rad", "radians": "rad"}
@@ -109,9 +118,16 @@ class Skeleton:
     length_unit : float
         ``:units length`` (file lengths are divided by it, then · 2.54).
     mass_unit : float
+        ``:units mass`` when a number (1 when the file names a unit: mass is
+        never used).
     angle_unit : str
         ``"deg"`` or ``"rad"`` (``:units angle``): unit of axis, orientation
         and — unless the AMC says otherwise — of AMC angles.
+    documented_fps : float or None
+        A frame rate the ``:documentation`` section notes (``fps:30``): the
+        rate of AMC takes that carry no ``:SAMPLES-PER-SECOND``.
+    notes : tuple of str
+        ``:units`` entries that were kept as written (unknown keys or names).
     path : str
     """
 
@@ -124,6 +140,8 @@ class Skeleton:
     length_unit: float = 1.0
     mass_unit: float = 1.0
     angle_unit: str = "deg"
+    documented_fps: float | None = None
+    notes: tuple = ()
     path: str = ""
 
     @property
@@ -251,7 +269,8 @@ class _AsfParser:
 
     # -- top level -----------------------------------------------------------
     def parse(self) -> Skeleton:
-        meta = {"name": None, "length": 1.0, "mass": 1.0, "angle": "deg"}
+        meta = {"name": None, "length": 1.0, "mass": 1.0, "angle": "deg", "unit_notes": [],
+                "documented_fps": None}
         root = None
         bones = None
         hierarchy = None
@@ -270,7 +289,7 @@ class _AsfParser:
             elif key == "units":
                 self.parse_units(no, rest, meta)
             elif key == "documentation":
-                self.section_lines()
+                self.parse_documentation(meta)
             elif key == "root":
                 root = self.parse_root(meta)
             elif key == "bonedata":
@@ -290,14 +309,32 @@ class _AsfParser:
         return self.build(meta, root, bones, hierarchy or {}, hierarchy_line)
 
     def parse_units(self, no, rest, meta):
+        # Acclaim writes multipliers (``length 0.45``); other writers name a
+        # unit (``length m``, ``mass kg``) or add keys of their own. Features
+        # do not depend on the length unit (FEATURES.md §1), so a named or
+        # unknown unit never refuses a file: a known length name is converted,
+        # anything else is kept as written and ignored.
         items = [(no, rest.strip())] if rest.strip() else []
         items += self.section_lines()
         for line, s in items:
             tok = s.split()
             k = tok[0].lower()
             if k in ("mass", "length"):
-                (v,) = self.floats(line, tok[1:], 1, f"units {k}")
-                if v <= 0:
+                if len(tok) < 2:
+                    raise self.error(line, f"units {k}: expected a number or a unit name, found nothing")
+                word = tok[1].lower()
+                try:
+                    v = float(tok[1])
+                except ValueError:
+                    v = None
+                if v is None and k == "length" and word in _LENGTH_CM:
+                    # the toolbox divides by L and multiplies by 2.54 (cm):
+                    # a named unit of c cm is the L that makes that true
+                    v = INCH_TO_TOOLBOX / _LENGTH_CM[word]
+                if v is None:
+                    meta["unit_notes"].append(f"units {k} {tok[1]!r} kept as written")
+                    continue
+                if not (math.isfinite(v) and v > 0):
                     raise self.error(line, f"units {k}: expected a positive number, "
                                      f"found {tok[1]!r}")
                 meta[k] = v
@@ -308,8 +345,17 @@ class _AsfParser:
                                      f"{(tok[1] if len(tok) > 1 else '')!r}")
                 meta["angle"] = _ANGLE_UNITS[unit]
             else:
-                raise self.error(line, f"unsupported unit {tok[0]!r} "
-                                 "(expected mass, length or angle)")
+                meta["unit_notes"].append(f"unit {tok[0]!r} ignored")
+
+    def parse_documentation(self, meta):
+        # free text; some writers note the take's rate there (``fps:30``,
+        # ``frame rate 60``), which an AMC without ``:SAMPLES-PER-SECOND`` lacks
+        for _, s in self.section_lines():
+            m = _DOC_RATE.search(s)
+            if m and meta["documented_fps"] is None:
+                v = float(m.group(1) or m.group(2))
+                if math.isfinite(v) and 0 < v <= 10_000:
+                    meta["documented_fps"] = v
 
     def parse_root(self, meta):
         root = {"order": ROOT_DOFS, "axis": "XYZ", "position": [0.0, 0.0, 0.0],
@@ -507,4 +553,5 @@ class _AsfParser:
             root_position=pos,
             root_orientation=np.asarray(root["orientation"], dtype=np.float64),
             length_unit=L, mass_unit=meta["mass"], angle_unit=meta["angle"],
+            documented_fps=meta["documented_fps"], notes=tuple(meta["unit_notes"]),
             path=self.path)

@@ -42,7 +42,9 @@ def skeleton_candidates(amc_path) -> list:
     2. a CMU take's subject skeleton in the same folder: ``02_01.amc`` -> ``02.asf``;
     3. an HDM05 actor skeleton ``HDM_<actor>.asf`` in the same folder, then in
        the parent folder (``hdm05_cut/<class>/HDM_bd_...amc`` ->
-       ``hdm05_cut/HDM_bd.asf``).
+       ``hdm05_cut/HDM_bd.asf``);
+    4. the folder's only ASF, when it holds exactly one (other writers' takes
+       follow no name pattern).
     """
     p = Path(amc_path)
     d = p.parent
@@ -55,6 +57,12 @@ def skeleton_candidates(amc_path) -> list:
     if m:
         out.append(d / f"HDM_{m.group(1)}.asf")
         out.append(d.parent / f"HDM_{m.group(1)}.asf")
+    try:
+        own = [q for q in d.iterdir() if q.suffix.lower() == ".asf" and q.is_file()]
+    except OSError:
+        own = []
+    if len(own) == 1 and own[0] not in out:
+        out.append(own[0])
     return out
 
 
