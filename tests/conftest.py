@@ -1,7 +1,12 @@
 """Shared fixtures: where the real data and the toolbox oracle live.
 
 The data is never copied into the repository; it is read from ``../shared``
-beside the checkout (override with ``MOCAPDB_SHARED``).
+beside the checkout (override with ``MOCAPDB_SHARED``). A test that needs it
+is marked ``@pytest.mark.shared`` (a whole module: ``pytestmark =
+pytest.mark.shared``; a module that reads the data while it is collected
+calls :func:`require_shared` first). In a bare clone such tests are skipped
+with the reason shown; with ``MOCAPDB_REQUIRE_SHARED=1`` (``.ci/run``) a
+missing ``../shared`` fails the run instead.
 """
 import csv
 import os
@@ -16,21 +21,49 @@ DATA = SHARED / "data"
 ORACLE = SHARED / "oracle"
 
 
+HAVE_SHARED = DATA.is_dir() and ORACLE.is_dir()
+REQUIRE_SHARED = os.environ.get("MOCAPDB_REQUIRE_SHARED", "") not in ("", "0")
+NO_SHARED = (f"needs ../shared (real recordings, labels, the toolbox oracle), not found at {SHARED}; "
+             "set MOCAPDB_SHARED to run it")
+
+
 def pytest_report_header(config):
-    return f"mocapdb shared data: {SHARED} ({'found' if DATA.is_dir() else 'MISSING'})"
+    return f"mocapdb shared data: {SHARED} ({'found' if HAVE_SHARED else 'MISSING'})"
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "shared: needs ../shared beside the checkout (skipped in a bare "
+                                       "clone; MOCAPDB_REQUIRE_SHARED=1 makes its absence an error)")
+    if REQUIRE_SHARED and not HAVE_SHARED:
+        raise pytest.UsageError(f"MOCAPDB_REQUIRE_SHARED is set but {NO_SHARED}")
+
+
+def pytest_collection_modifyitems(config, items):
+    if HAVE_SHARED:
+        return
+    skip = pytest.mark.skip(reason=NO_SHARED)
+    for item in items:
+        if item.get_closest_marker("shared") is not None:
+            item.add_marker(skip)
+
+
+def require_shared():
+    """Skip the calling module in a bare clone (call it before reading ``../shared`` at collection)."""
+    if not HAVE_SHARED:
+        pytest.skip(NO_SHARED, allow_module_level=True)
 
 
 @pytest.fixture(scope="session")
 def data_dir():
-    if not DATA.is_dir():
-        pytest.fail(f"real data not found at {DATA}; set MOCAPDB_SHARED")
+    if not HAVE_SHARED:
+        pytest.skip(NO_SHARED)
     return DATA
 
 
 @pytest.fixture(scope="session")
 def oracle_dir():
-    if not ORACLE.is_dir():
-        pytest.fail(f"oracle not found at {ORACLE}; set MOCAPDB_SHARED")
+    if not HAVE_SHARED:
+        pytest.skip(NO_SHARED)
     return ORACLE
 
 
