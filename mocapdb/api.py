@@ -22,6 +22,7 @@ CLI                           API
 ``mocapdb export-features``   :func:`export_features`
 ``mocapdb import-features``   :func:`import_features`
 ``mocapdb ray-annotate``      :func:`ray_annotate`
+``mocapdb warmup``            :func:`warmup`
 ``mocapdb sql``               ``connect(...).sql(query)``
 ============================  ==========================
 """
@@ -54,6 +55,8 @@ from mocapdb.storage.motions import documents_by_name, motion_documents, motion_
 from mocapdb.storage.schema import open_database
 from mocapdb.storage.sqltext import statement
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
+from mocapdb.warmup import (PARTS, background_compile_running, cache_is_cold, compile_kernels, sample_files,
+                            start_background_compile, wait_for_background_compile)
 
 log = logging.getLogger("mocapdb")
 
@@ -96,7 +99,7 @@ def connect(path=":memory:", *, read_only: bool = False):
     return con
 
 
-def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=None) -> IngestReport:
+def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, progress=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -106,6 +109,9 @@ def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=No
     ----------
     con : duckdb.DuckDBPyConnection
     paths : iterable of str or Path
+    sample : bool, keyword-only
+        Also ingest the real recordings shipped with mocapdb
+        (:func:`mocapdb.warmup.sample_files`; README "Data and credits").
     asf : str or Path, optional, keyword-only
         Skeleton for every AMC file (default: found by the dataset conventions).
     joint_map : dict, str or Path, optional, keyword-only
@@ -120,7 +126,32 @@ def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=No
     -------
     IngestReport
     """
+    paths = [*paths, *(sample_files() if sample else [])]
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress)
+
+
+def warmup(*, parts=None) -> float:
+    """Compile the numba kernels into numba's cache now.
+
+    ``pip install .`` does this when it builds the package, so a new install
+    answers at once; this is for installs without that cache (editable, or
+    another numba version). See :mod:`mocapdb.warmup`.
+
+    Parameters
+    ----------
+    parts : iterable of {"ingest", "search", "segments"}, optional, keyword-only
+        Default: all.
+
+    Returns
+    -------
+    float
+        Seconds it took.
+    """
+    return compile_kernels(parts or PARTS)
+
+
+#: the numba cache's state, for the command line's messages (not commands)
+kernels_cold = cache_is_cold
 
 
 def joint_map_template(path) -> str:
@@ -670,7 +701,7 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
                       batch_files=batch_files, bucket_motions=bucket_motions, overwrite=overwrite)
 
 
-__all__ = ["connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate", "report",
+__all__ = ["warmup", "connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate", "report",
            "view",
            "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
            "training_clips", "FIGURES"]

@@ -135,23 +135,33 @@ def _set_bar(bar):
 _ANNOTATING = {"annotate", "evaluate", "sql", "view", "report", "learn-keyframes", "train"}
 
 
-def _say_when_compiling(command):
-    """Say once that kernels compile when numba's cache is still empty (first run only).
+def _say_when_compiling(ctx, command):
+    """Say when kernels compile, with the real time it took (a cold numba cache only).
 
-    A first command that does not annotate (``ingest``) also starts the
-    annotation kernels compiling on the other core
-    (:mod:`mocapdb.storage.warmup`); a command that annotates waits for that
-    rather than compiling the same kernels again.
+    ``pip install .`` compiles the kernels at build time (:mod:`mocapdb.warmup`),
+    so this happens only where that cache is missing (an editable install,
+    another numba version). A first command that does not annotate (``ingest``)
+    then also starts the annotation kernels compiling on the other core, and a
+    command that annotates waits for them rather than compiling them again.
     """
-    from mocapdb.storage.warmup import cache_is_cold, start_warmup, wait_for_warmup
+    import time
 
-    if cache_is_cold():
-        if command != "sql":  # a query need not compile anything; its output stays clean
-            click.echo("Compiling the numba kernels (first run only, about 15 s)…", err=True)
+    from mocapdb import api
+
+    t0 = time.monotonic()
+    if api.kernels_cold():
+        if command == "sql":  # a query need not compile anything; its output stays clean
+            return
+        click.echo("Compiling the numba kernels: this install has no compiled cache yet (first run only)…",
+                   err=True)
         if command not in _ANNOTATING:
-            start_warmup()
-    elif command in _ANNOTATING:
-        wait_for_warmup()
+            api.start_background_compile()
+        ctx.call_on_close(lambda: click.echo(f"(this run compiled kernels: {time.monotonic() - t0:.0f} s in all)",
+                                             err=True))
+    elif command in _ANNOTATING and api.background_compile_running():
+        click.echo("Waiting for the numba kernels compiling in the background (first run only)…", err=True)
+        waited = api.wait_for_background_compile()
+        click.echo(f"… compiled; waited {waited:.0f} s", err=True)
 
 
 # -- the group --------------------------------------------------------------------
@@ -172,8 +182,9 @@ def main(ctx, db):
     """
     ctx.ensure_object(dict)
     ctx.obj["db"] = db
-    if ctx.invoked_subcommand not in (None, "delete", "drop-index", "export-features", "joint-map-template"):
-        _say_when_compiling(ctx.invoked_subcommand)
+    if ctx.invoked_subcommand not in (None, "delete", "drop-index", "export-features", "joint-map-template",
+                                      "warmup"):
+        _say_when_compiling(ctx, ctx.invoked_subcommand)
 
 
 # -- output -----------------------------------------------------------------------
@@ -227,22 +238,30 @@ def _json_default(v):
 # -- commands ---------------------------------------------------------------------
 
 @command()
-@click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@click.argument("paths", nargs=-1, type=click.Path(exists=True, path_type=Path))
+@click.option("--sample", is_flag=True,
+              help="Also ingest the real recordings shipped with mocapdb (a CMU take, a BVH walk, an HDM05 C3D).")
 @reader_options
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, asf, joint_map, marker_map, silent):
+def ingest(ctx, paths, sample, asf, joint_map, marker_map, silent):
     """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
 
     A broken file changes nothing and the others still go in; files already
     stored (same bytes) are skipped.
+
+    \b
+    Example (the recordings shipped with mocapdb):
+      mocapdb --db demo.duckdb ingest --sample
     """
     from mocapdb.api import ingest as api_ingest
     from mocapdb.storage.ingest import motion_files
 
+    if not paths and not sample:
+        raise click.UsageError("give files or folders to ingest, or --sample")
     con = _open(ctx)
     with _progress(len(motion_files(paths)), "ingest", silent) as bar:
-        report = api_ingest(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
+        report = api_ingest(con, paths, sample=sample, asf=asf, joint_map=joint_map, marker_map=marker_map,
                             progress=lambda path, frames: bar.update(1))
     _echo_report(ctx, report)
 
@@ -258,6 +277,15 @@ def _echo_report(ctx, report):
     click.echo(f"{report.summary()} ({report.source_frames} source frames)")
     if report.failed and not report.ingested and not report.skipped:
         ctx.exit(1)
+
+
+@command()
+@click.argument("parts", nargs=-1)
+def warmup(parts):
+    """Compile the numba kernels now (pip install . has done it already; parts: ingest, search, segments)."""
+    from mocapdb.api import warmup as api_warmup
+
+    click.echo(f"compiled in {api_warmup(parts=parts or None):.1f} s")
 
 
 @command()

@@ -1,35 +1,63 @@
-"""The background warm-up of a first run (issue 8, cold start): what it compiles is
-exactly what the first ``mocapdb annotate`` needs, so that command compiles nothing."""
+"""Compiling the kernels ahead of need (issue 18 item 3, cold start).
+
+``pip install .`` runs :func:`mocapdb.warmup.compile_kernels` at build time;
+where that cache is missing, a first ``ingest`` starts the annotation parts
+in the background. Either way, what they compile must be exactly what the
+main job needs: after them, ``ingest --sample`` and ``annotate`` compile
+nothing.
+"""
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-from conftest import DATA
+import pytest
+
+from mocapdb.warmup import PARTS, compile_kernels, sample_files
 
 
 def _cached(cache: Path) -> set:
     return {p.name for p in cache.rglob("*.nbc")}
 
 
-def test_the_warmup_compiles_what_annotate_needs(tmp_path):
-    cache = tmp_path / "numba"
-    cache.mkdir()
+def _env(cache):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
     env.pop("NUMBA_DISABLE_JIT", None)
+    return env
+
+
+def test_the_compile_parts_cover_the_main_job(tmp_path):
+    cache = tmp_path / "numba"
+    cache.mkdir()
+    env = _env(cache)
     exe = [sys.executable, "-P", "-m"]
-    warm = [subprocess.Popen(exe + ["mocapdb.storage.warmup", part], env=env) for part in ("search", "segments")]
-    assert [p.wait(timeout=600) for p in warm] == [0, 0]
+    # as the build step runs them: reading first, then the two annotation halves side by side
+    assert subprocess.run(exe + ["mocapdb.warmup", "ingest"], env=env, timeout=900).returncode == 0
+    warm = [subprocess.Popen(exe + ["mocapdb.warmup", part], env=env) for part in ("search", "segments")]
+    assert [p.wait(timeout=900) for p in warm] == [0, 0]
     warmed = _cached(cache)
-    assert any(n.startswith("search_kernels.") for n in warmed) and any(n.startswith("chain_kernels.") for n in warmed)
+    for module in ("relational.", "search_kernels.", "chain_kernels.", "distance.", "textscan.", "bvh."):
+        assert any(n.startswith(module) for n in warmed), module
     db = str(tmp_path / "demo.duckdb")
-    r = subprocess.run(exe + ["mocapdb.cli", "--db", db, "ingest", str(DATA / "cmu/86/86_09.amc")], env=env,
-                       capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, r.stderr
-    before = _cached(cache)
-    r = subprocess.run(exe + ["mocapdb.cli", "--db", db, "annotate"], env=env, capture_output=True, text=True,
-                       timeout=600)
-    assert r.returncode == 0 and "86_09" in r.stdout, r.stderr
-    assert _cached(cache) - before == set(), "annotate compiled kernels the warm-up missed"
-    # the cache is warm now: no message, no new warm-up
-    assert "Compiling" not in r.stderr
+    for args in (["ingest", "--sample"], ["annotate"]):
+        r = subprocess.run(exe + ["mocapdb.cli", "--db", db, *args], env=env, capture_output=True, text=True,
+                           timeout=900)
+        assert r.returncode == 0, r.stderr
+        assert "Compiling" not in r.stderr and "Waiting" not in r.stderr
+    assert "86_09" in r.stdout and "HDM_mm_01-02_03_120" in r.stdout
+    assert _cached(cache) == warmed, "the main job compiled kernels the compile parts missed"
+
+
+def test_the_sample_ships_with_the_package():
+    names = sorted(p.name for p in sample_files())
+    assert names == ["86_09.amc.xz", "HDM_mm_01-02_03_120.c3d.xz", "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh.xz"]
+    total = sum(p.stat().st_size for p in sample_files()[0].parent.iterdir())
+    assert total < 2.5 * 2**20  # about 2 MB in all
+
+
+def test_unknown_parts_are_refused():
+    from mocapdb.errors import ParameterError
+
+    assert set(PARTS) == {"ingest", "search", "segments"}
+    with pytest.raises(ParameterError, match="unknown \\['linking'\\]"):
+        compile_kernels(["linking"])
