@@ -146,7 +146,7 @@ def _say_when_compiling(ctx, command):
     """
     import time
 
-    from mocapdb import api
+    import mocapdb.api as api
 
     t0 = time.monotonic()
     if api.kernels_cold():

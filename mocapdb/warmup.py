@@ -225,7 +225,7 @@ def main(argv=None) -> None:
     ap.add_argument("parts", nargs="*", help=f"some of {', '.join(PARTS)} (default: all)")
     args = ap.parse_args(argv)
     if args.lock is None:
-        print(f"compiled in {compile_kernels(args.parts or PARTS):.1f} s")
+        compile_kernels(args.parts or PARTS)
         return
     with contextlib.suppress(OSError), open(args.lock, "a") as fh:
         try:
