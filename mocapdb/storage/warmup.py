@@ -30,7 +30,7 @@ from mocapdb.storage.motions import motion_documents
 from mocapdb.storage.postings import drop_index, index_version
 from mocapdb.storage.schema import open_database
 
-__all__ = ["warm_annotation_kernels", "start_warmup", "wait_for_warmup", "cache_is_cold", "PARTS"]
+__all__ = ["warm_annotation_kernels", "start_warmup", "wait_for_warmup", "warmup_running", "cache_is_cold", "PARTS"]
 
 _PACKAGE = Path(__file__).resolve().parents[1]
 
@@ -123,6 +123,11 @@ def _held(lock: Path) -> bool:
             return True
         fcntl.flock(fh, fcntl.LOCK_UN)
     return False
+
+
+def warmup_running() -> bool:
+    """Whether a background warm-up is compiling (a caller that waits for it can say so)."""
+    return any(_lock_path(part).exists() and _held(_lock_path(part)) for part in PARTS)
 
 
 def wait_for_warmup(timeout: float = 120.0) -> None:
