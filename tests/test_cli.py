@@ -5,6 +5,7 @@ import json
 import re
 import shutil
 
+import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -85,6 +86,8 @@ def test_every_command_has_help_and_a_readme_entry():
 
 #: CLI parameters that only shape the output or the terminal, with no API counterpart
 PRESENTATION = {"silent", "fmt", "out", "read_only", "query", "sql_file"}
+#: options spelled otherwise than their keyword: `class` is a Python keyword
+RENAMED = {"class_name": "--class"}
 
 
 def test_the_cli_mirrors_the_api():
@@ -102,6 +105,9 @@ def test_the_cli_mirrors_the_api():
         params = set(inspect.signature(fn).parameters) - {"con"}
         options = {p.name for p in cmd.params} - PRESENTATION
         assert options <= params, f"{name}: options {sorted(options - params)} are not parameters of api.{fn.__name__}"
+        for p in cmd.params:  # the option is the keyword with dashes (--label-map is label_map=)
+            if isinstance(p, click.Option) and p.name not in PRESENTATION:
+                assert p.opts[0] == RENAMED.get(p.name, "--" + p.name.replace("_", "-")), (name, p.opts, p.name)
 
 
 def _class_folder(tmp_path, classes):
@@ -360,3 +366,33 @@ def test_the_compile_messages_say_what_happens_and_how_long(run, tmp_path, monke
     assert "Waiting for the numba kernels compiling in the background (first run only)…" in r.output
     waited = int(re.search(r"…compiled; waited (\d+) s\.", r.output).group(1))
     assert 1 <= waited <= 3
+
+
+def test_the_readme_names_only_options_the_commands_have():
+    """Each command's row of the README's command table names options of that command only
+    (a renamed option, --map → --label-map, cannot linger), and help and README agree on defaults."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    rows = re.findall(r"^\| `([a-z-]+)[^|]*\|(.*)\|$", readme, flags=re.M)
+    checked = 0
+    for name, text in rows:
+        cmd = main.commands.get(name)
+        if cmd is None:
+            continue
+        have = {o for p in cmd.params for o in (*p.opts, *p.secondary_opts)} | {"--help"}
+        named = {m.split("/")[0] for m in re.findall(r"`(--[a-z-]+(?:/--[a-z-]+)?)", text)}
+        named |= {m for m in re.findall(r"`--[a-z-]+/(--[a-z-]+)`", text)}
+        assert named <= have, f"README row of {name!r} names {sorted(named - have)}, which it does not have"
+        checked += 1
+    assert checked >= 15
+    # the --margin default: the model's, 0 (off) for the shipped models, in help and README alike
+    con = mocapdb.connect()
+    try:
+        margins = dict(con.execute("SELECT model, margin FROM models WHERE shipped").fetchall())
+    finally:
+        con.close()
+    assert margins == {"default": 0.0, "toolbox": 0.0}
+    help_text = CliRunner().invoke(main, ["annotate", "--help"]).output
+    assert "default: the model's margin, 0 for the shipped models = off" in " ".join(help_text.split())
+    assert "default: the model's margin, which is 0, off, for both shipped models" in " ".join(readme.split())
+    joint_help = " ".join(CliRunner().invoke(main, ["ingest", "--help"]).output.split())
+    assert "a list of joints (their mean)" in joint_help and "a list of joints (their mean)" in " ".join(readme.split())
