@@ -224,6 +224,11 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     pyarrow.Table
         Columns :data:`mocapdb.annotation.SEGMENT_COLUMNS` (30 Hz frames,
         1-based inclusive, and seconds), ordered by motion, start frame, label.
+
+    Raises
+    ------
+    SchemaError
+        The database holds no motions (ingest first), or an id or name is unknown.
     """
     if tau is not None and not (np.isfinite(tau) and tau >= 0):
         raise ParameterError(f"tau must be a non-negative number, got {tau!r}")
@@ -233,7 +238,7 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     cache = connection_cache(con)
     key, m = cache.model(model)
     docs = motion_documents(con, None if motions is None else motion_ids(con, motions))
-    if not len(docs.motion_ids):
+    if motions is None and not len(docs.motion_ids):
         raise SchemaError("the database holds no motions: ingest recordings first (mocapdb ingest PATH…)")
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes,
                               progress=progress, min_length=min_length, min_won=min_won, margin=margin)
