@@ -269,22 +269,12 @@ def test_labels_of_any_length_annotate(tmp_path):
 
     long_a, long_b = "a" * 70 + "_standing", "b" * 100 + "_knees_straight"
     toml = tmp_path / "long.toml"
-    toml.write_text(f"""
-[[class]]
-name = "stand1"
-label = "{long_a}"
-[[class.phase]]
-seconds = [0.5, 2]
-knee_left_bent = 0
-knee_right_bent = 0
-
-[[class]]
-name = "stand2"
-label = "{long_b}"
-[[class.phase]]
-seconds = [0.5, 2]
-knee_left_bent = 0
-""")
+    # two designed classes: a still stand (both knees straight), and one of the left knee only
+    toml.write_text("".join(f'[[class]]\nname = "stand{k}"\nlabel = "{label}"\n[[class.phase]]\n'
+                            f'seconds = [0.5, 2]\n{features}\n\n'
+                            for k, (label, features) in enumerate([
+                                (long_a, "knee_left_bent = 0\nknee_right_bent = 0"),
+                                (long_b, "knee_left_bent = 0")], 1)))
     con = mocapdb.connect(tmp_path / "l.duckdb")
     try:
         mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])

@@ -16,13 +16,11 @@ an ``fps`` column when that rate is not the recording's own).
 """
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
 
-from mocapdb.annotation.labels import LABEL_DTYPE, label_rows, read_text
+from mocapdb.annotation.labels import LABEL_DTYPE, csv_records, label_rows, read_text
 from mocapdb.errors import ParseError, shorten
 
 __all__ = ["read_segment_table", "read_label_names", "read_frame_labels", "read_label_file"]
@@ -51,25 +49,13 @@ def read_segment_table(path, *, document_column="document", label_column="label"
         ``file:line: …`` on a missing column, an empty document or label, a
         non-integer frame or ``not 1 <= start <= end``; no rows (of ``document``).
     """
-    cols = {"document": document_column, "label": label_column, "start": start_column, "end": end_column}
-    reader = csv.reader(io.StringIO(read_text(path), newline=""))
-    header, rows = None, []
-    for row in reader:
-        line = reader.line_num
-        if not row or not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
-            continue
-        if header is None:
-            header = [c.strip().lower() for c in row]
-            missing = [v for v in cols.values() if v.lower() not in header]
-            if missing:
-                raise ParseError(path, line, f"no column {', '.join(map(repr, missing))} in the header "
-                                 f"({','.join(header)}); name the columns (--document-column, --label-column, "
-                                 "--start-column, --end-column)")
-            at = {k: header.index(v.lower()) for k, v in cols.items()}
-            continue
-        if len(row) < len(header):
-            raise ParseError(path, line, f"expected {len(header)} fields, got {len(row)}")
-        rec = {k: row[i].strip() for k, i in at.items()}
+    cols = {"document": document_column.lower(), "label": label_column.lower(), "start": start_column.lower(),
+            "end": end_column.lower()}
+    rows = []
+    for line, found in csv_records(path, tuple(dict.fromkeys(cols.values())),
+                                   hint="; name the columns (--document-column, --label-column, --start-column, "
+                                        "--end-column)"):
+        rec = {k: found[v] for k, v in cols.items()}
         if document is not None and rec["document"] != document:
             continue
         if not rec["document"] or not rec["label"]:

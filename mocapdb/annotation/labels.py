@@ -61,7 +61,7 @@ __all__ = [
     "write_labels",
     "native_to_feature_frames", "feature_to_native_frames", "to_feature_grid",
     "to_native_grid", "segments_to_rows", "map_labels", "read_class_labels",
-    "write_class_labels", "class_labels", "read_text", "SHIPPED_CLASS_LABELS", "native_factor",
+    "write_class_labels", "class_labels", "read_text", "csv_records", "SHIPPED_CLASS_LABELS", "native_factor",
 ]
 
 #: the columns of a label / ground-truth CSV (DESIGN.md §5)
@@ -175,12 +175,13 @@ def read_text(path):
         return data.decode("latin-1")
 
 
-def _csv_records(path, required, optional=()):
+def csv_records(path, required, optional=(), *, hint=""):
     """(line number, {column: value}) for every data line of a CSV with a header.
 
     Blank lines and lines starting with ``#`` are skipped; the header must hold
-    the ``required`` columns (case-insensitive, any order, extra columns
-    ignored); the ``optional`` columns the header has are in the dicts too.
+    the ``required`` columns (lower case; matched case-insensitively, any
+    order, extra columns ignored; else a :class:`ParseError` ending with
+    ``hint``); the ``optional`` columns the header has are in the dicts too.
     """
     text = read_text(path)
     reader = csv.reader(io.StringIO(text, newline=""))
@@ -195,7 +196,7 @@ def _csv_records(path, required, optional=()):
             if missing:
                 raise ParseError(path, line, f"expected a header with the columns "
                                  f"{','.join(required)}; missing {','.join(missing)} "
-                                 f"(got {','.join(header)})")
+                                 f"(got {','.join(header)}){hint}")
             col = {c: header.index(c) for c in (*required, *optional) if c in header}
             continue
         if len(row) < len(header):
@@ -303,7 +304,7 @@ def read_labels(path, *, n_frames=None, fps=None):
                                  f"of document {doc!r} ({int(n_frames[doc])} frames)")
         return as_label_rows(rows)
     out = []
-    for line, rec in _csv_records(path, LABEL_COLUMNS, (FPS_COLUMN, *ANNOTATION_COLUMNS)):
+    for line, rec in csv_records(path, LABEL_COLUMNS, (FPS_COLUMN, *ANNOTATION_COLUMNS)):
         doc, lab = rec["document"], rec["label"]
         if not doc:
             raise ParseError(path, line, "empty document name")
@@ -336,7 +337,7 @@ def label_documents(path):
     """
     if is_eaf(path):
         return [eaf_document(path)]
-    return list(dict.fromkeys(rec["document"] for _, rec in _csv_records(path, LABEL_COLUMNS) if rec["document"]))
+    return list(dict.fromkeys(rec["document"] for _, rec in csv_records(path, LABEL_COLUMNS) if rec["document"]))
 
 
 def read_segments(path):
@@ -356,7 +357,7 @@ def read_segments(path):
         ``file:line: …`` as :func:`read_labels`.
     """
     out = []
-    for line, rec in _csv_records(path, LABEL_COLUMNS):
+    for line, rec in csv_records(path, LABEL_COLUMNS):
         s = _int_field(path, line, "start_frame", rec["start_frame"])
         e = _int_field(path, line, "end_frame", rec["end_frame"])
         if s < 1 or e < s:
@@ -646,7 +647,7 @@ def read_class_labels(path):
         On a missing column, an empty field, or a class listed twice.
     """
     out = {}
-    for line, rec in _csv_records(path, ("class", "label")):
+    for line, rec in csv_records(path, ("class", "label")):
         c, lab = rec["class"], rec["label"]
         if not c or not lab:
             raise ParseError(path, line, "class and label must not be empty")
