@@ -396,3 +396,20 @@ def test_the_readme_names_only_options_the_commands_have():
     assert "default: the model's margin, which is 0, off, for both shipped models" in " ".join(readme.split())
     joint_help = " ".join(CliRunner().invoke(main, ["ingest", "--help"]).output.split())
     assert "a list of joints (their mean)" in joint_help and "a list of joints (their mean)" in " ".join(readme.split())
+
+
+def test_sql_takes_a_commented_query_of_several_statements_from_an_argument_stdin_or_a_file(run, tmp_path):
+    query = ("-- a comment first, as the README's examples start\n"
+             "CREATE TABLE t AS SELECT 1 AS x; INSERT INTO t VALUES (2), (3);\n"
+             "SELECT count(*) AS n FROM t; -- a comment last\n")
+    r = run("sql", query)
+    assert r.exit_code == 0, r.output
+    assert r.output.split("\n\n") == ["ok, 1 row(s) changed", "ok, 2 row(s) changed", "n\n-\n3\n"]
+    r = CliRunner().invoke(main, ["--db", str(tmp_path / "cli.duckdb"), "sql", "-", "--format", "csv"],
+                           input="-- count\nSELECT count(*) AS n FROM t")
+    assert r.output == "n\n3\n"
+    f = tmp_path / "q.sql"
+    f.write_text("SELECT sum(x) AS s FROM t")
+    assert run("sql", "--file", f, "--format", "json").output.strip() == '[\n {\n  "s": 6\n }\n]'
+    r = run("sql", "-- only a comment")
+    assert r.exit_code == 2 and "holds no SQL statement" in r.output
