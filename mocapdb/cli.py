@@ -263,8 +263,9 @@ def ingest(ctx, paths, asf, joint_map, marker_map, replace, silent):
     _echo_report(ctx, report)
 
 
-def _echo_report(ctx, report):
-    """The files a run did not store, a line each, then its summary; exit 1 when any file failed."""
+def _echo_report(ctx, report, *, all_must_succeed=True):
+    """The files a run did not store, a line each, then its summary; exit 1 when any file failed
+    (``all_must_succeed``), else when no file went in."""
     for path, reason in report.unsupported:
         click.echo(f"not a motion file {path}: {reason}", err=True)
     for path, reason in report.skipped:
@@ -274,7 +275,7 @@ def _echo_report(ctx, report):
     for path, old in getattr(report, "replaced", ()):
         click.echo(f"replaced motion {old} by {path}", err=True)
     click.echo(f"{report.summary()} ({report.source_frames} source frames)")
-    if report.failed:
+    if report.failed and (all_must_succeed or not (report.ingested or report.skipped)):
         ctx.exit(1)
 
 
@@ -792,7 +793,8 @@ def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_m
                               database=ctx.obj.get("db"), asf=asf, joint_map=joint_map, marker_map=marker_map,
                               num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
                               overwrite=overwrite)
-    _echo_report(ctx, report)
+    # the failed files are data of the archive (its errors dataset): the run failed only if nothing went in
+    _echo_report(ctx, report, all_must_succeed=False)
 
 
 if __name__ == "__main__":  # pragma: no cover
