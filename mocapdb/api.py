@@ -790,4 +790,4 @@ def relocate(con, old_prefix, new_prefix):
 __all__ = ["connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate", "report",
            "view",
            "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
-           "training_clips", "convert_labels", "relocate", "DeleteReport", "FIGURES"]
+           "training_clips", "convert_labels", "relocate", "FIGURES"]

@@ -503,7 +503,7 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
     rows = [(d, lab, s, e, round(a, 4), round(b, 4), round(c, 6))
             for d, lab, s, e, a, b, c in zip(*(table.column(c).to_pylist() for c in cols))]
     if fmt != "table":  # a file carries its frame grid (label files read it: the fps column)
-        rates = [f"{r:.6g}" for r in _frame_rates(table)]
+        rates = [int(r) if r.is_integer() else r for r in (round(x, 6) for x in _frame_rates(table))]
         rows = [(*r[:4], f, *r[4:]) for r, f in zip(rows, rates)]
         cols = cols[:4] + ["fps"] + cols[4:]
     write_rows(rows, cols, fmt, out)

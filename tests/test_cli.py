@@ -340,7 +340,7 @@ def test_annotate_csv_given_back_as_truth_scores_one(run, tmp_path):
     r = run("train", "--model", "again", "--labels", seg, "--silent")
     assert r.exit_code == 0 and "model 'again'" in r.output
     js = json.loads(run("annotate", "--format", "json").output)
-    assert {s["fps"] for s in js} == {"30"} and all(round(s["start_s"], 4) == s["start_s"] for s in js)
+    assert {s["fps"] for s in js} == {30} and all(round(s["start_s"], 4) == s["start_s"] for s in js)
 
 
 def test_the_compile_messages_say_what_happens_and_how_long(run, tmp_path, monkeypatch):
