@@ -7,6 +7,7 @@ the user-facing names and defaults. Nothing here is persisted in the database
 file: a persisted macro that calls a Python UDF would fail after reopening the
 file without mocapdb, so every connection gets its own temporary copies.
 """
+from mocapdb.extension.connection import Connection, connect
 from mocapdb.extension.udfs import MAX_GAP, MAX_KEYFRAMES, register
 
-__all__ = ["register", "MAX_KEYFRAMES", "MAX_GAP"]
+__all__ = ["register", "connect", "Connection", "MAX_KEYFRAMES", "MAX_GAP"]

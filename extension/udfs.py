@@ -237,9 +237,25 @@ def inline_query(masks, values, gap_min, gap_max) -> KeyframeQuery:
                          np.array([UNBOUNDED if x is None else x for x in gap_max], np.float64), K)
 
 
-def register(con) -> None:
-    """Register the mocapdb UDFs and temporary macros on a connection."""
-    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf = make_udfs(connection_cache(con))
+def register(con, *, cache=None):
+    """Register the mocapdb UDFs and temporary macros on a connection.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    cache : ConnectionCache, optional, keyword-only
+        The cache the UDFs answer from (default: the connection's own).
+
+    Returns
+    -------
+    tuple of callable
+        The UDFs. DuckDB registers them with the database instance, for every
+        connection of it, but lets go of the Python functions when ``con``
+        closes: whoever keeps the instance open keeps them alive
+        (:mod:`mocapdb.extension.connection`).
+    """
+    udfs = make_udfs(connection_cache(con) if cache is None else cache)
+    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf = udfs
     words = duckdb.list_type(T.UBIGINT)
     common = {"type": "arrow", "null_handling": "special", "side_effects": False}
     con.create_function("mocap_annotate", annotate_udf,
@@ -254,7 +270,14 @@ def register(con) -> None:
                         [duckdb.list_type(T.UBIGINT), duckdb.list_type(T.UBIGINT), duckdb.list_type(T.BIGINT),
                          duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
                         duckdb.list_type(HIT_TYPE), **common)
+    register_macros(con)
+    return udfs
+
+
+def register_macros(con) -> None:
+    """Install the temporary macros (``annotate``, ``mt_distance``, …) on a connection whose
+    database instance has the UDFs (macros are per connection, UDFs per instance)."""
     con.execute(sql_text("macros.sql"))
 
 
-__all__ = ["register", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "MAX_KEYFRAMES", "MAX_GAP"]
+__all__ = ["register", "register_macros", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "MAX_KEYFRAMES", "MAX_GAP"]

@@ -22,6 +22,8 @@ CLI                           API
 ``mocapdb export-features``   :func:`export_features`
 ``mocapdb import-features``   :func:`import_features`
 ``mocapdb ray-annotate``      :func:`ray_annotate`
+``mocapdb convert-labels``    :func:`convert_labels`
+``mocapdb relocate``          :func:`relocate`
 ``mocapdb warmup``            :func:`warmup`
 ``mocapdb sql``               ``connect(...).sql(query)``
 ============================  ==========================
@@ -35,13 +37,14 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_segments, read_truth,
-                                segment_table, segments_to_rows)
+                                segment_table, segments_to_rows, write_labels)
+from mocapdb.annotation.foreign_labels import read_label_file
 from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
 from mocapdb.distributed import ray_annotate as run_on_ray
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.evaluation import evaluate_annotation, evaluate_by_label, parse_tau_grid
-from mocapdb.extension import register
+from mocapdb.extension import connect as connect_database
 from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
 from mocapdb.learning.class_definitions import attach_keyframes, compile_definitions, read_definitions
@@ -51,8 +54,8 @@ from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.models import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows, keyframe_query_stats,
                                     model_fingerprint, model_metadata, save_model)
-from mocapdb.storage.motions import documents_by_name, motion_documents, motion_ids
-from mocapdb.storage.schema import open_database
+from mocapdb.storage.motions import (documents_by_name, motion_documents, motion_ids, motions_to_delete,
+                                     relocate_sources)
 from mocapdb.storage.sqltext import statement
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
 from mocapdb.warmup import (PARTS, background_compile_running, cache_is_cold, compile_kernels, sample_files,
@@ -61,7 +64,7 @@ from mocapdb.warmup import (PARTS, background_compile_running, cache_is_cold, co
 log = logging.getLogger("mocapdb")
 
 
-def connect(path=":memory:", *, read_only: bool = False):
+def connect(path=":memory:", *, read_only: bool = False, create: bool = True):
     """Open (or create) a mocap database with the mocapdb SQL functions registered.
 
     Parameters
@@ -73,33 +76,40 @@ def connect(path=":memory:", *, read_only: bool = False):
     read_only : bool, keyword-only
         Open the file read-only; the SQL functions work all the same (the
         shipped models then come from the package if the file lacks them).
+    create : bool, keyword-only, default True
+        False: a missing file is an error instead of a new, empty database
+        (the commands that only read an archive use it, so a mistyped
+        ``--db`` is caught).
 
     Returns
     -------
-    duckdb.DuckDBPyConnection
-        ``annotate``, ``mt_distance``, ``keyframe_search`` and
-        ``keyframe_search_words`` are available on it. Close it when done.
+    mocapdb.extension.Connection
+        A ``duckdb.DuckDBPyConnection`` (every method works on it; the
+        DuckDB object itself is its ``.duckdb``) on which ``annotate``,
+        ``mt_distance``, ``keyframe_search`` and ``keyframe_search_words``
+        are available, and on each of its cursors. A file may be opened any
+        number of times in one process. Close it when done.
 
     Raises
     ------
     mocapdb.storage.schema.DatabaseLockedError
         Another process is writing the file.
+    SchemaError
+        ``create=False`` (or ``read_only``) and the file does not exist.
 
     Examples
     --------
     >>> con = mocapdb.connect("archive.duckdb")
     >>> con.sql("SELECT name, n_frames FROM motions").fetchall()
     """
-    con = open_database(path, read_only=read_only)
-    try:
-        register(con)
-    except BaseException:
-        con.close()
-        raise
-    return con
+    if not create and str(path) != ":memory:" and not Path(path).exists():
+        raise SchemaError(f"{path}: no such database file (a mistyped --db? `mocapdb ingest` or "
+                          "`mocapdb import-features` create one)")
+    return connect_database(path, read_only=read_only)
 
 
-def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, progress=None) -> IngestReport:
+def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, progress=None,
+           replace=False) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -121,13 +131,19 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         C3D files: canonical joint → the markers whose mean it is.
     progress : callable, optional, keyword-only
         ``progress(path, n_source_frames)`` once per file.
+    replace : bool, keyword-only
+        Read files already stored (same bytes) again and replace their
+        motions, e.g. after correcting ``joint_map``; default: skip them.
 
     Returns
     -------
     IngestReport
+        ``failed`` lists every file that was not stored, with the reason
+        (the command exits 1 when it is not empty).
     """
     paths = [*paths, *(sample_files() if sample else [])]
-    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress)
+    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress,
+                        replace=replace)
 
 
 def warmup(*, parts=None) -> float:
@@ -164,15 +180,38 @@ def joint_map_template(path) -> str:
     return readers_joint_map_template(path)
 
 
-def delete(con, motions) -> int:
-    """Delete motions (ids or names) with their features, postings and annotations.
+@dataclasses.dataclass
+class DeleteReport:
+    """What :func:`delete` did: ``deleted`` ``(motion_id, name, format, source_path)`` per motion removed,
+    ``absent`` the ids and names that were not in the database (nothing to delete, no error)."""
+
+    deleted: list
+    absent: list
+
+
+def delete(con, motions, *, all_named=False) -> DeleteReport:
+    """Delete motions (ids or names) with their features, postings and annotations (one transaction).
+
+    Deleting what is not there is no error (a delete run again after it
+    committed): it is reported in ``absent``.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    motions : iterable of int or str
+        Motion ids or names.
+    all_named : bool, keyword-only
+        A name that names several motions (an AMC and a C3D of one take)
+        deletes all of them; without it that is an error listing them, and
+        nothing is deleted.
 
     Returns
     -------
-    int
-        The number of motions deleted.
+    DeleteReport
     """
-    return delete_motions(con, motion_ids(con, motions))
+    rows, absent = motions_to_delete(con, motions, all_named=all_named)
+    delete_motions(con, [r[0] for r in rows])
+    return DeleteReport(rows, absent)
 
 
 def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True, format=None, out=None,
@@ -217,6 +256,11 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     pyarrow.Table
         Columns :data:`mocapdb.annotation.SEGMENT_COLUMNS` (30 Hz frames,
         1-based inclusive, and seconds), ordered by motion, start frame, label.
+
+    Raises
+    ------
+    SchemaError
+        The database holds no motions (ingest first), or an id or name is unknown.
     """
     if tau is not None and not (np.isfinite(tau) and tau >= 0):
         raise ParameterError(f"tau must be a non-negative number, got {tau!r}")
@@ -226,6 +270,8 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     cache = connection_cache(con)
     key, m = cache.model(model)
     docs = motion_documents(con, None if motions is None else motion_ids(con, motions))
+    if motions is None and not len(docs.motion_ids):
+        raise SchemaError("the database holds no motions: ingest recordings first (mocapdb ingest PATH…)")
     segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes,
                               progress=progress, min_length=min_length, min_won=min_won, margin=margin)
     table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
@@ -266,7 +312,8 @@ def training_clips(con, *, folder=None, labels=None, progress=None):
     if folder is not None:
         return clips_from_folders(folder, progress=progress), f"folder {folder}"
     docs = documents_by_name(con, set(label_documents(labels)))
-    rows = read_truth(labels, fps=_native_rates(docs))
+    # with the documents' lengths, a row beyond one is an error in the file's own frames
+    rows = read_truth(labels, fps=_native_rates(docs), n_frames=dict(zip(docs.names, docs.n_source_frames)))
     return clips_from_segments({n: docs.words_of(n) for n in docs.names}, rows), f"labels {labels}"
 
 
@@ -701,7 +748,79 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
                       batch_files=batch_files, bucket_motions=bucket_motions, overwrite=overwrite)
 
 
-__all__ = ["warmup", "connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate", "report",
+def convert_labels(con, path, *, out=None, document=None, document_column="document", label_column="label",
+                   start_column="start_frame", end_column="end_frame", names=None, frames_per_label=None,
+                   fps=None):
+    """Read another project's label file as label rows, and write them as a label CSV.
+
+    Two shapes (:mod:`mocapdb.annotation.foreign_labels`): a segment table
+    whose columns have other names (the CMU 86_09 segmentation:
+    ``document_column="trial"``), or per-frame label ids, one per
+    ``frames_per_label`` frames, named by a ``names`` file (mocap6:
+    ``frames_per_label=12``, ``names="action_names.txt"``). The result is
+    what ``train(labels=…)``, ``evaluate(truth=…)`` and ``view(truth=…)`` read.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection or None
+        When the document is ingested, per-frame labels end at its last frame
+        (the last block may be partial). Optional.
+    path : str or Path
+    out : str or Path, optional, keyword-only
+        Write the rows here as a label CSV.
+    document : str, optional, keyword-only
+        Per-frame labels: the document (default: the file's stem). A segment
+        table: keep only this document's rows.
+    document_column, label_column, start_column, end_column : str, keyword-only
+        A segment table's header names of the four values.
+    names : str or Path, optional, keyword-only
+        Per-frame labels: the file naming the ids (``<id> <name>`` lines).
+    frames_per_label : int, optional, keyword-only
+        Per-frame labels: frames per id (1: one per frame). Giving this or
+        ``names`` reads per-frame labels.
+    fps : float, optional, keyword-only
+        The rate of the file's frames when it is not the recording's own
+        (written as the ``fps`` column, :func:`mocapdb.annotation.read_labels`).
+
+    Returns
+    -------
+    ndarray of mocapdb.annotation.LABEL_DTYPE
+        Frames 1-based inclusive, at the file's rate.
+    """
+    per_frame = frames_per_label is not None or names is not None
+    length = None
+    if per_frame and con is not None:
+        try:  # an ingested document: the labels end at its last frame
+            docs = documents_by_name(con, [Path(path).stem if document is None else document])
+            length = (int(docs.n_source_frames[0]), float(docs.source_fps[0]))
+        except SchemaError:
+            pass
+    rows = read_label_file(path, document=document, document_column=document_column, label_column=label_column,
+                           start_column=start_column, end_column=end_column, names=names,
+                           frames_per_label=frames_per_label, fps=fps, length=length)
+    if out is not None:
+        write_labels(out, rows, fps=fps)
+    return rows
+
+
+def relocate(con, old_prefix, new_prefix):
+    """Repoint stored source paths after the recordings moved (``view`` and figures re-read them).
+
+    Every motion whose source file (or ASF skeleton) lies under
+    ``old_prefix`` is repointed to the same place under ``new_prefix``,
+    when the file there has the bytes that were ingested. See
+    :func:`mocapdb.storage.motions.relocate_sources`.
+
+    Returns
+    -------
+    moved : list of (motion_id, old path, new path)
+    refused : list of (motion_id, new path, reason)
+    """
+    return relocate_sources(con, old_prefix, new_prefix)
+
+
+__all__ = ["warmup", "connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate",
+           "report",
            "view",
            "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
-           "training_clips", "FIGURES"]
+           "training_clips", "convert_labels", "relocate", "FIGURES"]

@@ -1,8 +1,44 @@
 """Exceptions raised by mocapdb. Every error derives from :class:`MocapdbError`."""
+import re
+
+#: a message's words longer than this are cut (a name can be megabytes long)
+LONG_WORD = 200
+#: a message longer than this keeps its start and end
+LONG_MESSAGE = 4000
+
+_LONG_WORD = re.compile(r"\S{%d,}" % (LONG_WORD + 1))
+
+
+def shorten(value, limit=80) -> str:
+    """``repr`` of a value for a message, cut to ``limit`` characters with its length said.
+
+    A name can be megabytes long (a hostile archive, a pasted file): a message
+    echoes its start and its length, never all of it.
+    """
+    s = str(value)
+    if len(s) <= limit:
+        return repr(s)
+    return repr(s[:limit]) + f"… ({len(s):,} characters)"
+
+
+def clip_message(text) -> str:
+    """A message with every word longer than :data:`LONG_WORD` characters cut (its length said)
+    and, beyond :data:`LONG_MESSAGE` characters, its middle left out."""
+    # the word's end (a closing quote, a semicolon) is kept: the message stays readable
+    s = _LONG_WORD.sub(lambda m: f"{m.group(0)[:80]}…({len(m.group(0)):,} characters)…{m.group(0)[-4:]}", str(text))
+    if len(s) > LONG_MESSAGE:
+        s = s[:LONG_MESSAGE - 1000] + f" … ({len(s) - LONG_MESSAGE + 1000:,} characters left out) … " + s[-1000:]
+    return s
 
 
 class MocapdbError(Exception):
-    """Root of all mocapdb errors."""
+    """Root of all mocapdb errors. A message is clipped (:func:`clip_message`): values echoed in
+    it, however long, never make it longer than a few thousand characters."""
+
+    def __init__(self, *args):
+        if args and isinstance(args[0], str):
+            args = (clip_message(args[0]), *args[1:])
+        super().__init__(*args)
 
 
 class ParameterError(MocapdbError, ValueError):
@@ -26,11 +62,11 @@ class ParseError(MocapdbError, ValueError):
         if frame is not None:
             where += f" (frame {frame})"
         super().__init__(f"{where}: {message}")
-        self.reason = message
+        self.reason = clip_message(message)
 
 
 class SchemaError(MocapdbError):
     """The database lacks an object (table, motion, model, class) that a call needs."""
 
 
-__all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError"]
+__all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError", "shorten", "clip_message"]

@@ -36,7 +36,7 @@ import numpy as np
 
 from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError
-from mocapdb.extension import register
+from mocapdb.extension import connect as connect_database
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 from mocapdb.storage.annotations import annotate_documents
@@ -44,7 +44,6 @@ from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import ingest_files, motion_files
 from mocapdb.storage.models import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_documents
-from mocapdb.storage.schema import open_database
 
 __all__ = ["sample_files", "compile_kernels", "cache_is_cold", "start_background_compile", "background_compile_running",
            "wait_for_background_compile", "PARTS"]
@@ -95,10 +94,9 @@ def compile_kernels(parts=PARTS) -> float:
     if unknown:
         raise ParameterError(f"parts: unknown {sorted(unknown)}; expected some of {', '.join(PARTS)}")
     t0 = time.perf_counter()
-    con = open_database(":memory:")
+    con = connect_database(":memory:")
     con.execute("SET enable_progress_bar = false")  # DuckDB's own bar, drawn for slow (compiling) queries
     try:
-        register(con)
         ingest_files(con, sample_files())
         if "ingest" in parts:
             _other_rates()

@@ -51,3 +51,17 @@ SELECT count(*) FROM motions;
 
 -- name: schema_exists
 SELECT count(*) > 0 FROM duckdb_tables() WHERE schema_name = 'main' AND table_name = 'motions';
+
+-- name: sources_for_relocate
+SELECT motion_id, name, source_path, sha256, skeleton_path, skeleton_sha256 FROM motions ORDER BY motion_id;
+
+-- name: relocate
+UPDATE motions SET source_path = r.source_path, skeleton_path = r.skeleton_path
+FROM mocap_relocated r WHERE motions.motion_id = r.motion_id;
+
+-- name: for_delete
+-- what delete says about a motion it removes
+SELECT motion_id, name, format, source_path FROM motions WHERE motion_id IN (SELECT unnest($ids)) ORDER BY motion_id;
+
+-- name: named
+SELECT motion_id, name, format, source_path FROM motions WHERE name = $name ORDER BY motion_id;

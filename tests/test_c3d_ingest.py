@@ -120,7 +120,7 @@ def test_folder_of_good_and_bad_c3d_files(tmp_path):
 def test_cli_ingest_reports_each_refusal_in_one_line(tmp_path):
     db = ["--db", str(tmp_path / "cli.duckdb")]
     r = CliRunner().invoke(main, [*db, "ingest", str(FOREIGN), "--silent"])
-    assert r.exit_code == 0 and "Traceback" not in r.output   # something was ingested
+    assert r.exit_code == 1 and "Traceback" not in r.output   # some files failed (one went in)
     assert "1 ingested, 0 skipped, 4 failed" in r.output
     lines = [ln for ln in r.output.splitlines() if ln.startswith("failed")]
     assert len(lines) == 4

@@ -2,12 +2,15 @@
 import csv
 import io
 import json
+import re
 import shutil
 
+import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import mocapdb
 from mocapdb.cli import main
 from mocapdb.learning.recipe import PAPER_LABELS
 
@@ -17,6 +20,7 @@ from conftest import DATA, REPO, amc_frame_count, write_truth_86_09
 @pytest.fixture
 def run(tmp_path):
     db = tmp_path / "cli.duckdb"
+    mocapdb.connect(db).close()  # commands that only read refuse a missing file (test_a_mistyped_db_…)
     runner = CliRunner()
 
     def invoke(*args):
@@ -62,9 +66,12 @@ def test_delete_by_name(run):
     run("ingest", DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps", "--silent")
     r = run("delete", "HDM_bd_rotateArmsBothBackward1Reps_001_120", "HDM_bd_rotateArmsBothBackward1Reps_002_120")
     assert r.exit_code == 0 and "2 motion(s) deleted" in r.output
+    assert "deleted motion 1 HDM_bd_rotateArmsBothBackward1Reps_001_120 (amc, " in r.output
     assert run("sql", "SELECT count(*) FROM motions", "--format", "csv").output.splitlines()[1] == "11"
-    r = run("delete", "no_such_motion")
-    assert r.exit_code == 1 and "no motion 'no_such_motion'" in r.output
+    # what is gone is not an error: a delete re-run after it committed (killed before it could say so)
+    r = run("delete", "no_such_motion", "1")
+    assert r.exit_code == 0 and "no motion 'no_such_motion' (nothing to delete)" in r.output
+    assert "no motion '1' (nothing to delete)" in r.output and "0 motion(s) deleted" in r.output
 
 
 def test_every_command_has_help_and_a_readme_entry():
@@ -79,6 +86,8 @@ def test_every_command_has_help_and_a_readme_entry():
 
 #: CLI parameters that only shape the output or the terminal, with no API counterpart
 PRESENTATION = {"silent", "fmt", "out", "read_only", "query", "sql_file"}
+#: options spelled otherwise than their keyword: `class` is a Python keyword
+RENAMED = {"class_name": "--class"}
 
 
 def test_the_cli_mirrors_the_api():
@@ -96,6 +105,9 @@ def test_the_cli_mirrors_the_api():
         params = set(inspect.signature(fn).parameters) - {"con"}
         options = {p.name for p in cmd.params} - PRESENTATION
         assert options <= params, f"{name}: options {sorted(options - params)} are not parameters of api.{fn.__name__}"
+        for p in cmd.params:  # the option is the keyword with dashes (--label-map is label_map=)
+            if isinstance(p, click.Option) and p.name not in PRESENTATION:
+                assert p.opts[0] == RENAMED.get(p.name, "--" + p.name.replace("_", "-")), (name, p.opts, p.name)
 
 
 def _class_folder(tmp_path, classes):
@@ -122,7 +134,8 @@ def test_train_then_annotate(run, tmp_path):
     r = run("annotate", "--model", "two", "--format", "csv", "--out", out)
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader(out.open()))
-    assert list(rows[0]) == ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
+    assert list(rows[0]) == ["document", "label", "start_frame", "end_frame", "fps", "start_s", "end_s", "cost"]
+    assert {r["fps"] for r in rows} == {"30"}
     # the training clip itself is found as exercise, with a near-zero cost, over most of its frames
     squat = [r for r in rows if r["document"] == "HDM_bd_squat1Reps_001_120" and r["label"] == "exercise"]
     assert squat and min(float(r["cost"]) for r in squat) < 0.05
@@ -174,17 +187,17 @@ def test_eval_from_database_equals_eval_of_the_written_predictions(run, tmp_path
     run("ingest", DATA / "cmu" / "86", "--silent")
     pred = tmp_path / "pred.csv"
     run("annotate", "--no-keyframes", "--format", "csv", "--out", pred)
-    from_db = run("evaluate", "--truth", truth, "--map", walk_is_move, "--no-keyframes")
+    from_db = run("evaluate", "--truth", truth, "--label-map", walk_is_move, "--no-keyframes")
     assert from_db.exit_code == 0, from_db.output
     assert "look_around (1)" in from_db.output  # labels the model cannot produce are reported
     labels = ",".join(PAPER_LABELS)  # the default model's labels
     from_files = CliRunner().invoke(main, ["evaluate", "--truth", str(truth), "--pred", str(pred),
-                                           "--map", str(walk_is_move), "--vocabulary", labels])
+                                           "--label-map", str(walk_is_move), "--vocabulary", labels])
     assert from_files.exit_code == 0, from_files.output
     p1, r1, f1, p2, r2, f2 = _scores(from_db.output)
     assert _scores(from_files.output) == [p1, r1, f1, p2, r2, f2]
     assert r1 > 0.9 and p1 < 0.5  # walking is found, and without keyframes so are false kicks
-    sweep = run("evaluate", "--truth", truth, "--map", walk_is_move, "--no-keyframes", "--sweep-tau", "0.05:0.15:0.05")
+    sweep = run("evaluate", "--truth", truth, "--label-map", walk_is_move, "--no-keyframes", "--sweep-tau", "0.05:0.15:0.05")
     taus = [ln.split()[0] for ln in sweep.output.splitlines() if ln.startswith("tau=")]
     assert taus == ["tau=0.050", "tau=0.100", "tau=0.150"]
 
@@ -277,3 +290,126 @@ def test_train_from_a_label_csv_over_ingested_documents(run, tmp_path):
     bad.write_text("document,label,start_frame,end_frame\n86_09,walk,10,5\n")
     r = run("train", "--model", "bad", "--labels", bad, "--silent")
     assert r.exit_code == 1 and f"{bad}:2" in r.output and "before start_frame" in r.output
+
+
+def test_a_mistyped_db_is_refused_by_the_commands_that_only_read(tmp_path):
+    """A --db that does not exist is an error for every command that reads an archive: no empty file appears."""
+    missing = tmp_path / "mistyped.duckdb"
+    for args in (["annotate"], ["view", "86_09", "--out", str(tmp_path / "p.html")], ["sql", "SELECT 1"],
+                 ["evaluate", "--truth", str(write_truth_86_09(tmp_path / "t.csv"))], ["delete", "1"],
+                 ["create-index"], ["drop-index"], ["export-features", str(tmp_path / "x")],
+                 ["relocate", "/a", "/b"], ["report", "--figure", "ga", "--out", str(tmp_path / "f.png")]):
+        r = CliRunner().invoke(main, ["--db", str(missing), *args])
+        assert r.exit_code == 1 and "no such database file (a mistyped --db?" in r.output, (args, r.output)
+        assert not missing.exists()
+
+
+def test_ingest_exits_1_when_any_file_failed(tmp_path):
+    d, _ = _broken_folder(tmp_path)
+    r = CliRunner().invoke(main, ["--db", str(tmp_path / "n.duckdb"), "ingest", str(d), "--silent"])
+    assert r.exit_code == 1 and "2 ingested, 0 skipped, 1 failed" in r.output
+    r = CliRunner().invoke(main, ["--db", str(tmp_path / "n.duckdb"), "ingest", str(d / "good"), "--silent"])
+    assert r.exit_code == 0 and "0 ingested, 2 skipped, 0 failed" in r.output
+
+
+def _broken_folder(tmp_path):
+    d = tmp_path / "takes"
+    (d / "good").mkdir(parents=True)
+    shutil.copy(DATA / "cmu" / "02" / "02.asf", d / "good")
+    for name in ("02_01.amc", "02_02.amc"):
+        shutil.copy(DATA / "cmu" / "02" / name, d / "good" / name)
+    (d / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    return d, d / "good"
+
+
+def test_annotate_on_an_empty_database_says_ingest_first(run):
+    r = run("annotate")
+    assert r.exit_code == 1 and "holds no motions: ingest recordings first" in r.output
+
+
+def test_annotate_csv_given_back_as_truth_scores_one(run, tmp_path):
+    """The annotation CSV carries its frame grid (fps): as --truth it reads onto exactly its own frames
+    (F1 = 1, not the 0.375 of reading 30 Hz frames as 120 Hz ones), and as --labels it trains."""
+    run("ingest", DATA / "cmu" / "86", "--silent")
+    seg = tmp_path / "seg.csv"
+    assert run("annotate", "--format", "csv", "--out", seg).exit_code == 0
+    r = run("evaluate", "--truth", seg)
+    assert r.exit_code == 0 and _scores(r.output) == [1.0] * 6, r.output
+    r = run("evaluate", "--truth", seg, "--pred", seg)
+    assert _scores(r.output) == [1.0] * 6
+    r = run("train", "--model", "again", "--labels", seg, "--silent")
+    assert r.exit_code == 0 and "model 'again'" in r.output
+    js = json.loads(run("annotate", "--format", "json").output)
+    assert {s["fps"] for s in js} == {30} and all(round(s["start_s"], 4) == s["start_s"] for s in js)
+
+
+def test_the_compile_messages_say_what_happens_and_how_long(run, tmp_path, monkeypatch):
+    """First run (an empty kernel cache): the command says it compiles and, at its end, how long it took;
+    a command that waits for the background warm-up says so and for how long."""
+    import fcntl
+    import threading
+    import time
+
+    run("ingest", DATA / "cmu" / "86", "--silent")
+    cold = tmp_path / "cold-cache"
+    cold.mkdir()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cold))  # read by the CLI's check; the kernels are compiled already
+    r = run("annotate", "--silent")
+    assert r.output.startswith("Compiling the numba kernels: this install has no compiled cache yet (first run only)…")
+    assert re.search(r"First run: \d+ s, most of it compiling; later runs skip that\.", r.output)
+    (cold / "kernel.nbi").write_bytes(b"")  # the cache is warm, but a warm-up still compiles
+    lock = cold / "mocapdb-compile-search.lock"
+    with open(lock, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        threading.Thread(target=lambda: (time.sleep(1.5), fcntl.flock(fh, fcntl.LOCK_UN))).start()
+        r = run("annotate", "--silent")
+    assert "Waiting for the numba kernels compiling in the background (first run only)…" in r.output
+    waited = int(re.search(r"…compiled; waited (\d+) s\.", r.output).group(1))
+    assert 1 <= waited <= 3
+
+
+def test_the_readme_names_only_options_the_commands_have():
+    """Each command's row of the README's command table names options of that command only
+    (a renamed option, --map → --label-map, cannot linger), and help and README agree on defaults."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    rows = re.findall(r"^\| `([a-z-]+)[^|]*\|(.*)\|$", readme, flags=re.M)
+    checked = 0
+    for name, text in rows:
+        cmd = main.commands.get(name)
+        if cmd is None:
+            continue
+        have = {o for p in cmd.params for o in (*p.opts, *p.secondary_opts)} | {"--help"}
+        named = {m.split("/")[0] for m in re.findall(r"`(--[a-z-]+(?:/--[a-z-]+)?)", text)}
+        named |= {m for m in re.findall(r"`--[a-z-]+/(--[a-z-]+)`", text)}
+        assert named <= have, f"README row of {name!r} names {sorted(named - have)}, which it does not have"
+        checked += 1
+    assert checked >= 15
+    # the --margin default: the model's, 0 (off) for the shipped models, in help and README alike
+    con = mocapdb.connect()
+    try:
+        margins = dict(con.execute("SELECT model, margin FROM models WHERE shipped").fetchall())
+    finally:
+        con.close()
+    assert margins == {"default": 0.0, "toolbox": 0.0}
+    help_text = CliRunner().invoke(main, ["annotate", "--help"]).output
+    assert "default: the model's margin, 0 for the shipped models = off" in " ".join(help_text.split())
+    assert "default: the model's margin, which is 0, off, for both shipped models" in " ".join(readme.split())
+    joint_help = " ".join(CliRunner().invoke(main, ["ingest", "--help"]).output.split())
+    assert "a list of joints (their mean)" in joint_help and "a list of joints (their mean)" in " ".join(readme.split())
+
+
+def test_sql_takes_a_commented_query_of_several_statements_from_an_argument_stdin_or_a_file(run, tmp_path):
+    query = ("-- a comment first, as the README's examples start\n"
+             "CREATE TABLE t AS SELECT 1 AS x; INSERT INTO t VALUES (2), (3);\n"
+             "SELECT count(*) AS n FROM t; -- a comment last\n")
+    r = run("sql", query)
+    assert r.exit_code == 0, r.output
+    assert r.output.split("\n\n") == ["ok, 1 row(s) changed", "ok, 2 row(s) changed", "n\n-\n3\n"]
+    r = CliRunner().invoke(main, ["--db", str(tmp_path / "cli.duckdb"), "sql", "-", "--format", "csv"],
+                           input="-- count\nSELECT count(*) AS n FROM t")
+    assert r.output == "n\n3\n"
+    f = tmp_path / "q.sql"
+    f.write_text("SELECT sum(x) AS s FROM t")
+    assert run("sql", "--file", f, "--format", "json").output.strip() == '[\n {\n  "s": 6\n }\n]'
+    r = run("sql", "-- only a comment")
+    assert r.exit_code == 2 and "holds no SQL statement" in r.output

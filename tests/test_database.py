@@ -186,3 +186,163 @@ def test_a_take_in_two_formats_is_named_by_its_file(archive):
     fmt = dict(con.execute("SELECT motion_id, format FROM motions").fetchall())
     assert {n: fmt[int(m)] for n, m in zip(docs.names, docs.motion_ids)} == {
         f"{stem}.amc": "amc", f"{stem}.c3d": "c3d", "86_09": "amc"}
+
+
+def test_a_second_connect_in_one_process_and_cursors_have_the_functions(tmp_path):
+    """A notebook cell run twice opens the file again while the first connection lives; each
+    connection and each cursor has the SQL functions, also after the first one is gone."""
+    import gc
+
+    path = tmp_path / "twice.duckdb"
+    first = mocapdb.connect(path)
+    ingest(first, [DATA / "cmu" / "86" / "86_09.amc"])
+    want = first.sql("SELECT annotate(1)").fetchall()
+    again = mocapdb.connect(path)
+    assert again.sql("SELECT annotate(1)").fetchall() == want
+    cur = first.cursor()
+    assert cur.sql("SELECT annotate(1)").fetchall() == want
+    assert cur.execute("SELECT count(*) FROM keyframe_search('kickLFront1Reps')").fetchall()[0][0] >= 0
+    first.close()
+    del first, cur
+    gc.collect()  # DuckDB dropped the first connection's Python functions: ours live on
+    assert again.sql("SELECT annotate(1)").fetchall() == want
+    with again.cursor() as c2:
+        assert c2.sql("SELECT len(mt_distance(1, 'squat1Reps'))").fetchall() == [(1199,)]
+    again.close()
+    # all closed: a new instance registers afresh, read-only too
+    ro = mocapdb.connect(path, read_only=True)
+    try:
+        assert ro.sql("SELECT annotate(1)").fetchall() == want
+        assert isinstance(ro.duckdb, __import__("duckdb").DuckDBPyConnection)
+    finally:
+        ro.close()
+
+
+def test_plain_duckdb_is_told_how_to_get_the_functions(tmp_path):
+    import duckdb
+
+    path = tmp_path / "plain.duckdb"
+    mocapdb.connect(path).close()
+    con = duckdb.connect(str(path))
+    try:
+        for q in ("SELECT annotate(1)", "SELECT mt_distance(1, 'x')", "SELECT * FROM keyframe_search('x')",
+                  "SELECT * FROM keyframe_search_words([1], [1], [], [])"):
+            with pytest.raises(duckdb.Error, match=r"mocapdb SQL function: open this database with "
+                                                   r"mocapdb\.connect"):
+                con.sql(q).fetchall()
+        comments = dict(con.execute("SELECT table_name, comment FROM duckdb_tables() "
+                                    "WHERE schema_name = 'main'").fetchall())
+        assert {"motions", "features", "annotations", "models"} <= set(comments)
+        assert all("mocapdb" in c for c in comments.values())
+        assert "mocapdb.connect()" in comments["motions"]
+        macros = dict(con.execute("SELECT function_name, comment FROM duckdb_functions() "
+                                  "WHERE database_name = 'plain' AND comment IS NOT NULL").fetchall())
+        assert set(macros) == {"annotate", "mt_distance", "keyframe_search", "keyframe_search_words"}
+    finally:
+        con.close()
+
+
+def test_an_archive_with_names_no_ingest_gives_is_refused(archive, tmp_path):
+    """import-features checks motion names: ../x, absolute paths, control characters are refused, naming them."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from mocapdb.errors import SchemaError
+    from mocapdb.storage.parquet import export_features, import_features
+
+    con = archive[0]
+    export_features(con, tmp_path / "export")
+    table = pq.read_table(tmp_path / "export" / "motions.parquet")
+    names = table.column("name").to_pylist()
+    names[0], names[1], names[2] = "../../ESCAPED", "/tmp/ABSOLUTE", "a\nb"
+    pq.write_table(table.set_column(table.schema.get_field_index("name"), "name", pa.array(names)),
+                   tmp_path / "export" / "motions.parquet")
+    fresh = mocapdb.connect(tmp_path / "fresh.duckdb")
+    try:
+        with pytest.raises(SchemaError, match=r"3 motion name\(s\).*'\.\./\.\./ESCAPED': holds a path separator"
+                                              r".*'a\\nb': holds control characters"):
+            import_features(fresh, tmp_path / "export")
+        assert fresh.execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
+    finally:
+        fresh.close()
+
+
+def test_delete_asks_which_when_a_name_names_several(archive, tmp_path):
+    """hdm05_full holds one take as .amc and .c3d: delete NAME names both, so it needs an id or --all-named."""
+    from mocapdb.errors import ParameterError
+
+    con = mocapdb.connect(tmp_path / "d.duckdb")
+    try:
+        ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.amc", DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d",
+                     DATA / "hdm05_full" / "HDM_dg.asf"])
+        with pytest.raises(ParameterError, match=r"names 2 motions: 1 \(amc, .*\); 2 \(c3d, .*all_named=True"):
+            mocapdb.delete(con, ["HDM_dg_06-03_03_120"])
+        assert con.execute("SELECT count(*) FROM motions").fetchall() == [(2,)]
+        report = mocapdb.delete(con, ["2"])
+        assert [r[:3] for r in report.deleted] == [(2, "HDM_dg_06-03_03_120", "c3d")] and report.absent == []
+        assert mocapdb.delete(con, ["2"]).absent == ["2"]  # again: nothing there, no error
+        ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d"])
+        report = mocapdb.delete(con, ["HDM_dg_06-03_03_120"], all_named=True)
+        assert sorted(r[2] for r in report.deleted) == ["amc", "c3d"]
+    finally:
+        con.close()
+
+
+def test_replace_reads_a_stored_file_again(tmp_path):
+    """A file re-ingested with replace=True (a corrected joint map) replaces its motion; without, it is skipped."""
+    from mocapdb.api import joint_map_template
+
+    bvh = DATA / "foreign" / "bvh" / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh"
+    joint_map = tmp_path / "map.toml"
+    joint_map.write_text(joint_map_template(bvh), encoding="utf-8")
+    con = mocapdb.connect(tmp_path / "r.duckdb")
+    try:
+        first = ingest(con, [bvh])
+        assert len(first.ingested) == 1, first.failed
+        old = first.ingested[0][1]
+        mocapdb.annotate(con)
+        skipped = ingest(con, [bvh], joint_map=joint_map)
+        assert skipped.skipped and "replace" in skipped.skipped[0][1]
+        again = ingest(con, [bvh], joint_map=joint_map, replace=True)
+        assert again.replaced == [(str(bvh), old)] and len(again.ingested) == 1
+        assert "joint_map" in con.execute("SELECT reader_options FROM motions").fetchall()[0][0]
+        rows = con.execute("SELECT motion_id FROM motions").fetchall()
+        assert rows == [(again.ingested[0][1],)] and rows[0][0] != old
+        assert con.execute("SELECT count(*) FROM annotations WHERE motion_id = ?", [old]).fetchall() == [(0,)]
+        n = con.execute("SELECT n_frames FROM motions").fetchall()[0][0]
+        assert con.execute("SELECT count(*), min(frame), max(frame) FROM features").fetchall() == [(n, 1, n)]
+    finally:
+        con.close()
+
+
+def test_paths_are_stored_as_given_and_relocate_repoints_them(tmp_path):
+    """Source paths are stored absolute but not symlink-resolved; after the files move,
+    relocate repoints the motions whose bytes are at the new place, and view works again."""
+    real = tmp_path / "real"
+    real.mkdir()
+    for name in ("86.asf", "86_09.amc"):
+        shutil.copy(DATA / "cmu" / "86" / name, real / name)
+    link = tmp_path / "link"
+    link.symlink_to(real, target_is_directory=True)
+    con = mocapdb.connect(tmp_path / "m.duckdb")
+    try:
+        ingest(con, [link / "86_09.amc"])
+        src, skel = con.execute("SELECT source_path, skeleton_path FROM motions").fetchall()[0]
+        assert (src, skel) == (str(link / "86_09.amc"), str(link / "86.asf"))
+        moved = tmp_path / "moved"
+        real.rename(moved)
+        with pytest.raises(mocapdb.SchemaError, match=r"is gone.*mocapdb relocate"):
+            mocapdb.view(con, "86_09", out=tmp_path / "p.html")
+        wrong = tmp_path / "wrong"
+        wrong.mkdir()
+        (wrong / "86_09.amc").write_bytes(b"not the take")
+        shutil.copy(moved / "86.asf", wrong / "86.asf")
+        done, refused = mocapdb.api.relocate(con, link, wrong)
+        assert done == [] and refused and "other bytes" in refused[0][2]
+        done, refused = mocapdb.api.relocate(con, str(link) + "/", moved)
+        assert refused == [] and done == [(1, str(link / "86_09.amc"), str(moved / "86_09.amc"))]
+        assert con.execute("SELECT skeleton_path FROM motions").fetchall() == [(str(moved / "86.asf"),)]
+        mocapdb.view(con, "86_09", out=tmp_path / "p.html")
+        assert (tmp_path / "p.html").stat().st_size > 10_000
+    finally:
+        con.close()

@@ -160,8 +160,8 @@ def test_an_eaf_of_the_truth_reads_as_the_csv_and_trains_the_same_model(db, tmp_
     finally:
         con.close()
     assert t["from_csv"] and t["from_csv"] == t["from_eaf"]
-    by_csv = _scores(run(db, "evaluate", "--truth", truth_csv, "--map", CMU86_MAP).output)
-    by_eaf = _scores(run(db, "evaluate", "--truth", truth_eaf, "--map", CMU86_MAP).output)
+    by_csv = _scores(run(db, "evaluate", "--truth", truth_csv, "--label-map", CMU86_MAP).output)
+    by_eaf = _scores(run(db, "evaluate", "--truth", truth_eaf, "--label-map", CMU86_MAP).output)
     assert by_csv == by_eaf and not np.allclose(by_csv, 1.0)
 
 

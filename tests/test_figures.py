@@ -42,7 +42,7 @@ def drawn(png):
 def test_delta_heat_map(db, tmp_path):
     path, truth = db
     out = tmp_path / "fig3.png"
-    r = report(path, "--figure", "delta", "--motion", "86_09", "--truth", truth, "--map", CMU86_MAP, "--out", out)
+    r = report(path, "--figure", "delta", "--motion", "86_09", "--truth", truth, "--label-map", CMU86_MAP, "--out", out)
     assert r.exit_code == 0, r.output
     img = drawn(out)
     # the heat map's jet colours: saturated blue where a class matches (move on the walks)
@@ -64,7 +64,7 @@ def test_template_real_and_quantized(db, tmp_path):
 def test_tau_sweep(db, tmp_path):
     path, truth = db
     out = tmp_path / "fig8.png"
-    r = report(path, "--figure", "tau", "--truth", truth, "--map", CMU86_MAP, "--sweep-tau", "0.05:0.21:0.04",
+    r = report(path, "--figure", "tau", "--truth", truth, "--label-map", CMU86_MAP, "--sweep-tau", "0.05:0.21:0.04",
                "--out", out)
     assert r.exit_code == 0, r.output
     img = drawn(out)
@@ -80,7 +80,7 @@ def test_timeline_with_truth(db, tmp_path, figure):
     if figure == "timeline":  # the ground truth as an ELAN file
         truth = write_truth_86_09_eaf(tmp_path / "truth.eaf")
     out = tmp_path / f"{figure}.png"
-    r = report(path, "--figure", figure, "--motion", "86_09", "--truth", truth, "--map", CMU86_MAP, "--out", out)
+    r = report(path, "--figure", figure, "--motion", "86_09", "--truth", truth, "--label-map", CMU86_MAP, "--out", out)
     assert r.exit_code == 0, r.output
     img = drawn(out)
     grey = (np.abs(img[..., 0] - 0.85) < 0.02) & (np.abs(img[..., 1] - 0.85) < 0.02)  # the truth bars

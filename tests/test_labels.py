@@ -209,3 +209,152 @@ def test_grids_at_any_source_rate(fps):
     if fps == 120.0:
         np.testing.assert_array_equal(k, (s - 1) // 4)
         np.testing.assert_array_equal(lo, 4 * a + 1)
+
+
+def test_rows_with_an_fps_column_read_onto_their_own_frames(tmp_path):
+    """30 Hz rows (fps column) of a 120 Hz document: native frames 4a−3 … 4b, and back to the same 30 Hz frames."""
+    from mocapdb.annotation.labels import read_truth
+
+    path = tmp_path / "x.csv"
+    path.write_text("document,label,start_frame,end_frame,fps\nd,walk,1,10,30\nd,jump,11,11,30\nd,run,5,8,\n")
+    rows = read_labels(path, fps={"d": 120.0})
+    assert [tuple(r)[1:] for r in rows] == [("walk", 1, 40), ("jump", 41, 44), ("run", 5, 8)]
+    truth = read_truth(path, fps={"d": 120.0})
+    assert [(r["start"], r["end"]) for r in truth] == [(0, 9), (10, 10), (1, 1)]
+    # mocapdb's annotation output without the fps column (before it had one) is recognised: 30 Hz
+    old = tmp_path / "old.csv"
+    old.write_text("document,label,start_frame,end_frame,start_s,end_s,cost\nd,walk,1,10,0.0,0.3333,0.01\n")
+    assert [(r["start"], r["end"]) for r in read_truth(old, fps={"d": 120.0})] == [(0, 9)]
+    with pytest.raises(ParseError, match=r"x\.csv:2: frames at 30 Hz .*native rate of document 'd' is unknown"):
+        read_labels(path)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("document,label,start_frame,end_frame,fps\nd,walk,1,10,fast\n")
+    with pytest.raises(ParseError, match=r"bad\.csv:2: fps must be a positive frame rate, got 'fast'"):
+        read_labels(bad, fps=120.0)
+
+
+def test_label_errors_speak_in_the_files_own_frames(tmp_path):
+    """An end beyond the recording is said in the file's frames (native, or the row's fps), with file and line."""
+    path = tmp_path / "x.csv"
+    path.write_text("document,label,start_frame,end_frame\nd,walk,1,4795\n")
+    with pytest.raises(ParseError, match=r"x\.csv:2: end_frame 4795 is beyond the last frame of document 'd' "
+                                         r"\(4794 frames at the native rate\)"):
+        read_labels(path, n_frames={"d": 4794}, fps=120.0)
+    path.write_text("document,label,start_frame,end_frame,fps\nd,walk,1,1200,30\nd,walk,1,1199,30\n")
+    with pytest.raises(ParseError, match=r"x\.csv:2: end_frame 1200 is beyond the last frame of document 'd' "
+                                         r"\(1199 frames at 30 Hz"):
+        read_labels(path, n_frames={"d": 4794}, fps=120.0)
+    path.write_text("document,label,start_frame,end_frame,fps\nd,walk,1199,1199,30\n")
+    assert tuple(read_labels(path, n_frames={"d": 4794}, fps=120.0)[0])[2:] == (4793, 4794)  # clipped to the end
+
+
+def test_train_labels_beyond_a_document_name_the_file_line_and_native_frames(tmp_path):
+    import mocapdb
+
+    con = mocapdb.connect(tmp_path / "t.duckdb")
+    try:
+        mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
+        path = tmp_path / "labels.csv"
+        path.write_text("document,label,start_frame,end_frame\n86_09,walk,1,880\n86_09,clap,4000,4800\n")
+        with pytest.raises(ParseError, match=r"labels\.csv:3: end_frame 4800 is beyond the last frame of document "
+                                             r"'86_09' \(4794 frames at the native rate\)"):
+            mocapdb.train(con, model="m", labels=path)
+    finally:
+        con.close()
+
+
+def test_labels_of_any_length_annotate(tmp_path):
+    """Labels longer than 64 characters are kept whole, with several of them (a designed model)."""
+    import mocapdb
+
+    long_a, long_b = "a" * 70 + "_standing", "b" * 100 + "_knees_straight"
+    toml = tmp_path / "long.toml"
+    # two designed classes: a still stand (both knees straight), and one of the left knee only
+    toml.write_text("".join(f'[[class]]\nname = "stand{k}"\nlabel = "{label}"\n[[class.phase]]\n'
+                            f'seconds = [0.5, 2]\n{features}\n\n'
+                            for k, (label, features) in enumerate([
+                                (long_a, "knee_left_bent = 0\nknee_right_bent = 0"),
+                                (long_b, "knee_left_bent = 0")], 1)))
+    con = mocapdb.connect(tmp_path / "l.duckdb")
+    try:
+        mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
+        mocapdb.api.define_class(con, [toml], model="long")
+        table = mocapdb.annotate(con, model="long")
+        assert table.num_rows and set(table.column("label").to_pylist()) <= {long_a, long_b}
+        assert long_a in table.column("label").to_pylist()
+        sql = con.sql("SELECT DISTINCT s.label FROM motions m, LATERAL (SELECT unnest(annotate(m.motion_id, "
+                      "model := 'long'), recursive := true)) s").fetchall()
+        assert {r[0] for r in sql} == set(table.column("label").to_pylist())
+    finally:
+        con.close()
+
+
+def test_an_elan_annotation_with_a_bad_time_slot_is_an_error(tmp_path):
+    from mocapdb.annotation.elan import read_eaf
+
+    path = tmp_path / "t.eaf"
+    path.write_text("""<?xml version="1.0" encoding="UTF-8"?>
+<ANNOTATION_DOCUMENT AUTHOR="" DATE="2024-01-01T00:00:00+00:00" FORMAT="3.0" VERSION="3.0"
+ xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance"
+ xsi:noNamespaceSchemaLocation="http://www.mpi.nl/tools/elan/EAFv3.0.xsd">
+<HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>
+<TIME_ORDER>
+<TIME_SLOT TIME_SLOT_ID="ts1" TIME_VALUE="0"/>
+<TIME_SLOT TIME_SLOT_ID="ts2" TIME_VALUE="1000"/>
+<TIME_SLOT TIME_SLOT_ID="ts3"/>
+</TIME_ORDER>
+<TIER LINGUISTIC_TYPE_REF="default-lt" TIER_ID="actions">
+<ANNOTATION><ALIGNABLE_ANNOTATION ANNOTATION_ID="a1" TIME_SLOT_REF1="ts1" TIME_SLOT_REF2="ts2">
+<ANNOTATION_VALUE>walk</ANNOTATION_VALUE></ALIGNABLE_ANNOTATION></ANNOTATION>
+<ANNOTATION><ALIGNABLE_ANNOTATION ANNOTATION_ID="a2" TIME_SLOT_REF1="ts2" TIME_SLOT_REF2="ts3">
+<ANNOTATION_VALUE>unaligned</ANNOTATION_VALUE></ALIGNABLE_ANNOTATION></ANNOTATION>
+</TIER>
+<LINGUISTIC_TYPE GRAPHIC_REFERENCES="false" LINGUISTIC_TYPE_ID="default-lt" TIME_ALIGNABLE="true"/>
+</ANNOTATION_DOCUMENT>
+""")
+    assert read_eaf(path, fps=120.0) == [("t", "walk", 1, 120)]  # the unaligned one is skipped (and logged)
+    path.write_text(path.read_text().replace('TIME_SLOT_REF2="ts3"', 'TIME_SLOT_REF2="ts9"'))
+    with pytest.raises(ParseError, match=r"t\.eaf: annotation a2 on tier 'actions' refers to the time slot 'ts9', "
+                                         r"which the file's TIME_ORDER does not define"):
+        read_eaf(path, fps=120.0)
+
+
+def test_a_huge_name_is_not_echoed_whole():
+    from mocapdb.errors import SchemaError, clip_message
+
+    name = "x" * 10_000_000
+    err = SchemaError(f"model 'default' has no class {name!r}; its classes: a, b, c")
+    assert len(str(err)) < 300 and "(10,000,003 characters)" in str(err)
+    assert str(err).endswith("x'; its classes: a, b, c")
+    assert len(clip_message("y " * 100_000)) < 4100
+
+
+def test_convert_labels_reads_the_published_label_files_as_the_development_evaluation_does(tmp_path):
+    """The CMU segment table and the mocap6 per-frame labels, converted, are the truth the
+    development evaluation reads (mocapdb.evaluation.documents), frame for frame."""
+    from click.testing import CliRunner
+
+    import mocapdb
+    from mocapdb.cli import main
+    from mocapdb.evaluation.documents import cmu86_documents, mocap6_documents
+
+    out = tmp_path / "86_09.csv"
+    r = CliRunner().invoke(main, ["convert-labels", str(SEGMENTS_86), "--document-column", "trial", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    want = cmu86_documents(DATA, class_labels={}).truth_native
+    assert [tuple(x) for x in read_labels(out)] == [tuple(x) for x in want]
+    db = tmp_path / "m.duckdb"
+    con = mocapdb.connect(db)
+    mocapdb.ingest(con, [DATA / "cmu" / "13" / "13_29.amc"], asf=DATA / "cmu" / "02" / "02.asf")
+    con.close()
+    lab = DATA / "labels" / "cmu_mocap6"
+    out = tmp_path / "13_29.csv"
+    r = CliRunner().invoke(main, ["--db", str(db), "convert-labels", str(lab / "13_29.txt"), "--frames-per-label",
+                                  "12", "--names", str(lab / "action_names.txt"), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    want = mocap6_documents(DATA, trials=("13_29",), class_labels={}).truth_native
+    assert [tuple(x) for x in read_labels(out)] == [tuple(x) for x in want]
+    assert read_labels(out)["end"].max() == 4592  # the last block of 12 ends at the take's last frame
+    # the converted file is ground truth as it is
+    r = CliRunner().invoke(main, ["--db", str(db), "evaluate", "--truth", str(out)])
+    assert r.exit_code == 0 and "all " in r.output, r.output

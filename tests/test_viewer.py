@@ -3,6 +3,7 @@ import json
 import os
 import re
 import shutil
+from pathlib import Path
 from importlib import resources
 
 import numpy as np
@@ -42,7 +43,7 @@ def page(db, tmp_path_factory):
     """The 86_09 page with the ELAN ground truth, and the DOM Chromium made of it with ?selftest."""
     path, eaf = db
     out = tmp_path_factory.mktemp("page") / "86_09.html"
-    run(path, "view", "86_09", "--out", out, "--truth", eaf, "--map", CMU86_MAP)
+    run(path, "view", "86_09", "--out", out, "--truth", eaf, "--label-map", CMU86_MAP)
     dom, log = dump_dom(out, "?selftest=1")
     return out, Elements(dom), log
 
@@ -66,7 +67,7 @@ def test_every_segment_is_an_element_with_its_label(db, page):
     assert table.num_rows >= 3 and len(truth) == 5
     assert sorted(g for g in got if g[0] == "annotation") == want[:table.num_rows]
     assert sorted(g for g in got if g[0] == "truth") == sorted(want[table.num_rows:])
-    # the truth's walk became the model's move (--map), and shares its colour
+    # the truth's walk became the model's move (--label-map), and shares its colour
     assert {g[1] for g in got if g[0] == "truth"} == {"move", "look_around", "clap", "stand_and_clap"}
     colours = {}
     for e in dom.by_class("seg"):
@@ -224,3 +225,116 @@ def test_all_lists_a_motion_whose_source_moved_without_a_page(tmp_path):
         assert 'class="unreadable"' in index and "02_02" in index and "no page:" in index
     finally:
         con.close()
+
+
+#: motion names an imported archive or a hand-edited database may hold (issue 22 items 3, 6, 9)
+HOSTILE = ["../../ESCAPED_VIEW", "{tmp}/ABSOLUTE_ESCAPE", "index", "INDEX", '<!--<script>x#y?z%20 & "q"',
+           "CON", "..\\..\\WIN_ESCAPE", "a" * 300, ".hidden"]
+
+
+@pytest.fixture(scope="module")
+def hostile_db(tmp_path_factory):
+    """A database whose motions carry hostile names (set by SQL, as an old or edited database may)."""
+    root = tmp_path_factory.mktemp("hostile")
+    clips = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:len(HOSTILE)]
+    names = [n.format(tmp=root) for n in HOSTILE]
+    con = mocapdb.connect(root / "h.duckdb")
+    try:
+        mocapdb.ingest(con, clips)
+        for mid, name in enumerate(names, 1):
+            con.execute("UPDATE motions SET name = ? WHERE motion_id = ?", [name, mid])
+    finally:
+        con.close()
+    return root, names
+
+
+def _files(root):
+    return {p for p in root.rglob("*") if p.is_file()}
+
+
+def test_no_page_lands_outside_the_folder_whatever_the_names(hostile_db, tmp_path):
+    """view --all with hostile names: every file inside the folder, one page per motion, and the
+    index's links, resolved by the browser, open each motion's own page."""
+    root, names = hostile_db
+    before = _files(root.parent)
+    pages = root / "out" / "pages"
+    r = run(root / "h.duckdb", "view", "--all", pages, "--silent")
+    assert f"and {len(names)} page(s)" in r.output
+    new = _files(root.parent) - before
+    assert new and all(p.parent == pages for p in new), sorted(map(str, new - set(pages.iterdir())))
+    assert not list(root.parent.rglob("*ESCAPE*")) or all(p.parent == pages for p in root.parent.rglob("*ESCAPE*"))
+    assert not (root / "ABSOLUTE_ESCAPE.html").exists()
+    assert len(new) == len(names) + 1 and "index.html" in {p.name for p in new}
+    assert len({p.name.casefold() for p in new}) == len(new)  # distinct on case-insensitive file systems
+    assert all(len(p.name.encode()) <= 255 for p in new)
+    # the browser resolves the index's links: each opens the page of its own motion
+    probe = pages / "links.html"
+    probe.write_text((pages / "index.html").read_text(encoding="utf-8").replace(
+        "</body>", "<script>for (const a of document.links) a.setAttribute('data-resolved', a.href)</script>"
+                   "</body>"), encoding="utf-8")
+    dom, log = dump_dom(probe)
+    assert console_errors(log) == []
+    links = [e for e in Elements(dom).elements if e[0] == "a"]
+    assert sorted(e[2] for e in links) == sorted(names)
+    from urllib.parse import unquote, urlparse
+
+    for tag, attrs, text in links:
+        target = Path(unquote(urlparse(attrs["data-resolved"]).path))
+        assert target.parent == pages and target.is_file(), (text, attrs["data-resolved"])
+        data = target.read_text(encoding="utf-8").split('id="mocapdb-data">', 1)[1].split("</script>", 1)[0]
+        assert json.loads(data)["name"] == text
+    probe.unlink()
+    # a page whose name holds "<!--<script>" is whole: its script runs and its self-test passes
+    page = next(p for p in new if p.name.startswith("_!--_script_"))
+    dom, log = dump_dom(page, "?selftest=1")
+    assert console_errors(log) == [] and Elements(dom).by_id("selftest")[1]["data-status"] == "pass"
+    assert Elements(dom).by_id("title")[2] == f"{names[4]} — mocapdb"
+    # a second run replaces its own pages
+    run(root / "h.duckdb", "view", "--all", pages, "--silent")
+    assert _files(root.parent) - before == new
+
+
+def test_all_never_overwrites_a_file_it_did_not_write(hostile_db, tmp_path):
+    root, names = hostile_db
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "index.html").write_text("my own index", encoding="utf-8")
+    (folder / "notes.txt").write_text("x", encoding="utf-8")
+    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "view", "--all", str(folder), "--silent"])
+    assert r.exit_code == 1 and "index.html" in r.output and "did not write" in r.output
+    assert sorted(p.name for p in folder.iterdir()) == ["index.html", "notes.txt"]
+    assert (folder / "index.html").read_text(encoding="utf-8") == "my own index"
+    # a symbolic link of a page's name is not written through
+    other = tmp_path / "other"
+    other.mkdir()
+    outside = tmp_path / "outside.html"
+    outside.write_text("outside", encoding="utf-8")
+    (other / "index.html").symlink_to(outside)
+    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "view", "--all", str(other), "--silent"])
+    assert r.exit_code == 1 and outside.read_text(encoding="utf-8") == "outside"
+
+
+def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path):
+    root, names = hostile_db
+    written = mocapdb.view(mocapdb.connect(root / "h.duckdb", read_only=True), all=tmp_path / "p")
+    by_motion = {json.loads(p.read_text(encoding="utf-8").split('id="mocapdb-data">', 1)[1]
+                            .split("</script>", 1)[0])["name"]: p.name for p in written[1:]}
+    assert written[0].name == "index.html"
+    assert by_motion["index"] == "index_3.html" and by_motion["INDEX"] == "INDEX_4.html"
+    assert by_motion["../../ESCAPED_VIEW"] == "_.._ESCAPED_VIEW.html"
+    assert by_motion["CON"] == "_CON.html"
+
+
+def test_annotate_eaf_files_stay_in_their_folder(hostile_db, tmp_path):
+    root, names = hostile_db
+    before = _files(root.parent)
+    out = tmp_path / "eaf"
+    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "annotate", "--format", "eaf", "--out", str(out),
+                                  "--silent"])
+    assert r.exit_code == 0, r.output
+    files = sorted(out.iterdir())
+    assert _files(root.parent) - before == set(files)
+    assert len(files) == len(names) and all(p.parent == out and p.suffix == ".eaf" for p in files)
+    from mocapdb.annotation.elan import read_eaf
+
+    assert all(read_eaf(p, fps=120) is not None for p in files)

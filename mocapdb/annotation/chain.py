@@ -34,7 +34,7 @@ __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotat
 #: the toolbox's limit of hits per class and document (annotationScript.m)
 MATCH_NUM_MAX = 2000
 
-SEGMENT_DTYPE = np.dtype([("label", "U64"), ("doc", np.int64), ("start", np.int64),
+SEGMENT_DTYPE = np.dtype([("label", object), ("doc", np.int64), ("start", np.int64),
                           ("end", np.int64), ("cost", np.float64)])
 #: hits: ``class_id`` indexes :attr:`Annotation.class_names` (hits are many)
 HIT_DTYPE = np.dtype([("class_id", np.int64), ("doc", np.int64), ("start", np.int64),

@@ -16,7 +16,9 @@ Read files (:func:`read_eaf`), the tier → label rule:
 * every annotation of every time-aligned tier is a segment; its **value** is
   the label (whitespace stripped); an empty value takes the **tier name**.
   Tier names are otherwise ignored; reference (symbolic) tiers are skipped,
-  as are annotations whose time slots have no time;
+  as are annotations whose time slots have no time (ELAN's unaligned slots;
+  logged). An annotation that refers to a time slot the file does not
+  define is an error naming it;
 * the **document** is the stem of the first linked media file, else the
   stem of the ``.eaf`` file itself (motion names are file stems);
 * times → native frames at the document's rate ``fps`` (the database's
@@ -28,6 +30,7 @@ Read files (:func:`read_eaf`), the tier → label rule:
 """
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
@@ -35,6 +38,8 @@ import numpy as np
 import pympi  # pympi-ling, a runtime dependency (3 ms to import)
 
 from mocapdb.errors import ParameterError, ParseError
+
+log = logging.getLogger("mocapdb")
 
 __all__ = ["EAF_FPS_PROPERTY", "eaf_document", "eaf_source_fps", "read_eaf", "write_eaf", "is_eaf"]
 
@@ -116,8 +121,9 @@ def read_eaf(path, *, fps=None):
     Raises
     ------
     ParseError
-        If the file is not ELAN, an annotation ends before it starts, or no
-        frame rate is known for the document.
+        If the file is not ELAN, an annotation refers to a time slot the file
+        does not define or ends before it starts, or no frame rate is known
+        for the document.
     """
     eaf = _open(path)
     doc = _document(eaf, path)
@@ -137,8 +143,14 @@ def read_eaf(path, *, fps=None):
             continue
         for ann_id, (ts0, ts1, value, _) in sorted(aligned.items(), key=lambda kv: (
                 eaf.timeslots.get(kv[1][0]) is None, eaf.timeslots.get(kv[1][0]) or 0)):
-            t0, t1 = eaf.timeslots.get(ts0), eaf.timeslots.get(ts1)
-            if t0 is None or t1 is None:
+            missing = [ts for ts in (ts0, ts1) if ts not in eaf.timeslots]
+            if missing:
+                raise ParseError(path, None, f"annotation {ann_id} on tier {tier!r} refers to the time slot "
+                                 f"{missing[0]!r}, which the file's TIME_ORDER does not define")
+            t0, t1 = eaf.timeslots[ts0], eaf.timeslots[ts1]
+            if t0 is None or t1 is None:  # an unaligned slot: ELAN interpolates it for display only
+                log.warning("%s: annotation %s on tier %r has a time slot without a time; skipped",
+                            path, ann_id, tier)
                 continue
             if t1 <= t0:
                 raise ParseError(path, None, f"annotation {ann_id} on tier {tier!r} ends ({t1} ms) at or before "

@@ -2,7 +2,11 @@
 
 A label (or ground-truth) CSV has the columns ``document,label,start_frame,end_frame``
 (DESIGN.md §5): one labelled segment per row, frames at the document's
-**native** rate, 1-based and inclusive, as in the HDM05 annotations. Extra
+**native** rate, 1-based and inclusive, as in the HDM05 annotations. An
+optional column ``fps`` gives the rate of a row's frames instead (the output
+of ``mocapdb annotate --format csv`` carries ``fps`` = 30, so it reads back
+onto its own frames; a file with the columns ``start_s,end_s`` but no
+``fps``, mocapdb's output before that column, is read at 30 Hz too). Other
 columns are ignored; blank lines and lines starting with ``#`` are skipped.
 An ELAN ``.eaf`` file is read wherever a label CSV is (:func:`read_labels`
 dispatches on the suffix; the rules are in :mod:`mocapdb.annotation.elan`).
@@ -57,7 +61,7 @@ __all__ = [
     "write_labels",
     "native_to_feature_frames", "feature_to_native_frames", "to_feature_grid",
     "to_native_grid", "segments_to_rows", "map_labels", "read_class_labels",
-    "write_class_labels", "class_labels", "read_text", "SHIPPED_CLASS_LABELS", "native_factor",
+    "write_class_labels", "class_labels", "read_text", "csv_records", "SHIPPED_CLASS_LABELS", "native_factor",
 ]
 
 #: the columns of a label / ground-truth CSV (DESIGN.md §5)
@@ -171,11 +175,13 @@ def read_text(path):
         return data.decode("latin-1")
 
 
-def _csv_records(path, required):
+def csv_records(path, required, optional=(), *, hint=""):
     """(line number, {column: value}) for every data line of a CSV with a header.
 
     Blank lines and lines starting with ``#`` are skipped; the header must hold
-    the ``required`` columns (case-insensitive, any order, extra columns ignored).
+    the ``required`` columns (lower case; matched case-insensitively, any
+    order, extra columns ignored; else a :class:`ParseError` ending with
+    ``hint``); the ``optional`` columns the header has are in the dicts too.
     """
     text = read_text(path)
     reader = csv.reader(io.StringIO(text, newline=""))
@@ -190,8 +196,8 @@ def _csv_records(path, required):
             if missing:
                 raise ParseError(path, line, f"expected a header with the columns "
                                  f"{','.join(required)}; missing {','.join(missing)} "
-                                 f"(got {','.join(header)})")
-            col = {c: header.index(c) for c in required}
+                                 f"(got {','.join(header)}){hint}")
+            col = {c: header.index(c) for c in (*required, *optional) if c in header}
             continue
         if len(row) < len(header):
             raise ParseError(path, line, f"expected {len(header)} fields, got {len(row)}")
@@ -208,8 +214,54 @@ def _int_field(path, line, name, text):
                          f"got {text!r}") from None
 
 
+#: optional label CSV column: the rate of the row's frames (default: the document's native rate)
+FPS_COLUMN = "fps"
+#: columns of ``mocapdb annotate --format csv`` that mark its output (30 Hz frames) in files without ``fps``
+ANNOTATION_COLUMNS = ("start_s", "end_s")
+
+
+def _rate_of(fps, document):
+    """The native rate of ``document`` from a rate or a mapping of rates (None: unknown)."""
+    rate = fps.get(document) if isinstance(fps, dict) else fps
+    return None if rate is None else float(rate)
+
+
+def _row_rate(path, line, rec):
+    """The rate of a CSV row's frames: its ``fps`` column, 30 for mocapdb's annotation output, else None (native)."""
+    text = rec.get(FPS_COLUMN, "")
+    if text:
+        try:
+            rate = float(text)
+        except ValueError:
+            rate = float("nan")
+        if not (np.isfinite(rate) and rate > 0):
+            raise ParseError(path, line, f"fps must be a positive frame rate, got {text!r}")
+        return rate
+    if all(c in rec for c in ANNOTATION_COLUMNS):
+        return float(FEATURE_RATE)
+    return None
+
+
+def _to_native(path, line, doc, s, e, rate, fps, n_frames):
+    """A row's frames at ``rate`` Hz → the document's native frames (1-based inclusive), checked in the
+    file's own frames."""
+    native = _rate_of(fps, doc)
+    if native is None:
+        raise ParseError(path, line, f"frames at {rate:g} Hz (the fps column), but the native rate of document "
+                         f"{doc!r} is unknown: ingest it first, so the database knows its rate")
+    a, b = feature_to_native_frames(s - 1, e - 1, factor=native / rate)
+    if n_frames is not None and doc in n_frames:
+        n = int(n_frames[doc])
+        last = int(np.floor((n - 1) * rate / native + _EPS)) + 1  # the document's last frame at this rate
+        if e > last:
+            raise ParseError(path, line, f"end_frame {e} is beyond the last frame of document {doc!r} ({last} "
+                             f"frames at {rate:g} Hz, the rate of this row)")
+        b = min(int(b), n)
+    return int(a), int(b)
+
+
 def read_labels(path, *, n_frames=None, fps=None):
-    """Read a label / ground-truth CSV (``document,label,start_frame,end_frame``) or an ELAN file.
+    """Read a label / ground-truth CSV (``document,label,start_frame,end_frame[,fps]``) or an ELAN file.
 
     Parameters
     ----------
@@ -220,21 +272,25 @@ def read_labels(path, *, n_frames=None, fps=None):
         Native frame count per document; rows of these documents must end
         within it (other documents are not checked).
     fps : float or mapping of str to float, optional
-        ELAN files only: the document's native frame rate (default: the
-        file's ``mocapdb:source_fps`` property).
+        The document's native frame rate: places ELAN times on native frames
+        (default: the file's ``mocapdb:source_fps`` property) and CSV rows
+        with an ``fps`` of their own (or mocapdb's annotation output, 30 Hz)
+        on native frames.
 
     Returns
     -------
     ndarray of LABEL_DTYPE
-        In file order; ``start``/``end`` exactly as in the file (native rate,
-        1-based inclusive). Use :func:`to_feature_grid` for the 30 Hz grid.
+        In file order; ``start``/``end`` on the native rate, 1-based
+        inclusive (a native-rate CSV's numbers exactly). Use
+        :func:`to_feature_grid` for the 30 Hz grid.
 
     Raises
     ------
     ParseError
         ``file:line: …`` on a missing column, an empty document or label, a
-        non-integer frame, start_frame < 1, end_frame < start_frame, or an end
-        beyond the document's frames.
+        non-integer frame, start_frame < 1, end_frame < start_frame, an end
+        beyond the document's frames (said in the file's own frames), or
+        frames at a rate of their own for a document of unknown rate.
 
     References
     ----------
@@ -248,7 +304,7 @@ def read_labels(path, *, n_frames=None, fps=None):
                                  f"of document {doc!r} ({int(n_frames[doc])} frames)")
         return as_label_rows(rows)
     out = []
-    for line, rec in _csv_records(path, LABEL_COLUMNS):
+    for line, rec in csv_records(path, LABEL_COLUMNS, (FPS_COLUMN, *ANNOTATION_COLUMNS)):
         doc, lab = rec["document"], rec["label"]
         if not doc:
             raise ParseError(path, line, "empty document name")
@@ -260,7 +316,10 @@ def read_labels(path, *, n_frames=None, fps=None):
             raise ParseError(path, line, f"start_frame must be >= 1 (frames are 1-based), got {s}")
         if e < s:
             raise ParseError(path, line, f"end_frame {e} is before start_frame {s}")
-        if n_frames is not None and doc in n_frames and e > int(n_frames[doc]):
+        rate = _row_rate(path, line, rec)
+        if rate is not None:
+            s, e = _to_native(path, line, doc, s, e, rate, fps, n_frames)
+        elif n_frames is not None and doc in n_frames and e > int(n_frames[doc]):
             raise ParseError(path, line, f"end_frame {e} is beyond the last frame of document "
                              f"{doc!r} ({int(n_frames[doc])} frames at the native rate)")
         out.append((doc, lab, s, e))
@@ -278,7 +337,7 @@ def label_documents(path):
     """
     if is_eaf(path):
         return [eaf_document(path)]
-    return list(dict.fromkeys(read_labels(path)["document"]))
+    return list(dict.fromkeys(rec["document"] for _, rec in csv_records(path, LABEL_COLUMNS) if rec["document"]))
 
 
 def read_segments(path):
@@ -298,7 +357,7 @@ def read_segments(path):
         ``file:line: …`` as :func:`read_labels`.
     """
     out = []
-    for line, rec in _csv_records(path, LABEL_COLUMNS):
+    for line, rec in csv_records(path, LABEL_COLUMNS):
         s = _int_field(path, line, "start_frame", rec["start_frame"])
         e = _int_field(path, line, "end_frame", rec["end_frame"])
         if s < 1 or e < s:
@@ -307,7 +366,7 @@ def read_segments(path):
     return as_label_rows(out)
 
 
-def write_labels(path, rows):
+def write_labels(path, rows, *, fps=None):
     """Write labelled segments as a label CSV (native rate, 1-based inclusive).
 
     Parameters
@@ -315,7 +374,10 @@ def write_labels(path, rows):
     path : str, Path or text file object
     rows : ndarray of LABEL_DTYPE (or with a ``doc`` field) or iterable of
         (document, label, start, end), already on the native 1-based grid
-        (:func:`to_native_grid`).
+        (:func:`to_native_grid`), or 1-based at ``fps``.
+    fps : float, optional, keyword-only
+        The rate of the rows' frames when it is not the documents' native
+        rate: written as the column ``fps`` of every row.
 
     Raises
     ------
@@ -332,9 +394,10 @@ def write_labels(path, rows):
 
     def _write(fh):
         w = csv.writer(fh, lineterminator="\n")
-        w.writerow(LABEL_COLUMNS)
+        w.writerow(LABEL_COLUMNS + ((FPS_COLUMN,) if fps is not None else ()))
+        rate = () if fps is None else (f"{float(fps):g}",)
         for x in r:
-            w.writerow((x["document"], x["label"], int(x["start"]), int(x["end"])))
+            w.writerow((x["document"], x["label"], int(x["start"]), int(x["end"]), *rate))
 
     if hasattr(path, "write"):
         _write(path)
@@ -538,10 +601,12 @@ def read_truth(path, *, label_map=None, n_frames=None, fps=None):
     ndarray of LABEL_DTYPE
         30 Hz feature frames, 0-based inclusive.
     """
-    native = read_labels(path, n_frames=n_frames, fps=fps)
     default = (eaf_source_fps(path) if is_eaf(path) else None) or TOOLBOX_RATE
-    rates = [float(fps) if fps is not None and not isinstance(fps, dict) else (fps or {}).get(d, default)
-             for d in native["document"]]
+    if not is_eaf(path) and (fps is None or isinstance(fps, dict)):
+        # a CSV's documents of unknown rate are taken at the default (an ELAN file says its own or fails)
+        fps = {d: (fps or {}).get(d, default) for d in label_documents(path)}
+    native = read_labels(path, n_frames=n_frames, fps=fps)
+    rates = [_rate_of(fps, d) or default for d in native["document"]]
     rows = to_feature_grid(native, factor=native_factor(rates) if rates else DOWNSAMPLING_FACTOR)
     if label_map is not None:
         rows = map_labels(rows, label_map if isinstance(label_map, dict) else read_class_labels(label_map))
@@ -582,7 +647,7 @@ def read_class_labels(path):
         On a missing column, an empty field, or a class listed twice.
     """
     out = {}
-    for line, rec in _csv_records(path, ("class", "label")):
+    for line, rec in csv_records(path, ("class", "label")):
         c, lab = rec["class"], rec["label"]
         if not c or not lab:
             raise ParseError(path, line, "class and label must not be empty")

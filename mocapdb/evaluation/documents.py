@@ -57,16 +57,15 @@ Judgement calls (documented here, data not code where possible):
 """
 from __future__ import annotations
 
-import csv
-import io
 import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from mocapdb.annotation.foreign_labels import read_frame_labels, read_label_names, read_segment_table
 from mocapdb.annotation.labels import (
-    LABEL_DTYPE, read_text, class_labels as shipped_class_labels, label_rows,
+    LABEL_DTYPE, class_labels as shipped_class_labels, label_rows,
     map_labels, to_feature_grid)
 from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE, mirror_words, motion_features
@@ -292,34 +291,6 @@ def loao_documents(root, actor, *, seed=0, clips_per_document=CLIPS_PER_DOCUMENT
                             class_labels=labels)
 
 
-def _read_cmu86_segments(path, document):
-    """Rows of labels/cmu86_segmentation (trial,segment,label,start_frame,end_frame,…)."""
-    text = read_text(path)
-    reader = csv.DictReader(io.StringIO(text, newline=""))
-    need = {"trial", "label", "start_frame", "end_frame"}
-    if reader.fieldnames is None or not need <= {f.strip() for f in reader.fieldnames}:
-        raise ParseError(path, 1, f"expected the columns {sorted(need)}, "
-                         f"got {reader.fieldnames}")
-    rows = []
-    for rec in reader:
-        rec = {k.strip(): (v or "").strip() for k, v in rec.items() if k}
-        if rec["trial"] != document:
-            continue
-        try:
-            s, e = int(rec["start_frame"]), int(rec["end_frame"])
-        except ValueError:
-            raise ParseError(path, reader.line_num, "start_frame and end_frame must be "
-                             "integers") from None
-        if not 1 <= s <= e:
-            raise ParseError(path, reader.line_num, f"need 1 <= start_frame <= end_frame, "
-                             f"got {s}, {e}")
-        rows.append((document, rec["label"], s, e))
-    if not rows:
-        raise ParseError(path, None, f"no segments of trial {document!r}")
-    d, lab, s, e = zip(*rows)
-    return label_rows(list(d), list(lab), s, e)
-
-
 def cmu86_documents(data_dir, *, class_labels=None):
     """CMU 86_09 (a continuous document) with its segment ground truth.
 
@@ -338,48 +309,13 @@ def cmu86_documents(data_dir, *, class_labels=None):
     """
     data_dir = Path(data_dir)
     motion = read_motion(data_dir / "cmu" / "86" / "86_09.amc")
-    truth = _read_cmu86_segments(
-        data_dir / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv", "86_09")
+    truth = read_segment_table(data_dir / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv",
+                               document_column="trial", document="86_09")
     if (truth["end"] > motion.n_frames).any():
         raise ParseError(data_dir / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv",
                          None, f"segments end beyond the document's {motion.n_frames} frames")
     mapping = shipped_class_labels("cmu86") if class_labels is None else class_labels
     return _document_set(["86_09"], [motion], map_labels(truth, mapping))
-
-
-def _action_names(path):
-    """{id: name} of labels/cmu_mocap6/action_names.txt (``id<TAB>name``, # comments)."""
-    out = {}
-    for k, line in enumerate(read_text(path).splitlines(), 1):
-        line = line.strip()
-        if not line or line.startswith("#"):
-            continue
-        parts = line.split(None, 1)
-        if len(parts) != 2 or not parts[0].isdigit():
-            raise ParseError(path, k, f"expected '<id> <name>', got {line!r}")
-        out[int(parts[0])] = parts[1].strip()
-    return out
-
-
-def _block_labels(path, names, document, n_frames, block):
-    """Runs of equal block labels as native 1-based rows, clipped to n_frames."""
-    text = read_text(path)
-    try:
-        ids = np.array([int(t) for t in text.split()], dtype=np.int64)
-    except ValueError:
-        raise ParseError(path, None, "expected whitespace-separated integer labels") from None
-    unknown = sorted(set(ids.tolist()) - set(names))
-    if unknown:
-        raise ParseError(path, None, f"label ids {unknown} are not in action_names.txt")
-    n_blocks = min(ids.size, -(-n_frames // block))  # blocks past the recording are dropped
-    ids = ids[:n_blocks]
-    if ids.size == 0:
-        return np.empty(0, LABEL_DTYPE)
-    cut = np.flatnonzero(np.diff(ids)) + 1
-    first = np.concatenate(([0], cut))
-    last = np.concatenate((cut, [ids.size])) - 1
-    return label_rows(document, [names[i] for i in ids[first]], first * block + 1,
-                      np.minimum((last + 1) * block, n_frames))
 
 
 def mocap6_documents(data_dir, *, trials=MOCAP6_TRIALS, asf=None, class_labels=None):
@@ -404,13 +340,14 @@ def mocap6_documents(data_dir, *, trials=MOCAP6_TRIALS, asf=None, class_labels=N
     data_dir = Path(data_dir)
     asf = data_dir / "cmu" / "02" / "02.asf" if asf is None else Path(asf)
     lab_dir = data_dir / "labels" / "cmu_mocap6"
-    names = _action_names(lab_dir / "action_names.txt")
+    names = read_label_names(lab_dir / "action_names.txt")
     mapping = shipped_class_labels("cmu_mocap6") if class_labels is None else class_labels
     motions, truth = [], []
     for t in trials:
         m = read_motion(data_dir / "cmu" / t.split("_")[0] / f"{t}.amc", asf=asf)
         motions.append(replace(m, name=t))
-        truth.append(_block_labels(lab_dir / f"{t}.txt", names, t, m.n_frames, MOCAP6_BLOCK))
+        truth.append(read_frame_labels(lab_dir / f"{t}.txt", document=t, names=names,
+                                       frames_per_label=MOCAP6_BLOCK, n_frames=m.n_frames))
     return _document_set(list(trials), motions, map_labels(np.concatenate(truth), mapping))
 
 

@@ -175,10 +175,10 @@ def _read(path, asf, joint_map, marker_map) -> Motion:
             asf = find_skeleton(path)
             if asf is None:
                 looked = ", ".join(str(c) for c in skeleton_candidates(path))
-                raise ParseError(path, None, f"no ASF skeleton found (looked for {looked}); "
-                                 "pass one explicitly: read_motion(path, asf=FILE), or "
-                                 "--asf FILE on the command line. Any CMU ASF reads CMU takes "
-                                 "(cmu/13 and cmu/14 have no ASF; cmu/02/02.asf reads them).")
+                raise ParseError(path, None, f"no ASF skeleton found (looked for {looked}); give the "
+                                 "skeleton: --asf FILE (command line) or asf=FILE (Python). A CMU take "
+                                 "without its subject's ASF reads with any CMU subject's ASF (the bones "
+                                 "are the same; their lengths approximate).")
         return read_asf_amc(path, asf)
     if ext == ".bvh":
         return read_bvh(path, joint_map=load_mapping(joint_map, what="joint_map"))

@@ -15,6 +15,7 @@ import pyarrow as pa
 from mocapdb.annotation import SEGMENT_DTYPE, annotate, annotate_sweep, uses_keyframes, write_eaf
 from mocapdb.errors import ParameterError
 from mocapdb.storage.cache import UNKNOWN
+from mocapdb.storage.names import file_in, file_stems
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
@@ -128,22 +129,6 @@ def motion_sources(con, motion_ids=None):
     return [dict(zip(cols, r)) for r in cur.fetchall()]
 
 
-def file_stems(sources):
-    """One file stem per motion: its name, or ``<name>_<motion_id>`` where names repeat.
-
-    Parameters
-    ----------
-    sources : list of dict
-        As :func:`motion_sources` returns.
-
-    Returns
-    -------
-    list of str
-    """
-    names = [s["name"] for s in sources]
-    return [s["name"] if names.count(s["name"]) == 1 else f"{s['name']}_{s['motion_id']}" for s in sources]
-
-
 #: file formats of :func:`export_segments`
 EXPORT_FORMATS = ("parquet", "eaf")
 
@@ -159,7 +144,8 @@ def export_segments(con, table, out, *, format, motion_ids):
     out : str or Path
         Parquet: the file. ELAN: a ``.eaf`` file when one motion was
         annotated, else a directory (created) receiving ``<motion name>.eaf``
-        per motion (``<name>_<motion_id>.eaf`` where names repeat).
+        per motion (the name made a safe file name, ``<name>_<motion_id>.eaf``
+        where names repeat: :func:`mocapdb.storage.names.file_stems`).
     format : {"parquet", "eaf"}
     motion_ids : sequence of int
         The motions annotated (an ELAN file is written for each, also
@@ -189,7 +175,7 @@ def export_segments(con, table, out, *, format, motion_ids):
     written = []
     for s, stem in zip(sources, file_stems(sources)):
         rows = table.filter(pa.array(ids == s["motion_id"]))
-        path = out if single else out / f"{stem}.eaf"
+        path = out if single else file_in(out, stem, ".eaf")
         # the last 30 Hz frame may cover fewer native frames than 4: end at the recording's end
         end = np.minimum(rows.column("end_s").to_numpy(), s["n_source_frames"] / s["source_fps"])
         write_eaf(path, rows.column("label").to_pylist(), rows.column("start_s").to_numpy(), end,
@@ -198,5 +184,5 @@ def export_segments(con, table, out, *, format, motion_ids):
     return written
 
 
-__all__ = ["annotate_documents", "stored_preselection", "store_annotations", "motion_sources", "file_stems", "export_segments",
+__all__ = ["annotate_documents", "stored_preselection", "store_annotations", "motion_sources", "export_segments",
            "EXPORT_FORMATS", "PROGRESS_FRAMES"]

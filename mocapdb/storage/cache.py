@@ -83,6 +83,11 @@ class ConnectionCache:
                 if cur is not None:
                     cur.close()
 
+    def clear(self) -> None:
+        """Forget the parsed models and the loaded index (the connections are gone)."""
+        with self._lock:
+            self._models, self._index, self._found = {}, None, {}
+
     def index(self, version=UNKNOWN):
         """The stored keyframe index: ``(version, Index, motion_ids)``.
 
@@ -159,4 +164,11 @@ def connection_cache(con) -> ConnectionCache:
         return cache
 
 
-__all__ = ["ConnectionCache", "connection_cache", "UNKNOWN", "NO_INDEX"]
+def share_cache(con, cache) -> None:
+    """Make ``con`` use ``cache``: the connections of one database instance share one
+    (:mod:`mocapdb.extension.connection`), so a model or the index is parsed once."""
+    with _CACHES_LOCK:
+        _CACHES[con] = cache
+
+
+__all__ = ["ConnectionCache", "connection_cache", "share_cache", "UNKNOWN", "NO_INDEX"]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,14 +37,16 @@ class IngestReport:
     """What an :func:`ingest` call did, file by file."""
 
     ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
+    replaced: list = field(default_factory=list)     # (path, former motion_id): read again with replace
     skipped: list = field(default_factory=list)      # (path, reason): already stored
     failed: list = field(default_factory=list)       # (path, reason)
     unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
     source_frames: int = 0
 
     def summary(self) -> str:
-        out = (f"{len(self.ingested)} ingested, {len(self.skipped)} skipped, "
-               f"{len(self.failed)} failed")
+        out = (f"{len(self.ingested)} ingested"
+               + (f" ({len(self.replaced)} replacing stored motions)" if self.replaced else "")
+               + f", {len(self.skipped)} skipped, {len(self.failed)} failed")
         if self.unsupported:
             out += f", {len(self.unsupported)} not motion files"
         return out
@@ -103,6 +106,7 @@ class _Prepared:
     words: np.ndarray | None = None
     error: str | None = None
     reader_options: str | None = None  # JSON of the reader options besides the skeleton
+    replaces: int | None = None  # the stored motion of the same bytes this one replaces (ingest replace=True)
 
 
 def _fingerprint(path: Path, asf) -> _Prepared:
@@ -189,7 +193,8 @@ def motions_table(preps) -> pa.Table:
             raise MocapdbError(f"{p.path}: {n30} feature frames for {p.motion.n_frames} source frames")
     return pa.table({
         "name": pa.array([p.motion.name or p.path.stem for p in preps], pa.string()),
-        "source_path": pa.array([str(p.path.resolve()) for p in preps], pa.string()),
+        # absolute as given, not symlink-resolved: the path the user knows (and can relocate)
+        "source_path": pa.array([os.path.abspath(p.path) for p in preps], pa.string()),
         "format": pa.array([p.motion.source_format for p in preps], pa.string()),
         "sha256": pa.array([p.sha256 for p in preps], pa.string()),
         "skeleton_sha256": pa.array([p.skeleton_sha256 for p in preps], pa.string()),
@@ -198,7 +203,7 @@ def motions_table(preps) -> pa.Table:
         "n_source_frames": pa.array([p.motion.n_frames for p in preps], pa.int32()),
         "n_frames": pa.array([int(p.words.shape[0]) for p in preps], pa.int32()),
         "skeleton": pa.array([p.motion.skeleton for p in preps], pa.string()),
-        "skeleton_path": pa.array([str(p.skeleton_path.resolve()) if p.skeleton_path else None for p in preps],
+        "skeleton_path": pa.array([os.path.abspath(p.skeleton_path) if p.skeleton_path else None for p in preps],
                                   pa.string()),
         "reader_options": pa.array([p.reader_options for p in preps], pa.string()),
     })
@@ -213,12 +218,14 @@ def store_motions(con, preps) -> list[int]:
     """
     meta = motions_table(preps)
     meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
-    return _insert(con, meta, [p.words for p in preps])
+    return _insert(con, meta, [p.words for p in preps], replaces=[p.replaces for p in preps if p.replaces])
 
 
-def _insert(con, meta: pa.Table, words: list) -> list[int]:
-    """Insert ``motions`` rows (``meta``, with ``ord``) with their words, features and postings: one transaction."""
+def _insert(con, meta: pa.Table, words: list, *, replaces=()) -> list[int]:
+    """Insert ``motions`` rows (``meta``, with ``ord``) with their words, features and postings, after deleting
+    the motions they ``replaces``: one transaction."""
     with transaction(con):
+        _delete(con, replaces)
         with registered(con, mocap_new_motions=meta):
             rows = con.execute(_sql("insert_motions")).fetchall()
         by_key = {(a, b): mid for mid, a, b in rows}
@@ -276,7 +283,7 @@ BATCH_FRAMES = 1_000_000
 
 
 def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=None,
-                 workers: int = 2) -> IngestReport:
+                 workers: int = 2, replace: bool = False) -> IngestReport:
     """Read recordings, compute their features and store them.
 
     Parameters
@@ -296,6 +303,10 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
         Called as ``progress(path, n_source_frames)`` once per file.
     workers : int, keyword-only
         Threads that read and compute features (the kernels release the GIL).
+    replace : bool, keyword-only
+        Read files whose bytes are already stored again and replace those
+        motions (a new id; their annotations go), e.g. with a corrected
+        ``joint_map``. Default: skip them.
 
     Returns
     -------
@@ -325,13 +336,15 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
             _tick(progress, path, 0)
             continue
         key = (prep.sha256, prep.skeleton_sha256)
-        if key in stored:
-            report.skipped.append((str(path), f"already ingested as motion {stored[key]}"))
+        if key in stored and not replace:
+            report.skipped.append((str(path), f"already ingested as motion {stored[key]} (replace=True, "
+                                              "ingest --replace, reads it again)"))
             _tick(progress, path, 0)
         elif key in first_of:
             duplicates.append((path, key))
         else:
             first_of[key] = str(path)
+            prep.replaces = stored.get(key)
             todo.append(prep)
 
     batch = []
@@ -350,6 +363,8 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
         for p, mid in zip(batch, ids):
             if mid is not None:
                 report.ingested.append((str(p.path), mid, int(p.words.shape[0])))
+                if p.replaces is not None:
+                    report.replaced.append((str(p.path), p.replaces))
                 report.source_frames += p.motion.n_frames
             _tick(progress, p.path, p.motion.n_frames)
             p.motion = p.words = None  # free memory early on big archives
@@ -406,14 +421,22 @@ def delete_motions(con, motion_ids) -> int:
     int
         The number of motions deleted.
     """
+    motion_ids = [int(i) for i in motion_ids]
+    if not motion_ids:
+        return 0
+    with transaction(con):
+        return _delete(con, motion_ids)
+
+
+def _delete(con, motion_ids) -> int:
+    """:func:`delete_motions` inside the caller's transaction."""
     ids = {"ids": [int(i) for i in motion_ids]}
     if not ids["ids"]:
         return 0
-    with transaction(con):
-        con.execute(_sql("delete_features"), ids)
-        unindex_motions(con, ids["ids"])
-        con.execute(_sql("delete_annotations"), ids)
-        return len(con.execute(_sql("delete_motions"), ids).fetchall())
+    con.execute(_sql("delete_features"), ids)
+    unindex_motions(con, ids["ids"])
+    con.execute(_sql("delete_annotations"), ids)
+    return len(con.execute(_sql("delete_motions"), ids).fetchall())
 
 
 __all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "store_words", "delete_motions",

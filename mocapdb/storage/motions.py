@@ -1,14 +1,18 @@
 """Reading motions back from the database: ids, metadata and packed feature words."""
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 from dataclasses import dataclass, replace
 
 import numpy as np
+import pyarrow as pa
 
-from mocapdb.errors import SchemaError
+from mocapdb.errors import ParameterError, SchemaError, shorten
 from mocapdb.readers import read_motion
 from mocapdb.storage.sqltext import statement
+from mocapdb.storage.transaction import registered, transaction
 
 
 def _sql(name):
@@ -142,17 +146,136 @@ def source_motion(con, motion_id):
     ------
     SchemaError
         No such motion.
-    ParseError, FileNotFoundError
-        The source file moved or changed since ingest.
+    SchemaError
+        The source file (or skeleton) is gone: moved (:func:`relocate_sources`)
+        or deleted.
+    ParseError
+        The source file changed since ingest.
     """
     rows = con.execute(_sql("source"), {"id": int(motion_id)}).fetchall()
     if not rows:
         raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
     path, skeleton, options = rows[0]
+    for f in (path, skeleton):
+        if f and os.path.isabs(f) and not os.path.exists(f):
+            raise SchemaError(f"motion {motion_id}: {f} is gone; if the files moved, repoint the database: "
+                              "mocapdb relocate OLD_FOLDER NEW_FOLDER")
     kwargs = json.loads(options) if options else {}
     if skeleton:
         kwargs["asf"] = skeleton
     return read_motion(path, **kwargs)
 
 
-__all__ = ["Documents", "motion_ids", "motion_documents", "documents_by_name", "source_motion"]
+def motions_to_delete(con, motions, *, all_named=False):
+    """The motions ``delete`` removes: ids, and names that name one motion (or every one with ``all_named``).
+
+    Parameters
+    ----------
+    motions : iterable of int or str
+        Motion ids (ints or digit strings) or names.
+    all_named : bool, keyword-only
+        A name that names several motions (the same take as AMC and C3D)
+        means all of them; otherwise that is an error listing them.
+
+    Returns
+    -------
+    rows : list of tuple
+        ``(motion_id, name, format, source_path)`` of each motion, once.
+    absent : list
+        The ids and names the database does not have (nothing to delete:
+        a delete run twice is no error).
+
+    Raises
+    ------
+    ParameterError
+        A name names several motions and ``all_named`` is False (nothing is deleted).
+    """
+    found, absent, ambiguous = {}, [], []
+    for m in motions:
+        if isinstance(m, (int, np.integer)) or (isinstance(m, str) and m.isdigit()):
+            rows = con.execute(_sql("for_delete"), {"ids": [int(m)]}).fetchall()
+        else:
+            rows = con.execute(_sql("named"), {"name": str(m)}).fetchall()
+            if len(rows) > 1 and not all_named:
+                ambiguous.append((m, rows))
+        if not rows:
+            absent.append(m)
+        found.update((r[0], r) for r in rows)
+    if ambiguous:
+        name, rows = ambiguous[0]
+        listed = "; ".join(f"{r[0]} ({r[2]}, {r[3]})" for r in rows[:10])
+        raise ParameterError(f"{shorten(name)} names {len(rows)} motions: {listed}. Give the motion ids, or "
+                             "all_named=True (--all-named) to delete every motion of that name")
+    return [found[k] for k in sorted(found)], absent
+
+
+def _sha256(path) -> str:
+    with open(path, "rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()
+
+
+def _moved(path, old, new):
+    """``path`` with the folder ``old`` replaced by ``new`` (whole path components), or None."""
+    if path is None:
+        return None
+    if path == old:
+        return new
+    if path.startswith(old.rstrip(os.sep) + os.sep):
+        return os.path.join(new, path[len(old.rstrip(os.sep)) + 1:])
+    return None
+
+
+def relocate_sources(con, old_prefix, new_prefix):
+    """Repoint the stored source paths (and skeleton paths) under ``old_prefix`` to ``new_prefix``.
+
+    A motion is repointed only when its file (and skeleton) exists at the new
+    place with the bytes that were ingested (sha256): a wrong prefix changes
+    nothing.
+
+    Parameters
+    ----------
+    old_prefix, new_prefix : str or Path
+        Folders (made absolute; whole path components match).
+
+    Returns
+    -------
+    moved : list of (motion_id, old path, new path)
+    refused : list of (motion_id, new path, reason)
+        Motions under ``old_prefix`` whose new file is missing or differs.
+    """
+    old, new = os.path.abspath(old_prefix), os.path.abspath(new_prefix)
+    if old == new:
+        raise ParameterError(f"old and new prefix are the same folder: {old}")
+    moved, refused, rows = [], [], []
+    for mid, _name, src, sha, skel, skel_sha in con.execute(_sql("sources_for_relocate")).fetchall():
+        new_src, new_skel = _moved(src, old, new), _moved(skel, old, new)
+        if new_src is None and new_skel is None:
+            continue
+        target = (new_src or src, new_skel or skel)
+        problem = None
+        for path, digest in ((target[0], sha), (target[1], skel_sha)):
+            if path is None or digest is None:
+                continue
+            if not os.path.isfile(path):
+                problem = f"{path} does not exist"
+            elif _sha256(path) != digest:
+                problem = f"{path} has other bytes than the file ingested"
+            if problem:
+                break
+        if problem:
+            refused.append((mid, target[0], problem))
+            continue
+        moved.append((mid, src, target[0]))
+        rows.append((mid, *target))
+    if rows:
+        table = pa.table({"motion_id": pa.array([r[0] for r in rows], pa.int32()),
+                          "source_path": pa.array([r[1] for r in rows], pa.string()),
+                          "skeleton_path": pa.array([r[2] for r in rows], pa.string())})
+        with transaction(con):
+            with registered(con, mocap_relocated=table):
+                con.execute(_sql("relocate"))
+    return moved, refused
+
+
+__all__ = ["Documents", "motion_ids", "motion_documents", "documents_by_name", "source_motion", "motions_to_delete",
+           "relocate_sources"]

@@ -22,6 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mocapdb.errors import ParameterError
+from mocapdb.storage.names import check_motion_names
 from mocapdb.storage.postings import index_motions
 from mocapdb.storage.schema import open_database
 from mocapdb.storage.sqltext import statement
@@ -121,6 +122,7 @@ def import_features(con, directory) -> dict[int, int]:
     """
     d = Path(directory)
     motions = pq.read_table(_motions_file(d))
+    check_motion_names(motions.column("name").to_pylist(), source=d)
     stored = {(a, b) for _, a, b in con.execute(statement("motions.sql", "stored_keys")).fetchall()}
     keys = zip(motions.column("sha256").to_pylist(), motions.column("skeleton_sha256").to_pylist())
     new = motions.filter(pa.array([k not in stored for k in keys], pa.bool_()))

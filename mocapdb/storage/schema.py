@@ -8,7 +8,9 @@ SQL function works on a fresh database. A read-only open changes nothing; the
 shipped models then come from the package.
 
 The SQL functions themselves are registered by :mod:`mocapdb.extension`
-(``mocapdb.connect`` does both).
+(``mocapdb.connect`` does both). In a DuckDB client without mocapdb, the
+tables' comments and persisted stand-ins of the functions
+(``sql/comments.sql``) say how to get them.
 """
 from __future__ import annotations
 
@@ -23,7 +25,9 @@ from mocapdb.storage.postings import create_index, create_index_schema
 from mocapdb.storage.sqltext import sql_text, statement
 from mocapdb.storage.transaction import transaction
 
-SCHEMA_FILES = ("schema.sql", "views.sql")
+#: run in this order on every read-write open; comments.sql (the plain-DuckDB hints) after views.sql,
+#: which recreates the views
+SCHEMA_FILES = ("schema.sql", "views.sql", "comments.sql")
 
 _LOCK = re.compile(r"Conflicting lock is held in (?P<program>.*?) \(PID (?P<pid>\d+)\)")
 

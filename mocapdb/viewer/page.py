@@ -144,8 +144,10 @@ def _html(title, body):
 
 
 def _json_script(obj):
-    # inside <script type="application/json">: "</" would end the element
-    return json.dumps(obj, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    # inside <script type="application/json"> no "<" may appear: "</script" would end the element
+    # and "<!--<script" would swallow the rest of the page; \u003c is the same character to JSON
+    text = json.dumps(obj, separators=(",", ":"), allow_nan=False)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 def render_page(view, joints, *, index_href=None):

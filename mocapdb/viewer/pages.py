@@ -2,14 +2,29 @@
 from __future__ import annotations
 
 from pathlib import Path
+from urllib.parse import quote
 
-from mocapdb.errors import MocapdbError
-
-from mocapdb.storage.annotations import file_stems, motion_sources
+from mocapdb.errors import MocapdbError, ParameterError
+from mocapdb.storage.annotations import motion_sources
+from mocapdb.storage.names import file_in, file_stems
 from mocapdb.viewer.data import motion_poses, motion_view
 from mocapdb.viewer.page import label_colors, render_index, render_page
 
-__all__ = ["write_motion_page", "write_pages"]
+__all__ = ["write_motion_page", "write_pages", "INDEX_STEM", "is_viewer_page"]
+
+#: the index page of ``view --all`` (a motion of this name gets ``index_<id>.html``)
+INDEX_STEM = "index"
+#: what marks a file as written by the viewer (``shell.html``'s generator tag)
+_GENERATOR = b'<meta name="generator" content="mocapdb view">'
+
+
+def is_viewer_page(path) -> bool:
+    """Whether the file at ``path`` is a page the viewer wrote (its generator tag near the top)."""
+    try:
+        with open(path, "rb") as fh:
+            return _GENERATOR in fh.read(4096)
+    except OSError:
+        return False
 
 
 def write_motion_page(con, motion, out, *, index_href=None, **options):
@@ -46,8 +61,12 @@ def write_pages(con, directory, *, motions=None, progress=None, **options):
     ----------
     con : duckdb.DuckDBPyConnection
     directory : str or Path
-        Created if missing; pages are named ``<motion name>.html``
-        (``<name>_<motion_id>.html`` where names repeat).
+        Created if missing; pages are named ``<motion name>.html``, the name
+        made a safe file name (``<name>_<motion_id>.html`` where names repeat
+        or a motion is named ``index``: :func:`mocapdb.storage.names.file_stems`).
+        Files of an earlier run are replaced; any other file of a page's or
+        the index's name is never overwritten (an error, before anything is
+        written).
     motions : sequence of int, optional
         Motion ids (default: every motion).
     progress : callable, optional
@@ -62,28 +81,35 @@ def write_pages(con, directory, *, motions=None, progress=None, **options):
         file cannot be re-read gets no page; the index says why).
     """
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
     sources = motion_sources(con, motions)
+    paths = [file_in(directory, stem, ".html") for stem in file_stems(sources, reserved=(INDEX_STEM,))]
+    index = file_in(directory, INDEX_STEM, ".html")
+    # a symbolic link of a page's name could point anywhere: never written through
+    foreign = [p.name for p in (index, *paths) if p.is_symlink() or (p.exists() and not is_viewer_page(p))]
+    if foreign:
+        raise ParameterError(f"all: {str(directory)!r} holds files the viewer did not write that its pages "
+                             f"would replace ({', '.join(foreign[:5])}{' …' if len(foreign) > 5 else ''}); "
+                             "choose an empty folder")
+    directory.mkdir(parents=True, exist_ok=True)
     entries, written = [], []
     if progress is not None:
         progress(0, len(sources))
-    for k, (src, stem) in enumerate(zip(sources, file_stems(sources))):
-        path = directory / f"{stem}.html"
+    for k, (src, path) in enumerate(zip(sources, paths)):
         try:
             view = write_motion_page(con, src["motion_id"], path, index_href="index.html", **options)
         except (MocapdbError, OSError) as exc:
             # a moved or changed source file costs its own page only
-            entries.append({"name": stem, "error": str(exc)})
+            entries.append({"name": src["name"], "error": str(exc)})
             if progress is not None:
                 progress(k + 1, len(sources))
             continue
         found = sorted({str(x) for x in view.segments["label"]}, key=list(view.labels).index)
         colors = label_colors(view.labels)
-        entries.append({"href": path.name, "name": view.name, "seconds": view.n_frames / view.fps,
+        # a name may hold #, ? or %: the link is URL-quoted
+        entries.append({"href": quote(path.name), "name": view.name, "seconds": view.n_frames / view.fps,
                         "segments": len(view.segments), "labels": {lab: colors[lab] for lab in found}})
         written.append(path)
         if progress is not None:
             progress(k + 1, len(sources))
-    index = directory / "index.html"
     index.write_text(render_index(entries), encoding="utf-8")
     return [index, *written]
