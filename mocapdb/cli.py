@@ -247,14 +247,26 @@ def ingest(ctx, paths, asf, joint_map, marker_map, silent):
     _echo_report(ctx, report)
 
 
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def _printable(text: str) -> str:
+    """A line as the terminal should see it: control characters (of a file name, of a binary
+    file's bytes) escaped, never sent raw."""
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
+
+
 def _echo_report(ctx, report):
-    """The files a run did not store, a line each, then its summary; exit 1 when every file failed."""
-    for path, reason in report.unsupported:
-        click.echo(f"not a motion file {path}: {reason}", err=True)
-    for path, reason in report.skipped:
-        click.echo(f"skipped {path}: {reason}", err=True)
-    for path, reason in report.failed:
-        click.echo(f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}", err=True)
+    """The files a run did not store, a line each, what the readers noted about the stored ones,
+    then its summary; exit 1 when every file failed."""
+    lines = [f"not a motion file {path}: {reason}" for path, reason in report.unsupported]
+    lines += [f"unreadable {path}: {reason}" for path, reason in getattr(report, "unreadable", ())]
+    lines += [f"skipped {path}: {reason}" for path, reason in report.skipped]
+    lines += [f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}"
+              for path, reason in report.failed]
+    lines += [f"note    {path}: {note}" for path, note in getattr(report, "notes", ())]
+    for line in lines:
+        click.echo(_printable(line), err=True)
     click.echo(f"{report.summary()} ({report.source_frames} source frames)")
     if report.failed and not report.ingested and not report.skipped:
         ctx.exit(1)

@@ -47,11 +47,13 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
+from mocapdb.readers.gaps import MAX_GAP_S, frames_text, longest_part, max_gap_frames, runs
 from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, hip_axis_is_x,
-                                     map_humanoid, mapping_template)
+                                     humanoid_problem, map_humanoid, mapping_template)
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
+from mocapdb.readers.sources import motion_stem, read_bytes
 from mocapdb.readers.textscan import line_of, parse_rows
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "bvh_node_positions",
@@ -205,7 +207,8 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
         raise ParseError(path, line_of(data, len(data)), "no 'MOTION' section (truncated file?)")
     hierarchy = _cached_hierarchy(data, m.start(), path)
     n_frames, frame_time, frames_line, start = _parse_motion_header(data, m.end(), path)
-    values = parse_rows(data, start, n_frames, hierarchy.n_channels, path, what="channel values")
+    values = parse_rows(data, start, n_frames, hierarchy.n_channels, path, what="channel values",
+                        allow_nonfinite=True)
     if values.shape[0] != n_frames:
         raise ParseError(path, frames_line, f"'Frames: {n_frames}' but only "
                          f"{values.shape[0]} motion lines follow (truncated file?)")
@@ -554,7 +557,7 @@ _MAP_LOCK = threading.Lock()
 
 
 def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<bvh>", pose=None) -> JointMap:
-    """Where the 24 canonical joints are in a BVH skeleton (cached per skeleton).
+    """Where the 24 canonical joints are in a BVH skeleton.
 
     ``pose`` (a callable giving the points of one motion frame) is used when
     the rest pose is not an upright body.
@@ -570,22 +573,26 @@ def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<b
 
 
 def _plan(hier: BvhHierarchy, joint_map, path, pose):
-    """(JointMap, gather arrays, joints FK must compute), cached per parsed hierarchy.
+    """(JointMap, gather arrays, joints FK must compute).
 
-    Hierarchies are cached per header (:func:`_cached_hierarchy`), so the
-    files of one skeleton share one object and one plan.
+    A plan that the hierarchy alone decides (names, or the rest pose) is
+    cached per parsed hierarchy (hierarchies are cached per header, so the
+    files of one skeleton share it); one that needed a frame of the motion
+    (a rest pose lying on its side) belongs to its file and is not cached:
+    a file reads the same whatever was read before it.
     """
     key = (id(hier), None if joint_map is None else repr(sorted(joint_map.items())))
     with _MAP_LOCK:
         hit = _MAP_CACHE.get(key)
     if hit is not None and hit[0] is hier:
         return hit[1]
-    jm = _map_skeleton(hier, joint_map, path, pose)
+    jm, from_motion = _map_skeleton(hier, joint_map, path, pose)
     plan = (jm, *_gather(jm, hier))
-    with _MAP_LOCK:
-        if len(_MAP_CACHE) > 256:
-            _MAP_CACHE.clear()
-        _MAP_CACHE[key] = (hier, plan)
+    if not from_motion:
+        with _MAP_LOCK:
+            if len(_MAP_CACHE) > 256:
+                _MAP_CACHE.clear()
+            _MAP_CACHE[key] = (hier, plan)
     return plan
 
 
@@ -610,36 +617,36 @@ def _gather(jm: JointMap, hier: BvhHierarchy):
 
 
 def _auto_map(hier: BvhHierarchy, tree: SkeletonTree, pose=None):
-    """(JointMap or None, the MappingError of the first failure or None): ASF bone
-    names exactly, else the humanoid mapper — Y up, as BVH has it; a rest pose on
-    its side judged by a frame of the motion (``pose``); a Z-up file turned to Y
-    up (READERS.md §2)."""
+    """(JointMap or None, the MappingError of the first failure or None, whether a motion frame
+    decided it): ASF bone names exactly, else the humanoid mapper — Y up, as BVH has it; a rest
+    pose on its side judged by a frame of the motion (``pose``); a Z-up file turned to Y up."""
     exact = _asf_map(hier, tree)
     if exact is not None:
-        return exact, None
+        return exact, None, False
 
     def poses():
-        yield tree.rest
+        yield tree.rest, False
         if pose is not None:
-            yield pose()
+            yield pose(), True
 
     problem = None
     for up in (None, Z_UP_TO_Y_UP):
-        for xyz in poses():
+        for xyz, from_motion in poses():
             try:
                 found = map_humanoid(tree, xyz if up is None else xyz @ up.T)
             except MappingError as exc:
                 problem = problem or exc
                 continue
-            return (found if up is None else replace(found, up=up)), None
-    return None, problem
+            return (found if up is None else replace(found, up=up)), None, from_motion
+    return None, problem, False
 
 
-def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
+def _map_skeleton(hier, joint_map, path, pose):
+    """(JointMap, whether a motion frame decided it)."""
     tree = hier.tree()
-    auto, problem = _auto_map(hier, tree, pose)
+    auto, problem, from_motion = _auto_map(hier, tree, pose)
     if joint_map:
-        return _user_map(tree, joint_map, auto, path)
+        return _user_map(tree, joint_map, auto, path), from_motion
     if auto is None:
         own = [n for n, j in zip(tree.names, tree.is_joint) if j]
         missing = problem.missing or [j for j in JOINT_NAMES if j not in problem.partial]
@@ -647,7 +654,7 @@ def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
                          f"its {len(own)} joints: {', '.join(own[:40])}{' …' if len(own) > 40 else ''}; "
                          f"could not place: {', '.join(missing)}. Write a joint map (template: "
                          f"mocapdb joint-map-template {path} > map.toml) and ingest with --joint-map map.toml")
-    return auto
+    return auto, from_motion
 
 
 def joint_map_template(path) -> str:
@@ -659,11 +666,11 @@ def joint_map_template(path) -> str:
         The file's hierarchy is malformed.
     """
     path = Path(path)
-    data = path.read_bytes()
+    data = read_bytes(path)
     m = _MOTION.search(data)
     hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
     tree = hier.tree()
-    auto, problem = _auto_map(hier, tree)
+    auto, problem, _ = _auto_map(hier, tree)
     return mapping_template(tree, auto.how if auto is not None else problem.partial, source=str(path))
 
 
@@ -783,8 +790,8 @@ def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
     FEATURES.md §2.3b; READERS.md §2.
     """
     path = Path(path)
-    data = parse_bvh(path.read_bytes(), path=path)
-    return bvh_to_motion(data, joint_map=joint_map, skip_rest_frame=skip_rest_frame, name=path.stem)
+    data = parse_bvh(read_bytes(path), path=path)
+    return bvh_to_motion(data, joint_map=joint_map, skip_rest_frame=skip_rest_frame, name=motion_stem(path))
 
 
 def _placed(how):
@@ -792,20 +799,124 @@ def _placed(how):
     return name if name is not None else why
 
 
+#: a rotation channel beyond this many degrees is not a recorded angle (2,800 turns)
+MAX_ANGLE_DEG = 1e6
+#: a position channel beyond this many skeleton sizes is not a recorded position
+MAX_POSITION_SIZES = 1e6
+#: frames per block of forward kinematics (the per-joint arrays of one block, not of the take)
+_FK_BLOCK = 8192
+
+
+def _lost_samples(values: np.ndarray, hier: BvhHierarchy) -> np.ndarray | None:
+    """Where tracking was lost: NaN, infinite or absurd channel values; None when nowhere."""
+    _, _, _, _, kinds, _, _, _ = hier.arrays()
+    size = float(np.ptp(hier.tree().rest, axis=0).max()) or 1.0
+    limit = np.where(kinds == 1, MAX_ANGLE_DEG, MAX_POSITION_SIZES * size)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(values) <= limit)   # NaN compares False: lost too
+    return bad if bad.any() else None
+
+
+def _pose_frame(values, bad) -> int:
+    """The first frame without lost samples (the one the mapper may judge a rig by)."""
+    if bad is None:
+        return 0
+    clean = np.flatnonzero(~bad.any(axis=1))
+    return int(clean[0]) if len(clean) else int(np.argmin(bad.sum(axis=1)))
+
+
+def _mend(values, bad, hier, needed, fps, path, notes):
+    """Interpolate short lost stretches of the channels FK needs; return the frames kept ``(start, stop)``.
+
+    Each channel of a needed joint is mended on its own: stretches up to
+    0.25 s are interpolated (angles along the shorter way round); a longer
+    one makes its frames unrecoverable, and the take keeps its longest
+    stretch without them (:func:`~mocapdb.readers.gaps.longest_part`).
+    ``values`` is changed in place.
+    """
+    _, _, ch_start, ch_count, kinds, _, _, _ = hier.arrays()
+    cols = [c for j in np.flatnonzero(needed) for c in range(ch_start[j], ch_start[j] + ch_count[j])]
+    cols = [c for c in cols if bad[:, c].any()]
+    n = values.shape[0]
+    if not cols:
+        return 0, n
+    owner = np.repeat(np.arange(len(hier.joints)), ch_count)
+    max_gap = max_gap_frames(fps)
+    unrecoverable = np.zeros(n, dtype=bool)
+    filled = np.zeros(n, dtype=bool)
+    lost_joints = {}
+    for c in cols:
+        b = bad[:, c]
+        joint = hier.joints[owner[c]].name
+        lost_joints.setdefault(joint, 0)
+        lost_joints[joint] += 1
+        if b.all():
+            raise ParseError(path, None, f"lost tracking: channel {hier.joints[owner[c]].channels[c - ch_start[owner[c]]]} "
+                             f"of joint {joint!r} holds no usable value in any frame")
+        for a, e in runs(b):
+            if e - a > max_gap:
+                unrecoverable[a:e] = True
+            else:
+                filled[a:e] = True
+        good = ~b
+        column = values[:, c]
+        known = column[good]
+        if kinds[c] == 1:   # an angle: interpolate the shorter way round (unwrapped)
+            known = np.unwrap(known, period=360.0)
+        column[b] = np.interp(np.flatnonzero(b), np.flatnonzero(good), known)
+    names = ", ".join(sorted(lost_joints)[:6]) + (" …" if len(lost_joints) > 6 else "")
+    short = filled & ~unrecoverable
+    if short.any():
+        notes.append(f"lost tracking (NaN, infinite or absurd values) interpolated in {int(short.sum())} frames "
+                     f"(stretches up to {MAX_GAP_S} s; {len(cols)} channels of {names})")
+    start, stop, cut = longest_part(unrecoverable, fps, path,
+                                    f"tracking lost for longer than {MAX_GAP_S} s in "
+                                    + "; ".join(frames_text(a, e, fps) for a, e in runs(unrecoverable)[:3])
+                                    + (" …" if len(runs(unrecoverable)) > 3 else "") + f" ({names})")
+    if cut:
+        notes.append(cut)
+    return start, stop
+
+
+def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed):
+    """The 24 canonical joints (n, 24, 3) and the pelvis rotation (n, 3, 3), forward kinematics in
+    blocks of frames: memory holds the take's channels and joints, never every joint's path."""
+    n = data.values.shape[0]
+    joints = np.empty((n, len(JOINT_NAMES), 3))
+    rot = np.empty((n, 3, 3))
+    for a in range(0, n, _FK_BLOCK):
+        block = BvhData(data.hierarchy, data.values[a:a + _FK_BLOCK], data.frame_time, data.path)
+        origins, ends, r = bvh_node_positions(block, rotation_joint=jm.rotation_point, needed=needed)
+        joints[a:a + len(r)] = _combine(point, weight, end_of, origins, ends)
+        rot[a:a + len(r)] = r
+    return joints, rot
+
+
 def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="") -> Motion:
     """The canonical joints of a parsed BVH file; see :func:`read_bvh`."""
     if joint_map is not None and not isinstance(joint_map, dict):
         raise ParameterError(f"joint_map must be a dict (see mocapdb.readers.load_mapping), got {joint_map!r}")
     hier = data.hierarchy
+    values = data.values
+    bad = _lost_samples(values, hier)
+    pose_at = _pose_frame(values, bad)
 
-    def first_frame():
-        o, e, _ = bvh_node_positions(BvhData(hier, data.values[:1], data.frame_time, data.path))
+    def judged_frame():
+        frame = values[pose_at:pose_at + 1]
+        if bad is not None:
+            frame = np.where(bad[pose_at:pose_at + 1], 0.0, frame)
+        o, e, _ = bvh_node_positions(BvhData(hier, frame, data.frame_time, data.path))
         with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
         return np.concatenate([o[0], e[0, with_end]])
 
-    jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, first_frame)
-    origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point, needed=needed)
-    joints = _combine(point, weight, end_of, origins, ends)
+    jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, judged_frame)
+    notes = []
+    start, stop = 0, values.shape[0]
+    if bad is not None:
+        values = values.copy()
+        start, stop = _mend(values, bad, hier, needed, data.fps, data.path, notes)
+        data = replace(data, values=values[start:stop])
+    joints, rot = _joints_and_rotation(data, jm, point, weight, end_of, needed)
     up = jm.up if jm.up is not None else (Z_UP_TO_Y_UP if _z_up(joints) else None)
     if up is not None:  # a Z-up file: positions and the pelvis rotation turned to Y up
         joints = np.ascontiguousarray(joints @ up.T)
@@ -818,10 +929,19 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
             "asf" if all(w[1] == "ASF bone names" for w in jm.how.values()) else "humanoid")
     meta = {"bvh_family": kind, "frame_time": data.frame_time,
             "mapping": {j: _placed(jm.how.get(j, (None, ""))) for j in JOINT_NAMES}}
-    skip = _rest_frame(joints) if skip_rest_frame is None else bool(skip_rest_frame)
+    skip = start == 0 and (_rest_frame(joints) if skip_rest_frame is None else bool(skip_rest_frame))
     if skip and joints.shape[0] > 1:
         joints, rot = joints[1:], rot[1:]
         meta["rest_frame_skipped"] = True
+        start += 1
     check_finite_motion(joints, data.path)
+    if kind == "humanoid":
+        # the mapper finds legs, arms and a head; whether they make a human is the body's to say
+        rest = jm.weights @ hier.tree().rest
+        problem = humanoid_problem(joints, rest @ up.T if up is not None else rest)
+        if problem:
+            raise ParseError(data.path, None, f"not a human skeleton: {problem}")
+    meta["frames"] = (start + 1, stop)
+    meta["notes"] = notes
     return Motion(joints=np.ascontiguousarray(joints), root_rotation=rot if asf_axes else None,
                   fps=data.fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)

@@ -55,6 +55,7 @@ from mocapdb.readers.gaps import (MAX_GAP_S, fill_short, frames_text, long_gaps,
                                   rigid_fill)
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.motion import Motion, check_finite_motion
+from mocapdb.readers.sources import motion_stem
 
 log = logging.getLogger("mocapdb")
 
@@ -441,7 +442,7 @@ def read_c3d(path, *, marker_map=None, bone_fit: bool = True) -> Motion:
         log.info("%s: filled %d missing marker samples (gaps ≤ %.2f s)", path, filled, MAX_GAP_S)
     kind = "toolbox" if toolbox else ("marker_map" if MAPPED in sources else "landmarks")
     unit = f"mm × {per_mm:.9g}" if (toolbox and pts.scale < 0) else "cm"
-    return Motion(joints=joints, root_rotation=None, fps=float(pts.rate), name=path.stem,
+    return Motion(joints=joints, root_rotation=None, fps=float(pts.rate), name=motion_stem(path),
                   skeleton=f"c3d:{kind}", source_format="c3d",
                   meta={"unit": unit, "vertical": ("-" if sign < 0 else "+") + "XYZ"[axis],
                         "rules": {j: r.source for j, (r, _) in chosen.items()}, "filled_samples": filled,

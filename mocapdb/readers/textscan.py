@@ -11,6 +11,8 @@ a few per file at most.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from mocapdb._numba import inline_jit, jit
@@ -169,14 +171,33 @@ def parse_numbers(tokens) -> tuple:
 
 
 @jit
-def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status):  # pragma: no cover
+def _nonfinite_token(buf, s, e):  # pragma: no cover - numba
+    """True when ``buf[s:e]`` spells a non-finite number: ``nan``, ``inf``, ``infinity`` (any case,
+    signed, ``nan(ind)``), or a Windows C runtime form (``1.#QNAN``, ``-1.#IND``, ``1.#INF``)."""
+    k = s
+    if k < e and (buf[k] == 43 or buf[k] == 45):
+        k += 1
+    if e - k >= 3:
+        a, b, c = buf[k] | 32, buf[k + 1] | 32, buf[k + 2] | 32
+        if (a == 110 and b == 97 and c == 110) or (a == 105 and b == 110 and c == 102):
+            return True
+    j = k
+    while j < e and (48 <= buf[j] <= 57 or buf[j] == 46):
+        j += 1
+    return j > k and j < e and buf[j] == 35
+
+
+@jit
+def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allow_nonfinite):  # pragma: no cover
     """Read lines of exactly ``out.shape[1]`` numbers from byte ``start`` into ``out``.
 
     Blank lines are skipped. Stops at the first error with ``status`` =
-    [code, byte offset, row, expected, found, n_slow, n_rows]: code 1 = not a
+    [code, byte offset, row, expected, found, n_slow, n_rows, n_nonfinite]: code 1 = not a
     number (offset of the token), 2 = wrong count (offset of the line),
     3 = more rows than ``out`` has (offset of the first extra line).
-    Slow-path tokens are listed in ``fb_*`` as in the AMC kernel.
+    Slow-path tokens are listed in ``fb_*`` as in the AMC kernel. With
+    ``allow_nonfinite``, a token spelling NaN or infinity reads as NaN (lost
+    tracking, for the caller to mend) instead of stopping.
     """
     size = buf.shape[0]
     ncols = out.shape[1]
@@ -211,6 +232,9 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status):  # 
                     i += 1
             else:
                 v, st, i = _scan_number(buf, i, size)
+                if st == 2 and allow_nonfinite and _nonfinite_token(buf, s, i):
+                    v, st = math.nan, 0
+                    status[7] += 1
                 if st == 2:
                     status[0] = 1
                     status[1] = s
@@ -240,11 +264,13 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status):  # 
 
 
 def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
-               what="values", first_frame=1):
+               what="values", first_frame=1, allow_nonfinite=False):
     """Parse ``n_rows`` lines of ``n_cols`` numbers starting at byte ``start``.
 
     Returns a float64 ``(rows_read, n_cols)`` array (``rows_read <= n_rows``;
-    the caller decides whether fewer rows is an error).
+    the caller decides whether fewer rows is an error). With
+    ``allow_nonfinite``, NaN and infinity (spelled out, or a number that
+    overflows) read as NaN.
 
     Raises
     ------
@@ -264,7 +290,7 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
         fb_start = np.zeros(cap, dtype=np.int64)
         fb_end = np.zeros(cap, dtype=np.int64)
         status = np.zeros(8, dtype=np.int64)
-        _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status)
+        _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allow_nonfinite)
         if status[0] != 0 or status[5] <= cap:
             break
         cap = int(status[5])
@@ -280,7 +306,8 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
                          "announced", frame=frame)
     nfb = int(status[5])
     fix_slow_numbers(data, out.reshape(-1), fb_index[:nfb], fb_start[:nfb], fb_end[:nfb], path,
-                     describe=lambda flat: (flat // max(n_cols, 1) + first_frame, ""))
+                     describe=lambda flat: (flat // max(n_cols, 1) + first_frame, ""),
+                     allow_nonfinite=allow_nonfinite)
     return out[:int(status[6])]
 
 
@@ -315,17 +342,20 @@ def _is_nonfinite(tok: str) -> bool:
         return False
 
 
-def fix_slow_numbers(data: bytes, flat_out, index, starts, ends, path, describe=None):
+def fix_slow_numbers(data: bytes, flat_out, index, starts, ends, path, describe=None, allow_nonfinite=False):
     """Convert the tokens the kernel left for Python (``float``) into ``flat_out``.
 
     ``describe(flat_index) -> (frame, prefix)`` names the place for messages.
-    Raises ParseError for values that overflow to inf (e.g. ``1e999``).
+    Raises ParseError for values that overflow to inf (e.g. ``1e999``), unless
+    ``allow_nonfinite`` (then they read as NaN).
     """
     if len(index) == 0:
         return
     vals = np.array([float(data[s:e]) for s, e in zip(starts.tolist(), ends.tolist())])
     bad = np.flatnonzero(~np.isfinite(vals))
-    if bad.size:
+    if bad.size and allow_nonfinite:
+        vals[bad] = np.nan
+    elif bad.size:
         k = int(bad[0])
         frame, where = describe(int(index[k])) if describe is not None else (None, "")
         raise number_error(data, int(starts[k]), path, frame=frame, where=where)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mocapdb.errors import SchemaError
-from mocapdb.readers import read_motion
+from mocapdb.readers import READER_OPTIONS, read_motion
 from mocapdb.storage.sqltext import statement
 
 
@@ -149,7 +149,8 @@ def source_motion(con, motion_id):
     if not rows:
         raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
     path, skeleton, options = rows[0]
-    kwargs = json.loads(options) if options else {}
+    # only the reader's own options: notes and source frames stored beside them only inform
+    kwargs = {k: v for k, v in (json.loads(options) if options else {}).items() if k in READER_OPTIONS}
     if skeleton:
         kwargs["asf"] = skeleton
     return read_motion(path, **kwargs)
