@@ -37,6 +37,7 @@ FEATURES.md §2.2, §2.3b; READERS.md §1, §2, §4; DESIGN.md §6.
 """
 from __future__ import annotations
 
+import io
 import math
 import re
 import threading
@@ -53,10 +54,10 @@ from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, Skel
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
-from mocapdb.readers.sources import motion_stem, read_bytes
-from mocapdb.readers.textscan import line_of, parse_rows
+from mocapdb.readers.sources import motion_stem, open_stream, read_bytes, stream_size
+from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
 
-__all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "bvh_node_positions",
+__all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
            "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
 
 #: BVH channel names (case-insensitive in files) -> (kind, axis): kind 0 =
@@ -187,8 +188,43 @@ _FRAME_TIME = re.compile(rb"Frame\s*Time\s*:?\s*([^\s]*)", re.IGNORECASE)
 _MOTION = re.compile(rb"(?m)^[ \t]*MOTION\b")
 
 
+#: bytes of a BVH file read and parsed at a time: the text is never held whole
+_READ_BLOCK = 1 << 22
+
+
 def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
-    """Parse the bytes of a BVH file into hierarchy and channel values.
+    """Parse the bytes of a BVH file into hierarchy and channel values; see :func:`parse_bvh_stream`.
+
+    Raises
+    ------
+    ParseError
+        Malformed hierarchy or motion (file, line and what was expected).
+    """
+    return parse_bvh_stream(io.BytesIO(data), path=path, size=len(data))
+
+
+def _read_head(fh, path):
+    """The file's bytes up to the end of the ``Frame Time`` line (or all, if there is none), and
+    whether the stream is exhausted."""
+    head = b""
+    while True:
+        chunk = fh.read(_READ_BLOCK)
+        head += chunk
+        if not chunk:
+            return head, True
+        m = _MOTION.search(head)
+        if m is not None:
+            tm = _FRAME_TIME.search(head, m.end(), m.end() + 4096)
+            if tm is not None and head.find(b"\n", tm.end()) >= 0:
+                return head, False
+
+
+def parse_bvh_stream(fh, *, path="<bvh>", size=None) -> BvhData:
+    """Parse a BVH file from a binary stream, block by block, into hierarchy and channel values.
+
+    The header is read whole; the motion lines 4 MiB at a time into the
+    values array (sized by the stream's ``size`` when known, else grown), so
+    memory holds the channel values, not the text as well.
 
     Raises
     ------
@@ -196,23 +232,50 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
         Malformed hierarchy or motion (file, line and what was expected).
     """
     path = str(path)
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
-    if b"\n" not in data and b"\r" in data:
-        data = data.replace(b"\r", b"\n")  # classic-Mac line ends
-    m = _MOTION.search(data)
+    head, eof = _read_head(fh, path)
+    if head.startswith(b"\xef\xbb\xbf"):
+        head = head[3:]
+        size = None if size is None else size - 3
+    if b"\n" not in head and b"\r" in head:
+        head = (head + (b"" if eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
+        eof = True
+    m = _MOTION.search(head)
     if m is None:
-        if not data.lstrip().upper().startswith(b"HIERARCHY"):
+        if not head.lstrip().upper().startswith(b"HIERARCHY"):
             raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
-        raise ParseError(path, line_of(data, len(data)), "no 'MOTION' section (truncated file?)")
-    hierarchy = _cached_hierarchy(data, m.start(), path)
-    n_frames, frame_time, frames_line, start = _parse_motion_header(data, m.end(), path)
-    values = parse_rows(data, start, n_frames, hierarchy.n_channels, path, what="channel values",
-                        allow_nonfinite=True)
-    if values.shape[0] != n_frames:
+        raise ParseError(path, line_of(head, len(head)), "no 'MOTION' section (truncated file?)")
+    hierarchy = _cached_hierarchy(head, m.start(), path)
+    n_frames, frame_time, frames_line, start = _parse_motion_header(head, m.end(), path)
+    n_cols = hierarchy.n_channels
+    rest = head[start:]
+    line_base = head.count(b"\n", 0, start)
+    values = np.empty((rows_bound(size - start if size is not None else len(rest), n_frames, n_cols), n_cols))
+    row = 0
+    while True:
+        if not eof:
+            more = fh.read(_READ_BLOCK)
+            eof = not more
+            rest += more
+        if eof:
+            block, rest = rest, b""
+        else:
+            cut = rest.rfind(b"\n") + 1
+            block, rest = rest[:cut], rest[cut:]
+        need = row + rows_bound(len(block), n_frames, n_cols)
+        if need > values.shape[0] and values.shape[0] < n_frames:
+            # a stream of unknown size: grow geometrically, never past the announced count
+            grown = np.empty((min(n_frames, max(need, 2 * values.shape[0])), n_cols))
+            grown[:row] = values[:row]
+            values = grown
+        row += parse_rows_into(block, 0, values[row:], path, n_rows=n_frames, what="channel values",
+                               first_frame=row + 1, allow_nonfinite=True, line_base=line_base)
+        line_base += block.count(b"\n")
+        if eof:
+            break
+    if row != n_frames:
         raise ParseError(path, frames_line, f"'Frames: {n_frames}' but only "
-                         f"{values.shape[0]} motion lines follow (truncated file?)")
-    return BvhData(hierarchy, values, frame_time, path)
+                         f"{row} motion lines follow (truncated file?)")
+    return BvhData(hierarchy, values[:row], frame_time, path)
 
 
 class _LazyLine:
@@ -397,9 +460,8 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
             if cur[3] is None:
                 raise t.error(p, f"joint {name!r}: no OFFSET")
             stack.pop()
-            joints[me] = BvhJoint(name=name, parent=cur[2], offset=cur[3], channels=cur[4],
-                                  channel_start=cur[7] if cur[7] is not None else n_channels,
-                                  end_site=cur[5], line=line_of(data, cur[6]))
+            joints[me] = (name, cur[2], cur[3], cur[4], cur[7] if cur[7] is not None else n_channels,
+                          cur[5], cur[6])
         else:
             raise t.error(p, f"joint {name!r}: expected OFFSET, CHANNELS, JOINT, End Site or '}}', "
                           f"found {tok!r}")
@@ -409,7 +471,13 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
         if tok.upper() == "ROOT":
             raise t.error(p, "a second ROOT: only one skeleton per file is supported")
         raise t.error(p, f"expected 'MOTION', found {tok!r}")
-    return BvhHierarchy(tuple(joints), n_channels)
+    # line numbers of all joints in one pass (one count from the file's start per joint made
+    # 100,000 siblings quadratic)
+    newlines = np.flatnonzero(np.frombuffer(data, dtype=np.uint8, count=end) == 10)
+    lines = np.searchsorted(newlines, [j[6] for j in joints]) + 1
+    return BvhHierarchy(tuple(BvhJoint(name=j[0], parent=j[1], offset=j[2], channels=j[3], channel_start=j[4],
+                                       end_site=j[5], line=int(line)) for j, line in zip(joints, lines)),
+                        n_channels)
 
 
 # ----------------------------------------------------------------------------
@@ -790,7 +858,8 @@ def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
     FEATURES.md §2.3b; READERS.md §2.
     """
     path = Path(path)
-    data = parse_bvh(read_bytes(path), path=path)
+    with open_stream(path) as fh:
+        data = parse_bvh_stream(fh, path=path, size=stream_size(path))
     return bvh_to_motion(data, joint_map=joint_map, skip_rest_frame=skip_rest_frame, name=motion_stem(path))
 
 
@@ -803,18 +872,29 @@ def _placed(how):
 MAX_ANGLE_DEG = 1e6
 #: a position channel beyond this many skeleton sizes is not a recorded position
 MAX_POSITION_SIZES = 1e6
-#: frames per block of forward kinematics (the per-joint arrays of one block, not of the take)
-_FK_BLOCK = 8192
+#: joint positions per block of forward kinematics (the per-joint arrays of one block, not of the take)
+_FK_POINTS = 1 << 18
+#: frames per block of the lost-tracking scan
+_SCAN_BLOCK = 1024
 
 
 def _lost_samples(values: np.ndarray, hier: BvhHierarchy) -> np.ndarray | None:
-    """Where tracking was lost: NaN, infinite or absurd channel values; None when nowhere."""
+    """Where tracking was lost: NaN, infinite or absurd channel values; None when nowhere.
+
+    Checked in blocks of frames: no temporary of the take's size (only the
+    mask, and only when something was lost)."""
     _, _, _, _, kinds, _, _, _ = hier.arrays()
     size = float(np.ptp(hier.tree().rest, axis=0).max()) or 1.0
     limit = np.where(kinds == 1, MAX_ANGLE_DEG, MAX_POSITION_SIZES * size)
+    bad = None
     with np.errstate(invalid="ignore"):
-        bad = ~(np.abs(values) <= limit)   # NaN compares False: lost too
-    return bad if bad.any() else None
+        for a in range(0, values.shape[0], _SCAN_BLOCK):
+            block = ~(np.abs(values[a:a + _SCAN_BLOCK]) <= limit)   # NaN compares False: lost too
+            if block.any():
+                if bad is None:
+                    bad = np.zeros(values.shape, dtype=bool)
+                bad[a:a + _SCAN_BLOCK] = block
+    return bad
 
 
 def _pose_frame(values, bad) -> int:
@@ -884,8 +964,9 @@ def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed):
     n = data.values.shape[0]
     joints = np.empty((n, len(JOINT_NAMES), 3))
     rot = np.empty((n, 3, 3))
-    for a in range(0, n, _FK_BLOCK):
-        block = BvhData(data.hierarchy, data.values[a:a + _FK_BLOCK], data.frame_time, data.path)
+    step = max(256, _FK_POINTS // max(len(data.hierarchy.joints), 1))
+    for a in range(0, n, step):
+        block = BvhData(data.hierarchy, data.values[a:a + step], data.frame_time, data.path)
         origins, ends, r = bvh_node_positions(block, rotation_joint=jm.rotation_point, needed=needed)
         joints[a:a + len(r)] = _combine(point, weight, end_of, origins, ends)
         rot[a:a + len(r)] = r

@@ -37,6 +37,7 @@ for its End Site, or a list of names whose mean it is) overrides any of it.
 """
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -75,7 +76,8 @@ _GLUED = re.compile(r"^([lr])(hipjoint|femur|tibia|foot|toes|toe|clavicle|humeru
                     r"upleg|lowleg|arm|leg|forearm)(\d*)$")
 
 
-def _tokens(name: str) -> list:
+@functools.lru_cache(maxsize=1 << 16)
+def _tokens(name: str) -> tuple:
     """Lower-case words of a joint name: namespace dropped, CamelCase and digits split."""
     base = re.split(r"[:|]", name)[-1]
     base = re.sub(r"([a-z0-9])([A-Z])", r"\1 \2", base)
@@ -91,7 +93,7 @@ def _tokens(name: str) -> list:
             out.extend(re.findall(r"[a-z]+|\d+", w))
     while len(out) > 1 and out[0] in _PREFIXES:
         out.pop(0)
-    return out
+    return tuple(out)
 
 
 def name_side(name: str) -> str | None:
@@ -262,10 +264,14 @@ def _limb_points(tree, chain, tol, mid_words, end_words, top_words):
 # ----------------------------------------------------------------------------
 # names
 
-def _named_side(tree, words, side):
+def _words(tree) -> tuple:
+    """Per point: (side, name without side and rig prefix), or None for End Sites; once per tree."""
+    return tuple((name_side(n), normalized_name(n)) if j else None for n, j in zip(tree.names, tree.is_joint))
+
+
+def _named_side(words_of, words, side):
     """Joints whose name, without side and rig prefix, is one of ``words`` and whose side is ``side``."""
-    return [i for i in range(tree.n) if tree.is_joint[i] and normalized_name(tree.names[i]) in words
-            and name_side(tree.names[i]) == side]
+    return [i for i, w in enumerate(words_of) if w is not None and w[0] == side and w[1] in words]
 
 
 def _below(tree, top, i) -> bool:
@@ -277,11 +283,12 @@ def _below(tree, top, i) -> bool:
     return False
 
 
-def _named_pair(tree, mid_words, end_words, side):
+def _named_pair(tree, words_of, mid_words, end_words, side):
     """The shallowest (middle, end) joints of a limb named for ``side`` (knee and ankle, elbow and
     wrist), the end below the middle; or None."""
-    for mid in sorted(_named_side(tree, mid_words, side), key=lambda i: len(_path_to_root(tree, i))):
-        ends = [e for e in _named_side(tree, end_words, side) if e != mid and _below(tree, mid, e)]
+    ends_all = _named_side(words_of, end_words, side)
+    for mid in sorted(_named_side(words_of, mid_words, side), key=lambda i: len(_path_to_root(tree, i))):
+        ends = [e for e in ends_all if e != mid and _below(tree, mid, e)]
         if ends:
             return mid, min(ends, key=lambda i: len(_path_to_root(tree, i)))
     return None
@@ -291,12 +298,13 @@ def _named_body(tree, kids) -> dict:
     """What the joint names say: ``feet`` (the farthest leaf below each named ankle), ``head``
     (the farthest leaf below the shallowest joint named Head) and ``arms`` (the named elbow of each
     side); None where the names do not say it for both sides."""
-    legs = [_named_pair(tree, _KNEE, _ANKLE, s) for s in "lr"]
-    arms = [_named_pair(tree, _ELBOW, _WRIST, s) for s in "lr"]
+    words_of = _words(tree)
+    legs = [_named_pair(tree, words_of, _KNEE, _ANKLE, s) for s in "lr"]
+    arms = [_named_pair(tree, words_of, _ELBOW, _WRIST, s) for s in "lr"]
     feet = None
     if all(legs) and not (_below(tree, legs[0][0], legs[1][0]) or _below(tree, legs[1][0], legs[0][0])):
         feet = [_farthest_leaf(tree, kids, ankle)[0] for _, ankle in legs]
-    heads = [i for i in range(tree.n) if tree.is_joint[i] and normalized_name(tree.names[i]) in _HEAD]
+    heads = [i for i, w in enumerate(words_of) if w is not None and w[1] in _HEAD]
     head = None
     if heads:
         top = min(heads, key=lambda i: len(_path_to_root(tree, i)))

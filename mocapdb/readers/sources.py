@@ -36,7 +36,7 @@ import zlib
 from pathlib import Path, PurePosixPath
 
 __all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
-           "sha256", "is_file", "list_dir", "identity", "local_file", "bytes_file", "special_kind", "zip_members"]
+           "sha256", "stream_size", "is_file", "list_dir", "identity", "local_file", "bytes_file", "special_kind", "zip_members"]
 
 #: compression suffix → the module that opens it as a stream
 COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
@@ -142,6 +142,16 @@ def open_stream(path):
     if module is None:
         return raw
     return module.open(raw)
+
+
+def stream_size(path) -> int | None:
+    """The recording's size in bytes when known without reading it (a plain file, a zip member), else None."""
+    archive, member = split_archive(path)
+    if Path(path).suffix.lower() in COMPRESSED:
+        return None
+    if member is None:
+        return os.stat(path).st_size
+    return _zip(archive).getinfo(member).file_size
 
 
 def read_bytes(path) -> bytes:

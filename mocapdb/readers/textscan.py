@@ -278,14 +278,37 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
         A non-numeric or non-finite value, a line with the wrong number of
         values, or more lines than ``n_rows`` (file, line and frame named).
     """
-    buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
-    # a header's row count is never trusted for allocation (READERS.md §4): a
-    # row of n_cols values takes at least 2·n_cols bytes (one more row detects
-    # extra lines). np.empty does not touch the rows it will not fill.
-    n_alloc = min(n_rows, max(len(data) - start, 0) // max(2 * n_cols, 1) + 2)
-    cap = max(256, n_alloc * n_cols // 256)  # slow-path tokens are rare; rerun if not
+    # a header's row count is never trusted for allocation: a row of n_cols
+    # values takes at least 2·n_cols bytes (one more row detects extra lines).
+    # np.empty does not touch the rows it will not fill.
+    out = np.empty((rows_bound(len(data) - start, n_rows, n_cols), n_cols))
+    rows = parse_rows_into(data, start, out, path, n_rows=n_rows, what=what, first_frame=first_frame,
+                           allow_nonfinite=allow_nonfinite)
+    return out[:rows]
+
+
+def rows_bound(n_bytes: int, n_rows: int, n_cols: int) -> int:
+    """Rows to allocate for ``n_bytes`` of lines of ``n_cols`` numbers: the most they can hold
+    (each value takes two bytes or more), at most ``n_rows`` (a line beyond it is an error)."""
+    return min(n_rows, max(n_bytes, 0) // max(2 * n_cols, 1) + 2)
+
+
+def parse_rows_into(data: bytes, start: int, out: np.ndarray, path, *, n_rows: int, what="values",
+                    first_frame=1, allow_nonfinite=False, line_base=0) -> int:
+    """Parse lines of ``out.shape[1]`` numbers from byte ``start`` into ``out`` (row 0 first).
+
+    ``data`` may be one block of a longer text (whole lines): ``line_base``
+    is the number of lines before it, ``first_frame`` the frame number of its
+    first row, ``n_rows`` the rows the whole text may hold. Returns the rows
+    parsed; raises as :func:`parse_rows` (a row beyond ``out`` is one more
+    than ``n_rows``: the caller sizes ``out`` so).
+    """
+    if start >= len(data):
+        return 0
+    buf = np.frombuffer(data, dtype=np.uint8)
+    n_cols = out.shape[1]
+    cap = max(256, out.shape[0] * n_cols // 256)  # slow-path tokens are rare; rerun if not
     while True:
-        out = np.empty((n_alloc, n_cols))  # every returned row is written
         fb_index = np.zeros(cap, dtype=np.int64)
         fb_start = np.zeros(cap, dtype=np.int64)
         fb_end = np.zeros(cap, dtype=np.int64)
@@ -297,18 +320,18 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
     code, pos, row = int(status[0]), int(status[1]), int(status[2])
     frame = row + first_frame
     if code == 1:
-        raise number_error(data, pos, path, frame=frame, hint=truncation_hint(data, pos))
+        raise number_error(data, pos, path, frame=frame, hint=truncation_hint(data, pos), line_base=line_base)
     if code == 2:
-        raise ParseError(path, line_of(data, pos), f"expected {int(status[3])} {what}, "
+        raise ParseError(path, line_base + line_of(data, pos), f"expected {int(status[3])} {what}, "
                          f"found {int(status[4])}" + truncation_hint(data, pos), frame=frame)
     if code == 3:
-        raise ParseError(path, line_of(data, pos), f"more motion lines than the {n_rows} "
+        raise ParseError(path, line_base + line_of(data, pos), f"more motion lines than the {n_rows} "
                          "announced", frame=frame)
     nfb = int(status[5])
     fix_slow_numbers(data, out.reshape(-1), fb_index[:nfb], fb_start[:nfb], fb_end[:nfb], path,
                      describe=lambda flat: (flat // max(n_cols, 1) + first_frame, ""),
-                     allow_nonfinite=allow_nonfinite)
-    return out[:int(status[6])]
+                     allow_nonfinite=allow_nonfinite, line_base=line_base)
+    return int(status[6])
 
 
 def line_of(data: bytes, pos: int) -> int:
@@ -324,15 +347,15 @@ def token_at(data: bytes, pos: int) -> str:
     return data[pos:end].decode("latin-1")
 
 
-def number_error(data: bytes, pos: int, path, *, frame=None, where="", hint="") -> ParseError:
-    """ParseError for a token at ``pos`` that is not a finite number."""
+def number_error(data: bytes, pos: int, path, *, frame=None, where="", hint="", line_base=0) -> ParseError:
+    """ParseError for a token at ``pos`` that is not a finite number (``line_base`` lines precede ``data``)."""
     tok = token_at(data, pos)
     low = tok.lower().lstrip("+-")
     if low in ("nan", "inf", "infinity") or (low and _is_nonfinite(tok)):
         what = f"expected a finite number, found {tok!r} (NaN/inf values are not allowed)"
     else:
         what = f"expected a number, found {tok!r}"
-    return ParseError(path, line_of(data, pos), f"{where}{what}{hint}", frame=frame)
+    return ParseError(path, line_base + line_of(data, pos), f"{where}{what}{hint}", frame=frame)
 
 
 def _is_nonfinite(tok: str) -> bool:
@@ -342,7 +365,8 @@ def _is_nonfinite(tok: str) -> bool:
         return False
 
 
-def fix_slow_numbers(data: bytes, flat_out, index, starts, ends, path, describe=None, allow_nonfinite=False):
+def fix_slow_numbers(data: bytes, flat_out, index, starts, ends, path, describe=None, allow_nonfinite=False,
+                     line_base=0):
     """Convert the tokens the kernel left for Python (``float``) into ``flat_out``.
 
     ``describe(flat_index) -> (frame, prefix)`` names the place for messages.
@@ -358,7 +382,7 @@ def fix_slow_numbers(data: bytes, flat_out, index, starts, ends, path, describe=
     elif bad.size:
         k = int(bad[0])
         frame, where = describe(int(index[k])) if describe is not None else (None, "")
-        raise number_error(data, int(starts[k]), path, frame=frame, where=where)
+        raise number_error(data, int(starts[k]), path, frame=frame, where=where, line_base=line_base)
     flat_out[index] = vals
 
 
