@@ -96,7 +96,8 @@ def connect(path=":memory:", *, read_only: bool = False):
     return con
 
 
-def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=None) -> IngestReport:
+def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None,
+           progress=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -113,14 +114,20 @@ def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=No
         dict), overriding the automatic mapping (README "Mapping files").
     marker_map : dict, str or Path, optional, keyword-only
         C3D files: canonical joint → the markers whose mean it is.
+    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
+        C3D files of the HDM05/CMU marker set: the toolbox's formulas (default,
+        the reference) or anatomical joint centres (README "C3D marker files").
     progress : callable, optional, keyword-only
         ``progress(path, n_source_frames)`` once per file.
 
     Returns
     -------
     IngestReport
+        Ingested, skipped, failed and unsupported files, unreadable folder
+        entries, and the readers' notes on what they decided per file.
     """
-    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress)
+    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
+                        marker_rules=marker_rules, progress=progress)
 
 
 def joint_map_template(path) -> str:

@@ -229,13 +229,19 @@ def _json_default(v):
 @command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
 @reader_options
+@click.option("--marker-rules", type=click.Choice(("toolbox", "anatomical")), default=None,
+              help="C3D files of the HDM05/CMU marker set: the toolbox's formulas (default, the reference) or "
+                   "anatomical joint centres (closer to the same take's AMC).")
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, asf, joint_map, marker_map, silent):
+def ingest(ctx, paths, asf, joint_map, marker_map, marker_rules, silent):
     """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
 
-    A broken file changes nothing and the others still go in; files already
-    stored (same bytes) are skipped.
+    Files may be .gz, .bz2 or .xz compressed, and folders may be .zip archives
+    (read in place). A broken file changes nothing and the others still go in;
+    files already stored (same bytes) are skipped. Lines starting "note" say
+    what a reader decided for a stored file (a joint placed without markers,
+    lost tracking interpolated, frames cut).
     """
     from mocapdb.api import ingest as api_ingest
     from mocapdb.storage.ingest import motion_files
@@ -243,7 +249,7 @@ def ingest(ctx, paths, asf, joint_map, marker_map, silent):
     con = _open(ctx)
     with _progress(len(motion_files(paths)), "ingest", silent) as bar:
         report = api_ingest(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                            progress=lambda path, frames: bar.update(1))
+                            marker_rules=marker_rules, progress=lambda path, frames: bar.update(1))
     _echo_report(ctx, report)
 
 

@@ -9,8 +9,15 @@ places the 24 canonical joints:
 * files written with ASF bone names (:func:`mocapdb.readers.bvh_write.write_bvh`)
   take the exact ASF points (FEATURES.md §2.2);
 * any other humanoid goes through :func:`mocapdb.readers.humanoid.map_humanoid`
-  (names with prefixes stripped, else topology);
+  (names with prefixes stripped, else topology; :mod:`~mocapdb.readers.bvh_mapping`)
+  and must then be a human (:func:`~mocapdb.readers.humanoid.humanoid_problem`:
+  plausible proportions, upright in its rest pose or in some frames);
 * a user ``joint_map`` overrides either.
+
+The motion lines are parsed 4 MiB at a time (:func:`parse_bvh_stream`), so a
+file is never held whole; lost tracking (``NaN``, ``inf`` or absurd values)
+is mended or cut (:mod:`~mocapdb.readers.bvh_tracking`), and
+``Motion.meta["notes"]`` says so.
 
 BVH semantics (the common reading of the format, as bvhio, MotionBuilder and
 Blender):
@@ -48,11 +55,11 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.gaps import MAX_GAP_S, frames_text, longest_part, max_gap_frames, runs
-from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, hip_axis_is_x,
-                                     humanoid_problem, map_humanoid, mapping_template)
+from mocapdb.readers.bvh_mapping import auto_map, bvh_joint_map, plan
+from mocapdb.readers.bvh_tracking import lost_samples, mend, pose_frame
+from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
+from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.sources import motion_stem, open_stream, read_bytes, stream_size
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
@@ -561,170 +568,6 @@ def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0, needed=None):
     return origins, ends, rot
 
 
-# ----------------------------------------------------------------------------
-# mapping
-
-def _asf_map(hier: BvhHierarchy, tree: SkeletonTree) -> JointMap | None:
-    """The exact ASF points when the file uses ASF bone names (our writer)."""
-    names = {nm.lower(): k for k, nm in enumerate(tree.names)}
-    need = set(ASF_JOINT_BONES.values()) | {"root"}
-    if not need <= names.keys():
-        return None
-    weights = np.zeros((len(JOINT_NAMES), tree.n))
-    how = {}
-    for j in JOINT_NAMES:
-        bone = ASF_JOINT_BONES[j]
-        if j == "root":
-            point = names["root"]
-        else:
-            k = names[bone]
-            # a bone's tip: its End Site, or the origin of its first child joint
-            point = names.get(f"{bone}/end")
-            if point is None:
-                kids = hier.children(k)
-                if not kids:
-                    return None
-                point = kids[0]
-        weights[JOINT_INDEX[j], point] = 1.0
-        how[j] = (tree.names[point], "ASF bone names")
-    return JointMap(weights, names["root"], how)
-
-
-def _user_map(tree: SkeletonTree, joint_map: dict, auto: JointMap | None, path) -> JointMap:
-    names = {nm.lower(): k for k, nm in enumerate(tree.names)}
-    weights = np.zeros((len(JOINT_NAMES), tree.n)) if auto is None else auto.weights.copy()
-    how = {} if auto is None else dict(auto.how)
-    for j, value in joint_map.items():
-        items = [value] if isinstance(value, str) else value
-        row = np.zeros(tree.n)
-        for item in items:
-            k = names.get(item.lower())
-            if k is None:
-                raise ParseError(path, None, f"joint_map: {j} = {item!r}: no such joint in this file "
-                                 f"(its joints: {', '.join(n for n, jt in zip(tree.names, tree.is_joint) if jt)}"
-                                 "; an End Site is 'Joint/end')")
-            row[k] += 1.0 / len(items)
-        weights[JOINT_INDEX[j]] = row
-        how[j] = (value, "joint_map")
-    missing = [j for j in JOINT_NAMES if not weights[JOINT_INDEX[j]].any()]
-    if missing:
-        raise ParseError(path, None, f"joint_map places {len(JOINT_NAMES) - len(missing)} of 24 joints and "
-                         f"the automatic mapping failed; add {', '.join(missing)}")
-    root = joint_map.get("root")
-    if isinstance(root, str):
-        rot_point = names[root.lower()]
-    else:
-        rot_point = auto.rotation_point if auto is not None else 0
-    if not tree.is_joint[rot_point]:
-        rot_point = int(tree.parent[rot_point])
-    return JointMap(weights, rot_point, how)
-
-
-_MAP_CACHE: dict = {}
-_MAP_LOCK = threading.Lock()
-
-
-def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<bvh>", pose=None) -> JointMap:
-    """Where the 24 canonical joints are in a BVH skeleton.
-
-    ``pose`` (a callable giving the points of one motion frame) is used when
-    the rest pose is not an upright body.
-
-    Raises
-    ------
-    ParseError
-        Not a humanoid the mapper can read, and no complete ``joint_map``:
-        the message names the file's joints and the canonical joints it
-        could not place, and how to get a mapping template.
-    """
-    return _plan(hier, joint_map, path, pose)[0]
-
-
-def _plan(hier: BvhHierarchy, joint_map, path, pose):
-    """(JointMap, gather arrays, joints FK must compute).
-
-    A plan that the hierarchy alone decides (names, or the rest pose) is
-    cached per parsed hierarchy (hierarchies are cached per header, so the
-    files of one skeleton share it); one that needed a frame of the motion
-    (a rest pose lying on its side) belongs to its file and is not cached:
-    a file reads the same whatever was read before it.
-    """
-    key = (id(hier), None if joint_map is None else repr(sorted(joint_map.items())))
-    with _MAP_LOCK:
-        hit = _MAP_CACHE.get(key)
-    if hit is not None and hit[0] is hier:
-        return hit[1]
-    jm, from_motion = _map_skeleton(hier, joint_map, path, pose)
-    plan = (jm, *_gather(jm, hier))
-    if not from_motion:
-        with _MAP_LOCK:
-            if len(_MAP_CACHE) > 256:
-                _MAP_CACHE.clear()
-            _MAP_CACHE[key] = (hier, plan)
-    return plan
-
-
-def _gather(jm: JointMap, hier: BvhHierarchy):
-    """Per canonical joint its points and weights; the joints FK needs (used points and their ancestors)."""
-    nj = len(hier.joints)
-    width = max(1, int((jm.weights != 0).sum(axis=1).max()))
-    point = np.zeros((len(JOINT_NAMES), width), dtype=np.int64)
-    weight = np.zeros((len(JOINT_NAMES), width))
-    for j in range(len(JOINT_NAMES)):
-        nz = np.flatnonzero(jm.weights[j])
-        point[j, :len(nz)] = nz
-        weight[j, :len(nz)] = jm.weights[j, nz]
-    end_of = np.array([k for k, j in enumerate(hier.joints) if j.end_site is not None] or [0], dtype=np.int64)
-    needed = np.zeros(nj, dtype=np.bool_)
-    for p in set(point[weight != 0].tolist()) | {jm.rotation_point}:
-        k = p if p < nj else int(end_of[p - nj])
-        while k >= 0 and not needed[k]:
-            needed[k] = True
-            k = hier.joints[k].parent
-    return point, weight, end_of, needed
-
-
-def _auto_map(hier: BvhHierarchy, tree: SkeletonTree, pose=None):
-    """(JointMap or None, the MappingError of the first failure or None, whether a motion frame
-    decided it): ASF bone names exactly, else the humanoid mapper — Y up, as BVH has it; a rest
-    pose on its side judged by a frame of the motion (``pose``); a Z-up file turned to Y up."""
-    exact = _asf_map(hier, tree)
-    if exact is not None:
-        return exact, None, False
-
-    def poses():
-        yield tree.rest, False
-        if pose is not None:
-            yield pose(), True
-
-    problem = None
-    for up in (None, Z_UP_TO_Y_UP):
-        for xyz, from_motion in poses():
-            try:
-                found = map_humanoid(tree, xyz if up is None else xyz @ up.T)
-            except MappingError as exc:
-                problem = problem or exc
-                continue
-            return (found if up is None else replace(found, up=up)), None, from_motion
-    return None, problem, False
-
-
-def _map_skeleton(hier, joint_map, path, pose):
-    """(JointMap, whether a motion frame decided it)."""
-    tree = hier.tree()
-    auto, problem, from_motion = _auto_map(hier, tree, pose)
-    if joint_map:
-        return _user_map(tree, joint_map, auto, path), from_motion
-    if auto is None:
-        own = [n for n, j in zip(tree.names, tree.is_joint) if j]
-        missing = problem.missing or [j for j in JOINT_NAMES if j not in problem.partial]
-        raise ParseError(path, None, f"not a humanoid skeleton mocapdb can map: {problem}; "
-                         f"its {len(own)} joints: {', '.join(own[:40])}{' …' if len(own) > 40 else ''}; "
-                         f"could not place: {', '.join(missing)}. Write a joint map (template: "
-                         f"mocapdb joint-map-template {path} > map.toml) and ingest with --joint-map map.toml")
-    return auto, from_motion
-
-
 def joint_map_template(path) -> str:
     """A ready-to-edit TOML joint map for a BVH file, filled with what the automatic mapping places.
 
@@ -738,7 +581,7 @@ def joint_map_template(path) -> str:
     m = _MOTION.search(data)
     hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
     tree = hier.tree()
-    auto, problem, _ = _auto_map(hier, tree)
+    auto, problem, _ = auto_map(hier, tree)
     return mapping_template(tree, auto.how if auto is not None else problem.partial, source=str(path))
 
 
@@ -868,94 +711,8 @@ def _placed(how):
     return name if name is not None else why
 
 
-#: a rotation channel beyond this many degrees is not a recorded angle (2,800 turns)
-MAX_ANGLE_DEG = 1e6
-#: a position channel beyond this many skeleton sizes is not a recorded position
-MAX_POSITION_SIZES = 1e6
 #: joint positions per block of forward kinematics (the per-joint arrays of one block, not of the take)
 _FK_POINTS = 1 << 18
-#: frames per block of the lost-tracking scan
-_SCAN_BLOCK = 1024
-
-
-def _lost_samples(values: np.ndarray, hier: BvhHierarchy) -> np.ndarray | None:
-    """Where tracking was lost: NaN, infinite or absurd channel values; None when nowhere.
-
-    Checked in blocks of frames: no temporary of the take's size (only the
-    mask, and only when something was lost)."""
-    _, _, _, _, kinds, _, _, _ = hier.arrays()
-    size = float(np.ptp(hier.tree().rest, axis=0).max()) or 1.0
-    limit = np.where(kinds == 1, MAX_ANGLE_DEG, MAX_POSITION_SIZES * size)
-    bad = None
-    with np.errstate(invalid="ignore"):
-        for a in range(0, values.shape[0], _SCAN_BLOCK):
-            block = ~(np.abs(values[a:a + _SCAN_BLOCK]) <= limit)   # NaN compares False: lost too
-            if block.any():
-                if bad is None:
-                    bad = np.zeros(values.shape, dtype=bool)
-                bad[a:a + _SCAN_BLOCK] = block
-    return bad
-
-
-def _pose_frame(values, bad) -> int:
-    """The first frame without lost samples (the one the mapper may judge a rig by)."""
-    if bad is None:
-        return 0
-    clean = np.flatnonzero(~bad.any(axis=1))
-    return int(clean[0]) if len(clean) else int(np.argmin(bad.sum(axis=1)))
-
-
-def _mend(values, bad, hier, needed, fps, path, notes):
-    """Interpolate short lost stretches of the channels FK needs; return the frames kept ``(start, stop)``.
-
-    Each channel of a needed joint is mended on its own: stretches up to
-    0.25 s are interpolated (angles along the shorter way round); a longer
-    one makes its frames unrecoverable, and the take keeps its longest
-    stretch without them (:func:`~mocapdb.readers.gaps.longest_part`).
-    ``values`` is changed in place.
-    """
-    _, _, ch_start, ch_count, kinds, _, _, _ = hier.arrays()
-    cols = [c for j in np.flatnonzero(needed) for c in range(ch_start[j], ch_start[j] + ch_count[j])]
-    cols = [c for c in cols if bad[:, c].any()]
-    n = values.shape[0]
-    if not cols:
-        return 0, n
-    owner = np.repeat(np.arange(len(hier.joints)), ch_count)
-    max_gap = max_gap_frames(fps)
-    unrecoverable = np.zeros(n, dtype=bool)
-    filled = np.zeros(n, dtype=bool)
-    lost_joints = {}
-    for c in cols:
-        b = bad[:, c]
-        joint = hier.joints[owner[c]].name
-        lost_joints.setdefault(joint, 0)
-        lost_joints[joint] += 1
-        if b.all():
-            raise ParseError(path, None, f"lost tracking: channel {hier.joints[owner[c]].channels[c - ch_start[owner[c]]]} "
-                             f"of joint {joint!r} holds no usable value in any frame")
-        for a, e in runs(b):
-            if e - a > max_gap:
-                unrecoverable[a:e] = True
-            else:
-                filled[a:e] = True
-        good = ~b
-        column = values[:, c]
-        known = column[good]
-        if kinds[c] == 1:   # an angle: interpolate the shorter way round (unwrapped)
-            known = np.unwrap(known, period=360.0)
-        column[b] = np.interp(np.flatnonzero(b), np.flatnonzero(good), known)
-    names = ", ".join(sorted(lost_joints)[:6]) + (" …" if len(lost_joints) > 6 else "")
-    short = filled & ~unrecoverable
-    if short.any():
-        notes.append(f"lost tracking (NaN, infinite or absurd values) interpolated in {int(short.sum())} frames "
-                     f"(stretches up to {MAX_GAP_S} s; {len(cols)} channels of {names})")
-    start, stop, cut = longest_part(unrecoverable, fps, path,
-                                    f"tracking lost for longer than {MAX_GAP_S} s in "
-                                    + "; ".join(frames_text(a, e, fps) for a, e in runs(unrecoverable)[:3])
-                                    + (" …" if len(runs(unrecoverable)) > 3 else "") + f" ({names})")
-    if cut:
-        notes.append(cut)
-    return start, stop
 
 
 def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed):
@@ -979,8 +736,8 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
         raise ParameterError(f"joint_map must be a dict (see mocapdb.readers.load_mapping), got {joint_map!r}")
     hier = data.hierarchy
     values = data.values
-    bad = _lost_samples(values, hier)
-    pose_at = _pose_frame(values, bad)
+    bad = lost_samples(values, hier)
+    pose_at = pose_frame(values, bad)
 
     def judged_frame():
         frame = values[pose_at:pose_at + 1]
@@ -990,12 +747,12 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
         with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
         return np.concatenate([o[0], e[0, with_end]])
 
-    jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, judged_frame)
+    jm, point, weight, end_of, needed = plan(hier, joint_map, data.path, judged_frame)
     notes = []
     start, stop = 0, values.shape[0]
     if bad is not None:
         values = values.copy()
-        start, stop = _mend(values, bad, hier, needed, data.fps, data.path, notes)
+        start, stop = mend(values, bad, hier, needed, data.fps, data.path, notes)
         data = replace(data, values=values[start:stop])
     joints, rot = _joints_and_rotation(data, jm, point, weight, end_of, needed)
     up = jm.up if jm.up is not None else (Z_UP_TO_Y_UP if _z_up(joints) else None)

@@ -46,10 +46,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mocapdb.errors import ParseError
+from mocapdb.errors import ParameterError, ParseError
 from mocapdb.readers.c3d_names import SEGMENT_OF
-from mocapdb.readers.c3d_rules import (MAPPED, PELVIS_QUAD, REQUIRED, TOOLBOX, MarkerIndex, candidate_rules,
-                                       mapped_rule)
+from mocapdb.readers.c3d_rules import (MAPPED, MARKER_RULES, PELVIS_QUAD, REQUIRED, TOOLBOX, MarkerIndex,
+                                       candidate_rules, mapped_rule)
 from mocapdb.readers.c3dfile import printable, read_c3d_points
 from mocapdb.readers.gaps import (MAX_GAP_S, fill_short, frames_text, long_gaps, longest_part, max_gap_frames,
                                   rigid_fill)
@@ -183,7 +183,7 @@ def _find(index: MarkerIndex, rule):
     return list(zip(rule.markers, points)) + extra
 
 
-def _select(path, index: MarkerIndex, valid, max_gap, marker_map) -> dict:
+def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="toolbox") -> dict:
     """The rule and markers of every joint, in an order where a joint follows the joints it derives from.
 
     Per joint, the first rule (in :func:`~mocapdb.readers.c3d_rules.candidate_rules`
@@ -219,7 +219,7 @@ def _select(path, index: MarkerIndex, valid, max_gap, marker_map) -> dict:
                                  f"{_describe(index.labels)})")
             candidates[joint] = [rule]
         else:
-            candidates[joint] = candidate_rules(joint)
+            candidates[joint] = candidate_rules(joint, marker_rules)
 
     chosen, dead, with_gaps = {}, set(), set()
 
@@ -323,7 +323,7 @@ def _rebuild(index: MarkerIndex, xyz, valid, max_gap, rate, notes, n_real):
                          f"{segment[i].replace('_', ' ')})")
 
 
-def read_c3d(path, *, marker_map=None, bone_fit: bool = True) -> Motion:
+def read_c3d(path, *, marker_map=None, bone_fit: bool = True, marker_rules: str = "toolbox") -> Motion:
     """Read a C3D marker file into the 24 canonical joints.
 
     Parameters
@@ -339,6 +339,12 @@ def read_c3d(path, *, marker_map=None, bone_fit: bool = True) -> Motion:
         Apply the toolbox's bone-length fit to a toolbox-marker-set file
         (default, as the toolbox); False gives its joints before the fit
         (``generateLCS`` output, the oracle's ``_prefit`` files).
+    marker_rules : {"toolbox", "anatomical"}, keyword-only
+        ``"toolbox"`` (default, the reference): the HDM05/CMU marker set by the
+        toolbox's formulas, bit for bit. ``"anatomical"``: every set by its
+        anatomical landmarks — joint centres where the toolbox puts joints on
+        markers (Bell hips, elbow centres medial of the lateral epicondyle
+        marker), which brings a take's C3D features closer to its AMC twin's.
 
     Returns
     -------
@@ -380,7 +386,9 @@ def read_c3d(path, *, marker_map=None, bone_fit: bool = True) -> Motion:
     index = MarkerIndex(pts.labels, valid.any(axis=0))
     xyz, valid = _mirror_pelvis(index, xyz, valid, notes)
     _rebuild(index, xyz, valid, max_gap, pts.rate, notes, n_real)
-    chosen = _select(path, index, valid, max_gap, marker_map)
+    if marker_rules not in MARKER_RULES:
+        raise ParameterError(f"marker_rules must be one of {', '.join(MARKER_RULES)}, got {marker_rules!r}")
+    chosen = _select(path, index, valid, max_gap, marker_map, marker_rules)
 
     needed = sorted({i for _, found in chosen.values() for _, i in found})
     unrecoverable = np.zeros(n, dtype=bool)

@@ -59,7 +59,7 @@ from mocapdb.readers.c3d_names import TOOLBOX_ALIASES, landmark_of, marker_key
 from mocapdb.readers.joints import JOINT_NAMES
 
 __all__ = ["Rule", "marker_key", "TOOLBOX_ALIASES", "TOOLBOX_MARKERS", "MarkerIndex", "candidate_rules",
-           "mapped_rule", "TOOLBOX", "ROLES", "DERIVED", "MAPPED", "REQUIRED", "PELVIS_QUAD"]
+           "mapped_rule", "TOOLBOX", "ROLES", "DERIVED", "MAPPED", "REQUIRED", "PELVIS_QUAD", "MARKER_RULES"]
 
 TOOLBOX, ROLES, DERIVED, MAPPED = "toolbox", "roles", "derived", "marker_map"
 
@@ -243,6 +243,10 @@ BELL = (0.19, 0.30, 0.36)
 #: a lateral-only knee / ankle marker lies this many pelvis widths from the joint centre (half a
 #: typical knee width of 0.4 and ankle width of 0.28 pelvis widths, plus the marker's radius)
 MEDIAL_OFFSET = {"knee": 0.22, "ankle": 0.16}
+#: a lateral elbow marker lies this many upper-arm lengths from the elbow centre (half a typical
+#: elbow width of 6.5 cm plus the marker's radius, for a 31 cm humerus: Plug-in Gait places the
+#: centre so from the measured elbow width)
+ELBOW_MEDIAL = 0.13
 #: the ankle centre from the heel marker, in heel-to-toe lengths: along the foot and up the
 #: shank (medians of 12 feet with malleolus, heel and toe markers: HDM05, CMU, ISB, Qualisys,
 #: Vicon; spread ±0.05)
@@ -288,6 +292,21 @@ def _medial(side, key, part):
         width = float(np.mean(_norm(m["r_asis"] - m["l_asis"])))
         medial = right if side == "l" else -right
         return m[key] + MEDIAL_OFFSET[part] * width * medial
+    return f
+
+
+def _elbow_centre(side, key):
+    """The elbow centre from the lateral epicondyle marker: moved medially (towards the body's
+    midline across the upper arm) by :data:`ELBOW_MEDIAL` upper-arm lengths."""
+    def f(m):
+        elbow, shoulder = m[key], m[f"@{side}shoulder"]
+        upper = elbow - shoulder
+        length = float(np.mean(_norm(upper)))
+        axis = _unit(upper)
+        right = m["@rshoulder"] - m["@lshoulder"]
+        medial = right if side == "l" else -right
+        medial = _unit(medial - np.sum(medial * axis, axis=-1, keepdims=True) * axis)
+        return elbow + ELBOW_MEDIAL * length * medial
     return f
 
 
@@ -360,7 +379,8 @@ def _side_rules(s):
         Rule(f"{s}shoulder", R, (p + "shoulder_front", p + "shoulder_back"),
              _mean(p + "shoulder_front", p + "shoulder_back")),
         Rule(f"{s}elbow", R, (p + "elbow_lat", p + "elbow_med"), _mean(p + "elbow_lat", p + "elbow_med")),
-        Rule(f"{s}elbow", R, (p + "elbow_lat",), _mean(p + "elbow_lat")),
+        Rule(f"{s}elbow", R, (p + "elbow_lat",), _elbow_centre(s, p + "elbow_lat"),
+             joints=("lshoulder", "rshoulder")),
         Rule(f"{s}wrist", R, (p + "wrist_rad", p + "wrist_uln"), _mean(p + "wrist_rad", p + "wrist_uln")),
         Rule(f"{s}wrist", R, (p + "wrist",), _mean(p + "wrist")),
         Rule(f"{s}wrist", R, (p + "wrist_rad",), _mean(p + "wrist_rad")),
@@ -473,9 +493,15 @@ _FALLBACK = _by_joint(_toolbox_finger_fallbacks())
 _DERIVED = _by_joint(_derived_rules())
 
 
-def candidate_rules(joint: str) -> list:
-    """The automatic rules for a joint, in order of preference (toolbox, landmarks, toolbox
-    fallbacks, derived from the trunk)."""
+#: ``marker_rules`` values: the toolbox's formulas first (the reference), or anatomical landmarks only
+MARKER_RULES = ("toolbox", "anatomical")
+
+
+def candidate_rules(joint: str, marker_rules: str = "toolbox") -> list:
+    """The automatic rules for a joint, in order of preference: the toolbox's (unless
+    ``marker_rules="anatomical"``), landmarks, the toolbox's finger fallbacks, derived from the trunk."""
+    if marker_rules == "anatomical":
+        return _ROLES[joint] + _DERIVED[joint]
     return _TOOLBOX[joint] + _ROLES[joint] + _FALLBACK[joint] + _DERIVED[joint]
 
 

@@ -35,7 +35,7 @@ __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates"
 SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d")
 #: the reader options stored with a motion (``motions.reader_options``) that :func:`read_motion` takes
 #: back when the source is re-read; other keys there (``notes``, ``source_frames``) only inform
-READER_OPTIONS = ("joint_map", "marker_map")
+READER_OPTIONS = ("joint_map", "marker_map", "marker_rules")
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
@@ -175,7 +175,7 @@ def read_asf_amc(amc_path, asf) -> Motion:
                         "frames": (1, len(joints))})
 
 
-def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
+def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules=None) -> Motion:
     """Read a motion file (by extension) into the 24 canonical joints.
 
     Parameters
@@ -190,6 +190,9 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
     marker_map : dict, str or Path, optional, keyword-only
         C3D only: canonical joint → the markers whose mean it is
         (:func:`~mocapdb.readers.c3d.read_c3d`).
+    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
+        C3D only: how the HDM05/CMU marker set is read (default ``"toolbox"``,
+        the reference; :func:`~mocapdb.readers.c3d.read_c3d`).
 
     Returns
     -------
@@ -217,7 +220,7 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
     try:
         # hostile values overflow in FK; the result is checked for finiteness
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            return _read(path, asf, joint_map, marker_map)
+            return _read(path, asf, joint_map, marker_map, marker_rules or "toolbox")
     except MocapdbError:
         raise
     except OSError as exc:
@@ -229,7 +232,7 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
         raise ParseError(path, None, f"unreadable ({type(exc).__name__}: {exc})") from None
 
 
-def _read(path, asf, joint_map, marker_map) -> Motion:
+def _read(path, asf, joint_map, marker_map, marker_rules) -> Motion:
     ext = motion_suffix(path)
     if ext == ".amc":
         if asf is None:
@@ -249,7 +252,7 @@ def _read(path, asf, joint_map, marker_map) -> Motion:
     if ext == ".bvh":
         return read_bvh(path, joint_map=load_mapping(joint_map, what="joint_map"))
     if ext == ".c3d":
-        return read_c3d(path, marker_map=load_mapping(marker_map, what="marker_map"))
+        return read_c3d(path, marker_map=load_mapping(marker_map, what="marker_map"), marker_rules=marker_rules)
     raise ParseError(path, None, f"unsupported file type {ext or path.suffix!r} (expected "
                      + " or ".join(SUPPORTED_EXTENSIONS) + ", optionally compressed: "
                      + ", ".join(COMPRESSED) + ")")

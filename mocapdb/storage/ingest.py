@@ -390,7 +390,7 @@ BATCH_FILES = 64
 BATCH_FRAMES = 1_000_000
 
 
-def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=None,
+def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, progress=None,
                  workers: int = 2) -> IngestReport:
     """Read recordings, compute their features and store them.
 
@@ -407,6 +407,10 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
         Mapping of the canonical joints to a BVH file's joints / a C3D file's
         markers (TOML or JSON file, or dict; :func:`mocapdb.readers.load_mapping`),
         for every file of that type. Stored in ``motions.reader_options``.
+    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
+        How C3D files of the HDM05/CMU marker set are read (default: the
+        toolbox's formulas, the reference; :func:`mocapdb.readers.read_c3d`).
+        Stored in ``motions.reader_options``.
     progress : callable, optional, keyword-only
         Called as ``progress(path, n_source_frames)`` once per file.
     workers : int, keyword-only
@@ -427,7 +431,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     """
     report = IngestReport()
     files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable)
-    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules)
     stored = _stored_keys(con)
     todo = []
     first_of = {}     # key -> the first file of this ingest with those bytes
@@ -495,13 +499,17 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
 
 
 #: which reader option applies to which file type
-_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d"}
+_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d", "marker_rules": ".c3d"}
 
 
-def reader_maps(*, joint_map=None, marker_map=None) -> dict:
+def reader_maps(*, joint_map=None, marker_map=None, marker_rules=None) -> dict:
     """The reader options of an ingest, loaded and checked once (:func:`mocapdb.readers.load_mapping`)."""
+    if marker_rules not in (None, "toolbox", "anatomical"):
+        raise ParameterError(f"marker_rules must be 'toolbox' or 'anatomical', got {marker_rules!r}")
     return {"joint_map": load_mapping(joint_map, what="joint_map"),
-            "marker_map": load_mapping(marker_map, what="marker_map")}
+            "marker_map": load_mapping(marker_map, what="marker_map"),
+            # the default (the toolbox's formulas) is not stored: motions read as before keep their options
+            "marker_rules": None if marker_rules in (None, "toolbox") else marker_rules}
 
 
 def _reader_options(path: Path, maps: dict) -> str | None:
