@@ -381,13 +381,19 @@ def read_c3d_points(path) -> C3dPoints:
     Raises
     ------
     ParseError
-        The file fails :func:`check_layout`, ezc3d cannot read it, or it has
+        The file cannot be read (damaged compression or archive included),
+        fails :func:`check_layout`, ezc3d cannot read it, or it has
         no frames, a rate that is not finite, ≤ 0 or above 10 kHz, or a
         data section that ends inside a frame (truncated).
     FileNotFoundError
     """
     path = Path(path)
-    head, size, data = _read_head(path)
+    try:
+        head, size, data = _read_head(path)
+    except FileNotFoundError:
+        raise
+    except OSError as exc:   # unreadable, or damaged compressed data / archive
+        raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
     layout = check_layout(head, size, path=path)
     notes = []
     if layout["analog_problem"]:

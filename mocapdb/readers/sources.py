@@ -135,13 +135,38 @@ def _raw_stream(path):
         raise OSError(f"{archive}: not a readable zip archive ({exc})") from None
 
 
+class _Stream(io.RawIOBase):
+    """A decompressing stream whose damaged data raises OSError (as a damaged file does), not the
+    codec's own error types."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def readable(self):
+        return True
+
+    def read(self, size=-1):
+        try:
+            return self.inner.read(size)
+        except _DECODE_ERRORS as exc:
+            raise OSError(f"corrupt compressed data ({exc})") from None
+
+    def readinto(self, b):
+        data = self.read(len(b))
+        b[:len(data)] = data
+        return len(data)
+
+    def close(self):
+        self.inner.close()
+        super().close()
+
+
 def open_stream(path):
-    """A binary stream of the recording's bytes (decompressed); close it after use."""
+    """A binary stream of the recording's bytes (decompressed); close it after use. Damaged
+    compressed data raises OSError."""
     raw = _raw_stream(path)
     module = COMPRESSED.get(Path(path).suffix.lower())
-    if module is None:
-        return raw
-    return module.open(raw)
+    return _Stream(raw if module is None else module.open(raw))
 
 
 def stream_size(path) -> int | None:
@@ -162,22 +187,16 @@ def read_bytes(path) -> bytes:
     OSError
         Missing or unreadable file, bad archive or compressed stream.
     """
-    try:
-        with open_stream(path) as fh:
-            return fh.read()
-    except _DECODE_ERRORS as exc:
-        raise OSError(f"corrupt compressed data ({exc})") from None
+    with open_stream(path) as fh:
+        return fh.read()
 
 
 def sha256(path) -> str:
     """SHA-256 of the recording's bytes, read in 1 MiB chunks (memory does not grow with the file)."""
     h = hashlib.sha256()
-    try:
-        with open_stream(path) as fh:
-            for chunk in iter(lambda: fh.read(_CHUNK), b""):
-                h.update(chunk)
-    except _DECODE_ERRORS as exc:
-        raise OSError(f"corrupt compressed data ({exc})") from None
+    with open_stream(path) as fh:
+        for chunk in iter(lambda: fh.read(_CHUNK), b""):
+            h.update(chunk)
     return h.hexdigest()
 
 
