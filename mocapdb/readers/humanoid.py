@@ -7,6 +7,11 @@ plus the joint whose global rotation is the body's root rotation.
 
 How a skeleton is read, whatever its naming:
 
+0. **Names first.** Joints named for a knee and an ankle (``LowerLeg_L`` and
+   ``Foot_L``, ``LeftLeg`` and ``LeftFoot``) on each side give the feet, a
+   joint named Head the head top, joints named for an elbow and a wrist the
+   arms — trusted over the geometry of one pose (a frame with a foot in the
+   air, a rest pose lying on its side).
 1. **Topology.** The feet are the leaves in the lowest quarter of the body;
    the pelvis is their common ancestor; the head top is the highest leaf;
    the spine is the path from the pelvis to it. The two legs are the
@@ -34,6 +39,11 @@ How a skeleton is read, whatever its naming:
 
 A user map (``joint_map``: canonical joint → a joint name, ``"Name/end"``
 for its End Site, or a list of names whose mean it is) overrides any of it.
+
+Legs, arms and a head do not make a human: :func:`humanoid_problem` checks the
+mapped body's proportions and that it stands upright in its rest pose or in
+some of its frames (a dog's "arms" reach the floor, its trunk is longer than
+its legs).
 """
 from __future__ import annotations
 

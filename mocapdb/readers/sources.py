@@ -16,7 +16,7 @@ are read in place, never unpacked to disk:
 
 :func:`sha256` hashes the recording's own bytes (decompressed; a member's
 bytes) while streaming, so a take stored plain, gzipped or zipped is one
-motion, and re-ingest is a no-op. :func:`local_file` gives libraries that
+motion, and re-ingest is a no-op. :func:`bytes_file` gives libraries that
 need a file name (ezc3d) an in-memory file (``memfd``), not a copy on disk.
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ import zlib
 from pathlib import Path, PurePosixPath
 
 __all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
-           "sha256", "stream_size", "is_file", "list_dir", "identity", "local_file", "bytes_file", "special_kind", "zip_members"]
+           "sha256", "stream_size", "is_file", "list_dir", "identity", "bytes_file", "special_kind", "zip_members"]
 
 #: compression suffix → the module that opens it as a stream
 COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
@@ -269,24 +269,10 @@ def special_kind(path) -> str | None:
 
 
 @contextlib.contextmanager
-def local_file(path):
-    """A file name with the recording's bytes, for libraries that open files themselves.
-
-    A plain file is itself; a compressed file or a zip member is written to
-    an anonymous in-memory file (Linux ``memfd``, named ``/proc/self/fd/N``),
-    or, where that does not exist, to a temporary file removed on exit.
-    """
-    if plain_file(path):
-        yield Path(path)
-        return
-    data = read_bytes(path)
-    with bytes_file(data, Path(path).name) as name:
-        yield name
-
-
-@contextlib.contextmanager
 def bytes_file(data: bytes, name: str = "recording"):
-    """``data`` behind a file name (see :func:`local_file`)."""
+    """``data`` behind a file name, for libraries that open files themselves: an anonymous in-memory
+    file (Linux ``memfd``, named ``/proc/self/fd/N``), or, where that does not exist, a temporary
+    file removed on exit."""
     if hasattr(os, "memfd_create") and os.path.isdir("/proc/self/fd"):
         fd = os.memfd_create(f"mocapdb-{name}"[:240])
         try:
