@@ -227,7 +227,9 @@ def _json_default(v):
 # -- commands ---------------------------------------------------------------------
 
 @command()
-@click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+# not exists=True: a path may run through a zip archive (cmu.zip/subjects/02), which is no path on
+# disk; a path that is nowhere is the API's one-line error
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
 @reader_options
 @click.option("--marker-rules", type=click.Choice(("toolbox", "anatomical")), default=None,
               help="C3D files of the HDM05/CMU marker set: the toolbox's formulas (default, the reference) or "

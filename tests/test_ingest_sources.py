@@ -86,6 +86,12 @@ def test_a_zip_archive_is_read_in_place_and_re_ingest_is_a_no_op(archive, tmp_pa
                                                        str(archive / "subjects/02/02_02.amc")]
     finally:
         con.close()
+    db = ["--db", str(tmp_path / "cli.duckdb")]
+    r = CliRunner().invoke(main, [*db, "ingest", str(archive / "subjects" / "02"), "--silent"])
+    assert r.exit_code == 0 and "2 ingested, 0 skipped, 0 failed, 1 not motion files" in r.output
+    r = CliRunner().invoke(main, [*db, "ingest", str(archive / "subjects" / "03"), "--silent"])
+    assert r.exit_code == 1 and r.output.strip() == (f"Error: paths: '{archive / 'subjects' / '03'}' does not "
+                                                     f"exist (no such member in {archive})")
 
 
 @pytest.mark.parametrize("suffix, module", [(".gz", gzip), (".bz2", bz2), (".xz", lzma)])
