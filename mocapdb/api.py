@@ -108,8 +108,8 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True):
     return connect_database(path, read_only=read_only)
 
 
-def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, progress=None,
-           replace=False) -> IngestReport:
+def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
+           progress=None, replace=False) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -129,6 +129,9 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         dict), overriding the automatic mapping (README "Mapping files").
     marker_map : dict, str or Path, optional, keyword-only
         C3D files: canonical joint → the markers whose mean it is.
+    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
+        C3D files of the HDM05/CMU marker set: the toolbox's formulas (default,
+        the reference) or anatomical joint centres (README "C3D marker files").
     progress : callable, optional, keyword-only
         ``progress(path, n_source_frames)`` once per file.
     replace : bool, keyword-only
@@ -138,12 +141,14 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     Returns
     -------
     IngestReport
+        Ingested, skipped, failed and unsupported files, unreadable folder
+        entries, and the readers' notes on what they decided per file;
         ``failed`` lists every file that was not stored, with the reason
         (the command exits 1 when it is not empty).
     """
     paths = [*paths, *(sample_files() if sample else [])]
-    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress,
-                        replace=replace)
+    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
+                        marker_rules=marker_rules, progress=progress, replace=replace)
 
 
 def warmup(*, parts=None) -> float:

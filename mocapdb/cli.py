@@ -20,7 +20,7 @@ from pathlib import Path
 import click
 
 from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
-from mocapdb.errors import MocapdbError, clip_message
+from mocapdb.errors import MocapdbError, clip_message, escape_control
 
 # -- shared options ---------------------------------------------------------------
 
@@ -243,20 +243,29 @@ def _json_default(v):
 # -- commands ---------------------------------------------------------------------
 
 @command()
-@click.argument("paths", nargs=-1, type=click.Path(exists=True, path_type=Path))
+# not exists=True: a path may run through a zip archive (cmu.zip/subjects/02), which is no path on
+# disk; a path that is nowhere is the API's one-line error
+@click.argument("paths", nargs=-1, type=click.Path(path_type=Path))
 @click.option("--sample", is_flag=True,
               help="Also ingest the real recordings shipped with mocapdb (a CMU take, a BVH walk, an HDM05 C3D).")
 @reader_options
+@click.option("--marker-rules", type=click.Choice(("toolbox", "anatomical")), default=None,
+              help="C3D files of the HDM05/CMU marker set: the toolbox's formulas (default, the reference) or "
+                   "anatomical joint centres (closer to the same take's AMC).")
 @click.option("--replace", is_flag=True, help="Read files already stored (same bytes) again and replace their "
                                               "motions, e.g. with a corrected --joint-map (default: skip them).")
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, sample, asf, joint_map, marker_map, replace, silent):
+def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace, silent):
     """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
 
-    A broken file changes nothing and the others still go in; files already
-    stored (same bytes) are skipped (--replace reads them again). Exit status
-    1 when any file failed (each is listed with its reason), 0 otherwise.
+    Files may be .gz, .bz2 or .xz compressed, and folders may be .zip archives
+    (read in place). A broken file changes nothing and the others still go in;
+    files already stored (same bytes) are skipped (--replace reads them
+    again). Lines starting "note" say what a reader decided for a stored file
+    (a joint placed without markers, lost tracking interpolated, frames cut).
+    Exit status 1 when any file failed (each is listed with its reason), 0
+    otherwise.
 
     \b
     Example (the recordings shipped with mocapdb):
@@ -270,22 +279,24 @@ def ingest(ctx, paths, sample, asf, joint_map, marker_map, replace, silent):
     con = _open(ctx, create=True)
     with _progress(len(motion_files(paths)), "ingest", silent) as bar:
         report = api_ingest(con, paths, sample=sample, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                            replace=replace,
+                            marker_rules=marker_rules, replace=replace,
                             progress=lambda path, frames: bar.update(1))
     _echo_report(ctx, report)
 
 
 def _echo_report(ctx, report, *, all_must_succeed=True):
-    """The files a run did not store, a line each, then its summary; exit 1 when any file failed
-    (``all_must_succeed``), else when no file went in."""
-    for path, reason in report.unsupported:
-        click.echo(f"not a motion file {path}: {reason}", err=True)
-    for path, reason in report.skipped:
-        click.echo(f"skipped {path}: {reason}", err=True)
-    for path, reason in report.failed:
-        click.echo(f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}", err=True)
-    for path, old in getattr(report, "replaced", ()):
-        click.echo(f"replaced motion {old} by {path}", err=True)
+    """The files a run did not store, a line each, what the readers noted about the stored ones,
+    then its summary; exit 1 when any file failed (``all_must_succeed``), else when no file went in."""
+    lines = [f"not a motion file {path}: {reason}" for path, reason in report.unsupported]
+    lines += [f"unreadable {path}: {reason}" for path, reason in getattr(report, "unreadable", ())]
+    lines += [f"skipped {path}: {reason}" for path, reason in report.skipped]
+    lines += [f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}"
+              for path, reason in report.failed]
+    lines += [f"replaced motion {old} by {path}" for path, old in getattr(report, "replaced", ())]
+    lines += [f"note    {path}: {note}" for path, note in getattr(report, "notes", ())]
+    for line in lines:
+        # control characters of a file name or a binary file's bytes are never sent raw
+        click.echo(escape_control(line), err=True)
     click.echo(f"{report.summary()} ({report.source_frames} source frames)")
     if report.failed and (all_must_succeed or not (report.ingested or report.skipped)):
         ctx.exit(1)

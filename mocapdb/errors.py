@@ -31,6 +31,16 @@ def clip_message(text) -> str:
     return s
 
 
+#: control characters (C0, DEL, C1): a message quoting a binary file's bytes or a file name
+#: must not send them raw to a terminal or a log
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def escape_control(text: str) -> str:
+    """``text`` with control characters written as ``\\xNN`` (tab and line feed kept)."""
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
+
+
 class MocapdbError(Exception):
     """Root of all mocapdb errors. A message is clipped (:func:`clip_message`): values echoed in
     it, however long, never make it longer than a few thousand characters."""
@@ -61,12 +71,14 @@ class ParseError(MocapdbError, ValueError):
         where = f"{self.path}:{line}" if line is not None else self.path
         if frame is not None:
             where += f" (frame {frame})"
-        super().__init__(f"{where}: {message}")
-        self.reason = clip_message(message)
+        # what a reader quotes of a broken file may hold any byte: never raw control characters
+        super().__init__(escape_control(f"{where}: {message}"))
+        self.reason = clip_message(escape_control(message))
 
 
 class SchemaError(MocapdbError):
     """The database lacks an object (table, motion, model, class) that a call needs."""
 
 
-__all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError", "shorten", "clip_message"]
+__all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError", "shorten", "clip_message",
+           "escape_control"]

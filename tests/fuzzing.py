@@ -2,8 +2,11 @@
 
 Each case is one real file (a short AMC take, its ASF, BVH files of other
 tools) with one to three mutations: bytes changed, spans cut or repeated,
-truncation, a number replaced by a hostile one (NaN, 1e309, 5e-324, ``1x``, a
-frame count of 10^12), structural tokens inserted, line ends changed.
+truncation, a number replaced by a hostile one (NaN, 1e309, 5e-324, ``1x``,
+``1.#QNAN``, 1e36, a frame count of 10^12), structural tokens inserted, line
+ends changed. :func:`pack` wraps a case as trackers and archives ship it:
+compressed (gzip, bzip2, xz) or a zip member, the packing itself sometimes
+damaged.
 """
 import re
 
@@ -11,7 +14,9 @@ import numpy as np
 
 HOSTILE_NUMBERS = [b"nan", b"NaN", b"inf", b"-inf", b"1e309", b"-1e308", b"5e-324", b"1e-320", b"1x", b"",
                    b"999999999999999999999999", b"0", b"-0", b"1e12", b"1000000000000", b"0.0", b"+", b"-",
-                   b".", b"e5", b"0x10", b"1_000", b"\xff", b"12.5.3"]
+                   b".", b"e5", b"0x10", b"1_000", b"\xff", b"12.5.3",
+                   # lost tracking as trackers write it (read as a gap in BVH)
+                   b"1.#QNAN", b"-1.#IND", b"1.#INF", b"-nan(ind)", b"Infinity", b"1e36", b"-1e36", b"#", b"1.#"]
 INSERTS = [b"{", b"}", b" JOINT x {", b"End Site { OFFSET 0 0 0 }", b"\nFrames: 1000000000000\n",
            b"\nFrame Time: 5e-324\n", b"\n:DEGREES\n", b"\nroot 0 0 0 0 0 0\n", b"\n1\n", b"\x00",
            b"\nbegin\n", b"\nend\n", b"CHANNELS 99 Xposition", b"OFFSET 1e300 0 0", b"\r",
@@ -52,3 +57,37 @@ def mutate(data: bytes, rng: np.random.Generator) -> bytes:
             to = [b"\r", b"\r\n", b" "][int(rng.integers(0, 3))]
             out = bytearray(bytes(out).replace(b"\n", to))
     return bytes(out)
+
+
+def pack(data: bytes, name: str, folder, rng: np.random.Generator):
+    """``data`` written under ``folder`` as ``name`` plain, compressed or inside a zip archive (the
+    packed bytes cut or changed in a quarter of the cases); returns the path to read."""
+    import bz2
+    import gzip
+    import lzma
+    import zipfile
+
+    how = int(rng.integers(0, 5))
+    if how == 0:
+        path = folder / name
+        path.write_bytes(data)
+        return path
+    if how == 4:
+        archive = folder / f"{name}.zip"
+        with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr(f"takes/{name}", data)
+        path, packed = archive / "takes" / name, archive
+    else:
+        suffix, module = ((".gz", gzip), (".bz2", bz2), (".xz", lzma))[how - 1]
+        packed = folder / (name + suffix)
+        packed.write_bytes(module.compress(data))
+        path = packed
+    if rng.random() < 0.25:
+        raw = bytearray(packed.read_bytes())
+        if rng.random() < 0.5:
+            del raw[int(rng.integers(1, len(raw))):]
+        else:
+            for _ in range(int(rng.integers(1, 4))):
+                raw[int(rng.integers(0, len(raw)))] = int(rng.integers(0, 256))
+        packed.write_bytes(bytes(raw))
+    return path

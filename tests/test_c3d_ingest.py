@@ -20,7 +20,7 @@ from mocapdb.readers import read_motion
 from mocapdb.storage.models import load_model
 
 from conftest import DATA
-from fuzzing import mutate
+from fuzzing import mutate, pack
 from naive_keyframes import naive_keyframe_search
 
 FOREIGN = DATA / "foreign" / "c3d"
@@ -89,6 +89,23 @@ def test_corrupt_copies_are_refused_or_read_never_crash(tmp_path):
     assert all(o == "refused" for o, f in zip(outcomes, files) if int(f.stem[1:]) % 4 == 0
                and f.stat().st_size % 512)
     assert 0 < outcomes.count("motion") < len(files)
+
+
+def test_packed_corrupt_copies_never_crash_the_reader(tmp_path):
+    """Corrupt copies packed as .gz/.bz2/.xz or zip members (the packing sometimes damaged too) reach
+    ezc3d through an in-memory file: still refused or read, never a crash."""
+    rng = np.random.default_rng(22)
+    plain = mutated_copies(tmp_path, 60, seed=11)
+    packed = []
+    for path in plain:
+        data = path.read_bytes()
+        path.unlink()
+        packed.append(pack(data, path.name, tmp_path, rng))
+    run = subprocess.run([sys.executable, "-c", READ_ALL, *map(str, packed)], capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, f"reader process died ({run.returncode}): {run.stderr[-2000:]}"
+    outcomes = [line.split()[0] for line in run.stdout.splitlines()]
+    assert len(outcomes) == len(packed) and set(outcomes) <= {"motion", "refused"}, run.stdout[-2000:]
 
 
 # ----------------------------------------------------------------------------

@@ -1,17 +1,22 @@
-"""Seeded mutation fuzzing of the readers and of ingest (READERS.md §4, issue 9).
+"""Seeded mutation fuzzing of the readers and of ingest (READERS.md §4, issues 9, 19, 22).
 
 Real AMC/ASF/BVH files from ../shared/data are mutated (tests/fuzzing.py) and
 read: only a MocapdbError may leave a reader, an accepted motion is finite and
 its features compute, and an ingest of mutated files never raises, stores
-only what it reports and reports every file. (The 2,400 cases take ~20 s on
-2 cores; benchmarks/bench_bvh.py times the same generator.)
+only what it reports and reports every file. Hostile numbers include lost
+tracking as trackers write it (``1.#QNAN``, 1e36); cases are also packed as
+compressed files and zip members, the packing sometimes damaged, and folders
+hold FIFOs and files with control characters in their names. (The 2,400
+cases take ~20 s on 2 cores; benchmarks/bench_bvh.py times the same generator.)
 """
+import os
+
 import numpy as np
 import pytest
 
 import mocapdb
 from conftest import DATA
-from fuzzing import mutate
+from fuzzing import mutate, pack
 from mocapdb.errors import MocapdbError
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
@@ -106,5 +111,46 @@ def test_ingest_of_mutated_files_never_raises_and_reports_every_file(sources, tm
         # identical intact copies are stored once; identical broken ones fail alike
         for path, reason in report.failed:
             assert path in reason or "same bytes as" in reason
+    finally:
+        con.close()
+
+
+def test_packed_and_hostile_files_never_escape(sources, tmp_path):
+    """Mutated files packed as .gz, .bz2, .xz or zip members (the packing damaged in a quarter of the
+    cases): reading any of them raises only a MocapdbError naming it, and an ingest of the folder —
+    with a FIFO and a control character in a file name beside them — reports every file."""
+    rng = np.random.default_rng(19)
+    folder = tmp_path / "packed"
+    folder.mkdir()
+    (folder / "HDM_bd.asf").write_bytes(ASF.read_bytes())
+    escaped, refused, accepted, paths = [], 0, 0, []
+    for case in range(300):
+        kind, data, asf = sources[int(rng.integers(0, len(sources)))]
+        if kind == "asf" or asf not in (ASF, None):
+            continue
+        name = f"HDM_bd_p{case:03d}\x1b.{kind}" if case % 50 == 0 else f"HDM_bd_p{case:03d}.{kind}"
+        path = pack(mutate(data, rng) if case % 3 else data, name, folder, rng)
+        paths.append(path)
+        try:
+            read_motion(path, asf=ASF if kind == "amc" else None)
+            accepted += 1
+        except MocapdbError as exc:
+            refused += 1
+            assert "\x1b" not in str(exc), f"case {case}: a raw control character: {exc!r}"
+        except Exception as exc:  # noqa: BLE001 - the property under test
+            escaped.append((case, path.name, f"{type(exc).__name__}: {exc}"))
+    assert not escaped, escaped[:5]
+    assert accepted > 20 and refused > 20, (accepted, refused)
+    os.mkfifo(folder / "pipe.bvh")
+    con = mocapdb.connect(tmp_path / "p.duckdb")
+    try:
+        report = mocapdb.ingest(con, [folder], asf=ASF)
+        seen = {p for p, *_ in report.ingested} | {p for p, _ in report.skipped} | {p for p, _ in report.failed}
+        # a zip archive too damaged to list its members is reported as unreadable, in their stead
+        damaged = {p for p, why in report.unreadable if why.startswith("unreadable archive")}
+        assert seen | {str(p) for p in paths if str(p).split(".zip/")[0] + ".zip" in damaged} \
+            == {str(p) for p in paths}
+        assert (str(folder / "pipe.bvh"), "a FIFO (named pipe), not a regular file") in report.unsupported
+        assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == len(report.ingested)
     finally:
         con.close()

@@ -21,7 +21,8 @@ from mocapdb.readers.bvh_write import (CMU_BONE_NAMES, euler_angles, write_bvh)
 from mocapdb.readers.mapping import (load_mapping)
 from mocapdb.readers.c3dfile import (C3dPoints, read_c3d_points)
 from mocapdb.readers.c3d import (fit_bone_lengths, read_c3d)
-from mocapdb.readers.files import (SUPPORTED_EXTENSIONS, find_skeleton, load_skeleton, read_asf_amc, read_motion, skeleton_candidates)
+from mocapdb.readers.files import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton, load_skeleton, read_asf_amc,
+                                   read_motion, skeleton_candidates, skeleton_note)
 
 __all__ = [
     "JOINT_NAMES", "JOINT_INDEX", "MIRROR_JOINTS", "Motion", "Bone", "Skeleton", "read_asf", "parse_asf",
@@ -31,6 +32,6 @@ __all__ = [
     "BvhHierarchy", "BvhData", "read_bvh", "bvh_joint_map", "joint_map_template", "JointMap", "SkeletonTree",
     "map_humanoid", "snap_rate", "check_rate", "check_finite_motion", "COMMON_RATES", "MAX_RATE", "parse_bvh", "bvh_node_positions", "bvh_to_motion",
     "write_bvh", "euler_angles", "CMU_BONE_NAMES", "read_motion", "read_asf_amc", "find_skeleton",
-    "skeleton_candidates", "load_skeleton", "SUPPORTED_EXTENSIONS", "load_mapping",
+    "skeleton_candidates", "skeleton_note", "load_skeleton", "SUPPORTED_EXTENSIONS", "READER_OPTIONS", "load_mapping",
     "C3dPoints", "read_c3d_points", "read_c3d", "fit_bone_lengths",
 ]

@@ -34,6 +34,7 @@ from mocapdb._numba import jit
 from mocapdb.readers.textscan import (_CLASS, _is_space, _scan_number, fix_slow_numbers, line_of,
                         number_error, token_at, truncation_hint)
 from mocapdb.readers.asf import Skeleton
+from mocapdb.readers.sources import read_bytes
 from mocapdb.errors import ParseError
 
 __all__ = ["AmcMotion", "read_amc", "parse_amc", "DEFAULT_FPS"]
@@ -337,16 +338,18 @@ def read_amc(path, skeleton: Skeleton) -> AmcMotion:
     FEATURES.md §1, §2.2, §9.
     """
     path = Path(path)
-    return parse_amc(path.read_bytes(), skeleton, path=path)
+    return parse_amc(read_bytes(path), skeleton, path=path)
 
 
 def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     """Parse the bytes of an AMC file. See :func:`read_amc`."""
     path = str(path)
     start, fps, unit = _parse_header(data, path)
+    fps_source = ":SAMPLES-PER-SECOND"
     if fps is None:
         # no :SAMPLES-PER-SECOND: the rate the ASF's documentation notes, else
         # the toolbox's default
+        fps_source = "the ASF's :documentation" if skeleton.documented_fps else "the default"
         fps = skeleton.documented_fps or DEFAULT_FPS
     if unit is None:
         unit = skeleton.angle_unit
@@ -402,7 +405,7 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
                      describe=describe)
     out = out[:int(status[7])]
     return AmcMotion(values=out, columns=columns, dof_names=dof_names, fps=fps,
-                     angle_unit=unit, first_frame=first, path=path)
+                     angle_unit=unit, first_frame=first, path=path, meta={"fps_source": fps_source})
 
 
 def _min_frame_bytes(data: bytes, start: int, ndof_of: dict) -> int:

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParseError
+from mocapdb.readers.sources import read_bytes
 
 __all__ = ["Bone", "Skeleton", "read_asf", "parse_asf", "INCH_TO_TOOLBOX",
            "ROOT_DOFS", "BONE_DOFS"]
@@ -216,7 +217,7 @@ def read_asf(path) -> Skeleton:
     FEATURES.md §1, §2.2.
     """
     path = Path(path)
-    return parse_asf(path.read_bytes(), path=path)
+    return parse_asf(read_bytes(path), path=path)
 
 
 def parse_asf(data: bytes | str, *, path="<asf>") -> Skeleton:

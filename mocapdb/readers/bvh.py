@@ -9,8 +9,15 @@ places the 24 canonical joints:
 * files written with ASF bone names (:func:`mocapdb.readers.bvh_write.write_bvh`)
   take the exact ASF points (FEATURES.md §2.2);
 * any other humanoid goes through :func:`mocapdb.readers.humanoid.map_humanoid`
-  (names with prefixes stripped, else topology);
+  (names with prefixes stripped, else topology; :mod:`~mocapdb.readers.bvh_mapping`)
+  and must then be a human (:func:`~mocapdb.readers.humanoid.humanoid_problem`:
+  plausible proportions, upright in its rest pose or in some frames);
 * a user ``joint_map`` overrides either.
+
+The motion lines are parsed 4 MiB at a time (:func:`parse_bvh_stream`), so a
+file is never held whole; lost tracking (``NaN``, ``inf`` or absurd values)
+is mended or cut (:mod:`~mocapdb.readers.bvh_tracking`), and
+``Motion.meta["notes"]`` says so.
 
 BVH semantics (the common reading of the format, as bvhio, MotionBuilder and
 Blender):
@@ -37,6 +44,7 @@ FEATURES.md §2.2, §2.3b; READERS.md §1, §2, §4; DESIGN.md §6.
 """
 from __future__ import annotations
 
+import io
 import math
 import re
 import threading
@@ -47,14 +55,16 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.humanoid import (Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, hip_axis_is_x,
-                                     map_humanoid, mapping_template)
+from mocapdb.readers.bvh_mapping import auto_map, bvh_joint_map, plan
+from mocapdb.readers.bvh_tracking import lost_samples, mend, pose_frame
+from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import ASF_JOINT_BONES, _rotate_columns
+from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
-from mocapdb.readers.textscan import line_of, parse_rows
+from mocapdb.readers.sources import motion_stem, open_stream, read_bytes, stream_size
+from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
 
-__all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "bvh_node_positions",
+__all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
            "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
 
 #: BVH channel names (case-insensitive in files) -> (kind, axis): kind 0 =
@@ -185,8 +195,43 @@ _FRAME_TIME = re.compile(rb"Frame\s*Time\s*:?\s*([^\s]*)", re.IGNORECASE)
 _MOTION = re.compile(rb"(?m)^[ \t]*MOTION\b")
 
 
+#: bytes of a BVH file read and parsed at a time: the text is never held whole
+_READ_BLOCK = 1 << 22
+
+
 def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
-    """Parse the bytes of a BVH file into hierarchy and channel values.
+    """Parse the bytes of a BVH file into hierarchy and channel values; see :func:`parse_bvh_stream`.
+
+    Raises
+    ------
+    ParseError
+        Malformed hierarchy or motion (file, line and what was expected).
+    """
+    return parse_bvh_stream(io.BytesIO(data), path=path, size=len(data))
+
+
+def _read_head(fh, path):
+    """The file's bytes up to the end of the ``Frame Time`` line (or all, if there is none), and
+    whether the stream is exhausted."""
+    head = b""
+    while True:
+        chunk = fh.read(_READ_BLOCK)
+        head += chunk
+        if not chunk:
+            return head, True
+        m = _MOTION.search(head)
+        if m is not None:
+            tm = _FRAME_TIME.search(head, m.end(), m.end() + 4096)
+            if tm is not None and head.find(b"\n", tm.end()) >= 0:
+                return head, False
+
+
+def parse_bvh_stream(fh, *, path="<bvh>", size=None) -> BvhData:
+    """Parse a BVH file from a binary stream, block by block, into hierarchy and channel values.
+
+    The header is read whole; the motion lines 4 MiB at a time into the
+    values array (sized by the stream's ``size`` when known, else grown), so
+    memory holds the channel values, not the text as well.
 
     Raises
     ------
@@ -194,22 +239,50 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
         Malformed hierarchy or motion (file, line and what was expected).
     """
     path = str(path)
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
-    if b"\n" not in data and b"\r" in data:
-        data = data.replace(b"\r", b"\n")  # classic-Mac line ends
-    m = _MOTION.search(data)
+    head, eof = _read_head(fh, path)
+    if head.startswith(b"\xef\xbb\xbf"):
+        head = head[3:]
+        size = None if size is None else size - 3
+    if b"\n" not in head and b"\r" in head:
+        head = (head + (b"" if eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
+        eof = True
+    m = _MOTION.search(head)
     if m is None:
-        if not data.lstrip().upper().startswith(b"HIERARCHY"):
+        if not head.lstrip().upper().startswith(b"HIERARCHY"):
             raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
-        raise ParseError(path, line_of(data, len(data)), "no 'MOTION' section (truncated file?)")
-    hierarchy = _cached_hierarchy(data, m.start(), path)
-    n_frames, frame_time, frames_line, start = _parse_motion_header(data, m.end(), path)
-    values = parse_rows(data, start, n_frames, hierarchy.n_channels, path, what="channel values")
-    if values.shape[0] != n_frames:
+        raise ParseError(path, line_of(head, len(head)), "no 'MOTION' section (truncated file?)")
+    hierarchy = _cached_hierarchy(head, m.start(), path)
+    n_frames, frame_time, frames_line, start = _parse_motion_header(head, m.end(), path)
+    n_cols = hierarchy.n_channels
+    rest = head[start:]
+    line_base = head.count(b"\n", 0, start)
+    values = np.empty((rows_bound(size - start if size is not None else len(rest), n_frames, n_cols), n_cols))
+    row = 0
+    while True:
+        if not eof:
+            more = fh.read(_READ_BLOCK)
+            eof = not more
+            rest += more
+        if eof:
+            block, rest = rest, b""
+        else:
+            cut = rest.rfind(b"\n") + 1
+            block, rest = rest[:cut], rest[cut:]
+        need = row + rows_bound(len(block), n_frames, n_cols)
+        if need > values.shape[0] and values.shape[0] < n_frames:
+            # a stream of unknown size: grow geometrically, never past the announced count
+            grown = np.empty((min(n_frames, max(need, 2 * values.shape[0])), n_cols))
+            grown[:row] = values[:row]
+            values = grown
+        row += parse_rows_into(block, 0, values[row:], path, n_rows=n_frames, what="channel values",
+                               first_frame=row + 1, allow_nonfinite=True, line_base=line_base)
+        line_base += block.count(b"\n")
+        if eof:
+            break
+    if row != n_frames:
         raise ParseError(path, frames_line, f"'Frames: {n_frames}' but only "
-                         f"{values.shape[0]} motion lines follow (truncated file?)")
-    return BvhData(hierarchy, values, frame_time, path)
+                         f"{row} motion lines follow (truncated file?)")
+    return BvhData(hierarchy, values[:row], frame_time, path)
 
 
 class _LazyLine:
@@ -394,9 +467,8 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
             if cur[3] is None:
                 raise t.error(p, f"joint {name!r}: no OFFSET")
             stack.pop()
-            joints[me] = BvhJoint(name=name, parent=cur[2], offset=cur[3], channels=cur[4],
-                                  channel_start=cur[7] if cur[7] is not None else n_channels,
-                                  end_site=cur[5], line=line_of(data, cur[6]))
+            joints[me] = (name, cur[2], cur[3], cur[4], cur[7] if cur[7] is not None else n_channels,
+                          cur[5], cur[6])
         else:
             raise t.error(p, f"joint {name!r}: expected OFFSET, CHANNELS, JOINT, End Site or '}}', "
                           f"found {tok!r}")
@@ -406,7 +478,13 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
         if tok.upper() == "ROOT":
             raise t.error(p, "a second ROOT: only one skeleton per file is supported")
         raise t.error(p, f"expected 'MOTION', found {tok!r}")
-    return BvhHierarchy(tuple(joints), n_channels)
+    # line numbers of all joints in one pass (one count from the file's start per joint made
+    # 100,000 siblings quadratic)
+    newlines = np.flatnonzero(np.frombuffer(data, dtype=np.uint8, count=end) == 10)
+    lines = np.searchsorted(newlines, [j[6] for j in joints]) + 1
+    return BvhHierarchy(tuple(BvhJoint(name=j[0], parent=j[1], offset=j[2], channels=j[3], channel_start=j[4],
+                                       end_site=j[5], line=int(line)) for j, line in zip(joints, lines)),
+                        n_channels)
 
 
 # ----------------------------------------------------------------------------
@@ -490,166 +568,6 @@ def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0, needed=None):
     return origins, ends, rot
 
 
-# ----------------------------------------------------------------------------
-# mapping
-
-def _asf_map(hier: BvhHierarchy, tree: SkeletonTree) -> JointMap | None:
-    """The exact ASF points when the file uses ASF bone names (our writer)."""
-    names = {nm.lower(): k for k, nm in enumerate(tree.names)}
-    need = set(ASF_JOINT_BONES.values()) | {"root"}
-    if not need <= names.keys():
-        return None
-    weights = np.zeros((len(JOINT_NAMES), tree.n))
-    how = {}
-    for j in JOINT_NAMES:
-        bone = ASF_JOINT_BONES[j]
-        if j == "root":
-            point = names["root"]
-        else:
-            k = names[bone]
-            # a bone's tip: its End Site, or the origin of its first child joint
-            point = names.get(f"{bone}/end")
-            if point is None:
-                kids = hier.children(k)
-                if not kids:
-                    return None
-                point = kids[0]
-        weights[JOINT_INDEX[j], point] = 1.0
-        how[j] = (tree.names[point], "ASF bone names")
-    return JointMap(weights, names["root"], how)
-
-
-def _user_map(tree: SkeletonTree, joint_map: dict, auto: JointMap | None, path) -> JointMap:
-    names = {nm.lower(): k for k, nm in enumerate(tree.names)}
-    weights = np.zeros((len(JOINT_NAMES), tree.n)) if auto is None else auto.weights.copy()
-    how = {} if auto is None else dict(auto.how)
-    for j, value in joint_map.items():
-        items = [value] if isinstance(value, str) else value
-        row = np.zeros(tree.n)
-        for item in items:
-            k = names.get(item.lower())
-            if k is None:
-                raise ParseError(path, None, f"joint_map: {j} = {item!r}: no such joint in this file "
-                                 f"(its joints: {', '.join(n for n, jt in zip(tree.names, tree.is_joint) if jt)}"
-                                 "; an End Site is 'Joint/end')")
-            row[k] += 1.0 / len(items)
-        weights[JOINT_INDEX[j]] = row
-        how[j] = (value, "joint_map")
-    missing = [j for j in JOINT_NAMES if not weights[JOINT_INDEX[j]].any()]
-    if missing:
-        raise ParseError(path, None, f"joint_map places {len(JOINT_NAMES) - len(missing)} of 24 joints and "
-                         f"the automatic mapping failed; add {', '.join(missing)}")
-    root = joint_map.get("root")
-    if isinstance(root, str):
-        rot_point = names[root.lower()]
-    else:
-        rot_point = auto.rotation_point if auto is not None else 0
-    if not tree.is_joint[rot_point]:
-        rot_point = int(tree.parent[rot_point])
-    return JointMap(weights, rot_point, how)
-
-
-_MAP_CACHE: dict = {}
-_MAP_LOCK = threading.Lock()
-
-
-def bvh_joint_map(hier: BvhHierarchy, *, joint_map: dict | None = None, path="<bvh>", pose=None) -> JointMap:
-    """Where the 24 canonical joints are in a BVH skeleton (cached per skeleton).
-
-    ``pose`` (a callable giving the points of one motion frame) is used when
-    the rest pose is not an upright body.
-
-    Raises
-    ------
-    ParseError
-        Not a humanoid the mapper can read, and no complete ``joint_map``:
-        the message names the file's joints and the canonical joints it
-        could not place, and how to get a mapping template.
-    """
-    return _plan(hier, joint_map, path, pose)[0]
-
-
-def _plan(hier: BvhHierarchy, joint_map, path, pose):
-    """(JointMap, gather arrays, joints FK must compute), cached per parsed hierarchy.
-
-    Hierarchies are cached per header (:func:`_cached_hierarchy`), so the
-    files of one skeleton share one object and one plan.
-    """
-    key = (id(hier), None if joint_map is None else repr(sorted(joint_map.items())))
-    with _MAP_LOCK:
-        hit = _MAP_CACHE.get(key)
-    if hit is not None and hit[0] is hier:
-        return hit[1]
-    jm = _map_skeleton(hier, joint_map, path, pose)
-    plan = (jm, *_gather(jm, hier))
-    with _MAP_LOCK:
-        if len(_MAP_CACHE) > 256:
-            _MAP_CACHE.clear()
-        _MAP_CACHE[key] = (hier, plan)
-    return plan
-
-
-def _gather(jm: JointMap, hier: BvhHierarchy):
-    """Per canonical joint its points and weights; the joints FK needs (used points and their ancestors)."""
-    nj = len(hier.joints)
-    width = max(1, int((jm.weights != 0).sum(axis=1).max()))
-    point = np.zeros((len(JOINT_NAMES), width), dtype=np.int64)
-    weight = np.zeros((len(JOINT_NAMES), width))
-    for j in range(len(JOINT_NAMES)):
-        nz = np.flatnonzero(jm.weights[j])
-        point[j, :len(nz)] = nz
-        weight[j, :len(nz)] = jm.weights[j, nz]
-    end_of = np.array([k for k, j in enumerate(hier.joints) if j.end_site is not None] or [0], dtype=np.int64)
-    needed = np.zeros(nj, dtype=np.bool_)
-    for p in set(point[weight != 0].tolist()) | {jm.rotation_point}:
-        k = p if p < nj else int(end_of[p - nj])
-        while k >= 0 and not needed[k]:
-            needed[k] = True
-            k = hier.joints[k].parent
-    return point, weight, end_of, needed
-
-
-def _auto_map(hier: BvhHierarchy, tree: SkeletonTree, pose=None):
-    """(JointMap or None, the MappingError of the first failure or None): ASF bone
-    names exactly, else the humanoid mapper — Y up, as BVH has it; a rest pose on
-    its side judged by a frame of the motion (``pose``); a Z-up file turned to Y
-    up (READERS.md §2)."""
-    exact = _asf_map(hier, tree)
-    if exact is not None:
-        return exact, None
-
-    def poses():
-        yield tree.rest
-        if pose is not None:
-            yield pose()
-
-    problem = None
-    for up in (None, Z_UP_TO_Y_UP):
-        for xyz in poses():
-            try:
-                found = map_humanoid(tree, xyz if up is None else xyz @ up.T)
-            except MappingError as exc:
-                problem = problem or exc
-                continue
-            return (found if up is None else replace(found, up=up)), None
-    return None, problem
-
-
-def _map_skeleton(hier, joint_map, path, pose) -> JointMap:
-    tree = hier.tree()
-    auto, problem = _auto_map(hier, tree, pose)
-    if joint_map:
-        return _user_map(tree, joint_map, auto, path)
-    if auto is None:
-        own = [n for n, j in zip(tree.names, tree.is_joint) if j]
-        missing = problem.missing or [j for j in JOINT_NAMES if j not in problem.partial]
-        raise ParseError(path, None, f"not a humanoid skeleton mocapdb can map: {problem}; "
-                         f"its {len(own)} joints: {', '.join(own[:40])}{' …' if len(own) > 40 else ''}; "
-                         f"could not place: {', '.join(missing)}. Write a joint map (template: "
-                         f"mocapdb joint-map-template {path} > map.toml) and ingest with --joint-map map.toml")
-    return auto
-
-
 def joint_map_template(path) -> str:
     """A ready-to-edit TOML joint map for a BVH file, filled with what the automatic mapping places.
 
@@ -659,11 +577,11 @@ def joint_map_template(path) -> str:
         The file's hierarchy is malformed.
     """
     path = Path(path)
-    data = path.read_bytes()
+    data = read_bytes(path)
     m = _MOTION.search(data)
     hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
     tree = hier.tree()
-    auto, problem = _auto_map(hier, tree)
+    auto, problem, _ = auto_map(hier, tree)
     return mapping_template(tree, auto.how if auto is not None else problem.partial, source=str(path))
 
 
@@ -783,8 +701,9 @@ def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
     FEATURES.md §2.3b; READERS.md §2.
     """
     path = Path(path)
-    data = parse_bvh(path.read_bytes(), path=path)
-    return bvh_to_motion(data, joint_map=joint_map, skip_rest_frame=skip_rest_frame, name=path.stem)
+    with open_stream(path) as fh:
+        data = parse_bvh_stream(fh, path=path, size=stream_size(path))
+    return bvh_to_motion(data, joint_map=joint_map, skip_rest_frame=skip_rest_frame, name=motion_stem(path))
 
 
 def _placed(how):
@@ -792,20 +711,50 @@ def _placed(how):
     return name if name is not None else why
 
 
+#: joint positions per block of forward kinematics (the per-joint arrays of one block, not of the take)
+_FK_POINTS = 1 << 18
+
+
+def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed):
+    """The 24 canonical joints (n, 24, 3) and the pelvis rotation (n, 3, 3), forward kinematics in
+    blocks of frames: memory holds the take's channels and joints, never every joint's path."""
+    n = data.values.shape[0]
+    joints = np.empty((n, len(JOINT_NAMES), 3))
+    rot = np.empty((n, 3, 3))
+    step = max(256, _FK_POINTS // max(len(data.hierarchy.joints), 1))
+    for a in range(0, n, step):
+        block = BvhData(data.hierarchy, data.values[a:a + step], data.frame_time, data.path)
+        origins, ends, r = bvh_node_positions(block, rotation_joint=jm.rotation_point, needed=needed)
+        joints[a:a + len(r)] = _combine(point, weight, end_of, origins, ends)
+        rot[a:a + len(r)] = r
+    return joints, rot
+
+
 def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="") -> Motion:
     """The canonical joints of a parsed BVH file; see :func:`read_bvh`."""
     if joint_map is not None and not isinstance(joint_map, dict):
         raise ParameterError(f"joint_map must be a dict (see mocapdb.readers.load_mapping), got {joint_map!r}")
     hier = data.hierarchy
+    values = data.values
+    bad = lost_samples(values, hier)
+    pose_at = pose_frame(values, bad)
 
-    def first_frame():
-        o, e, _ = bvh_node_positions(BvhData(hier, data.values[:1], data.frame_time, data.path))
+    def judged_frame():
+        frame = values[pose_at:pose_at + 1]
+        if bad is not None:
+            frame = np.where(bad[pose_at:pose_at + 1], 0.0, frame)
+        o, e, _ = bvh_node_positions(BvhData(hier, frame, data.frame_time, data.path))
         with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
         return np.concatenate([o[0], e[0, with_end]])
 
-    jm, point, weight, end_of, needed = _plan(hier, joint_map, data.path, first_frame)
-    origins, ends, rot = bvh_node_positions(data, rotation_joint=jm.rotation_point, needed=needed)
-    joints = _combine(point, weight, end_of, origins, ends)
+    jm, point, weight, end_of, needed = plan(hier, joint_map, data.path, judged_frame)
+    notes = []
+    start, stop = 0, values.shape[0]
+    if bad is not None:
+        values = values.copy()
+        start, stop = mend(values, bad, hier, needed, data.fps, data.path, notes)
+        data = replace(data, values=values[start:stop])
+    joints, rot = _joints_and_rotation(data, jm, point, weight, end_of, needed)
     up = jm.up if jm.up is not None else (Z_UP_TO_Y_UP if _z_up(joints) else None)
     if up is not None:  # a Z-up file: positions and the pelvis rotation turned to Y up
         joints = np.ascontiguousarray(joints @ up.T)
@@ -818,10 +767,19 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
             "asf" if all(w[1] == "ASF bone names" for w in jm.how.values()) else "humanoid")
     meta = {"bvh_family": kind, "frame_time": data.frame_time,
             "mapping": {j: _placed(jm.how.get(j, (None, ""))) for j in JOINT_NAMES}}
-    skip = _rest_frame(joints) if skip_rest_frame is None else bool(skip_rest_frame)
+    skip = start == 0 and (_rest_frame(joints) if skip_rest_frame is None else bool(skip_rest_frame))
     if skip and joints.shape[0] > 1:
         joints, rot = joints[1:], rot[1:]
         meta["rest_frame_skipped"] = True
+        start += 1
     check_finite_motion(joints, data.path)
+    if kind == "humanoid":
+        # the mapper finds legs, arms and a head; whether they make a human is the body's to say
+        rest = jm.weights @ hier.tree().rest
+        problem = humanoid_problem(joints, rest @ up.T if up is not None else rest)
+        if problem:
+            raise ParseError(data.path, None, f"not a human skeleton: {problem}")
+    meta["frames"] = (start + 1, stop)
+    meta["notes"] = notes
     return Motion(joints=np.ascontiguousarray(joints), root_rotation=rot if asf_axes else None,
                   fps=data.fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)

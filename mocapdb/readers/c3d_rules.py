@@ -1,123 +1,84 @@
-"""Marker names and the rules that place the 24 canonical joints from C3D markers.
+"""The rules that place the 24 canonical joints from C3D markers, written once per anatomical point.
 
-Three sources of rules, tried per joint in this order:
+Four sources of rules, tried per joint in this order:
 
-1. **The toolbox's HDM05/CMU Vicon marker set** (FEATURES.md §2.4.4–§2.4.5,
-   ``LCS/callbackFunctions/*_default.m``): the 29 markers LFHD … RMT5 by
-   their exact names. A file whose 24 joints all come from these rules is
-   read exactly as the toolbox reads it, bone-length fit included
-   (:mod:`~mocapdb.readers.c3d`).
-2. **Anatomical roles** (READERS.md §3): Vicon Plug-in Gait names (LASI,
-   LPSI/SACR, LKNE, LANK, LTOE, LSHO, LELB, LWRA/LWRB, LFIN, LFHD…) and
-   ISB-style landmarks (Qualisys: L_IAS/L_IPS, L_FLE/L_FME knee epicondyles,
-   L_FAL/L_TAM malleoli, L_FM1/L_FM5, L_HLE/L_HME elbow, L_RSP/L_UHE wrist,
-   L_HM2/L_HM5, L_SAJ acromion, L_HDF/L_HDB head, CV7, TV8, SXS, SNJ), matched
-   by name after removing the side word's separator (``L_FLE``, ``l fle``,
-   ``LeftFLE`` are one name). Joint centres are the midpoint of a medial
-   and a lateral landmark where both exist; the hip centres follow Bell et
-   al. (1990) from the pelvis landmarks; a lateral-only knee or ankle marker
-   is moved medially by a fraction of the pelvis width (Plug-in Gait without
-   its knee/ankle widths); trunk and head joints use the toolbox's weights
-   with the pelvis landmarks in place of the waist markers.
-3. **A user marker map** (``marker_map``): joint = mean of the named markers;
-   it overrides 1 and 2 for the joints it names.
+1. **The toolbox's HDM05/CMU Vicon marker set** (``LCS/callbackFunctions/*_default.m``
+   of the authors' toolbox): the 29 markers LFHD … RMT5 by their exact names.
+   A file whose 24 joints all come from these rules is read exactly as the
+   toolbox reads it, bone-length fit included (:mod:`~mocapdb.readers.c3d`).
+2. **Anatomical landmarks** (:mod:`~mocapdb.readers.c3d_names` reads any
+   vendor's label as a landmark: ``LASI``, ``L_IAS``, ``L.ASIS``, ``LASIS``
+   are all the left ASIS). Per joint, from the best landmarks first:
 
-Names are compared after :func:`marker_key`: the subject prefix up to the
-first ``:`` removed, blanks trimmed, upper case (FEATURES.md §2.4.4
-"(proposed)": exact matching, not the toolbox's prefix test), then the
-toolbox's aliases (``Left Forehead`` → LFHD, …, ``R10`` → RBAC).
+   - pelvis (root) and hips from the ASIS pair with the PSIS pair, the
+     sacrum or the lateral waist markers (a missing one of four is mirrored
+     by :mod:`~mocapdb.readers.c3d`); hip centres by Bell et al. (1990);
+   - knee and ankle: the midpoint of the lateral and medial epicondyles /
+     malleoli, or the lateral marker moved medially by a fraction of the
+     pelvis width; without malleoli the ankle follows the foot (heel, toes
+     and knee);
+   - toes from the toe / metatarsal markers;
+   - shoulder from the acromion, or the midpoint of front and back shoulder
+     markers; elbow from the epicondyles or the lateral marker; wrist from
+     the styloids (inner/outer wrist markers), or a single wrist marker;
+     fingers from finger, knuckle or hand markers;
+   - neck from C7 with the sternum / thoracic markers; head and head top
+     from head markers with C7 (the toolbox's weights); belly and chest from
+     the thoracic markers and the pelvis.
+3. **Derived from the trunk** (:data:`DERIVED`): where a set has no marker
+   for a joint that the features need but no limb gives, it is placed from
+   joints already placed, in the trunk's frame (up = root → neck, forward =
+   up × (rshoulder − lshoulder)), with proportions measured on the HDM05
+   and CMU recordings (toolbox joints of five takes, ``benchmarks/RESULTS.md``):
+   neck between the shoulders, head and head top above the neck, belly and
+   chest on the spine, fingers beyond the wrist along the forearm. Each such
+   rule carries a note that the ingest summary shows.
+4. **A user marker map** (``marker_map``): joint = mean of the named markers;
+   it overrides 1–3 for the joints it names.
+
+A set that cannot place the pelvis, both legs (hip, knee, ankle, toes) and
+both arms (shoulder, elbow, wrist) is refused, naming what is missing
+(:data:`REQUIRED`); every other joint then has a rule.
 
 References
 ----------
-FEATURES.md §2.4; READERS.md §3. A. L. Bell, R. A. Brand, D. R. Pedersen:
-Prediction of hip joint centre location from external landmarks. Human
-Movement Science 8 (1989) 3–16 (the 0.19/0.30/0.36 pelvis-width regression as
-used by Davis et al. 1991 and Plug-in Gait). G. Wu et al.: ISB
-recommendation on definitions of joint coordinate systems, J. Biomech. 35
-(2002) 543–548 and 38 (2005) 981–992 (landmark names).
+A. L. Bell, R. A. Brand, D. R. Pedersen: Prediction of hip joint centre
+location from external landmarks. Human Movement Science 8 (1989) 3–16 (the
+0.19/0.30/0.36 pelvis-width regression as used by Davis et al. 1991 and
+Plug-in Gait). G. Wu et al.: ISB recommendation on definitions of joint
+coordinate systems, J. Biomech. 35 (2002) 543–548 and 38 (2005) 981–992.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from mocapdb.readers.c3d_names import TOOLBOX_ALIASES, landmark_of, marker_key
 from mocapdb.readers.joints import JOINT_NAMES
 
-__all__ = ["Rule", "marker_key", "compact_key", "TOOLBOX_ALIASES", "TOOLBOX_MARKERS", "ROLE_ALIASES",
-           "MarkerIndex", "candidate_rules", "mapped_rule", "TOOLBOX", "ROLES", "MAPPED"]
+__all__ = ["Rule", "marker_key", "TOOLBOX_ALIASES", "TOOLBOX_MARKERS", "MarkerIndex", "candidate_rules",
+           "mapped_rule", "TOOLBOX", "ROLES", "DERIVED", "MAPPED", "REQUIRED", "PELVIS_QUAD", "MARKER_RULES"]
 
-TOOLBOX, ROLES, MAPPED = "toolbox", "roles", "marker_map"
+TOOLBOX, ROLES, DERIVED, MAPPED = "toolbox", "roles", "derived", "marker_map"
 
-#: the toolbox's label aliases (``mapLabelNamesToVicon.m``), matched exactly and case-insensitively
-TOOLBOX_ALIASES = {"LEFT FOREHEAD": "LFHD", "LEFTFHD": "LFHD", "RIGHT FOREHEAD": "RFHD", "RIGHTFHD": "RFHD",
-                   "LARM": "LFRM", "RARM": "RFRM", "RLEG": "RSHN", "LLEG": "LSHN", "R10": "RBAC"}
-
-#: the 29 markers the toolbox's joint formulas use (FEATURES.md §2.4.4)
+#: the 29 markers the toolbox's joint formulas use
 TOOLBOX_MARKERS = ("LFHD", "RFHD", "LBHD", "RBHD", "C7", "T10", "STRN", "LSHO", "LELB", "LWRA", "LWRB",
                    "LFIN", "RSHO", "RELB", "RWRA", "RWRB", "RFIN", "LFWT", "RFWT", "LBWT", "RBWT",
                    "LKNE", "LANK", "LTOE", "LMT5", "RKNE", "RANK", "RTOE", "RMT5")
 
-_SIDE_WORDS = {"l": ("L", "LEFT"), "r": ("R", "RIGHT")}
+#: joints a marker set must place from its markers (pelvis, both legs, both arms); the others
+#: can be derived from these
+REQUIRED = ("root", "lhip", "lknee", "lankle", "ltoes", "rhip", "rknee", "rankle", "rtoes",
+            "lshoulder", "lelbow", "lwrist", "rshoulder", "relbow", "rwrist")
 
-#: anatomical role -> compact names (``{s}`` = side letter or word), first match wins
-_SIDED = {
-    "asis": ("{s}ASI", "{s}ASIS", "{s}IAS", "{s}FWT"),
-    "psis": ("{s}PSI", "{s}PSIS", "{s}IPS", "{s}BWT"),
-    "knee_lat": ("{s}KNE", "{s}KNEE", "{s}FLE", "{s}LFE", "{s}KNEE1", "{s}LKNE", "{s}KNEL", "{s}LATKNEE"),
-    "knee_med": ("{s}KNM", "{s}KNEM", "{s}MKNE", "{s}FME", "{s}MFE", "{s}KNEE2", "{s}MEDKNEE", "{s}KNEEMED"),
-    "ankle_lat": ("{s}ANK", "{s}ANKLE", "{s}FAL", "{s}LMAL", "{s}MALL", "{s}LATMALL", "{s}ANKL"),
-    "ankle_med": ("{s}MED", "{s}MMAL", "{s}TAM", "{s}MEDMALL", "{s}ANKM"),
-    "toe": ("{s}TOE", "{s}FM2", "{s}MT2", "{s}MET2"),
-    "mt1": ("{s}FM1", "{s}MT1", "{s}MET1"),
-    "mt5": ("{s}MT5", "{s}FM5", "{s}MET5", "{s}MET"),
-    "sho": ("{s}SHO", "{s}SHOU", "{s}SHOULDER", "{s}SHOULD", "{s}SAJ", "{s}ACR", "{s}ACROMION"),
-    "elb_lat": ("{s}ELB", "{s}ELBOW", "{s}HLE", "{s}LEL", "{s}ELBL", "{s}LATELB"),
-    "elb_med": ("{s}HME", "{s}MEL", "{s}MELB", "{s}ELBM", "{s}MEDELB"),
-    "wra": ("{s}WRA", "{s}RSP", "{s}WRR", "{s}RADSTY"),
-    "wrb": ("{s}WRB", "{s}UHE", "{s}USP", "{s}WRU", "{s}ULNSTY"),
-    "fin": ("{s}FIN", "{s}HAND", "{s}FING"),
-    "mcp2": ("{s}HM2", "{s}MCP2"),
-    "mcp5": ("{s}HM5", "{s}MCP5"),
-    "fhd": ("{s}FHD", "{s}HDF", "{s}FH", "{s}FRONTHEAD"),
-    "bhd": ("{s}BHD", "{s}HDB", "{s}BH", "{s}BACKHEAD"),
-}
-_CENTRAL = {
-    "c7": ("C7", "CV7", "VC7"),
-    "t10": ("T10", "TV10", "T8", "TV8", "T9"),   # the thoracic marker: T8 stands in for T10
-    "clav": ("CLAV", "SNJ", "IJ", "JN", "SJN"),
-    "strn": ("STRN", "SXS", "PX", "XP", "XIPH", "STERNUM"),
-    "sacr": ("SACR", "SACRUM", "SACRAL"),
-}
-
-#: role name (``l_asis``, ``c7``, …) -> compact names, in order of preference
-ROLE_ALIASES = {**{f"{side}_{role}": tuple(p.format(s=w) for p in pats for w in _SIDE_WORDS[side])
-                   for role, pats in _SIDED.items() for side in "lr"},
-                **_CENTRAL}
-
-_SEPARATORS = re.compile(r"[\s_\-.]+")
-
-
-def marker_key(label: str) -> str:
-    """A label as the toolbox rules compare it: prefix to the first ``:`` removed, trimmed, upper case, aliases.
-
-    ``"Daniel:LFHD"`` → ``"LFHD"``, ``"A:B:LFHD"`` → ``"B:LFHD"`` (FEATURES.md §2.4.4),
-    ``"left forehead"`` → ``"LFHD"``.
-    """
-    key = label.split(":", 1)[1] if ":" in label else label
-    key = key.strip().upper()
-    return TOOLBOX_ALIASES.get(key, key)
-
-
-def compact_key(label: str) -> str:
-    """:func:`marker_key` without blanks, ``_``, ``-`` and ``.``: the form role aliases are compared in."""
-    return _SEPARATORS.sub("", marker_key(label))
+#: the four pelvis landmarks of which a missing one is mirrored from the other three
+PELVIS_QUAD = ("l_asis", "r_asis", "l_psis", "r_psis")
 
 
 class MarkerIndex:
-    """Where each marker of a file is: by toolbox name, by role and by (marker-map) name.
+    """Where each marker of a file is: by toolbox name, by landmark and by (marker-map) name.
 
     Parameters
     ----------
@@ -130,29 +91,45 @@ class MarkerIndex:
 
     def __init__(self, labels, usable):
         self.labels = tuple(labels)
-        self._exact, self._compact = {}, {}
+        self._exact, self._compact, self._landmarks = {}, {}, {}
         for i, (label, ok) in enumerate(zip(self.labels, usable)):
             if not ok:
                 continue
             self._exact.setdefault(marker_key(label), i)
-            self._compact.setdefault(compact_key(label), i)
+            self._compact.setdefault(_compact(label), i)
+            landmark = landmark_of(label)
+            if landmark is not None:
+                self._landmarks.setdefault(landmark, i)
+
+    def add(self, landmark: str, label: str) -> int:
+        """Register a point computed from others (a mirrored pelvis landmark) under ``landmark``; its index."""
+        i = len(self.labels)
+        self.labels += (label,)
+        self._landmarks[landmark] = i
+        return i
+
+    def landmarks(self) -> dict:
+        """``{landmark: point index}`` of every landmark the file has."""
+        return dict(self._landmarks)
 
     def find(self, name: str, source: str = TOOLBOX):
         """Point index of a marker name, or None if the file has no usable point of that name.
 
         ``source`` says how ``name`` is meant: :data:`TOOLBOX` an exact toolbox
-        name (``"LFWT"``); :data:`ROLES` a role (``"l_asis"``) tried through its
-        aliases; :data:`MAPPED` a user's name, exact or up to separators.
+        name (``"LFWT"``); :data:`ROLES` / :data:`DERIVED` a landmark
+        (``"l_asis"``); :data:`MAPPED` a user's name, exact or up to separators.
         """
-        if source == ROLES:
-            for alias in ROLE_ALIASES[name]:
-                if alias in self._compact:
-                    return self._compact[alias]
-            return None
+        if source in (ROLES, DERIVED):
+            return self._landmarks.get(name)
         key = marker_key(name)
         if key in self._exact or source == TOOLBOX:
             return self._exact.get(key)
-        return self._compact.get(compact_key(name))
+        return self._compact.get(_compact(name))
+
+
+def _compact(label: str) -> str:
+    """:func:`marker_key` without blanks, ``_``, ``-`` and ``.``: how a marker map's names are compared."""
+    return "".join(ch for ch in marker_key(label) if ch not in " \t_-.")
 
 
 @dataclass(frozen=True)
@@ -164,15 +141,19 @@ class Rule:
     joint : str
         Canonical joint.
     source : str
-        :data:`TOOLBOX`, :data:`ROLES` or :data:`MAPPED`.
+        :data:`TOOLBOX`, :data:`ROLES`, :data:`DERIVED` or :data:`MAPPED`.
     markers : tuple of str
-        Marker names (toolbox names, roles or the user's names) the formula reads.
+        Marker names (toolbox names, landmarks or the user's names) the formula reads; all needed.
     formula : callable
         ``formula(m)`` with ``m[name]`` an ``(n_frames, 3)`` array per marker
         name returns the joint, ``(n_frames, 3)``.
     joints : tuple of str
         Joints the formula needs placed first (passed in ``m`` under their name
         prefixed with ``@``).
+    any_of : tuple of str
+        Landmarks of which at least one is needed; the formula gets those the file has.
+    note : str or None
+        What the ingest summary says when the rule is used (derived joints).
     """
 
     joint: str
@@ -180,6 +161,8 @@ class Rule:
     markers: tuple
     formula: Callable
     joints: tuple = ()
+    any_of: tuple = ()
+    note: str | None = None
 
 
 def _norm(v):
@@ -193,8 +176,7 @@ def _unit(v):
 
 
 # --------------------------------------------------------------------------
-# 1. the toolbox's formulas (FEATURES.md §2.4.5), in its order of operations
-
+# 1. the toolbox's formulas, in its order of operations
 def _toolbox_hip(front, back, other_back, *, left):
     def f(m):
         v1 = m[back] - m[front]
@@ -244,7 +226,7 @@ def _toolbox_rules():
 
 
 def _toolbox_finger_fallbacks():
-    """The toolbox's rfingers without RFIN (FEATURES.md §2.4.7) and its mirror for lfingers (proposed)."""
+    """The toolbox's rfingers without RFIN and its mirror for lfingers."""
     out = []
     for s, o in (("R", "L"), ("L", "R")):
         keys = (f"{s}WRA", f"{s}WRB", f"{o}FIN", f"{o}WRA")
@@ -254,13 +236,24 @@ def _toolbox_finger_fallbacks():
 
 
 # --------------------------------------------------------------------------
-# 2. anatomical roles
+# 2. anatomical landmarks
 
 #: Bell et al.: hip centre from the mid-ASIS point, in pelvis widths (posterior, inferior, lateral)
 BELL = (0.19, 0.30, 0.36)
 #: a lateral-only knee / ankle marker lies this many pelvis widths from the joint centre (half a
 #: typical knee width of 0.4 and ankle width of 0.28 pelvis widths, plus the marker's radius)
 MEDIAL_OFFSET = {"knee": 0.22, "ankle": 0.16}
+#: a lateral elbow marker lies this many upper-arm lengths from the elbow centre (half a typical
+#: elbow width of 6.5 cm plus the marker's radius, for a 31 cm humerus: Plug-in Gait places the
+#: centre so from the measured elbow width)
+ELBOW_MEDIAL = 0.13
+#: the ankle centre from the heel marker, in heel-to-toe lengths: along the foot and up the
+#: shank (medians of 12 feet with malleolus, heel and toe markers: HDM05, CMU, ISB, Qualisys,
+#: Vicon; spread ±0.05)
+ANKLE_FROM_HEEL = (0.33, 0.23)
+
+#: what may stand behind the ASIS pair to give the pelvis its forward direction
+_BACKS = {"psis": ("l_psis", "r_psis"), "sacr": ("sacr",), "waist_mid": ("l_waist_mid", "r_waist_mid")}
 
 
 def _mean(*keys):
@@ -268,7 +261,8 @@ def _mean(*keys):
 
 
 def _pelvis_back(m, back):
-    return (m["l_psis"] + m["r_psis"]) / 2 if back == "psis" else m["sacr"]
+    keys = _BACKS[back]
+    return sum(m[k] for k in keys) / len(keys)
 
 
 def _pelvis_frame(m, back):
@@ -301,9 +295,37 @@ def _medial(side, key, part):
     return f
 
 
+def _elbow_centre(side, key):
+    """The elbow centre from the lateral epicondyle marker: moved medially (towards the body's
+    midline across the upper arm) by :data:`ELBOW_MEDIAL` upper-arm lengths."""
+    def f(m):
+        elbow, shoulder = m[key], m[f"@{side}shoulder"]
+        upper = elbow - shoulder
+        length = float(np.mean(_norm(upper)))
+        axis = _unit(upper)
+        right = m["@rshoulder"] - m["@lshoulder"]
+        medial = right if side == "l" else -right
+        medial = _unit(medial - np.sum(medial * axis, axis=-1, keepdims=True) * axis)
+        return elbow + ELBOW_MEDIAL * length * medial
+    return f
+
+
+def _ankle_from_foot(side):
+    """The ankle centre from the heel marker, the toes and the knee (a foot without malleolus markers)."""
+    def f(m):
+        heel, toes, knee = m[f"{side}_heel"], m[f"@{side}toes"], m[f"@{side}knee"]
+        along = toes - heel
+        length = _norm(along)
+        x = _unit(along)
+        up = knee - heel
+        up = _unit(up - np.sum(up * x, axis=-1, keepdims=True) * x)
+        return heel + length * (ANKLE_FROM_HEEL[0] * x + ANKLE_FROM_HEEL[1] * up)
+    return f
+
+
 def _trunk(back):
     """belly, chest: the toolbox's weights with ASIS for the front and PSIS (or the sacrum) for the back waist."""
-    pel = ("l_psis", "r_psis") if back == "psis" else ("sacr",)
+    pel = _BACKS[back]
 
     def b(m):
         return _pelvis_back(m, back)
@@ -316,43 +338,145 @@ def _trunk(back):
     return [Rule("belly", ROLES, keys, belly), Rule("chest", ROLES, keys + ("c7",), chest)]
 
 
+#: head markers and their weight in the head top (the toolbox: 0.15 per front, 0.35 per back marker)
+_HEAD_MARKERS = {"l_head_front": 0.3, "r_head_front": 0.3, "c_head_front": 0.3, "l_head_side": 0.5,
+                 "r_head_side": 0.5, "head_top": 0.5, "l_head_back": 0.7, "r_head_back": 0.7,
+                 "c_head_back": 0.7}
+
+
+def _head_band(m):
+    """The weighted mean of the head markers a file has (the toolbox's head top for its four)."""
+    keys = [k for k in _HEAD_MARKERS if k in m]
+    w = np.array([_HEAD_MARKERS[k] for k in keys])
+    return sum(wk * m[k] for wk, k in zip(w, keys)) / w.sum()
+
+
+def _head_mean(m):
+    keys = [k for k in _HEAD_MARKERS if k in m]
+    return sum(m[k] for k in keys) / len(keys)
+
+
+def _side_rules(s):
+    R = ROLES
+    p = f"{s}_"
+    pelvis = ("l_asis", "r_asis")
+    rules = []
+    for back, keys in _BACKS.items():
+        rules.append(Rule(f"{s}hip", R, pelvis + keys, _bell_hip(s, back)))
+    rules += [
+        Rule(f"{s}knee", R, (p + "knee_lat", p + "knee_med"), _mean(p + "knee_lat", p + "knee_med")),
+        Rule(f"{s}knee", R, (p + "knee_lat",) + pelvis, _medial(s, p + "knee_lat", "knee")),
+        Rule(f"{s}ankle", R, (p + "ankle_lat", p + "ankle_med"), _mean(p + "ankle_lat", p + "ankle_med")),
+        Rule(f"{s}ankle", R, (p + "ankle_lat",) + pelvis, _medial(s, p + "ankle_lat", "ankle")),
+        Rule(f"{s}ankle", R, (p + "heel",), _ankle_from_foot(s), joints=(f"{s}toes", f"{s}knee"),
+             note="ankles placed from heel, toes and knee (no malleolus markers)"),
+        Rule(f"{s}toes", R, (p + "toe", p + "mt5"), _mean(p + "toe", p + "mt5")),
+        Rule(f"{s}toes", R, (p + "mt1", p + "mt5"), _mean(p + "mt1", p + "mt5")),
+        Rule(f"{s}toes", R, (p + "toe",), _mean(p + "toe")),
+        Rule(f"{s}toes", R, (p + "mt5",), _mean(p + "mt5")),
+        Rule(f"{s}toes", R, (p + "mt1",), _mean(p + "mt1")),
+        Rule(f"{s}shoulder", R, (p + "acromion",), _mean(p + "acromion")),
+        Rule(f"{s}shoulder", R, (p + "shoulder_front", p + "shoulder_back"),
+             _mean(p + "shoulder_front", p + "shoulder_back")),
+        Rule(f"{s}elbow", R, (p + "elbow_lat", p + "elbow_med"), _mean(p + "elbow_lat", p + "elbow_med")),
+        Rule(f"{s}elbow", R, (p + "elbow_lat",), _elbow_centre(s, p + "elbow_lat"),
+             joints=("lshoulder", "rshoulder")),
+        Rule(f"{s}wrist", R, (p + "wrist_rad", p + "wrist_uln"), _mean(p + "wrist_rad", p + "wrist_uln")),
+        Rule(f"{s}wrist", R, (p + "wrist",), _mean(p + "wrist")),
+        Rule(f"{s}wrist", R, (p + "wrist_rad",), _mean(p + "wrist_rad")),
+        Rule(f"{s}wrist", R, (p + "wrist_uln",), _mean(p + "wrist_uln")),
+        Rule(f"{s}fingers", R, (p + "finger",), _mean(p + "finger")),
+        Rule(f"{s}fingers", R, (p + "mcp2", p + "mcp5"), _mean(p + "mcp2", p + "mcp5")),
+        Rule(f"{s}fingers", R, (p + "hand",), _mean(p + "hand")),
+        Rule(f"{s}fingers", R, (p + "mcp2",), _mean(p + "mcp2")),
+        Rule(f"{s}fingers", R, (p + "mcp5",), _mean(p + "mcp5")),
+    ]
+    return rules
+
+
 def _role_rules():
     R = ROLES
+    head = tuple(_HEAD_MARKERS)
     rules = [
         Rule("root", R, ("l_asis", "r_asis", "l_psis", "r_psis"), _mean("l_asis", "r_asis", "l_psis", "r_psis")),
         Rule("root", R, ("l_asis", "r_asis", "sacr"),
              lambda m: 0.25 * (m["l_asis"] + m["r_asis"]) + 0.5 * m["sacr"]),
+        Rule("root", R, ("l_asis", "r_asis", "l_waist_mid", "r_waist_mid"),
+             _mean("l_asis", "r_asis", "l_waist_mid", "r_waist_mid")),
         Rule("neck", R, ("c7", "strn", "t10"), lambda m: 0.7 * m["c7"] + 0.15 * m["strn"] + 0.15 * m["t10"]),
         Rule("neck", R, ("c7", "clav"), _mean("c7", "clav")),
-        Rule("head", R, ("l_fhd", "r_fhd", "l_bhd", "r_bhd", "c7"),
-             lambda m: 0.4 * (m["r_fhd"] + m["l_fhd"] + m["r_bhd"] + m["l_bhd"]) / 4 + 0.6 * m["c7"]),
-        Rule("headtop", R, ("l_fhd", "r_fhd", "l_bhd", "r_bhd"),
-             lambda m: 0.15 * m["r_fhd"] + 0.15 * m["l_fhd"] + 0.35 * m["r_bhd"] + 0.35 * m["l_bhd"]),
+        Rule("neck", R, ("c7", "strn"), lambda m: 0.7 * m["c7"] + 0.3 * m["strn"]),
+        Rule("head", R, ("c7",), lambda m: 0.4 * _head_mean(m) + 0.6 * m["c7"], any_of=head),
+        Rule("head", R, (), lambda m: 0.4 * _head_mean(m) + 0.6 * m["@neck"], joints=("neck",), any_of=head),
+        Rule("headtop", R, (), _head_band, any_of=head),
         *_trunk("psis"), *_trunk("sacr"),
     ]
     for j in ("lclavicle", "rclavicle"):
         rules.append(Rule(j, R, (), lambda m: m["@neck"], joints=("neck",)))
     for s in "lr":
-        p = f"{s}_"
-        pelvis = ("l_asis", "r_asis")
-        rules += [
-            Rule(f"{s}hip", R, pelvis + ("l_psis", "r_psis"), _bell_hip(s, "psis")),
-            Rule(f"{s}hip", R, pelvis + ("sacr",), _bell_hip(s, "sacr")),
-            Rule(f"{s}knee", R, (p + "knee_lat", p + "knee_med"), _mean(p + "knee_lat", p + "knee_med")),
-            Rule(f"{s}knee", R, (p + "knee_lat",) + pelvis, _medial(s, p + "knee_lat", "knee")),
-            Rule(f"{s}ankle", R, (p + "ankle_lat", p + "ankle_med"), _mean(p + "ankle_lat", p + "ankle_med")),
-            Rule(f"{s}ankle", R, (p + "ankle_lat",) + pelvis, _medial(s, p + "ankle_lat", "ankle")),
-            Rule(f"{s}toes", R, (p + "toe", p + "mt5"), _mean(p + "toe", p + "mt5")),
-            Rule(f"{s}toes", R, (p + "mt1", p + "mt5"), _mean(p + "mt1", p + "mt5")),
-            Rule(f"{s}toes", R, (p + "toe",), _mean(p + "toe")),
-            Rule(f"{s}toes", R, (p + "mt5",), _mean(p + "mt5")),
-            Rule(f"{s}shoulder", R, (p + "sho",), _mean(p + "sho")),
-            Rule(f"{s}elbow", R, (p + "elb_lat", p + "elb_med"), _mean(p + "elb_lat", p + "elb_med")),
-            Rule(f"{s}elbow", R, (p + "elb_lat",), _mean(p + "elb_lat")),
-            Rule(f"{s}wrist", R, (p + "wra", p + "wrb"), _mean(p + "wra", p + "wrb")),
-            Rule(f"{s}fingers", R, (p + "fin",), _mean(p + "fin")),
-            Rule(f"{s}fingers", R, (p + "mcp2", p + "mcp5"), _mean(p + "mcp2", p + "mcp5")),
-        ]
+        rules += _side_rules(s)
+    return rules
+
+
+# --------------------------------------------------------------------------
+# 3. derived from the trunk: proportions of the toolbox joints of HDM05 dg and mm and CMU
+# 85_02, 85_12 and 135_02, in units of the root-to-neck length along the trunk's up and
+# forward axes (their spread between takes: ±0.05)
+
+#: joint → (up, forward) from its origin joint
+TRUNK_PROPORTIONS = {"neck": (-0.06, -0.08),      # from the mid-shoulder point
+                     "head": (0.28, 0.05), "headtop": (0.45, 0.10),   # from the neck
+                     "belly": (0.25, -0.08), "chest": (0.58, -0.03)}  # from the root
+#: the fingers lie this fraction of the forearm beyond the wrist (HDM05: 0.41–0.49, CMU: 0.09–0.25)
+FINGERS_BEYOND_WRIST = 0.3
+
+_SHOULDERS = ("lshoulder", "rshoulder")
+
+
+def _trunk_axes(m, top):
+    """Unit up (root → ``top``), unit forward (up × left-to-right shoulders) and the root-to-top length."""
+    up_vec = top - m["@root"]
+    length = _norm(up_vec)
+    up = _unit(up_vec)
+    right = m["@rshoulder"] - m["@lshoulder"]
+    right = right - np.sum(right * up, axis=-1, keepdims=True) * up
+    return up, _unit(np.cross(up, right)), length
+
+
+def _from_trunk(joint, origin):
+    up_k, fwd_k = TRUNK_PROPORTIONS[joint]
+
+    def f(m):
+        if origin == "shoulders":
+            base = (m["@lshoulder"] + m["@rshoulder"]) / 2
+            up, fwd, length = _trunk_axes(m, base)
+        else:
+            up, fwd, length = _trunk_axes(m, m["@neck"])
+            base = m[f"@{origin}"]
+        return base + length * (up_k * up + fwd_k * fwd)
+    return f
+
+
+def _derived_rules():
+    D = DERIVED
+    trunk = ("root",) + _SHOULDERS
+    head_note = "head and headtop placed from the neck and the trunk's axis (no head markers)"
+    rules = [
+        Rule("neck", D, (), _from_trunk("neck", "shoulders"), joints=trunk,
+             note="neck placed between the shoulders (no C7 with a sternum or clavicle marker)"),
+        Rule("head", D, (), _from_trunk("head", "neck"), joints=trunk + ("neck",), note=head_note),
+        Rule("headtop", D, (), _from_trunk("headtop", "neck"), joints=trunk + ("neck",), note=head_note),
+        Rule("belly", D, (), _from_trunk("belly", "root"), joints=trunk + ("neck",),
+             note="belly and chest placed on the trunk's axis (no thoracic and sternum markers)"),
+        Rule("chest", D, (), _from_trunk("chest", "root"), joints=trunk + ("neck",),
+             note="belly and chest placed on the trunk's axis (no thoracic and sternum markers)"),
+    ]
+    for s in "lr":
+        rules.append(Rule(f"{s}fingers", D, (),
+                          lambda m, s=s: m[f"@{s}wrist"] + FINGERS_BEYOND_WRIST * (m[f"@{s}wrist"]
+                                                                                  - m[f"@{s}elbow"]),
+                          joints=(f"{s}wrist", f"{s}elbow"),
+                          note="fingers placed beyond the wrists along the forearms (no hand markers)"))
     return rules
 
 
@@ -366,11 +490,19 @@ def _by_joint(rules):
 _TOOLBOX = _by_joint(_toolbox_rules())
 _ROLES = _by_joint(_role_rules())
 _FALLBACK = _by_joint(_toolbox_finger_fallbacks())
+_DERIVED = _by_joint(_derived_rules())
 
 
-def candidate_rules(joint: str) -> list:
-    """The automatic rules for a joint, in order of preference (toolbox, roles, toolbox fallbacks)."""
-    return _TOOLBOX[joint] + _ROLES[joint] + _FALLBACK[joint]
+#: ``marker_rules`` values: the toolbox's formulas first (the reference), or anatomical landmarks only
+MARKER_RULES = ("toolbox", "anatomical")
+
+
+def candidate_rules(joint: str, marker_rules: str = "toolbox") -> list:
+    """The automatic rules for a joint, in order of preference: the toolbox's (unless
+    ``marker_rules="anatomical"``), landmarks, the toolbox's finger fallbacks, derived from the trunk."""
+    if marker_rules == "anatomical":
+        return _ROLES[joint] + _DERIVED[joint]
+    return _TOOLBOX[joint] + _ROLES[joint] + _FALLBACK[joint] + _DERIVED[joint]
 
 
 def mapped_rule(joint: str, names) -> Rule:

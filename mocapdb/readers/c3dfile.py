@@ -23,7 +23,7 @@ C3D File Format User Guide", Motion Lab Systems, 2008).
 """
 from __future__ import annotations
 
-import logging
+import contextlib
 import math
 import re
 import struct
@@ -34,8 +34,7 @@ import numpy as np
 
 from mocapdb.errors import ParseError
 from mocapdb.readers.motion import check_rate, snap_rate
-
-log = logging.getLogger("mocapdb")
+from mocapdb.readers.sources import bytes_file, plain_file, read_bytes
 
 __all__ = ["C3dPoints", "read_c3d_points", "check_layout", "printable"]
 
@@ -118,7 +117,7 @@ def _value(raw: bytes, typ: int, proc: int):
 
 
 def _parameters(buf: bytes, start: int, bound: int, proc: int, refuse) -> dict:
-    """Walk the parameter records as ezc3d does; return ``{(GROUP, PARAM): (type, first value)}``.
+    """Walk the parameter records as ezc3d does; return ``{(GROUP, PARAM): (type, first value, count, data offset)}``.
 
     Every record (name, offset word, type, dimensions, data, description)
     must lie before ``bound``; the walk ends at a zero name length or a zero
@@ -163,7 +162,7 @@ def _parameters(buf: bytes, start: int, bound: int, proc: int, refuse) -> dict:
             if data_at + size + 1 > bound:
                 refuse(f"byte {cur}: parameter {name} declares {count} elements, "
                        "more than the file holds")
-            params[(rid, raw_name)] = (typ, _value(buf[data_at:data_at + size], typ, proc), count)
+            params[(rid, raw_name)] = (typ, _value(buf[data_at:data_at + size], typ, proc), count, data_at)
             end = data_at + size + 1 + buf[data_at + size]
         if end > bound:
             refuse(f"byte {pos}: the description of {name} runs past the end of the file")
@@ -206,6 +205,11 @@ def check_layout(buf: bytes, file_size: int, *, path="<c3d>") -> dict:
         the header, as in ezc3d); ``frame_bytes``: bytes per frame of points
         and analog samples; ``data_bytes``: bytes from the data start to the
         end of the file; ``data_start``: the data start block.
+
+        ``point_bytes``: the points' share of ``frame_bytes``; ``proc``: the
+        processor type byte; ``header_rate``: the header's point rate;
+        ``analog_problem``: why the analog channels cannot be read (ANALOG:SCALE
+        or OFFSET shorter than ANALOG:USED, no GEN_SCALE), or None.
 
     Raises
     ------
@@ -260,29 +264,99 @@ def check_layout(buf: bytes, file_size: int, *, path="<c3d>") -> dict:
     sub = int(analog_rate / point_rate) if point_rate else (n_analog // analogs if analogs else 0)
     if frames < 0 or points < 0 or analogs < 0 or sub < 0:
         refuse(f"negative counts: {frames} frames, {points} points, {analogs} analog channels")
+    analog_problem = None
     if analogs and sub:
         # ezc3d indexes these per channel without a bound check (a missing OFFSET
-        # crashes the process)
+        # crashes the process): such a file is read without its analog channels
         for name in ("SCALE", "OFFSET"):
             have = sum(v[2] for (g, n), v in params.items()
                        if g == "ANALOG" and (n == name or (n.startswith(name) and n[len(name):].isdigit())))
             if have < analogs:
-                refuse(f"ANALOG:{name} has {have} values for ANALOG:USED = {analogs} channels")
+                analog_problem = analog_problem or f"ANALOG:{name} has {have} values for ANALOG:USED = {analogs} channels"
         if ("ANALOG", "GEN_SCALE") not in params:
-            refuse("ANALOG:GEN_SCALE is missing, but the file declares analog channels")
+            analog_problem = analog_problem or "ANALOG:GEN_SCALE is missing, but the file declares analog channels"
     word = 4 if is_float else 2
     return {"params": params, "frames": int(frames), "frame_bytes": 4 * word * points + word * analogs * sub,
-            "data_bytes": file_size - data_at, "data_start": data_start}
+            "point_bytes": 4 * word * points, "data_bytes": file_size - data_at, "data_start": data_start,
+            "proc": proc, "analog_problem": analog_problem, "header_rate": _float(buf[20:24], proc)}
 
 
-def _read_head(path: Path) -> tuple[bytes, int]:
-    """The header and parameter section (the parameter block pointer plus 255 blocks at most) and the file size."""
+def _read_head(path: Path) -> tuple[bytes, int, bytes | None]:
+    """The header and parameter section (the parameter block pointer plus 255 blocks at most), the
+    file size and, for a compressed file or a zip member, all its bytes (None for a plain file)."""
+    if not plain_file(path):
+        data = read_bytes(path)
+        return data[:_BLOCK * (max(data[0] if data else 1, 1) + 255)], len(data), data
     size = path.stat().st_size
     with open(path, "rb") as fh:
         head = fh.read(_BLOCK)
         if len(head) == _BLOCK:
             head += fh.read(_BLOCK * (max(head[0], 1) - 1 + 255))
-    return head, size
+    return head, size, None
+
+
+def _truncation(layout, n_frames, path):
+    """A ParseError when the data end inside a frame; None when they end on a frame boundary."""
+    frame_bytes = layout["frame_bytes"]
+    partial = layout["data_bytes"] - n_frames * frame_bytes
+    if frame_bytes and partial % frame_bytes:
+        return ParseError(path, None, f"truncated: the file declares {layout['frames']} frames but its data "
+                          f"ends {partial % frame_bytes} bytes into frame {n_frames + 1} "
+                          f"({frame_bytes} bytes per frame)")
+    return None
+
+
+def without_analogs(data: bytes, layout: dict, path) -> bytes:
+    """The file's bytes with the analog samples taken out of every frame and ``ANALOG:USED`` = 0.
+
+    For a file whose analog metadata is broken (:func:`check_layout`'s
+    ``analog_problem``): its points are intact and are read without the
+    analog channels the features never use.
+    """
+    order = _PROCESSORS[layout["proc"]]
+    data_at = _BLOCK * (layout["data_start"] - 1)
+    frame_bytes, point_bytes = layout["frame_bytes"], layout["point_bytes"]
+    n_full = max(len(data) - data_at, 0) // frame_bytes if frame_bytes else 0
+    n_full = min(n_full, layout["frames"])
+    if n_full < layout["frames"]:
+        error = _truncation(layout, n_full, path)
+        if error is not None:
+            raise error
+    head = bytearray(data[:data_at])
+    head[4:6] = struct.pack(order + "H", 0)      # header: analog samples per 3D frame
+    typ, _, _, at = layout["params"][("ANALOG", "USED")]
+    head[at:at + _TYPE_SIZE[typ]] = bytes(_TYPE_SIZE[typ])   # zero in every type (DEC floats too)
+    frames = np.frombuffer(data, dtype=np.uint8, count=n_full * frame_bytes, offset=data_at)
+    points = frames.reshape(n_full, frame_bytes)[:, :point_bytes]
+    return bytes(head) + points.tobytes()
+
+
+#: where a rate is looked for when POINT:RATE and the header have none
+_OTHER_RATES = (("TRIAL", "CAMERA_RATE"), ("TRIAL", "VIDEO_RATE"))
+
+
+def _point_rate(param_rate: float, layout: dict, path, notes) -> float:
+    """The point rate: ``POINT:RATE``, else the header's, else ``TRIAL:CAMERA_RATE`` (noted), snapped."""
+    header = layout["header_rate"]
+    header = header if math.isfinite(header) else 0.0
+    if param_rate > 0:
+        rate = param_rate
+        if header <= 0:
+            notes.append(f"rate {param_rate:g} Hz from POINT:RATE (the header's rate is {header:g})")
+    elif header > 0:
+        rate = header
+    else:
+        rate = 0.0
+        for key in _OTHER_RATES:
+            v = layout["params"].get(key)
+            if v is not None and v[1] is not None and math.isfinite(v[1]) and v[1] > 0:
+                rate = float(v[1])
+                notes.append(f"rate {rate:g} Hz from {key[0]}:{key[1]} (POINT:RATE and the header have none)")
+                break
+        if rate <= 0:
+            raise ParseError(path, None, f"no point rate: POINT:RATE is {param_rate:g}, the header's rate "
+                             f"{header:g}, and no TRIAL:CAMERA_RATE")
+    return snap_rate(check_rate(rate, path))    # 119.88 is 120
 
 
 def _strings(value) -> list:
@@ -307,23 +381,35 @@ def read_c3d_points(path) -> C3dPoints:
     Raises
     ------
     ParseError
-        The file fails :func:`check_layout`, ezc3d cannot read it, or it has
+        The file cannot be read (damaged compression or archive included),
+        fails :func:`check_layout`, ezc3d cannot read it, or it has
         no frames, a rate that is not finite, ≤ 0 or above 10 kHz, or a
         data section that ends inside a frame (truncated).
     FileNotFoundError
     """
     path = Path(path)
-    head, size = _read_head(path)
+    try:
+        head, size, data = _read_head(path)
+    except FileNotFoundError:
+        raise
+    except OSError as exc:   # unreadable, or damaged compressed data / archive
+        raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
     layout = check_layout(head, size, path=path)
+    notes = []
+    if layout["analog_problem"]:
+        data = without_analogs(data if data is not None else path.read_bytes(), layout, path)
+        notes.append(f"analog channels not read: {layout['analog_problem']} (the points do not need them)")
+        layout = {**layout, "frame_bytes": layout["point_bytes"], "data_bytes": len(data) - _BLOCK
+                  * (layout["data_start"] - 1)}
     import ezc3d  # imported here: only C3D reading needs the C++ library
 
     try:
-        c3d = ezc3d.c3d(str(path))
+        with bytes_file(data, path.name) if data is not None else contextlib.nullcontext(path) as name:
+            c3d = ezc3d.c3d(str(name))
         params = c3d["parameters"]
         xyz = np.asarray(c3d["data"]["points"], dtype=np.float64)
         residuals = np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64)
         labels = [str(s) for s in c3d.c3d_swig.pointNames()]
-        header_rate = float(c3d["header"]["points"]["frame_rate"])
         first_frame = int(c3d["header"]["points"]["first_frame"]) + 1
     except MemoryError:
         raise ParseError(path, None, "ezc3d ran out of memory reading it (a corrupt count?)") from None
@@ -344,8 +430,7 @@ def read_c3d_points(path) -> C3dPoints:
         except (TypeError, ValueError):
             raise ParseError(path, None, f"POINT:{name} is {printable(repr(values), 60)}, not a number") from None
 
-    rate = number("RATE", 0.0) or header_rate
-    rate = snap_rate(check_rate(rate, path))    # 119.88 is 120 (READERS.md §1)
+    rate = _point_rate(number("RATE", 0.0), layout, path, notes)
     units = [u.strip().lower() for u in _strings(param("UNITS")) if u.strip()]
     if len(set(units)) > 1:
         raise ParseError(path, None, f"POINT:UNITS mixes {sorted(set(units))}; expected one unit")
@@ -359,17 +444,15 @@ def read_c3d_points(path) -> C3dPoints:
     if n_points and n_frames == 0:
         raise ParseError(path, None, "no frames: the file holds points but zero frames of data")
     declared, frame_bytes = layout["frames"], layout["frame_bytes"]
-    meta = {"declared_frames": declared}
+    meta = {"declared_frames": declared, "notes": notes}
     if n_frames < declared and frame_bytes:
         # ezc3d stops at the end of the file: a file that ends inside a frame was cut
         # short; one that ends on a frame boundary was cropped by a tool that left the
         # counts (ezc3d's own Optotrak sample): read what it holds, and say so
-        partial = layout["data_bytes"] - n_frames * frame_bytes
-        if partial % frame_bytes:
-            raise ParseError(path, None, f"truncated: the file declares {declared} frames but its data "
-                             f"ends {partial % frame_bytes} bytes into frame {n_frames + 1} "
-                             f"({frame_bytes} bytes per frame)")
-        log.info("%s: declares %d frames but holds %d; reading those", path, declared, n_frames)
+        error = _truncation(layout, n_frames, path)
+        if error is not None:
+            raise error
+        notes.append(f"the file declares {declared} frames but holds {n_frames}; read those")
     labels = labels[:n_points] + [f"?{i + 1}" for i in range(len(labels), n_points)]
     pts = np.ascontiguousarray(xyz[:3].transpose(2, 1, 0))          # (frames, points, 3)
     res = residuals.reshape(n_points, n_frames).T if residuals.size == n_points * n_frames \

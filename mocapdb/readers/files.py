@@ -10,26 +10,32 @@ DESIGN.md §1, §6; data/README.md (file conventions).
 """
 from __future__ import annotations
 
-import os
 import re
 import threading
 from pathlib import Path
 
 import numpy as np
 
+from mocapdb.errors import MocapdbError, ParameterError, ParseError
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
+from mocapdb.readers.asf_humanoid import asf_humanoid_joints
 from mocapdb.readers.bvh import read_bvh
 from mocapdb.readers.c3d import read_c3d
-from mocapdb.errors import MocapdbError, ParseError
-from mocapdb.readers.kinematics import asf_forward_kinematics
+from mocapdb.readers.humanoid import MappingError
+from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
 from mocapdb.readers.mapping import load_mapping
 from mocapdb.readers.motion import Motion, check_finite_motion
+from mocapdb.readers.sources import (COMPRESSED, identity, is_file, list_dir, motion_stem, motion_suffix,
+                                     special_kind)
 
-__all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates",
-           "load_skeleton", "SUPPORTED_EXTENSIONS"]
+__all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
+           "load_skeleton", "SUPPORTED_EXTENSIONS", "READER_OPTIONS"]
 
 SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d")
+#: the reader options stored with a motion (``motions.reader_options``) that :func:`read_motion` takes
+#: back when the source is re-read; other keys there (``notes``, ``source_frames``) only inform
+READER_OPTIONS = ("joint_map", "marker_map", "marker_rules")
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
@@ -45,10 +51,22 @@ def skeleton_candidates(amc_path) -> list:
        ``hdm05_cut/HDM_bd.asf``);
     4. the folder's only ASF, when it holds exactly one (other writers' takes
        follow no name pattern).
+
+    The folder may lie inside a zip archive (:mod:`~mocapdb.readers.sources`);
+    a candidate may be compressed (``walk.asf.gz``).
     """
+    out = _named_candidates(amc_path)
+    own = _folder_asf(Path(amc_path).parent)
+    if own is not None and own not in out:
+        out.append(own)
+    return out
+
+
+def _named_candidates(amc_path) -> list:
+    """Rules 1–3 of :func:`skeleton_candidates`: the name patterns."""
     p = Path(amc_path)
     d = p.parent
-    stem = p.stem
+    stem = motion_stem(p)
     out = [d / f"{stem}.asf"]
     m = _CMU_TAKE.match(stem)
     if m:
@@ -57,30 +75,40 @@ def skeleton_candidates(amc_path) -> list:
     if m:
         out.append(d / f"HDM_{m.group(1)}.asf")
         out.append(d.parent / f"HDM_{m.group(1)}.asf")
-    try:
-        own = [q for q in d.iterdir() if q.suffix.lower() == ".asf" and q.is_file()]
-    except OSError:
-        own = []
-    if len(own) == 1 and own[0] not in out:
-        out.append(own[0])
     return out
+
+
+def _folder_asf(folder):
+    """The folder's only ASF (plain or compressed), or None."""
+    own = [q for q in list_dir(folder) if motion_suffix(q) == ".asf" and is_file(q)]
+    return own[0] if len(own) == 1 else None
 
 
 def find_skeleton(amc_path) -> Path | None:
     """The ASF skeleton of an AMC file by the dataset conventions, or None.
 
-    See :func:`skeleton_candidates` for the rules; ``.ASF`` in upper case is
-    accepted too.
+    See :func:`skeleton_candidates` for the rules; ``.ASF`` in upper case and
+    compressed skeletons (``.asf.gz``, ``.bz2``, ``.xz``) are accepted too.
     """
     for c in skeleton_candidates(amc_path):
-        for cand in (c, c.with_suffix(".ASF")):
-            if cand.is_file():
+        for cand in (c, c.with_suffix(".ASF"), *(c.with_name(c.name + z) for z in COMPRESSED)):
+            if is_file(cand):
                 return cand
     return None
 
 
+def skeleton_note(amc_path, asf_path) -> str | None:
+    """The ingest note when ``asf_path`` is the AMC's folder's only ASF, found by no name pattern."""
+    own = _folder_asf(Path(amc_path).parent)
+    if own is None or Path(asf_path) != own or any(motion_stem(own) == motion_stem(c)
+                                                   and own.parent == c.parent
+                                                   for c in _named_candidates(amc_path)):
+        return None
+    return f"skeleton {own.name}: the folder's only ASF (no name pattern matched {Path(amc_path).name})"
+
+
 # Skeletons are re-read for every take of an actor during ingest; cache them by
-# file identity (path, size, mtime). Skeleton objects are immutable.
+# file identity (path, size, mtime; an archive member's CRC). Skeleton objects are immutable.
 _ASF_CACHE: dict = {}
 _ASF_LOCK = threading.Lock()
 
@@ -90,8 +118,7 @@ def load_skeleton(asf) -> Skeleton:
     if isinstance(asf, Skeleton):
         return asf
     p = Path(asf)
-    st = os.stat(p)
-    key = (str(p.resolve()), st.st_size, st.st_mtime_ns)
+    key = identity(p)
     with _ASF_LOCK:
         hit = _ASF_CACHE.get(key)
     if hit is None:
@@ -104,20 +131,51 @@ def load_skeleton(asf) -> Skeleton:
 
 
 def read_asf_amc(amc_path, asf) -> Motion:
-    """Read an AMC file with an explicit skeleton (path or :class:`Skeleton`)."""
+    """Read an AMC file with an explicit skeleton (path or :class:`Skeleton`).
+
+    A skeleton with the CMU bone names gives the toolbox's joints (bone tips by
+    name); any other is read through the humanoid mapper
+    (:mod:`~mocapdb.readers.asf_humanoid`) and must be a human.
+    """
     amc_path = Path(amc_path)
-    skel = load_skeleton(asf)
+    asf_path = asf.path if isinstance(asf, Skeleton) else str(asf)
+    try:
+        skel = load_skeleton(asf)
+    except OSError as exc:
+        # the skeleton is the file that could not be read: name it
+        raise ParseError(asf_path, None, f"cannot read the skeleton of {amc_path} "
+                         f"({exc.strerror or exc})") from None
     amc = read_amc(amc_path, skel)
-    joints, rot = asf_forward_kinematics(skel, amc)
-    # an absurd root translation or ASF unit overflows to inf in FK (READERS.md §4)
+    notes = [f"ASF {note}" for note in skel.notes]
+    if amc.meta.get("fps_source") == "the ASF's :documentation":
+        notes.append(f"rate {amc.fps:g} Hz from the ASF's :documentation (the AMC has no :SAMPLES-PER-SECOND)")
+    try:
+        nodes = joint_node_indices(skel)
+    except ParameterError:
+        nodes = None
+    if nodes is not None:
+        joints, rot = asf_forward_kinematics(skel, amc)
+        how = "CMU bone names"
+    else:
+        try:
+            positions, rot = node_positions(skel, amc)
+            joints, rot, _, problem = asf_humanoid_joints(skel, positions, rot)
+        except MappingError as exc:
+            raise ParseError(asf_path, None, f"the skeleton of {amc_path.name} lacks the CMU bone names "
+                             f"and is not a humanoid mocapdb can map: {exc}") from None
+        if problem:
+            raise ParseError(amc_path, None, f"not a human skeleton ({Path(asf_path).name}): {problem}")
+        notes.append(f"skeleton {Path(asf_path).name} read by its shape and bone names (not the CMU names)")
+        how = "humanoid mapper"
+    # an absurd root translation or ASF unit overflows to inf in FK
     check_finite_motion(joints, amc_path)
-    asf_path = skel.path if isinstance(asf, Skeleton) else str(asf)
-    return Motion(joints=joints, root_rotation=rot, fps=amc.fps, name=amc_path.stem,
-                  skeleton=Path(asf_path).stem or skel.name, source_format="amc",
-                  meta={"asf": asf_path, "asf_name": skel.name})
+    return Motion(joints=joints, root_rotation=rot, fps=amc.fps, name=motion_stem(amc_path),
+                  skeleton=motion_stem(asf_path) or skel.name, source_format="amc",
+                  meta={"asf": asf_path, "asf_name": skel.name, "mapping": how, "notes": notes,
+                        "frames": (1, len(joints))})
 
 
-def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
+def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules=None) -> Motion:
     """Read a motion file (by extension) into the 24 canonical joints.
 
     Parameters
@@ -132,6 +190,9 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
     marker_map : dict, str or Path, optional, keyword-only
         C3D only: canonical joint → the markers whose mean it is
         (:func:`~mocapdb.readers.c3d.read_c3d`).
+    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
+        C3D only: how the HDM05/CMU marker set is read (default ``"toolbox"``,
+        the reference; :func:`~mocapdb.readers.c3d.read_c3d`).
 
     Returns
     -------
@@ -153,10 +214,13 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
     DESIGN.md §1, §6; FEATURES.md §2.
     """
     path = Path(path)
+    kind = special_kind(path)
+    if kind is not None:   # reading a FIFO would block, a device never end
+        raise ParseError(path, None, f"{kind}, not a motion file")
     try:
         # hostile values overflow in FK; the result is checked for finiteness
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            return _read(path, asf, joint_map, marker_map)
+            return _read(path, asf, joint_map, marker_map, marker_rules or "toolbox")
     except MocapdbError:
         raise
     except OSError as exc:
@@ -168,8 +232,8 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None) -> Motion:
         raise ParseError(path, None, f"unreadable ({type(exc).__name__}: {exc})") from None
 
 
-def _read(path, asf, joint_map, marker_map) -> Motion:
-    ext = path.suffix.lower()
+def _read(path, asf, joint_map, marker_map, marker_rules) -> Motion:
+    ext = motion_suffix(path)
     if ext == ".amc":
         if asf is None:
             asf = find_skeleton(path)
@@ -179,10 +243,16 @@ def _read(path, asf, joint_map, marker_map) -> Motion:
                                  "skeleton: --asf FILE (command line) or asf=FILE (Python). A CMU take "
                                  "without its subject's ASF reads with any CMU subject's ASF (the bones "
                                  "are the same; their lengths approximate).")
+            note = skeleton_note(path, asf)
+            if note:
+                motion = read_asf_amc(path, asf)
+                motion.meta["notes"].insert(0, note)
+                return motion
         return read_asf_amc(path, asf)
     if ext == ".bvh":
         return read_bvh(path, joint_map=load_mapping(joint_map, what="joint_map"))
     if ext == ".c3d":
-        return read_c3d(path, marker_map=load_mapping(marker_map, what="marker_map"))
-    raise ParseError(path, None, f"unsupported file type {path.suffix!r} (expected "
-                     + " or ".join(SUPPORTED_EXTENSIONS) + ")")
+        return read_c3d(path, marker_map=load_mapping(marker_map, what="marker_map"), marker_rules=marker_rules)
+    raise ParseError(path, None, f"unsupported file type {ext or path.suffix!r} (expected "
+                     + " or ".join(SUPPORTED_EXTENSIONS) + ", optionally compressed: "
+                     + ", ".join(COMPRESSED) + ")")

@@ -7,6 +7,11 @@ plus the joint whose global rotation is the body's root rotation.
 
 How a skeleton is read, whatever its naming:
 
+0. **Names first.** Joints named for a knee and an ankle (``LowerLeg_L`` and
+   ``Foot_L``, ``LeftLeg`` and ``LeftFoot``) on each side give the feet, a
+   joint named Head the head top, joints named for an elbow and a wrist the
+   arms — trusted over the geometry of one pose (a frame with a foot in the
+   air, a rest pose lying on its side).
 1. **Topology.** The feet are the leaves in the lowest quarter of the body;
    the pelvis is their common ancestor; the head top is the highest leaf;
    the spine is the path from the pelvis to it. The two legs are the
@@ -34,9 +39,15 @@ How a skeleton is read, whatever its naming:
 
 A user map (``joint_map``: canonical joint → a joint name, ``"Name/end"``
 for its End Site, or a list of names whose mean it is) overrides any of it.
+
+Legs, arms and a head do not make a human: :func:`humanoid_problem` checks the
+mapped body's proportions and that it stands upright in its rest pose or in
+some of its frames (a dog's "arms" reach the floor, its trunk is longer than
+its legs).
 """
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -45,7 +56,8 @@ import numpy as np
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
-           "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP"]
+           "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP", "humanoid_problem", "upright_frames",
+           "HUMAN_PROPORTIONS", "MIN_UPRIGHT", "LIMB_WORDS"]
 
 #: rotation of -90° about x: +Z (up in many capture tools) becomes +Y, +Y becomes -Z
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -65,13 +77,17 @@ _THIGH = {"upleg", "upperleg", "thigh", "femur", "hip", "legupper", "uleg"}
 _UPPERARM = {"arm", "uparm", "upperarm", "humerus", "armupper", "shoulder"}
 _TWIST = ("roll", "twist", "share", "helper", "aux", "corrective")
 _HEAD = {"head"}
+#: name words of each limb point (after side and rig prefix are taken off)
+LIMB_WORDS = {"thigh": _THIGH, "knee": _KNEE, "ankle": _ANKLE, "upper arm": _UPPERARM, "elbow": _ELBOW,
+              "wrist": _WRIST}
 # glued single-letter sides of ASF/CMU names: LHipJoint → l hip joint, lfemur → l femur
 _GLUED = re.compile(r"^([lr])(hipjoint|femur|tibia|foot|toes|toe|clavicle|humerus|radius|wrist|hand|"
                     r"fingers|fingerbase|thumb|shoulder|elbow|knee|ankle|hip|collar|uparm|lowarm|"
                     r"upleg|lowleg|arm|leg|forearm)(\d*)$")
 
 
-def _tokens(name: str) -> list:
+@functools.lru_cache(maxsize=1 << 16)
+def _tokens(name: str) -> tuple:
     """Lower-case words of a joint name: namespace dropped, CamelCase and digits split."""
     base = re.split(r"[:|]", name)[-1]
     base = re.sub(r"([a-z0-9])([A-Z])", r"\1 \2", base)
@@ -87,7 +103,7 @@ def _tokens(name: str) -> list:
             out.extend(re.findall(r"[a-z]+|\d+", w))
     while len(out) > 1 and out[0] in _PREFIXES:
         out.pop(0)
-    return out
+    return tuple(out)
 
 
 def name_side(name: str) -> str | None:
@@ -256,6 +272,77 @@ def _limb_points(tree, chain, tol, mid_words, end_words, top_words):
 
 
 # ----------------------------------------------------------------------------
+# names
+
+def _words(tree) -> tuple:
+    """Per point: (side, name without side and rig prefix), or None for End Sites; once per tree."""
+    return tuple((name_side(n), normalized_name(n)) if j else None for n, j in zip(tree.names, tree.is_joint))
+
+
+def _named_side(words_of, words, side):
+    """Joints whose name, without side and rig prefix, is one of ``words`` and whose side is ``side``."""
+    return [i for i, w in enumerate(words_of) if w is not None and w[0] == side and w[1] in words]
+
+
+def _below(tree, top, i) -> bool:
+    """True when point ``i`` lies in the subtree of ``top`` (``top`` included)."""
+    while i >= 0:
+        if i == top:
+            return True
+        i = int(tree.parent[i])
+    return False
+
+
+def _named_pair(tree, words_of, mid_words, end_words, side):
+    """The shallowest (middle, end) joints of a limb named for ``side`` (knee and ankle, elbow and
+    wrist), the end below the middle; or None."""
+    ends_all = _named_side(words_of, end_words, side)
+    for mid in sorted(_named_side(words_of, mid_words, side), key=lambda i: len(_path_to_root(tree, i))):
+        ends = [e for e in ends_all if e != mid and _below(tree, mid, e)]
+        if ends:
+            return mid, min(ends, key=lambda i: len(_path_to_root(tree, i)))
+    return None
+
+
+def _named_body(tree, kids) -> dict:
+    """What the joint names say: ``feet`` (the farthest leaf below each named ankle), ``head``
+    (the farthest leaf below the shallowest joint named Head) and ``arms`` (the named elbow of each
+    side); None where the names do not say it for both sides."""
+    words_of = _words(tree)
+    legs = [_named_pair(tree, words_of, _KNEE, _ANKLE, s) for s in "lr"]
+    arms = [_named_pair(tree, words_of, _ELBOW, _WRIST, s) for s in "lr"]
+    feet = None
+    if all(legs) and not (_below(tree, legs[0][0], legs[1][0]) or _below(tree, legs[1][0], legs[0][0])):
+        feet = [_farthest_leaf(tree, kids, ankle)[0] for _, ankle in legs]
+    heads = [i for i, w in enumerate(words_of) if w is not None and w[1] in _HEAD]
+    head = None
+    if heads:
+        top = min(heads, key=lambda i: len(_path_to_root(tree, i)))
+        head = _farthest_leaf(tree, kids, top)[0]
+    return {"feet": feet, "head": head,
+            "arms": [a[0] for a in arms] if all(arms) and arms[0][0] != arms[1][0] else None}
+
+
+def _named_arms(tree, elbows, spine, on_spine):
+    """``[(attach on the spine, first joint of the arm)]`` for named elbows, or None."""
+    if elbows is None:
+        return None
+    out = []
+    for elbow in elbows:
+        path = _path_to_root(tree, elbow)
+        off = [k for k, i in enumerate(path) if i in on_spine]
+        if not off or off[-1] + 1 >= len(path):
+            return None
+        attach, first = path[off[-1]], path[off[-1] + 1]
+        if attach not in spine:
+            return None
+        out.append((attach, first))
+    if out[0][1] == out[1][1]:
+        return None
+    return out
+
+
+# ----------------------------------------------------------------------------
 # the mapper
 
 def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
@@ -281,16 +368,25 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
     kids = _children(tree)
     leaves = [i for i in range(n) if not kids[i]]
     height = float(pose[:, 1].max() - pose[:, 1].min()) if n else 0.0
-    tol = 1e-6 * max(height, 1e-12)
+    size = float(np.ptp(pose, axis=0).max()) if n else 0.0
+    tol = 1e-6 * max(size, 1e-12)
     partial: dict = {}
-    if n < 5 or height <= 0.0:
-        raise MappingError(f"{n} points in a rest pose of height {height:g}: too few for a body",
+    if n < 5 or size <= 0.0:
+        raise MappingError(f"{n} points in a rest pose of size {size:g}: too few for a body",
                            JOINT_NAMES, partial)
-    floor = float(pose[:, 1].min())
-    feet = [i for i in leaves if pose[i, 1] <= floor + 0.25 * height]
-    head_leaf = max(leaves, key=lambda i: pose[i, 1])
-    if len(feet) < 2:
-        raise MappingError("fewer than two leaves near the floor: no two legs", JOINT_NAMES, partial)
+    named = _named_body(tree, kids)
+    if named["feet"] is not None:
+        # names that say thigh, knee and ankle are trusted over one pose's geometry (a frame
+        # with both feet off the ground, a rest pose lying on its side)
+        feet = named["feet"]
+    else:
+        if height <= 0.0:
+            raise MappingError("a flat rest pose and no joint names of legs", JOINT_NAMES, partial)
+        floor = float(pose[:, 1].min())
+        feet = [i for i in leaves if pose[i, 1] <= floor + 0.25 * height]
+        if len(feet) < 2:
+            raise MappingError("fewer than two leaves near the floor: no two legs", JOINT_NAMES, partial)
+    head_leaf = named["head"] if named["head"] is not None else max(leaves, key=lambda i: pose[i, 1])
     paths = {i: _path_to_root(tree, i) for i in feet}
     # pelvis: the deepest common ancestor of the feet
     common = paths[feet[0]]
@@ -305,11 +401,14 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
     pelvis = common[-1]
     depth = len(common)
     up = pose[head_leaf] - pose[pelvis]
-    if up[1] < 0.5 * np.linalg.norm(up) or any(pose[i, 1] >= pose[pelvis, 1] for i in feet):
+    if named["feet"] is None and (up[1] < 0.5 * np.linalg.norm(up) or any(pose[i, 1] >= pose[pelvis, 1]
+                                                                         for i in feet)):
         raise MappingError("the pose is not an upright body (head above the pelvis, feet below)", JOINT_NAMES,
                            partial)
     branches = {}
     for i in feet:
+        if len(paths[i]) <= depth:
+            raise MappingError("a foot is the pelvis itself", JOINT_NAMES, partial)
         branches.setdefault(paths[i][depth], []).append(i)
     if len(branches) < 2:
         raise MappingError("the feet hang off one branch: no two legs", JOINT_NAMES, partial)
@@ -319,21 +418,22 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
         raise MappingError("the head is not above the pelvis in the tree", JOINT_NAMES, partial)
     spine = spine[spine.index(pelvis):]
     on_spine = set(spine)
-    # arms: the longest branches off the spine above the pelvis (not the legs)
-    arm_cands = []
-    for s in spine:
-        for k in kids[s]:
-            if k in on_spine or k in legs:
-                continue
-            leaf, length, _ = _farthest_leaf(tree, kids, k)
-            arm_cands.append((length + float(np.linalg.norm(rest[k] - rest[s])), s, k))
-    arm_cands.sort(key=lambda t: -t[0])
-    if len(arm_cands) < 2 or arm_cands[1][0] < 0.15 * height:
-        raise MappingError("fewer than two arms branch off the spine", [j for j in JOINT_NAMES if j[0] in "lr"
-                                                                        and j[1:] in ("clavicle", "shoulder", "elbow",
-                                                                                      "wrist", "fingers")],
-                           partial)
-    arms = [(s, k) for _, s, k in arm_cands[:2]]
+    # arms: named elbows and wrists, else the longest branches off the spine above the pelvis (not the legs)
+    arms = _named_arms(tree, named["arms"], spine, on_spine)
+    if arms is None:
+        arm_cands = []
+        for s in spine:
+            for k in kids[s]:
+                if k in on_spine or k in legs:
+                    continue
+                leaf, length, _ = _farthest_leaf(tree, kids, k)
+                arm_cands.append((length + float(np.linalg.norm(rest[k] - rest[s])), s, k))
+        arm_cands.sort(key=lambda t: -t[0])
+        if len(arm_cands) < 2 or arm_cands[1][0] < 0.15 * size:
+            raise MappingError("fewer than two arms branch off the spine",
+                               [j for j in JOINT_NAMES if j[0] in "lr"
+                                and j[1:] in ("clavicle", "shoulder", "elbow", "wrist", "fingers")], partial)
+        arms = [(s, k) for _, s, k in arm_cands[:2]]
 
     def chain(attach, first):
         _, _, path = _farthest_leaf(tree, kids, first)
@@ -346,8 +446,11 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
             c = chain(attach, first)
             got = _limb_points(tree, c, tol, *words)
             if got is None:
-                raise MappingError(f"cannot find the joints of an {kind} ({', '.join(tree.names[i] for i in c)})",
-                                   [], partial)
+                parts = "thigh, shin and foot" if kind == "leg" else "upper arm, forearm and hand"
+                points = ("hip", "knee", "ankle", "toes") if kind == "leg" else ("shoulder", "elbow", "wrist",
+                                                                                 "fingers")
+                raise MappingError(f"cannot find the joints of an {kind} in {' → '.join(tree.names[i] for i in c)} "
+                                   f"(an {kind} has {parts})", [f"{s}{p}" for s in "lr" for p in points], partial)
             limb[(kind, first)] = (c, got)
 
     # sides: names, else rest pose (left = up × forward)
@@ -363,7 +466,7 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
         _, (top, mid, end, tip, _) = limb[key]
         forward += pose[tip] - pose[end]
     forward[1] = 0.0
-    if np.linalg.norm(forward) < 1e-9 * height:
+    if np.linalg.norm(forward) < 1e-9 * size:
         forward = np.array([0.0, 0.0, 1.0])  # BVH convention: the character faces +Z
     left_dir = np.cross([0.0, 1.0, 0.0], forward / np.linalg.norm(forward))
     sides = {}
@@ -373,7 +476,7 @@ def map_humanoid(tree: SkeletonTree, pose=None) -> JointMap:
             sides.update(zip(pair, named))
             continue
         lat = [float(np.dot(pose[limb[k][1][2]] - pose[pelvis], left_dir)) for k in pair]
-        if abs(lat[0] - lat[1]) < 1e-6 * height:
+        if abs(lat[0] - lat[1]) < 1e-6 * size:
             raise MappingError("cannot tell left from right (names carry no side and the limbs overlap "
                                "in the rest pose)", [], partial)
         first_left = lat[0] > lat[1]
@@ -487,3 +590,85 @@ def mapping_template(tree: SkeletonTree, partial: dict | None = None, *, source:
         else:
             lines.append(f'# {j} = ""   # could not place: fill in')
     return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------
+# is it a human?
+
+#: proportions a human body keeps, as (lowest, highest) ratio to the leg length (hip → knee →
+#: ankle); measured 0.58–0.72 (arms), 0.28–0.65 (trunk), 0.18–0.28 (hips), 0.32–0.60 (shoulders)
+#: on the HDM05, CMU and other labs' human rigs of the test data, with wide margins: a quadruped's
+#: trunk is longer than its legs, a bird's hips are wider
+HUMAN_PROPORTIONS = {"arm": (0.35, 1.0), "trunk": (0.2, 1.1), "hip width": (0.05, 0.6),
+                     "shoulder width": (0.15, 0.9)}
+#: a human stands upright in at least this fraction of a take's frames, or in its rest pose
+MIN_UPRIGHT = 0.05
+#: frames sampled for the upright test
+_SAMPLE = 512
+
+
+def _length(j, a, b):
+    return np.linalg.norm(j[..., JOINT_INDEX[a], :] - j[..., JOINT_INDEX[b], :], axis=-1)
+
+
+def upright_frames(joints: np.ndarray) -> np.ndarray:
+    """Per frame: does the body stand like a human — two legs to the floor, two arms off it, the
+    head above the shoulders, the trunk within 45° of vertical (Y up)?
+
+    Parameters
+    ----------
+    joints : ndarray, shape (n_frames, 24, 3)
+
+    Returns
+    -------
+    ndarray, shape (n_frames,), bool
+    """
+    j = joints
+    y = j[..., 1]
+    leg = 0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
+                 + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))
+    spine = j[:, JOINT_INDEX["neck"]] - j[:, JOINT_INDEX["root"]]
+    vertical = spine[:, 1] > np.cos(np.radians(45.0)) * np.linalg.norm(spine, axis=1)
+    shoulders = 0.5 * (y[:, JOINT_INDEX["lshoulder"]] + y[:, JOINT_INDEX["rshoulder"]])
+    head_up = y[:, JOINT_INDEX["head"]] > shoulders
+    feet = np.minimum(y[:, JOINT_INDEX["lankle"]], y[:, JOINT_INDEX["rankle"]])
+    hands = np.minimum(y[:, JOINT_INDEX["lwrist"]], y[:, JOINT_INDEX["rwrist"]])
+    hips = np.minimum(y[:, JOINT_INDEX["lhip"]], y[:, JOINT_INDEX["rhip"]])
+    return vertical & head_up & (hands - feet > 0.25 * leg) & (feet < hips)
+
+
+def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> str | None:
+    """Why a mapped skeleton is not a human, or None when it is one.
+
+    A human has plausible proportions (:data:`HUMAN_PROPORTIONS`, from the
+    median bone lengths) and stands upright (:func:`upright_frames`) in its
+    rest pose or in at least :data:`MIN_UPRIGHT` of the take's frames.
+
+    Parameters
+    ----------
+    joints : ndarray, shape (n_frames, 24, 3)
+        The canonical joints of the take, Y up.
+    rest : ndarray, shape (24, 3), optional
+        The canonical joints in the skeleton's rest pose, Y up.
+    """
+    step = max(1, len(joints) // _SAMPLE)
+    j = joints[::step]
+    leg = float(np.median(0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
+                                 + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))))
+    if not leg > 0:
+        return "the legs have no length"
+    measures = {"arm": 0.5 * (_length(j, "lshoulder", "lelbow") + _length(j, "lelbow", "lwrist")
+                              + _length(j, "rshoulder", "relbow") + _length(j, "relbow", "rwrist")),
+                "trunk": _length(j, "root", "neck"), "hip width": _length(j, "lhip", "rhip"),
+                "shoulder width": _length(j, "lshoulder", "rshoulder")}
+    reasons = []
+    for what, values in measures.items():
+        ratio = float(np.median(values)) / leg
+        lo, hi = HUMAN_PROPORTIONS[what]
+        if not lo <= ratio <= hi:
+            reasons.append(f"{what} {ratio:.2f} × the leg length (a human's: {lo}–{hi})")
+    stands = float(upright_frames(j).mean())
+    if stands < MIN_UPRIGHT and (rest is None or not upright_frames(rest[None])[0]):
+        reasons.insert(0, f"it stands upright (two legs to the floor, arms off it, head above the shoulders) "
+                          f"in {stands:.0%} of the frames and not in its rest pose")
+    return "; ".join(reasons) or None

@@ -348,24 +348,33 @@ def _check(skeleton: Skeleton, motion: AmcMotion):
                              "read the AMC with the same skeleton")
 
 
+#: frames per block of forward kinematics: sine and cosine of one block's angles at a time, not of
+#: the take's (each frame is computed on its own, so blocks change no value)
+_FK_BLOCK = 8192
+
+
 def _run(skeleton: Skeleton, motion: AmcMotion, joint_nodes: np.ndarray):
     _check(skeleton, motion)
     lay = _layout(skeleton)
     rot_cols, root_cols, trans_cols = lay.columns_for(skeleton, motion)
     n = motion.n_frames
     values = motion.values
-    # AMC angles are in the motion's unit (the ASF unit unless the AMC says
-    # otherwise); convert2quat.m: angle * conversion_factor, then sin/cos.
-    sin, cos = sincos(values * _angle_factor(motion.angle_unit))
-    trans = np.empty((n, 3))
-    for k, c in enumerate(trans_cols):
-        t = values[:, c] if c >= 0 else np.zeros(n)
-        # readAMC.m / readASF.m: (t / lengthUnit) * 2.54 + (position / lengthUnit) * 2.54
-        trans[:, k] = (t / skeleton.length_unit) * INCH_TO_TOOLBOX + skeleton.root_position[k]
+    factor = _angle_factor(motion.angle_unit)
     joints = np.empty((n, joint_nodes.shape[0], 3))
     rot = np.empty((n, 3, 3))
-    _asf_fk_kernel(sin, cos, trans, root_cols, lay.orient, lay.order, lay.parent, lay.dmat,
-                   lay.dident, lay.offp, rot_cols, joint_nodes, joints, rot)
+    for a in range(0, n, _FK_BLOCK):
+        block = values[a:a + _FK_BLOCK]
+        m = block.shape[0]
+        # AMC angles are in the motion's unit (the ASF unit unless the AMC says
+        # otherwise); convert2quat.m: angle * conversion_factor, then sin/cos.
+        sin, cos = sincos(block * factor)
+        trans = np.empty((m, 3))
+        for k, c in enumerate(trans_cols):
+            t = block[:, c] if c >= 0 else np.zeros(m)
+            # readAMC.m / readASF.m: (t / lengthUnit) * 2.54 + (position / lengthUnit) * 2.54
+            trans[:, k] = (t / skeleton.length_unit) * INCH_TO_TOOLBOX + skeleton.root_position[k]
+        _asf_fk_kernel(sin, cos, trans, root_cols, lay.orient, lay.order, lay.parent, lay.dmat,
+                       lay.dident, lay.offp, rot_cols, joint_nodes, joints[a:a + m], rot[a:a + m])
     return joints, rot
 
 

@@ -11,6 +11,8 @@ a few per file at most.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from mocapdb._numba import inline_jit, jit
@@ -169,14 +171,33 @@ def parse_numbers(tokens) -> tuple:
 
 
 @jit
-def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status):  # pragma: no cover
+def _nonfinite_token(buf, s, e):  # pragma: no cover - numba
+    """True when ``buf[s:e]`` spells a non-finite number: ``nan``, ``inf``, ``infinity`` (any case,
+    signed, ``nan(ind)``), or a Windows C runtime form (``1.#QNAN``, ``-1.#IND``, ``1.#INF``)."""
+    k = s
+    if k < e and (buf[k] == 43 or buf[k] == 45):
+        k += 1
+    if e - k >= 3:
+        a, b, c = buf[k] | 32, buf[k + 1] | 32, buf[k + 2] | 32
+        if (a == 110 and b == 97 and c == 110) or (a == 105 and b == 110 and c == 102):
+            return True
+    j = k
+    while j < e and (48 <= buf[j] <= 57 or buf[j] == 46):
+        j += 1
+    return j > k and j < e and buf[j] == 35
+
+
+@jit
+def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allow_nonfinite):  # pragma: no cover
     """Read lines of exactly ``out.shape[1]`` numbers from byte ``start`` into ``out``.
 
     Blank lines are skipped. Stops at the first error with ``status`` =
-    [code, byte offset, row, expected, found, n_slow, n_rows]: code 1 = not a
+    [code, byte offset, row, expected, found, n_slow, n_rows, n_nonfinite]: code 1 = not a
     number (offset of the token), 2 = wrong count (offset of the line),
     3 = more rows than ``out`` has (offset of the first extra line).
-    Slow-path tokens are listed in ``fb_*`` as in the AMC kernel.
+    Slow-path tokens are listed in ``fb_*`` as in the AMC kernel. With
+    ``allow_nonfinite``, a token spelling NaN or infinity reads as NaN (lost
+    tracking, for the caller to mend) instead of stopping.
     """
     size = buf.shape[0]
     ncols = out.shape[1]
@@ -211,6 +232,9 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status):  # 
                     i += 1
             else:
                 v, st, i = _scan_number(buf, i, size)
+                if st == 2 and allow_nonfinite and _nonfinite_token(buf, s, i):
+                    v, st = math.nan, 0
+                    status[7] += 1
                 if st == 2:
                     status[0] = 1
                     status[1] = s
@@ -240,11 +264,13 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status):  # 
 
 
 def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
-               what="values", first_frame=1):
+               what="values", first_frame=1, allow_nonfinite=False):
     """Parse ``n_rows`` lines of ``n_cols`` numbers starting at byte ``start``.
 
     Returns a float64 ``(rows_read, n_cols)`` array (``rows_read <= n_rows``;
-    the caller decides whether fewer rows is an error).
+    the caller decides whether fewer rows is an error). With
+    ``allow_nonfinite``, NaN and infinity (spelled out, or a number that
+    overflows) read as NaN.
 
     Raises
     ------
@@ -252,36 +278,60 @@ def parse_rows(data: bytes, start: int, n_rows: int, n_cols: int, path, *,
         A non-numeric or non-finite value, a line with the wrong number of
         values, or more lines than ``n_rows`` (file, line and frame named).
     """
-    buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
-    # a header's row count is never trusted for allocation (READERS.md §4): a
-    # row of n_cols values takes at least 2·n_cols bytes (one more row detects
-    # extra lines). np.empty does not touch the rows it will not fill.
-    n_alloc = min(n_rows, max(len(data) - start, 0) // max(2 * n_cols, 1) + 2)
-    cap = max(256, n_alloc * n_cols // 256)  # slow-path tokens are rare; rerun if not
+    # a header's row count is never trusted for allocation: a row of n_cols
+    # values takes at least 2·n_cols bytes (one more row detects extra lines).
+    # np.empty does not touch the rows it will not fill.
+    out = np.empty((rows_bound(len(data) - start, n_rows, n_cols), n_cols))
+    rows = parse_rows_into(data, start, out, path, n_rows=n_rows, what=what, first_frame=first_frame,
+                           allow_nonfinite=allow_nonfinite)
+    return out[:rows]
+
+
+def rows_bound(n_bytes: int, n_rows: int, n_cols: int) -> int:
+    """Rows to allocate for ``n_bytes`` of lines of ``n_cols`` numbers: the most they can hold
+    (each value takes two bytes or more), at most ``n_rows`` (a line beyond it is an error)."""
+    return min(n_rows, max(n_bytes, 0) // max(2 * n_cols, 1) + 2)
+
+
+def parse_rows_into(data: bytes, start: int, out: np.ndarray, path, *, n_rows: int, what="values",
+                    first_frame=1, allow_nonfinite=False, line_base=0) -> int:
+    """Parse lines of ``out.shape[1]`` numbers from byte ``start`` into ``out`` (row 0 first).
+
+    ``data`` may be one block of a longer text (whole lines): ``line_base``
+    is the number of lines before it, ``first_frame`` the frame number of its
+    first row, ``n_rows`` the rows the whole text may hold. Returns the rows
+    parsed; raises as :func:`parse_rows` (a row beyond ``out`` is one more
+    than ``n_rows``: the caller sizes ``out`` so).
+    """
+    if start >= len(data):
+        return 0
+    buf = np.frombuffer(data, dtype=np.uint8)
+    n_cols = out.shape[1]
+    cap = max(256, out.shape[0] * n_cols // 256)  # slow-path tokens are rare; rerun if not
     while True:
-        out = np.empty((n_alloc, n_cols))  # every returned row is written
         fb_index = np.zeros(cap, dtype=np.int64)
         fb_start = np.zeros(cap, dtype=np.int64)
         fb_end = np.zeros(cap, dtype=np.int64)
         status = np.zeros(8, dtype=np.int64)
-        _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status)
+        _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allow_nonfinite)
         if status[0] != 0 or status[5] <= cap:
             break
         cap = int(status[5])
     code, pos, row = int(status[0]), int(status[1]), int(status[2])
     frame = row + first_frame
     if code == 1:
-        raise number_error(data, pos, path, frame=frame, hint=truncation_hint(data, pos))
+        raise number_error(data, pos, path, frame=frame, hint=truncation_hint(data, pos), line_base=line_base)
     if code == 2:
-        raise ParseError(path, line_of(data, pos), f"expected {int(status[3])} {what}, "
+        raise ParseError(path, line_base + line_of(data, pos), f"expected {int(status[3])} {what}, "
                          f"found {int(status[4])}" + truncation_hint(data, pos), frame=frame)
     if code == 3:
-        raise ParseError(path, line_of(data, pos), f"more motion lines than the {n_rows} "
+        raise ParseError(path, line_base + line_of(data, pos), f"more motion lines than the {n_rows} "
                          "announced", frame=frame)
     nfb = int(status[5])
     fix_slow_numbers(data, out.reshape(-1), fb_index[:nfb], fb_start[:nfb], fb_end[:nfb], path,
-                     describe=lambda flat: (flat // max(n_cols, 1) + first_frame, ""))
-    return out[:int(status[6])]
+                     describe=lambda flat: (flat // max(n_cols, 1) + first_frame, ""),
+                     allow_nonfinite=allow_nonfinite, line_base=line_base)
+    return int(status[6])
 
 
 def line_of(data: bytes, pos: int) -> int:
@@ -297,15 +347,15 @@ def token_at(data: bytes, pos: int) -> str:
     return data[pos:end].decode("latin-1")
 
 
-def number_error(data: bytes, pos: int, path, *, frame=None, where="", hint="") -> ParseError:
-    """ParseError for a token at ``pos`` that is not a finite number."""
+def number_error(data: bytes, pos: int, path, *, frame=None, where="", hint="", line_base=0) -> ParseError:
+    """ParseError for a token at ``pos`` that is not a finite number (``line_base`` lines precede ``data``)."""
     tok = token_at(data, pos)
     low = tok.lower().lstrip("+-")
     if low in ("nan", "inf", "infinity") or (low and _is_nonfinite(tok)):
         what = f"expected a finite number, found {tok!r} (NaN/inf values are not allowed)"
     else:
         what = f"expected a number, found {tok!r}"
-    return ParseError(path, line_of(data, pos), f"{where}{what}{hint}", frame=frame)
+    return ParseError(path, line_base + line_of(data, pos), f"{where}{what}{hint}", frame=frame)
 
 
 def _is_nonfinite(tok: str) -> bool:
@@ -315,20 +365,24 @@ def _is_nonfinite(tok: str) -> bool:
         return False
 
 
-def fix_slow_numbers(data: bytes, flat_out, index, starts, ends, path, describe=None):
+def fix_slow_numbers(data: bytes, flat_out, index, starts, ends, path, describe=None, allow_nonfinite=False,
+                     line_base=0):
     """Convert the tokens the kernel left for Python (``float``) into ``flat_out``.
 
     ``describe(flat_index) -> (frame, prefix)`` names the place for messages.
-    Raises ParseError for values that overflow to inf (e.g. ``1e999``).
+    Raises ParseError for values that overflow to inf (e.g. ``1e999``), unless
+    ``allow_nonfinite`` (then they read as NaN).
     """
     if len(index) == 0:
         return
     vals = np.array([float(data[s:e]) for s, e in zip(starts.tolist(), ends.tolist())])
     bad = np.flatnonzero(~np.isfinite(vals))
-    if bad.size:
+    if bad.size and allow_nonfinite:
+        vals[bad] = np.nan
+    elif bad.size:
         k = int(bad[0])
         frame, where = describe(int(index[k])) if describe is not None else (None, "")
-        raise number_error(data, int(starts[k]), path, frame=frame, where=where)
+        raise number_error(data, int(starts[k]), path, frame=frame, where=where, line_base=line_base)
     flat_out[index] = vals
 
 

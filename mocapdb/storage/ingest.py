@@ -19,7 +19,10 @@ import pyarrow as pa
 
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
-from mocapdb.readers import SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion
+from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion,
+                             skeleton_note)
+from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, sha256,
+                                     special_kind, split_archive, zip_members)
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
@@ -34,13 +37,23 @@ _COMPANIONS = {".asf": "an ASF skeleton (read with its AMC takes)"}
 
 @dataclass
 class IngestReport:
-    """What an :func:`ingest` call did, file by file."""
+    """What an :func:`ingest` call did, file by file.
+
+    ``notes`` holds what the readers decided for a stored file — a joint
+    placed without markers, a marker rebuilt, lost tracking interpolated, a
+    stretch cut, a rate or skeleton found by a fallback — as ``(path, note)``;
+    the same notes are stored with the motion (``motions.reader_options``,
+    key ``notes``). ``unreadable`` lists folder entries that could not be
+    looked at (a folder without permission, a damaged zip archive).
+    """
 
     ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
     replaced: list = field(default_factory=list)     # (path, former motion_id): read again with replace
     skipped: list = field(default_factory=list)      # (path, reason): already stored
     failed: list = field(default_factory=list)       # (path, reason)
     unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
+    notes: list = field(default_factory=list)        # (path, note): what the reader decided for a stored file
+    unreadable: list = field(default_factory=list)   # (path, reason): folder entries that could not be read
     source_frames: int = 0
 
     def summary(self) -> str:
@@ -49,25 +62,89 @@ class IngestReport:
                + f", {len(self.skipped)} skipped, {len(self.failed)} failed")
         if self.unsupported:
             out += f", {len(self.unsupported)} not motion files"
+        if self.unreadable:
+            out += f", {len(self.unreadable)} unreadable"
+        noted = len({p for p, _ in self.notes})
+        if noted:
+            out += f"; {noted} read with notes"
         return out
 
 
-def _folder_files(folder: Path) -> list[Path]:
-    # hidden files and folders (.DS_Store, .git) are nobody's motions
-    return sorted(q for q in folder.rglob("*") if q.is_file()
-                  and not any(part.startswith(".") for part in q.relative_to(folder).parts))
+def _hidden(name: str) -> bool:
+    # hidden files and folders (.DS_Store, .git) and macOS zip metadata are nobody's motions
+    return name.startswith(".") or name == "__MACOSX"
 
 
-def motion_files(paths, *, unsupported=None) -> list[Path]:
-    """Expand files and folders (recursively) into motion files, in sorted order.
+def _walk(folder: Path, files: list, unsupported, unreadable):
+    """Regular files of a folder, recursively (symlinked folders followed once); special files
+    and unreadable folders reported."""
+    seen = set()
+
+    def onerror(exc):
+        if unreadable is not None:
+            unreadable.append((str(exc.filename), f"unreadable folder ({exc.strerror or exc})"))
+
+    for root, dirs, names in os.walk(folder, onerror=onerror, followlinks=True):
+        try:
+            st = os.stat(root)
+        except OSError:
+            dirs[:] = []
+            continue
+        if (st.st_dev, st.st_ino) in seen:   # a symlink loop
+            dirs[:] = []
+            continue
+        seen.add((st.st_dev, st.st_ino))
+        dirs[:] = sorted(d for d in dirs if not _hidden(d))
+        for name in sorted(names):
+            if _hidden(name):
+                continue
+            q = Path(root) / name
+            kind = special_kind(q)
+            if kind is not None:
+                if unsupported is not None:
+                    unsupported.append((str(q), f"{kind}, not a regular file"))
+                continue
+            files.append(q)
+
+
+def _archive_files(archive: Path, unreadable) -> list:
+    """The members of a zip archive as paths through it (hidden ones left out)."""
+    try:
+        names = zip_members(archive)
+    except OSError as exc:
+        if unreadable is not None:
+            unreadable.append((str(archive), f"unreadable archive ({exc})"))
+        return []
+    return [archive / name for name in sorted(names)
+            if not any(_hidden(part) for part in name.split("/"))]
+
+
+def _classify(q: Path, out: list, unsupported):
+    ext = motion_suffix(q)
+    if ext in MOTION_SUFFIXES:
+        out.append(q)
+    elif unsupported is not None:
+        why = _COMPANIONS.get(ext) or (f"unsupported file type {q.suffix!r}" if q.suffix else "no file extension")
+        unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ", optionally "
+                            + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
+
+
+def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
+    """Expand files, folders (recursively) and zip archives into motion files, in sorted order.
 
     Parameters
     ----------
     paths : iterable of str or Path
+        Files (``.amc``, ``.bvh``, ``.c3d``, each possibly ``.gz``/``.bz2``/``.xz``
+        compressed), folders, ``.zip`` archives, or paths through an archive
+        (``cmu.zip/subjects/02``, a folder inside it).
     unsupported : list, optional, keyword-only
-        Receives ``(path, reason)`` for every file of a folder that is not a
-        motion file (a file named explicitly is always returned: reading it
-        says what is wrong).
+        Receives ``(path, reason)`` for every file of a folder or archive that
+        is not a motion file, and every special file (FIFO, device, socket) in
+        a folder. A file named explicitly is always returned: reading it says
+        what is wrong.
+    unreadable : list, optional, keyword-only
+        Receives ``(path, reason)`` for folders and archives that cannot be read.
 
     Raises
     ------
@@ -76,24 +153,32 @@ def motion_files(paths, *, unsupported=None) -> list[Path]:
     """
     out = []
     for p in map(Path, paths):
-        if p.is_dir():
-            for q in _folder_files(p):
-                ext = q.suffix.lower()
-                if ext in MOTION_SUFFIXES:
-                    out.append(q)
-                elif unsupported is not None:
-                    why = _COMPANIONS.get(ext) or (f"unsupported file type {q.suffix!r}" if q.suffix
-                                                   else "no file extension")
-                    unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ")"))
-        elif p.is_file():
-            out.append(p)
+        archive, member = split_archive(p)
+        if member is not None and member != "" and not is_file(p):
+            # a folder inside an archive
+            members = [q for q in _archive_files(archive, unreadable)
+                       if str(q).startswith(str(p).rstrip("/") + "/")]
+            if not members:
+                raise ParameterError(f"paths: {str(p)!r} does not exist (no such member in {archive})")
+            for q in members:
+                _classify(q, out, unsupported)
+        elif member == "":
+            for q in _archive_files(archive, unreadable):
+                _classify(q, out, unsupported)
+        elif p.is_dir():
+            found = []
+            _walk(p, found, unsupported, unreadable)
+            for q in found:
+                if q.suffix.lower() in ARCHIVES:
+                    for m in _archive_files(q, unreadable):
+                        _classify(m, out, unsupported)
+                else:
+                    _classify(q, out, unsupported)
+        elif is_file(p) or os.path.lexists(p):
+            out.append(p)   # a special file named directly is refused by name when read
         else:
             raise ParameterError(f"paths: {str(p)!r} does not exist")
     return out
-
-
-def _sha256(path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 @dataclass
@@ -107,16 +192,26 @@ class _Prepared:
     error: str | None = None
     reader_options: str | None = None  # JSON of the reader options besides the skeleton
     replaces: int | None = None  # the stored motion of the same bytes this one replaces (ingest replace=True)
+    notes: list = field(default_factory=list)   # what the reader decided (stored under reader_options "notes")
 
 
 def _fingerprint(path: Path, asf) -> _Prepared:
+    kind = special_kind(path)
+    if kind is not None:   # opening a FIFO would block, a device never end
+        raise MocapdbError(f"{path}: {kind}, not a motion file")
     skel = None
-    if path.suffix.lower() == ".amc":
+    if motion_suffix(path) == ".amc":
         skel = Path(asf) if asf is not None else find_skeleton(path)
     try:
-        return _Prepared(path, _sha256(path), skel, _sha256(skel) if skel is not None else None)
+        digest = sha256(path)
     except OSError as exc:
         raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    try:
+        skel_digest = sha256(skel) if skel is not None else None
+    except OSError as exc:
+        # the skeleton is what cannot be read: say so under its name
+        raise MocapdbError(f"{skel}: cannot read this skeleton of {path} ({exc.strerror or exc})") from None
+    return _Prepared(path, digest, skel, skel_digest)
 
 
 def prepare_file(path, *, asf=None, maps=None):
@@ -157,8 +252,17 @@ def compute_motion(prep):
     # bug must not stop the other files of an archive (READERS.md §4)
     try:
         options = json.loads(prep.reader_options) if prep.reader_options else {}
-        prep.motion = read_motion(prep.path, asf=prep.skeleton_path, **options)
+        prep.motion = read_motion(prep.path, asf=prep.skeleton_path,
+                                  **{k: v for k, v in options.items() if k in READER_OPTIONS})
         prep.words = motion_features(prep.motion)
+        prep.notes = _notes(prep)
+        if prep.notes or prep.motion.meta.get("frames", (1, None))[0] != 1:
+            # kept with the motion; the re-read path (storage.motions.source_motion) passes only
+            # READER_OPTIONS back to the reader
+            options["notes"] = prep.notes
+            first, last = prep.motion.meta.get("frames", (1, prep.motion.n_frames))
+            options["source_frames"] = [int(first), int(last)]
+            prep.reader_options = json.dumps(options, sort_keys=True)
     except MocapdbError as exc:
         prep.error = str(exc)
     except Exception as exc:  # noqa: BLE001 - reported per file, never raised
@@ -167,6 +271,16 @@ def compute_motion(prep):
     if prep.error is not None:
         prep.motion = prep.words = None
     return prep
+
+
+def _notes(prep) -> list:
+    """The reader's notes for a computed file, with the skeleton found by the folder rule."""
+    notes = list(prep.motion.meta.get("notes", ()))
+    if prep.skeleton_path is not None and motion_suffix(prep.path) == ".amc":
+        note = skeleton_note(prep.path, prep.skeleton_path)
+        if note and note not in notes:
+            notes.insert(0, note)
+    return notes
 
 
 def _sql(name):
@@ -192,7 +306,7 @@ def motions_table(preps) -> pa.Table:
         if n30 != feature_frame_count(p.motion.n_frames, p.motion.fps):
             raise MocapdbError(f"{p.path}: {n30} feature frames for {p.motion.n_frames} source frames")
     return pa.table({
-        "name": pa.array([p.motion.name or p.path.stem for p in preps], pa.string()),
+        "name": pa.array([p.motion.name or motion_stem(p.path) for p in preps], pa.string()),
         # absolute as given, not symlink-resolved: the path the user knows (and can relocate)
         "source_path": pa.array([os.path.abspath(p.path) for p in preps], pa.string()),
         "format": pa.array([p.motion.source_format for p in preps], pa.string()),
@@ -282,7 +396,7 @@ BATCH_FILES = 64
 BATCH_FRAMES = 1_000_000
 
 
-def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=None,
+def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, progress=None,
                  workers: int = 2, replace: bool = False) -> IngestReport:
     """Read recordings, compute their features and store them.
 
@@ -299,6 +413,10 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
         Mapping of the canonical joints to a BVH file's joints / a C3D file's
         markers (TOML or JSON file, or dict; :func:`mocapdb.readers.load_mapping`),
         for every file of that type. Stored in ``motions.reader_options``.
+    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
+        How C3D files of the HDM05/CMU marker set are read (default: the
+        toolbox's formulas, the reference; :func:`mocapdb.readers.read_c3d`).
+        Stored in ``motions.reader_options``.
     progress : callable, optional, keyword-only
         Called as ``progress(path, n_source_frames)`` once per file.
     workers : int, keyword-only
@@ -322,8 +440,8 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     confined to its file.
     """
     report = IngestReport()
-    files = motion_files(paths, unsupported=report.unsupported)
-    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
+    files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable)
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules)
     stored = _stored_keys(con)
     todo = []
     first_of = {}     # key -> the first file of this ingest with those bytes
@@ -366,6 +484,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
                 if p.replaces is not None:
                     report.replaced.append((str(p.path), p.replaces))
                 report.source_frames += p.motion.n_frames
+                report.notes.extend((str(p.path), note) for note in p.notes)
             _tick(progress, p.path, p.motion.n_frames)
             p.motion = p.words = None  # free memory early on big archives
         batch.clear()
@@ -394,17 +513,21 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
 
 
 #: which reader option applies to which file type
-_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d"}
+_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d", "marker_rules": ".c3d"}
 
 
-def reader_maps(*, joint_map=None, marker_map=None) -> dict:
+def reader_maps(*, joint_map=None, marker_map=None, marker_rules=None) -> dict:
     """The reader options of an ingest, loaded and checked once (:func:`mocapdb.readers.load_mapping`)."""
+    if marker_rules not in (None, "toolbox", "anatomical"):
+        raise ParameterError(f"marker_rules must be 'toolbox' or 'anatomical', got {marker_rules!r}")
     return {"joint_map": load_mapping(joint_map, what="joint_map"),
-            "marker_map": load_mapping(marker_map, what="marker_map")}
+            "marker_map": load_mapping(marker_map, what="marker_map"),
+            # the default (the toolbox's formulas) is not stored: motions read as before keep their options
+            "marker_rules": None if marker_rules in (None, "toolbox") else marker_rules}
 
 
 def _reader_options(path: Path, maps: dict) -> str | None:
-    opts = {k: v for k, v in maps.items() if v is not None and path.suffix.lower() == _OPTION_SUFFIX[k]}
+    opts = {k: v for k, v in maps.items() if v is not None and motion_suffix(path) == _OPTION_SUFFIX[k]}
     return json.dumps(opts, sort_keys=True) if opts else None
 
 

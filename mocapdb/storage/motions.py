@@ -10,7 +10,7 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import ParameterError, SchemaError, shorten
-from mocapdb.readers import read_motion
+from mocapdb.readers import READER_OPTIONS, read_motion
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
@@ -160,7 +160,8 @@ def source_motion(con, motion_id):
         if f and os.path.isabs(f) and not os.path.exists(f):
             raise SchemaError(f"motion {motion_id}: {f} is gone; if the files moved, repoint the database: "
                               "mocapdb relocate OLD_FOLDER NEW_FOLDER")
-    kwargs = json.loads(options) if options else {}
+    # only the reader's own options: notes and source frames stored beside them only inform
+    kwargs = {k: v for k, v in (json.loads(options) if options else {}).items() if k in READER_OPTIONS}
     if skeleton:
         kwargs["asf"] = skeleton
     return read_motion(path, **kwargs)

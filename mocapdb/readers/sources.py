@@ -1,0 +1,292 @@
+"""Where a recording's bytes come from: a file, a compressed file, or a member of a zip archive.
+
+Recordings are published compressed (``take.bvh.gz``, ``.bz2``, ``.xz``) or
+as zip downloads with a folder inside (the CMU and Bandai archives). They
+are read in place, never unpacked to disk:
+
+* a **compressed file** ``walk.bvh.gz`` is the motion ``walk.bvh``: its
+  format is the suffix before the compression suffix, its bytes the
+  decompressed stream;
+* a **zip member** is named by the path *through* the archive, as if the
+  archive were a folder: ``/data/cmu.zip/subjects/02/02_01.amc`` is the
+  member ``subjects/02/02_01.amc`` of ``/data/cmu.zip``. That string is the
+  motion's ``source_path``: :func:`read_bytes` re-reads it for the viewer, and
+  an AMC inside finds its ASF among its siblings in the same archive
+  (:func:`is_file`, :func:`list_dir`). A member may itself be compressed.
+
+:func:`sha256` hashes the recording's own bytes (decompressed; a member's
+bytes) while streaming, so a take stored plain, gzipped or zipped is one
+motion, and re-ingest is a no-op. :func:`bytes_file` gives libraries that
+need a file name (ezc3d) an in-memory file (``memfd``), not a copy on disk.
+"""
+from __future__ import annotations
+
+import bz2
+import contextlib
+import gzip
+import hashlib
+import io
+import lzma
+import os
+import stat
+import tempfile
+import threading
+import zipfile
+import zlib
+from pathlib import Path, PurePosixPath
+
+__all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
+           "sha256", "stream_size", "is_file", "list_dir", "identity", "bytes_file", "special_kind", "zip_members"]
+
+#: compression suffix → the module that opens it as a stream
+COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
+#: archive suffixes read as folders
+ARCHIVES = (".zip",)
+_CHUNK = 1 << 20
+#: what a damaged compressed stream raises besides OSError
+_DECODE_ERRORS = (EOFError, lzma.LZMAError, zlib.error, zipfile.BadZipFile)
+
+
+def _is_zip(p: Path) -> bool:
+    return p.suffix.lower() in ARCHIVES
+
+
+def split_archive(path) -> tuple:
+    """``(archive, member)`` when ``path`` runs through a zip archive (a regular file), else ``(path, None)``.
+
+    ``/d/a.zip/x/y.amc`` → ``(Path("/d/a.zip"), "x/y.amc")``; ``/d/a.zip`` itself →
+    ``(Path("/d/a.zip"), "")``.
+    """
+    p = Path(path)
+    for parent in (p, *p.parents):
+        if _is_zip(parent):
+            try:
+                regular = stat.S_ISREG(os.stat(parent).st_mode)
+            except OSError:
+                continue
+            if regular:
+                rel = p.relative_to(parent)
+                return parent, "" if str(rel) == "." else str(PurePosixPath(*rel.parts))
+    return p, None
+
+
+def plain_file(path) -> bool:
+    """True when ``path`` is read as it is on disk (not compressed, not inside a zip archive)."""
+    return split_archive(path)[1] is None and Path(path).suffix.lower() not in COMPRESSED
+
+
+def motion_suffix(path) -> str:
+    """The motion format's suffix, lower case: ``walk.BVH.gz`` → ``.bvh``."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix in COMPRESSED:
+        suffix = Path(p.stem).suffix.lower()
+    return suffix
+
+
+def motion_stem(path) -> str:
+    """The file name without compression and format suffixes: ``walk.bvh.gz`` → ``walk``."""
+    p = Path(path)
+    if p.suffix.lower() in COMPRESSED:
+        p = Path(p.stem)
+    return Path(p.name).stem
+
+
+# zip archives stay open between reads of their members (an archive of 2,500 takes is
+# opened once per thread, not once per take)
+_ZIPS = threading.local()
+
+
+def _zip(archive: Path) -> zipfile.ZipFile:
+    st = os.stat(archive)
+    key = (str(archive), st.st_size, st.st_mtime_ns)
+    cache = getattr(_ZIPS, "cache", None)
+    if cache is None:
+        cache = _ZIPS.cache = {}
+    zf = cache.get(key)
+    if zf is None:
+        if len(cache) > 8:
+            for old in cache.values():
+                old.close()
+            cache.clear()
+        zf = cache[key] = zipfile.ZipFile(archive)
+    return zf
+
+
+def zip_members(archive) -> list:
+    """Names of the regular members of a zip archive (folders left out)."""
+    try:
+        return [i.filename for i in _zip(Path(archive)).infolist() if not i.is_dir()]
+    except zipfile.BadZipFile as exc:
+        raise OSError(f"not a readable zip archive ({exc})") from None
+
+
+def _raw_stream(path):
+    archive, member = split_archive(path)
+    if member is None:
+        return open(archive, "rb")
+    if member == "":
+        raise IsADirectoryError(f"{archive} is a zip archive, not a motion file")
+    try:
+        return _zip(archive).open(member)
+    except KeyError:
+        raise FileNotFoundError(f"no member {member!r} in {archive}") from None
+    except zipfile.BadZipFile as exc:
+        raise OSError(f"{archive}: not a readable zip archive ({exc})") from None
+
+
+class _Stream(io.RawIOBase):
+    """A decompressing stream whose damaged data raises OSError (as a damaged file does), not the
+    codec's own error types."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def readable(self):
+        return True
+
+    def read(self, size=-1):
+        try:
+            return self.inner.read(size)
+        except _DECODE_ERRORS as exc:
+            raise OSError(f"corrupt compressed data ({exc})") from None
+
+    def readinto(self, b):
+        data = self.read(len(b))
+        b[:len(data)] = data
+        return len(data)
+
+    def close(self):
+        self.inner.close()
+        super().close()
+
+
+def open_stream(path):
+    """A binary stream of the recording's bytes (decompressed); close it after use. Damaged
+    compressed data raises OSError."""
+    raw = _raw_stream(path)
+    module = COMPRESSED.get(Path(path).suffix.lower())
+    return _Stream(raw if module is None else module.open(raw))
+
+
+def stream_size(path) -> int | None:
+    """The recording's size in bytes when known without reading it (a plain file, a zip member), else None."""
+    archive, member = split_archive(path)
+    if Path(path).suffix.lower() in COMPRESSED:
+        return None
+    if member is None:
+        return os.stat(path).st_size
+    return _zip(archive).getinfo(member).file_size
+
+
+def read_bytes(path) -> bytes:
+    """The recording's bytes (decompressed, or the zip member's).
+
+    Raises
+    ------
+    OSError
+        Missing or unreadable file, bad archive or compressed stream.
+    """
+    with open_stream(path) as fh:
+        return fh.read()
+
+
+def sha256(path) -> str:
+    """SHA-256 of the recording's bytes, read in 1 MiB chunks (memory does not grow with the file)."""
+    h = hashlib.sha256()
+    with open_stream(path) as fh:
+        for chunk in iter(lambda: fh.read(_CHUNK), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def is_file(path) -> bool:
+    """True for a regular file, or a member of a zip archive."""
+    archive, member = split_archive(path)
+    if member is None:
+        return Path(path).is_file()
+    if not member:
+        return False
+    try:
+        info = _zip(archive).getinfo(member)
+    except (KeyError, OSError, zipfile.BadZipFile):
+        return False
+    return not info.is_dir()
+
+
+def list_dir(path) -> list:
+    """The entries of a folder (or a folder inside a zip archive) as paths; [] when unreadable."""
+    archive, member = split_archive(path)
+    if member is None:
+        try:
+            return list(Path(path).iterdir())
+        except OSError:
+            return []
+    prefix = f"{member}/" if member else ""
+    try:
+        names = zip_members(archive)
+    except OSError:
+        return []
+    out = set()
+    for name in names:
+        if name.startswith(prefix):
+            first = name[len(prefix):].split("/", 1)[0]
+            if first:
+                out.add(first)
+    return [Path(path) / name for name in sorted(out)]
+
+
+def identity(path) -> tuple:
+    """A key that changes when the recording's bytes may have changed (for caches)."""
+    archive, member = split_archive(path)
+    st = os.stat(archive)
+    if member is None:
+        return (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+    info = _zip(archive).getinfo(member)
+    return (str(archive.resolve()), member, st.st_size, st.st_mtime_ns, info.CRC)
+
+
+def special_kind(path) -> str | None:
+    """What a non-regular, non-folder file is (``"a FIFO (named pipe)"``, …), or None.
+
+    Reading such a file could block for ever (a FIFO) or never end (a device).
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    return "not a regular file"
+
+
+@contextlib.contextmanager
+def bytes_file(data: bytes, name: str = "recording"):
+    """``data`` behind a file name, for libraries that open files themselves: an anonymous in-memory
+    file (Linux ``memfd``, named ``/proc/self/fd/N``), or, where that does not exist, a temporary
+    file removed on exit."""
+    if hasattr(os, "memfd_create") and os.path.isdir("/proc/self/fd"):
+        fd = os.memfd_create(f"mocapdb-{name}"[:240])
+        try:
+            with io.FileIO(fd, "wb", closefd=False) as fh:
+                fh.write(data)
+            yield Path(f"/proc/self/fd/{fd}")
+        finally:
+            os.close(fd)
+        return
+    tmp = tempfile.NamedTemporaryFile(delete=False, suffix=Path(name).suffix)
+    try:
+        with tmp:
+            tmp.write(data)
+        yield Path(tmp.name)
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp.name)

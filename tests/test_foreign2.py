@@ -1,0 +1,120 @@
+"""Every file of ../shared/data/foreign2 (and foreign/) through the CLI's ingest, each with its expected
+outcome and the summary's notes (issue 19 item 7). Credits: see ../shared/data/README.md (keenon/
+nimblephysics, AnyBody/ammr, kjangsy/DHNKinect, Digital-Humans-23/motion-matching, vtan05/Anytop_fork,
+UomoCaffeLatte/PyAsfAmc; foreign/: pyomeca/ezc3d-testFiles, 20tab/bvh-python, omimo/PyMO,
+Wasserwecken/bvhio, facebookresearch/fairmotion)."""
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import mocapdb
+from mocapdb.cli import main
+from mocapdb.readers import read_asf, read_amc, asf_forward_kinematics, node_positions
+from mocapdb.readers.asf_humanoid import asf_humanoid_joints
+from mocapdb.features import downsample, relational_features
+from mocapdb.storage.motions import source_motion
+
+from conftest import DATA
+
+pytestmark = pytest.mark.shared
+
+#: file -> "ingested" with the notes its summary lines must hold, or "failed" with its reason's start
+FOREIGN2 = {
+    "amc/test_mass_kg.amc": ("ingested", ["ASF units mass 'kg' kept as written",
+                                          "rate 30 Hz from the ASF's :documentation (the AMC has no "
+                                          ":SAMPLES-PER-SECOND)",
+                                          "skeleton test_mass_kg.asf read by its shape and bone names "
+                                          "(not the CMU names)"]),
+    "bvh/kinect_clap_nan.bvh": ("ingested", ["lost tracking (NaN, infinite or absurd values) interpolated in "
+                                             "97 frames"]),
+    "bvh/dog_D1_007_KAN01_001.bvh": ("failed", "not a human skeleton: it stands upright"),
+    "bvh/chicken_walk.bvh": ("failed", "not a humanoid skeleton mocapdb can map: cannot find the joints of an arm"),
+    "c3d/vicon53_freeform.c3d": ("ingested", ["rebuilt Nick01:RBWT in 37 of the 37 frames",
+                                              "interpolated 790 missing marker samples"]),
+    "c3d/cortex_dotted_trial1.c3d": ("ingested", ["kept frames 844–1286 of 1526",
+                                                  "neck placed between the shoulders",
+                                                  "head and headtop placed from the neck and the trunk's axis"]),
+    "c3d/isb_walk_2014001_C1_01.c3d": ("ingested", ["head and headtop placed from the neck and the trunk's axis "
+                                                    "(no head markers)"]),
+}
+FOREIGN = {
+    "amc/11_01.amc": "ingested", "bvh/bvhio_example.bvh": "ingested",
+    "bvh/fairmotion_pfnn_hierarchy.bvh": "ingested", "bvh/mixamo_freebvh.bvh": "ingested",
+    "bvh/pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh": "ingested",
+    "bvh/fairmotion_sinusoidal.bvh": "not a humanoid skeleton mocapdb can map: 4 points",
+    "c3d/ezc3d_Qualisys.c3d": "ingested",
+    "c3d/ezc3d_BTS.c3d": "no full-body marker set: cannot place lelbow, lwrist, relbow, rwrist",
+    "c3d/ezc3d_FP_Type1.c3d": "no full-body marker set: cannot place lelbow, lwrist, relbow, rwrist",
+    "c3d/ezc3d_Optotrak.c3d": "no full-body marker set: cannot place root, lhip",
+    "c3d/ezc3d_read_NOTworking2.c3d": "no full-body marker set: cannot place root, lhip, lknee, lankle, ltoes, rhip",
+}
+
+
+@pytest.fixture(scope="module")
+def ingested(tmp_path_factory):
+    db = tmp_path_factory.mktemp("foreign2") / "f.duckdb"
+    r = CliRunner().invoke(main, ["--db", str(db), "ingest", str(DATA / "foreign"), str(DATA / "foreign2"),
+                                  "--silent"])
+    return db, r
+
+
+def test_the_folders_hold_what_the_tests_expect():
+    assert sorted(str(p.relative_to(DATA / "foreign2")) for p in (DATA / "foreign2").rglob("*.*")
+                  if p.suffix != ".asf") == sorted(FOREIGN2)
+    assert sorted(str(p.relative_to(DATA / "foreign")) for p in (DATA / "foreign").rglob("*.*")
+                  if p.suffix != ".asf") == sorted(FOREIGN)
+
+
+def test_every_file_gets_its_outcome_and_its_notes(ingested):
+    db, r = ingested
+    assert r.exit_code == 0 and "Traceback" not in r.output
+    assert r.output.splitlines()[-1].startswith("11 ingested, 0 skipped, 7 failed, 2 not motion files; "
+                                                "5 read with notes (")
+    lines = r.output.splitlines()
+    for name, (outcome, expected) in FOREIGN2.items():
+        path = str(DATA / "foreign2" / name)
+        if outcome == "failed":
+            mine = [ln for ln in lines if ln.startswith(f"failed  {path}: ")]
+            assert len(mine) == 1 and mine[0].startswith(f"failed  {path}: {expected}"), name
+        else:
+            notes = [ln[len(f"note    {path}: "):] for ln in lines if ln.startswith(f"note    {path}: ")]
+            for note in expected:
+                assert any(n.startswith(note) for n in notes), (name, note, notes)
+    for name, outcome in FOREIGN.items():
+        path = str(DATA / "foreign" / name)
+        failed = [ln for ln in lines if ln.startswith(f"failed  {path}: ")]
+        assert (not failed) if outcome == "ingested" else failed[0].startswith(f"failed  {path}: {outcome}"), name
+
+
+def test_notes_are_stored_with_the_motion_and_the_source_rereads(ingested):
+    """The notes live in motions.reader_options under "notes" (with "source_frames"), which the re-read
+    path passes over: the viewer's source_motion gives the stored motion's frames again."""
+    db, _ = ingested
+    con = mocapdb.connect(db, read_only=True)
+    try:
+        rows = dict(con.execute("SELECT name, reader_options FROM motions").fetchall())
+        cortex = json.loads(rows["cortex_dotted_trial1"])
+        assert cortex["source_frames"] == [844, 1286] and cortex["notes"][0].startswith("kept frames 844–1286")
+        assert rows["mixamo_freebvh"] is None   # nothing to say, nothing stored
+        for name in ("cortex_dotted_trial1", "kinect_clap_nan", "test_mass_kg"):
+            mid, n = con.execute("SELECT motion_id, n_source_frames FROM motions WHERE name = ?", [name]).fetchall()[0]
+            assert source_motion(con, mid).n_frames == n
+    finally:
+        con.close()
+
+
+def test_a_cmu_skeleton_through_the_humanoid_mapper_agrees_with_its_bone_names():
+    """The mapper that reads non-CMU ASFs (the foreign2 pair) reads the CMU 86 skeleton nearly as its
+    bone names do: the differences are where the names define the point otherwise (the neck at the
+    lower neck's tip, the wrist at the radius's tip)."""
+    skeleton = read_asf(DATA / "cmu" / "86" / "86.asf")
+    amc = read_amc(DATA / "cmu" / "86" / "86_09.amc", skeleton)
+    named, rot = asf_forward_kinematics(skeleton, amc)
+    nodes, node_rot = node_positions(skeleton, amc)
+    mapped, mapped_rot, _, problem = asf_humanoid_joints(skeleton, nodes, node_rot)
+    assert problem is None and mapped_rot is not None
+    a = downsample(relational_features(named, rot, amc.fps))
+    b = downsample(relational_features(mapped, mapped_rot, amc.fps))
+    assert np.mean(a == b) > 0.98
