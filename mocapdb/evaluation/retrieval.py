@@ -17,6 +17,8 @@ Per class the means over its queries. Variants (:data:`VARIANTS`), each with
 or without keyframe preselection:
 
 * ``clip`` — the clip's own words as the template (the default method);
+* ``unweighted`` — the same, every feature counting the same (the paper's
+  local cost c^Q instead of the information weights);
 * ``mirror`` — a template learned from the clip and its mirror image;
 * ``keyframes`` — fuzzy keyframes only: three keyframes taken from the clip,
   the chain hits widened by the annotation margins, ranked by how far their
@@ -24,26 +26,28 @@ or without keyframe preselection:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from mocapdb.errors import ParameterError
 from mocapdb.evaluation.documents import DocumentSet
 from mocapdb.keyframes import build_index, keyframe_search
-from mocapdb.retrieval import (CELL_BUDGET, RESULT_DTYPE, archive_sample, clip_template, mirror_template,
-                               search_documents, template_query)
+from mocapdb.features import unpack_words
+from mocapdb.retrieval import (CELL_BUDGET, RESULT_DTYPE, TAU_FACTOR, archive_sample, chance_cost, clip_template,
+                               feature_frequencies, mirror_template, search_documents, template_query)
 from mocapdb.retrieval.keyframes import column_paths, pick_keyframes
 
 #: the retrieval variants compared (module docstring)
-VARIANTS = ("clip", "mirror", "keyframes")
+VARIANTS = ("clip", "unweighted", "mirror", "keyframes")
 #: the ranks precision is reported at
 PRECISION_AT = (1, 5, 10)
 
 
 @dataclass(frozen=True)
 class QueryResult:
-    """One query of :func:`loao_retrieval`: its clip, the relevant count and the relevance of each result."""
+    """One query of :func:`loao_retrieval`: its clip, the relevant count, and per result its
+    relevance and its cost relative to the query's chance level (NaN for ``keyframes``)."""
 
     document: str
     start: int
@@ -52,6 +56,7 @@ class QueryResult:
     group: str
     n_relevant: int
     relevant: tuple
+    cost_by_chance: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -135,7 +140,7 @@ def _keyframes_only(words, lengths, index, template, sample, limit):
 
 
 def loao_retrieval(docs: DocumentSet, *, variant="clip", keyframes=None, budget=CELL_BUDGET, features="all", tau=None,
-                   groups=None, labels=None, progress=None) -> list:
+                   groups=None, labels=None, query_frames=None, progress=None) -> list:
     """Query with every labelled clip of every actor over the other actors' documents.
 
     Parameters
@@ -158,6 +163,9 @@ def loao_retrieval(docs: DocumentSet, *, variant="clip", keyframes=None, budget=
         Document name → actor; default the ``loao_<actor>_<k>`` names.
     labels : sequence of str, optional
         Only query clips of these labels (default all).
+    query_frames : int, optional
+        Query with at most this many frames from the middle of each clip
+        (long labelled stretches; default the whole clip).
     progress : callable, optional
         ``progress(n_done, n_total)``.
 
@@ -185,20 +193,30 @@ def loao_retrieval(docs: DocumentSet, *, variant="clip", keyframes=None, budget=
                            archive_sample(words, lengths))
         keep, words, lengths, index, sample = archives[g]
         clip = docs.words[bounds[d] + q["start"]:bounds[d] + q["end"] + 1]
+        if query_frames is not None and clip.size > query_frames:
+            clip = clip[(clip.size - query_frames) // 2:][:query_frames]
         kept = [names[i] for i in keep]
         truth = docs.truth[np.isin(docs.truth["document"], kept)]
         n = int(np.sum(truth["label"] == q["label"]))
         limit = max(n, max(PRECISION_AT))
+        chance = np.nan
         if variant == "keyframes":
             results = _keyframes_only(words, lengths, index, clip_template(clip, features=features), sample, limit)
         else:
-            template = (clip_template(clip, features=features) if variant == "clip"
-                        else mirror_template(clip, features=features))
+            template = (mirror_template(clip, features=features) if variant == "mirror"
+                        else clip_template(clip, features=features))
             query = template_query(template, sample, tau=tau, keyframes=keyframes is not False)
+            if variant == "unweighted":
+                equal = np.where(unpack_words(template.mask), 1.0, 0.0)
+                chance = chance_cost(template, feature_frequencies(sample), equal)
+                query = replace(query, weights=equal, chance=chance,
+                                tau=TAU_FACTOR * chance if tau is None else query.tau)
+            chance = query.chance
             results = search_documents(words, lengths, query, limit=limit, index=index, budget=budget,
                                        force=bool(keyframes))
         out.append(QueryResult(str(q["document"]), int(q["start"]), int(q["end"]), str(q["label"]), str(g), n,
-                               tuple(relevance(results, truth, str(q["label"]), kept))))
+                               tuple(relevance(results, truth, str(q["label"]), kept)),
+                               tuple((results["cost"] / chance).tolist())))
         if progress is not None:
             progress(k + 1, len(queries))
     return out

@@ -71,13 +71,20 @@ def information_weights(template: QuantizedTemplate, p_on) -> np.ndarray:
     return np.where(fixed, -np.log2(pv), 0.0)
 
 
-def chance_cost(template: QuantizedTemplate, p_on) -> float:
+def chance_cost(template: QuantizedTemplate, p_on, weights=None) -> float:
     """Expected local cost of the weighted template against archive frames with independent features.
 
-    Per column the information-weighted fraction of fixed features that a
-    random frame (feature f on with probability ``p_on[f]``) disagrees
-    with, averaged over the columns (weighted by the column weights, as Δ
-    is): the Δ of an alignment that matches nothing in particular.
+    Per column the weighted fraction of fixed features that a random frame
+    (feature f on with probability ``p_on[f]``) disagrees with, averaged over
+    the columns (weighted by the column weights, as Δ is): the Δ of an
+    alignment that matches nothing in particular.
+
+    Parameters
+    ----------
+    template : QuantizedTemplate
+    p_on : (40,) float
+    weights : (K, 40) float, optional
+        The feature weights; default :func:`information_weights`.
 
     Returns
     -------
@@ -85,7 +92,7 @@ def chance_cost(template: QuantizedTemplate, p_on) -> float:
         In [0, 1]; 0 for a template without fixed features.
     """
     pv, fixed = _value_probability(template, p_on)
-    w = np.where(fixed, -np.log2(pv), 0.0)
+    w = np.where(fixed, -np.log2(pv) if weights is None else np.asarray(weights, np.float64), 0.0)
     total = w.sum(axis=1)
     per_column = np.divide((w * (1.0 - pv)).sum(axis=1), total, out=np.zeros(len(template)), where=total > 0)
     return float(np.average(per_column, weights=template.weights))
