@@ -59,10 +59,11 @@ COARSE_MIN_COLUMNS = 8
 COARSE_COLUMNS = 24
 #: what Δ costs per frame besides its columns (cost, ring and output), in cells: a DP over
 #: a short template is bound by its frames
-FRAME_CELLS = 16
+FRAME_CELLS = 32
 #: Δ cells (:func:`rank_cells`) a query may rank: the preselection takes the most lenient keyframe
-#: level that stays below (about half a second on two cores: benchmarks/bench_similar.py)
-CELL_BUDGET = 150_000_000
+#: level that stays below (about half a second on two cores; the speed and the quality it costs at
+#: 100 h: benchmarks/RESULTS.md)
+CELL_BUDGET = 200_000_000
 
 #: a retrieval result: ``doc`` a document (or motion id), frames 0-based inclusive
 RESULT_DTYPE = np.dtype([("doc", np.int64), ("start", np.int64), ("end", np.int64), ("cost", np.float64)])
