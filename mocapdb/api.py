@@ -674,8 +674,12 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
                              f"got format={format!r}, out={out!r}")
     stretches = [query_stretch(con, _one_motion(con, motion), start_frame, end_frame, start=start, end=end)]
     for k, ex in enumerate(examples or ()):
-        m, a, b = (ex, None, None) if isinstance(ex, (int, np.integer, str)) else tuple(ex)
-        stretches.append(query_stretch(con, _one_motion(con, m), a, b))
+        if isinstance(ex, (int, np.integer, str)):
+            ex = (ex, None, None)
+        if not isinstance(ex, (tuple, list)) or len(ex) != 3:
+            raise ParameterError(f"examples[{k}] must be a motion (id or name) or (motion, start_frame, end_frame), "
+                                 f"got {ex!r}")
+        stretches.append(query_stretch(con, _one_motion(con, ex[0]), ex[1], ex[2]))
     table = similar_stretches(con, stretches, limit=limit, features=features, tau=tau, keyframes=keyframes)
     if out is not None:
         write_results_pages(con, table, [s[:3] for s in stretches], out, model=model, progress=progress)

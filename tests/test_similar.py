@@ -153,6 +153,8 @@ def test_bad_input_is_a_clear_error(con):
         mocapdb.similar(con, KICK, features="toes")
     with pytest.raises(ParameterError, match="format and out"):
         mocapdb.similar(con, KICK, format="html")
+    with pytest.raises(ParameterError, match=r"examples\[0\] must be a motion"):
+        mocapdb.similar(con, KICK, examples=[(KICK, 3)])
     for query, message in ((f"SELECT * FROM similar_to({mid}, 9, 3)", "is empty"),
                            (f"SELECT * FROM similar_to({mid}, 1, {n + 1})", "outside motion"),
                            ("SELECT * FROM similar_to(99999)", "no motion with id 99999"),
