@@ -1,8 +1,9 @@
 """Numba kernels of retrieval: hits (:mod:`mocapdb.retrieval.hits`), words from runs (:mod:`mocapdb.retrieval.archive`).
 
-Greedy selection of non-overlapping local minima of Δ per task, cheapest
-first, frames already taken (earlier hits, the query's own stretch) being
-off limits.
+* the greedy selection of non-overlapping minima of Δ per task, cheapest
+  first, frames already taken (earlier hits, the query's own stretch) being
+  off limits;
+* a document's words from its runs of constant word (the keyframe index).
 """
 import numpy as np
 
