@@ -646,7 +646,9 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
     tau : float, optional, keyword-only
         Hit threshold on the weighted Δ (default: ¾ of the query's chance level).
     keyframes : bool, optional, keyword-only
-        Keyframe preselection (default: when the database has the keyframe index).
+        Preselect with keyframes taken from the stretch (needs the keyframe
+        index): True always, False never; default as far as the archive's size
+        needs to keep the query's work within :data:`mocapdb.retrieval.CELL_BUDGET`.
     format : {"html"}, optional, keyword-only
         Also write the results as a page listing them, with a viewer page per
         motion linked at each hit (``out`` is a directory).

@@ -607,8 +607,8 @@ def _stretch(text):
 @click.option("--tau", type=float, help="Hit threshold on the weighted cost (default: 3/4 of the query's chance "
                                         "level).")
 @click.option("--keyframes/--no-keyframes", default=None,
-              help="Preselect with keyframes taken from the query (default: when the database has the keyframe "
-                   "index).")
+              help="Preselect with keyframes taken from the query: --keyframes always, --no-keyframes never "
+                   "(default: as far as the archive's size needs to keep a query's work bounded).")
 @click.option("--format", "fmt", type=click.Choice(FORMATS + ("html",)), default="table", show_default=True,
               help="table/csv/json print (or write --out); html writes --out DIR/index.html listing the results, "
                    "linked to a viewer page per motion at each hit.")
