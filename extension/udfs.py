@@ -18,10 +18,11 @@ from duckdb import sqltypes as T
 
 from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.features import N_FEATURES
+from mocapdb.features import FEATURE_RATE, N_FEATURES
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins, keyframe_search
 from mocapdb.storage.annotations import annotate_documents
 from mocapdb.storage.cache import connection_cache
+from mocapdb.storage.retrieval import check_range, search_index
 from mocapdb.storage.sqltext import sql_text
 from mocapdb.templates import mt_distance
 
@@ -39,6 +40,11 @@ _SEGMENT_FIELDS = ("label", "start_frame", "end_frame", "cost", "start_s", "end_
 _SEGMENT_ARROW = pa.struct([("label", pa.string()), ("start_frame", pa.int32()), ("end_frame", pa.int32()),
                             ("cost", pa.float64()), ("start_s", pa.float64()), ("end_s", pa.float64())])
 HIT_TYPE = duckdb.struct_type({"motion_id": T.INTEGER, "start_frame": T.INTEGER, "end_frame": T.INTEGER})
+#: SQL type of one result of ``similar_to`` (ranked; frames 1-based at 30 Hz)
+SIMILAR_TYPE = duckdb.struct_type({"rank": T.INTEGER, "motion_id": T.INTEGER, "start_frame": T.INTEGER,
+                                   "end_frame": T.INTEGER, "cost": T.DOUBLE})
+_SIMILAR_ARROW = pa.struct([("rank", pa.int32()), ("motion_id", pa.int32()), ("start_frame", pa.int32()),
+                            ("end_frame", pa.int32()), ("cost", pa.float64())])
 _HIT_ARROW = pa.struct([("motion_id", pa.int32()), ("start_frame", pa.int32()), ("end_frame", pa.int32())])
 
 
@@ -175,7 +181,29 @@ def make_udfs(cache):
             per_row.append(_search(cache, query, left, right, version))
         return _hits_array(per_row)
 
-    return annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf
+    def similar_udf(words, motion, first, last, k, index_version):
+        """``mocap_similar(words, motion, first, last, k, version)`` → LIST(result) per row (sql/macros.sql)."""
+        flat, lengths, nulls = _lists(words)
+        starts = np.concatenate(([0], np.cumsum(lengths)))
+        per_row = []
+        for r, (m, a, b, limit, version) in enumerate(zip(*[_column(x).to_pylist() for x in
+                                                            (motion, first, last, k, index_version)])):
+            if m is None or nulls[r]:
+                raise SchemaError(f"similar_to: no motion with id {m} (see: SELECT motion_id, name FROM motions)")
+            if limit is None or limit < 1:
+                raise ParameterError(f"similar_to: k must be a positive integer, got {limit}")
+            lo, hi = check_range(f"motion {m}", int(lengths[r]), FEATURE_RATE, a, b)
+            _, index, ids = cache.index(version)
+            w = flat[starts[r]:starts[r + 1]]
+            hits = search_index(index, ids, [(int(m), lo, hi, w[lo:hi + 1])], limit=int(limit))
+            per_row.append(pa.StructArray.from_arrays(
+                [pa.array(np.arange(1, hits.size + 1), pa.int32()), pa.array(hits["doc"], pa.int32()),
+                 pa.array(hits["start"] + 1, pa.int32()), pa.array(hits["end"] + 1, pa.int32()),
+                 pa.array(hits["cost"], pa.float64())], fields=list(_SIMILAR_ARROW)))
+        parts = [(np.array([r]), v, np.array([len(v)])) for r, v in enumerate(per_row)]
+        return _list_array(parts, len(per_row), np.zeros(len(per_row), bool), _SIMILAR_ARROW)
+
+    return annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, similar_udf
 
 
 def _hits_array(per_row):
@@ -255,7 +283,7 @@ def register(con, *, cache=None):
         (:mod:`mocapdb.extension.connection`).
     """
     udfs = make_udfs(connection_cache(con) if cache is None else cache)
-    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf = udfs
+    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, similar_udf = udfs
     words = duckdb.list_type(T.UBIGINT)
     common = {"type": "arrow", "null_handling": "special", "side_effects": False}
     con.create_function("mocap_annotate", annotate_udf,
@@ -270,6 +298,9 @@ def register(con, *, cache=None):
                         [duckdb.list_type(T.UBIGINT), duckdb.list_type(T.UBIGINT), duckdb.list_type(T.BIGINT),
                          duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
                         duckdb.list_type(HIT_TYPE), **common)
+    con.create_function("mocap_similar", similar_udf,
+                        [words, T.INTEGER, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT], duckdb.list_type(SIMILAR_TYPE),
+                        **common)
     register_macros(con)
     return udfs
 
@@ -280,4 +311,5 @@ def register_macros(con) -> None:
     con.execute(sql_text("macros.sql"))
 
 
-__all__ = ["register", "register_macros", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "MAX_KEYFRAMES", "MAX_GAP"]
+__all__ = ["register", "register_macros", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "SIMILAR_TYPE",
+           "MAX_KEYFRAMES", "MAX_GAP"]

@@ -5,7 +5,7 @@ Capture Data" (SCA 2009) on DuckDB. The sub-packages follow the pipeline
 (docs/ARCHITECTURE.md): :mod:`~mocapdb.readers` → :mod:`~mocapdb.features`
 → :mod:`~mocapdb.templates` → :mod:`~mocapdb.keyframes` →
 :mod:`~mocapdb.annotation` → :mod:`~mocapdb.learning` →
-:mod:`~mocapdb.evaluation`; :mod:`~mocapdb.storage` and
+:mod:`~mocapdb.retrieval` → :mod:`~mocapdb.evaluation`; :mod:`~mocapdb.storage` and
 :mod:`~mocapdb.extension` (the SQL functions) and :mod:`~mocapdb.viewer` (HTML
 pages) below :mod:`~mocapdb.api`, which the command line mirrors one to one. The most used functions are here:
 
@@ -13,6 +13,7 @@ pages) below :mod:`~mocapdb.api`, which the command line mirrors one to one. The
 - :func:`ingest` / :func:`delete` — add and remove recordings
 - :func:`annotate` — label motions with a model
 - :func:`view` — a motion's skeleton and labels as a self-contained HTML page
+- :func:`similar` — the stretches of the archive most like a stretch of a motion
 - :func:`read_motion` / :func:`motion_features` — a file to 24 joints to packed 30 Hz feature words
 """
 import os as _os
@@ -25,7 +26,7 @@ if not _os.path.isdir(_os.path.join(__path__[0], "extension")):
     if _os.path.isfile(_os.path.join(_root, "extension", "__init__.py")):
         __path__.append(_root)
 
-from mocapdb.api import annotate, connect, delete, evaluate, ingest, train, view  # noqa: E402
+from mocapdb.api import annotate, connect, delete, evaluate, ingest, similar, train, view  # noqa: E402
 from mocapdb.errors import MocapdbError, ParameterError, ParseError, SchemaError  # noqa: E402
 from mocapdb.features import motion_features, relational_features  # noqa: E402
 from mocapdb.readers import read_motion  # noqa: E402
@@ -33,6 +34,7 @@ from mocapdb.readers import read_motion  # noqa: E402
 __version__ = "0.2.0"
 
 __all__ = [
-    "connect", "ingest", "delete", "annotate", "train", "evaluate", "view", "read_motion", "motion_features",
+    "connect", "ingest", "delete", "annotate", "train", "evaluate", "view", "similar", "read_motion",
+    "motion_features",
     "relational_features", "MocapdbError", "ParameterError", "ParseError", "SchemaError",
 ]

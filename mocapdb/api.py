@@ -17,6 +17,7 @@ CLI                           API
 ``mocapdb evaluate``          :func:`evaluate`
 ``mocapdb report``            :func:`report`
 ``mocapdb view``              :func:`view`
+``mocapdb similar``           :func:`similar`
 ``mocapdb create-index``      :func:`create_index`
 ``mocapdb drop-index``        :func:`drop_index`
 ``mocapdb export-features``   :func:`export_features`
@@ -58,6 +59,8 @@ from mocapdb.storage.motions import (documents_by_name, motion_documents, motion
                                      relocate_sources)
 from mocapdb.storage.sqltext import statement
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
+from mocapdb.storage.retrieval import query_stretch, similar_stretches
+from mocapdb.viewer.results import write_results_pages
 from mocapdb.warmup import (PARTS, background_compile_running, cache_is_cold, compile_kernels, sample_files,
                             start_background_compile, wait_for_background_compile)
 
@@ -682,6 +685,91 @@ def view(con, motion=None, *, out=None, all=None, model=DEFAULT_MODEL, tau=None,
     write_motion_page(con, motion, out, **options)
     return [Path(out)]
 
+#: output formats of :func:`similar` that write files (tables, CSV and JSON are printed by the CLI)
+SIMILAR_FORMATS = ("html",)
+
+
+def _one_motion(con, motion):
+    """The id of a motion given by id or name; a name must name one motion."""
+    ids = motion_ids(con, [motion])
+    if len(ids) > 1:
+        raise ParameterError(f"{motion!r} names {len(ids)} motions (ids {', '.join(map(str, ids))}); give the id")
+    return ids[0]
+
+
+def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=None, examples=None, limit=10,
+            features="all", tau=None, keyframes=None, format=None, out=None, model=DEFAULT_MODEL, progress=None):
+    """Find the stretches of the archive most like a stretch of a motion (query by example).
+
+    The stretch (the whole motion without a range) is a template of its own
+    30 Hz words; Δ, its subsequence DTW with every feature weighted by its
+    information in the archive, finds where it matches, the non-overlapping
+    local minima are the hits, cheapest first; keyframes taken from the
+    stretch preselect (README "Finding similar motions";
+    :mod:`mocapdb.retrieval`). With ``examples``, a template is learned from
+    all the stretches ("more like these").
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    motion : int or str
+        Motion id or name.
+    start, end : float, optional
+        The range in seconds from the motion's start.
+    start_frame, end_frame : int, optional, keyword-only
+        Or in 30 Hz frames, 1-based inclusive (as annotation output).
+    examples : sequence, optional, keyword-only
+        Further example stretches: a motion (id or name, the whole of it) or
+        ``(motion, start_frame, end_frame)``.
+    limit : int, keyword-only, default 10
+        The number of results.
+    features : str or sequence of str, keyword-only, default "all"
+        ``all``, ``upper`` (features 1–14), ``lower`` (15–26) or feature names
+        (comma-separated or a sequence; those of the ``feature_flags`` view).
+    tau : float, optional, keyword-only
+        Hit threshold on the weighted Δ (default: ¾ of the query's chance level).
+    keyframes : bool, optional, keyword-only
+        Preselect with keyframes taken from the stretch (needs the keyframe
+        index): True always, False never; default as far as the archive's size
+        needs to keep the query's work within :data:`mocapdb.retrieval.CELL_BUDGET`.
+    format : {"html"}, optional, keyword-only
+        Also write the results as a page listing them, with a viewer page per
+        motion linked at each hit (``out`` is a directory).
+    out : str or Path, optional, keyword-only
+    model : str, keyword-only
+        The model whose annotation the viewer pages show (``format="html"``).
+    progress : callable, optional, keyword-only
+        ``progress(n_done, n_total)`` per viewer page written.
+
+    Returns
+    -------
+    pyarrow.Table
+        Columns ``document, motion_id, start_frame, end_frame, start_s, end_s,
+        cost``, ranked by cost; no row overlaps another or a query stretch.
+
+    Raises
+    ------
+    SchemaError
+        An unknown motion.
+    ParameterError
+        An empty range or one outside the motion, or bad options.
+    """
+    if (format is None) != (out is None) or (format is not None and format not in SIMILAR_FORMATS):
+        raise ParameterError(f"format and out go together, format one of {', '.join(SIMILAR_FORMATS)}; "
+                             f"got format={format!r}, out={out!r}")
+    stretches = [query_stretch(con, _one_motion(con, motion), start_frame, end_frame, start=start, end=end)]
+    for k, ex in enumerate(examples or ()):
+        if isinstance(ex, (int, np.integer, str)):
+            ex = (ex, None, None)
+        if not isinstance(ex, (tuple, list)) or len(ex) != 3:
+            raise ParameterError(f"examples[{k}] must be a motion (id or name) or (motion, start_frame, end_frame), "
+                                 f"got {ex!r}")
+        stretches.append(query_stretch(con, _one_motion(con, ex[0]), ex[1], ex[2]))
+    table = similar_stretches(con, stretches, limit=limit, features=features, tau=tau, keyframes=keyframes)
+    if out is not None:
+        write_results_pages(con, table, [s[:3] for s in stretches], out, model=model, progress=progress)
+    return table
+
 
 def create_index(con) -> int:
     """(Re)build the keyframe index (schema ``mocap_index``) from the features.
@@ -826,6 +914,6 @@ def relocate(con, old_prefix, new_prefix):
 
 __all__ = ["warmup", "connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate",
            "report",
-           "view",
+           "view", "similar", "SIMILAR_FORMATS",
            "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
            "training_clips", "convert_labels", "relocate", "FIGURES"]

@@ -137,7 +137,7 @@ def _set_bar(bar):
 
 
 #: commands that annotate: they use the kernels the background warm-up compiles
-_ANNOTATING = {"annotate", "evaluate", "sql", "view", "report", "learn-keyframes", "train"}
+_ANNOTATING = {"annotate", "evaluate", "sql", "view", "report", "learn-keyframes", "train", "similar"}
 
 
 def _say_when_compiling(ctx, command):
@@ -673,6 +673,71 @@ def view(ctx, motion, out, all, model, tau, keyframes, truth, label_map, silent)
         written = api_view(_open(ctx), motion, out=out, all=all, model=model, tau=tau, keyframes=keyframes,
                            truth=truth, label_map=label_map, progress=_set_bar(bar))
     click.echo(f"written {written[0]}" + (f" and {len(written) - 1} page(s)" if all is not None else ""))
+
+
+def _stretch(text):
+    """``MOTION`` or ``MOTION:A-B`` (30 Hz frames, 1-based inclusive) of --example."""
+    m = re.fullmatch(r"(.+?)(?::(\d+)-(\d+))?", text.strip())
+    name, a, b = m.group(1), m.group(2), m.group(3)
+    return name if a is None else (name, int(a), int(b))
+
+
+@command()
+@click.argument("motion")
+@click.option("--start-frame", type=int, help="First frame of the query stretch (30 Hz, 1-based, as annotate prints).")
+@click.option("--end-frame", type=int, help="Last frame of the query stretch (inclusive).")
+@click.option("--start", type=float, help="Or: start of the stretch in seconds.")
+@click.option("--end", type=float, help="Or: end of the stretch in seconds.")
+@click.option("--example", "examples", multiple=True, metavar="MOTION[:A-B]",
+              help="A further example stretch (frames A-B, 1-based inclusive; whole motion without them); "
+                   "repeatable: a template is learned from all the stretches (\"more like these\").")
+@click.option("--limit", type=int, default=10, show_default=True, help="Number of results.")
+@click.option("--features", default="all", show_default=True,
+              help="all, upper (arms, features 1-14), lower (legs, 15-26) or comma-separated feature names.")
+@click.option("--tau", type=float, help="Hit threshold on the weighted cost (default: 3/4 of the query's chance "
+                                        "level).")
+@click.option("--keyframes/--no-keyframes", default=None,
+              help="Preselect with keyframes taken from the query: --keyframes always, --no-keyframes never "
+                   "(default: as far as the archive's size needs to keep a query's work bounded).")
+@click.option("--format", "fmt", type=click.Choice(FORMATS + ("html",)), default="table", show_default=True,
+              help="table/csv/json print (or write --out); html writes --out DIR/index.html listing the results, "
+                   "linked to a viewer page per motion at each hit.")
+@click.option("--out", type=click.Path(path_type=Path), help="Write to a file (a directory for html).")
+@model_option("Model whose annotation the html pages show.")
+@silent_option
+@click.pass_context
+def similar(ctx, motion, start_frame, end_frame, start, end, examples, limit, features, tau, keyframes, fmt, out,
+            model, silent):
+    """Find the stretches of the archive most like a stretch of MOTION (query by example).
+
+    MOTION is a motion id or name; without a range the whole motion is the
+    query. Results are ranked by cost, never overlap each other or the query,
+    and come from any motion (the query's own included). Columns
+    document,motion_id,start_frame,end_frame,start_s,end_s,cost (30 Hz frames,
+    1-based inclusive).
+
+    \b
+    Examples:
+      mocapdb --db a.duckdb similar HDM_bd_kickLFront1Reps_001_120 --limit 5
+      mocapdb --db a.duckdb similar 86_09 --start 12.5 --end 15 --features lower
+      mocapdb --db a.duckdb similar 86_09 --start-frame 380 --end-frame 450 --format html --out hits/
+      mocapdb --db a.duckdb similar kick1 --example kick2 --example 86_09:100-160
+    """
+    from mocapdb.api import similar as api_similar
+
+    if fmt == "html" and out is None:
+        raise click.UsageError("--format html writes pages: give --out DIR")
+    html_out = fmt == "html"
+    with _progress(None, "similar", silent, unit="page") as bar:
+        table = api_similar(_open(ctx), motion, start, end, start_frame=start_frame, end_frame=end_frame,
+                            examples=[_stretch(e) for e in examples] or None, limit=limit, features=features,
+                            tau=tau, keyframes=keyframes, format="html" if html_out else None,
+                            out=out if html_out else None, model=model, progress=_set_bar(bar))
+    if html_out:
+        click.echo(f"{table.num_rows} result(s) written to {Path(out) / 'index.html'}")
+        return
+    cols = list(table.column_names)
+    write_rows(list(zip(*(table.column(c).to_pylist() for c in cols))), cols, fmt, out)
 
 
 @command("create-index")

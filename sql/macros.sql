@@ -50,3 +50,25 @@ SELECT unnest(mocap_keyframe_search_words(
     masks::UBIGINT[], vals::UBIGINT[], gap_min::BIGINT[], gap_max::BIGINT[],
     extend_left::BIGINT, extend_right::BIGINT,
     (SELECT mocap_s.version FROM %index_schema%.state mocap_s)), recursive := true);
+
+-- Query by example: the stretches of every motion most like frames
+-- first_frame..last_frame (1-based inclusive at 30 Hz; the whole motion without
+-- them, NULL) of a motion, k of them: rows (document, motion_id, start_frame,
+-- end_frame, start_s, end_s, cost) ranked by cost, none overlapping another or
+-- the query. The UDF reads the archive from the keyframe index the connection
+-- keeps (its runs rebuild any stretch), so only the query's words travel in.
+CREATE OR REPLACE TEMP MACRO mocap_similar_rows(motion, first_frame, last_frame, k) AS TABLE
+SELECT mocap_m.name AS document, mocap_r.motion_id, mocap_r.start_frame, mocap_r.end_frame,
+       (mocap_r.start_frame - 1) / mocap_m.fps AS start_s, mocap_r.end_frame / mocap_m.fps AS end_s, mocap_r.cost
+FROM (SELECT unnest(mocap_similar(
+          (SELECT list(mocap_f.bits ORDER BY mocap_f.frame) FROM features mocap_f WHERE mocap_f.motion_id = motion),
+          motion::INTEGER, first_frame::INTEGER, last_frame::INTEGER, k::INTEGER,
+          (SELECT mocap_s.version FROM %index_schema%.state mocap_s)), recursive := true)) mocap_r
+JOIN motions mocap_m ON mocap_m.motion_id = mocap_r.motion_id
+ORDER BY mocap_r.rank;
+
+-- similar_to(motion_id [, start_frame, end_frame] [, k := 10]): the user-facing overloads
+CREATE OR REPLACE TEMP MACRO similar_to(motion, k := 10) AS TABLE (
+    SELECT * FROM mocap_similar_rows(motion, NULL, NULL, k)),
+  (motion, first_frame, last_frame, k := 10) AS TABLE (
+    SELECT * FROM mocap_similar_rows(motion, first_frame, last_frame, k));

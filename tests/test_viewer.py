@@ -101,6 +101,38 @@ def test_clicking_a_segment_seeks_there(page):
     assert int(test[1]["data-segments"]) == len(dom.by_class("seg"))
 
 
+def test_dragging_along_the_timeline_offers_a_similar_command(page):
+    """The self test drags from 20 % to 40 % of the first track: frames selected, the command shown."""
+    out, dom, log = page
+    test = dom.by_id("selftest")
+    first, last = map(int, test[1]["data-selection"].split("-"))
+    assert 1 <= first < last
+    assert test[1]["data-command"] == f"mocapdb similar 86_09 --start-frame {first} --end-frame {last}"
+    assert dom.by_id("similar-command")[2] == test[1]["data-command"]
+    box = dom.by_id("similar")
+    assert "hidden" not in box[1] and (box[1]["data-first"], box[1]["data-last"]) == (str(first), str(last))
+
+
+@pytest.mark.parametrize("fragment, opened, selected", [("#frame=100-160", "100", ("100", "160")),
+                                                       ("#frame=250", "250", None)])
+def test_a_frame_fragment_opens_the_page_there(page, fragment, opened, selected):
+    """The links of a results page (similar --format html) open the motion's page at the hit."""
+    out, _, _ = page
+    dom, log = dump_dom(out, fragment)
+    assert console_errors(log) == []
+    dom = Elements(dom)
+    body = next(e for e in dom.elements if e[0] == "body")
+    assert body[1].get("data-opened-at") == opened
+    assert dom.by_id("clock")[2].split("frame ")[1].startswith(f"{opened}/")
+    box = dom.by_id("similar")
+    if selected is None:
+        assert "hidden" in box[1]
+    else:
+        assert (box[1]["data-first"], box[1]["data-last"]) == selected
+        assert dom.by_id("similar-command")[2] == f"mocapdb similar 86_09 --start-frame {selected[0]} " \
+                                                 f"--end-frame {selected[1]}"
+
+
 def test_the_decoded_poses_are_the_source_joints(db, page):
     """The page's own decoder (JavaScript) gives back the re-read joints within the quantization step."""
     path, _ = db

@@ -38,11 +38,12 @@ from numba.extending import intrinsic
 
 from mocapdb._numba import jit, pjit, prange
 from mocapdb.errors import ParameterError
+from mocapdb.features import N_FEATURES, unpack_words
 from mocapdb.features import as_words as _as_words
-from mocapdb.templates.template import QuantizedTemplate
+from mocapdb.templates.template import QuantizedTemplate, _expand_counts
 
 __all__ = ["ANNOTATION_STEPS", "DEFAULT_CHUNK", "RETRIEVAL_STEPS", "RULES", "cost_table", "mt_distance",
-           "mt_distance_slices", "subsequence_dtw"]
+           "mt_distance_slices", "subsequence_dtw", "weighted_cost_tables"]
 
 #: (Δi template, Δj document, weight) used for annotation (motionClass_to_Delta.m)
 ANNOTATION_STEPS = ((1, 1, 1.0), (1, 2, 1.0), (2, 1, 2.0))
@@ -50,6 +51,9 @@ ANNOTATION_STEPS = ((1, 1, 1.0), (1, 2, 1.0), (2, 1, 2.0))
 RETRIEVAL_STEPS = ((1, 1, 1.0), (0, 1, 1.0), (1, 0, 1.0))
 RULES = ("toolbox", "textbook")
 _N_COST = 41  # popcount of a 40-bit masked difference: 0..40
+_N_BYTES = 5  # bytes of a 40-bit word: the feature-weighted cost is a sum of one table entry per byte
+_CACHE_BITS = 12  # 4096 slots of the weighted costs of recent words, per worker thread
+_NO_WORD = np.uint64(1 << 63)  # a tag no 40-bit word has
 
 #: default number of output frames per parallel work item
 DEFAULT_CHUNK = 8192
@@ -80,24 +84,34 @@ _popcount = _popcount_python if numba.config.DISABLE_JIT else _popcount_intrinsi
 
 
 @jit
-def _pred_base(jj, di, dj, R1, L, pad):  # pragma: no cover
-    """Ring index of the predecessor of row 0 along step (di, dj) at DP frame jj.
+def _pred_base(jj, slot, di, dj, R1, L, pad):  # pragma: no cover
+    """Ring index of the predecessor of row 0 along step (di, dj) at DP frame jj (in ring slot
+    ``slot`` = jj % R1; dj < R1, so no second modulo is needed).
 
     Frames before the DP's first frame map to the all-+inf slot R1; row
     ``-di`` lands in the slot's +inf padding.
     """
-    q = jj - dj
-    return ((q % R1) if q >= 0 else R1) * L + pad - di
+    if jj - dj < 0:
+        return R1 * L + pad - di
+    p = slot - dj
+    if p < 0:
+        p += R1
+    return p * L + pad - di
 
 
 @jit
-def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, di, dj, sw, rule,
-             want_starts, delta, starts, o):  # pragma: no cover
+def _dp_task(words, masks, values, tables, btables, C, K, a0, lo, hi, D, S, c, ccache, ctags, R1, pad, di, dj, sw,
+             rule, want_starts, delta, starts, o):  # pragma: no cover
     """Subsequence DP of one template over frames a0..hi-1 of a document or slice.
 
     Local costs of frame j: from the packed word ``words[j]`` against the K
-    template columns (masks, values (K,) uint64; tables (K, 41)), or, if C
-    has rows, the dense column ``C[:, j]``. Writes Δ of frames lo..hi-1 to
+    template columns (masks, values (K,) uint64; tables (K, 41)), or, if
+    btables has rows, the sum of the five byte tables (K, 5, 256) of
+    feature-weighted costs at the word's bytes, or, if C has rows, the dense
+    column ``C[:, j]``. The byte-table costs of a word are kept in the
+    direct-mapped cache ``ccache`` (slots × ≥ K) with ``ctags`` (the word in
+    each slot), which the caller keeps per thread while the template stays
+    the same: a few distinct words recur all over an archive. Writes Δ of frames lo..hi-1 to
     ``delta[o + j]`` and, if want_starts, their start frames (frame indices,
     -1 where Δ is +inf) to ``starts[o + j]``; frames a0..lo-1 only warm the
     DP up (chunking, §12).
@@ -118,6 +132,7 @@ def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, d
     L = pad + K
     nS = len(di)
     dense = C.shape[0] > 0
+    weighted = btables.shape[0] > 0
     for k in range((R1 + 1) * L):
         D[k] = np.inf
         S[k] = -1
@@ -126,19 +141,35 @@ def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, d
         if dense:
             for i in range(K):
                 c[i] = C[i, j]
+        elif weighted:
+            wd = words[j]
+            # few distinct words recur: each one's costs are kept in a direct-mapped cache
+            slot = (wd * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(64 - _CACHE_BITS)
+            c = ccache[slot]
+            if ctags[slot] != wd:
+                ctags[slot] = wd
+                b0 = wd & 255
+                b1 = (wd >> 8) & 255
+                b2 = (wd >> 16) & 255
+                b3 = (wd >> 24) & 255
+                b4 = (wd >> 32) & 255
+                for i in range(K):
+                    c[i] = (btables[i, 0, b0] + btables[i, 1, b1] + btables[i, 2, b2] + btables[i, 3, b3]
+                            + btables[i, 4, b4])
         else:
             wd = words[j]
             for i in range(K):
                 c[i] = tables[i, _popcount((values[i] ^ wd) & masks[i])]
         jj = j - a0
-        cur = (jj % R1) * L + pad
+        slot = jj % R1
+        cur = slot * L + pad
         # row 0: free start
         d0 = c[0]
         if rule == 1:
             # librosa also relaxes row 0 along steps with di = 0
             for s in range(nS):
                 if di[s] == 0:
-                    v = D[_pred_base(jj, np.int64(0), dj[s], R1, L, pad)] + sw[s] * c[0]
+                    v = D[_pred_base(jj, slot, np.int64(0), dj[s], R1, L, pad)] + sw[s] * c[0]
                     if v < d0:
                         d0 = v
         D[cur] = d0
@@ -152,9 +183,9 @@ def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, d
             # loop for steps with dj = 0, which read the column being
             # written). The starts, if wanted, take a second loop repeating
             # the selection: cheaper than one loop doing both.
-            b0 = _pred_base(jj, di[0], dj[0], R1, L, pad)
-            b1 = _pred_base(jj, di[1], dj[1], R1, L, pad)
-            b2 = _pred_base(jj, di[2], dj[2], R1, L, pad)
+            b0 = _pred_base(jj, slot, di[0], dj[0], R1, L, pad)
+            b1 = _pred_base(jj, slot, di[1], dj[1], R1, L, pad)
+            b2 = _pred_base(jj, slot, di[2], dj[2], R1, L, pad)
             Dc = D[cur:cur + K]
             P0 = D[b0:b0 + K]
             P1 = D[b1:b1 + K]
@@ -209,11 +240,11 @@ def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, d
             # more steps: one scalar loop over rows and steps
             for i in range(1, K):
                 ci = c[i]
-                bb = _pred_base(jj, di[0], dj[0], R1, L, pad)
+                bb = _pred_base(jj, slot, di[0], dj[0], R1, L, pad)
                 best = D[bb + i] if rule == 0 else D[bb + i] + sw[0] * ci
                 bw = sw[0]
                 for s in range(1, nS):
-                    b = _pred_base(jj, di[s], dj[s], R1, L, pad)
+                    b = _pred_base(jj, slot, di[s], dj[s], R1, L, pad)
                     v = D[b + i] if rule == 0 else D[b + i] + sw[s] * ci
                     m = v < best
                     best = v if m else best
@@ -231,18 +262,22 @@ def _dp_task(words, masks, values, tables, C, K, a0, lo, hi, D, S, c, R1, pad, d
 
 
 @pjit
-def _mt_distance_kernel(words, masks, values, tables, toff, overlap, di, dj, sw, rule, R1, pad,
+def _mt_distance_kernel(words, masks, values, tables, btables, toff, overlap, di, dj, sw, rule, R1, pad,
                         it, iseg, ilo, ihi, iout, delta, starts, want_starts,
-                        Dbuf, Sbuf, cbuf):  # pragma: no cover
+                        Dbuf, Sbuf, cbuf, Cbuf, Tbuf, last_t):  # pragma: no cover
     """Δ for many (template, document slice, chunk) work items, in parallel.
 
     words (N,) uint64; masks, values (ΣK,) uint64 and tables (ΣK, 41) of all
-    templates, template t at rows toff[t]:toff[t+1]; overlap (n_t,) warm-up
+    templates, template t at rows toff[t]:toff[t+1]; btables (ΣK, 5, 256) the
+    feature-weighted byte tables of all templates, or no rows (popcount
+    costs); overlap (n_t,) warm-up
     frames per template (-1: no chunking). Item q: template it[q], DP over
     the slice of words starting at iseg[q], output frames ilo[q]:ihi[q]
     written to delta[iout[q] + (j - ilo[q])] (and starts, word indices, if
     want_starts). Every item writes only its own output range. Dbuf, Sbuf,
-    cbuf: one row of scratch per worker thread (numba.get_thread_id()).
+    cbuf: one row of scratch per worker thread (numba.get_thread_id());
+    Cbuf, Tbuf: each thread's cache of weighted word costs, valid for the
+    template last_t[thread] (emptied when a thread moves to another template).
     """
     no_dense = np.empty((0, 0))
     for q in prange(it.shape[0]):
@@ -254,8 +289,12 @@ def _mt_distance_kernel(words, masks, values, tables, toff, overlap, di, dj, sw,
         a0 = iseg[q]
         if overlap[t] >= 0:
             a0 = max(a0, lo - overlap[t])
-        _dp_task(words, masks[a:b], values[a:b], tables[a:b], no_dense, b - a, a0, lo, ihi[q],
-                 Dbuf[tid], Sbuf[tid], cbuf[tid], R1, pad, di, dj, sw, rule, want_starts,
+        bt = btables[a:b] if btables.shape[0] > 0 else btables
+        if btables.shape[0] > 0 and last_t[tid] != t:
+            Tbuf[tid, :] = _NO_WORD
+            last_t[tid] = t
+        _dp_task(words, masks[a:b], values[a:b], tables[a:b], bt, no_dense, b - a, a0, lo, ihi[q],
+                 Dbuf[tid], Sbuf[tid], cbuf[tid], Cbuf[tid], Tbuf[tid], R1, pad, di, dj, sw, rule, want_starts,
                  delta, starts, iout[q] - lo)
 
 
@@ -265,9 +304,19 @@ def _dense_dtw_kernel(C, di, dj, sw, rule, R1, pad, delta, starts,
     """The DP of :func:`_mt_distance_kernel` on a dense cost matrix C (K, n)."""
     K = C.shape[0]
     _dp_task(np.empty(0, np.uint64), np.empty(0, np.uint64), np.empty(0, np.uint64),
-             np.empty((0, _N_COST)), C, K, np.int64(0), np.int64(0), C.shape[1],
+             np.empty((0, _N_COST)), np.empty((0, _N_BYTES, 256)), C, K, np.int64(0), np.int64(0), C.shape[1],
              np.empty((R1 + 1) * (pad + K)), np.empty((R1 + 1) * (pad + K), np.int32),
-             np.empty(K), R1, pad, di, dj, sw, rule, want_starts, delta, starts, np.int64(0))
+             np.empty(K), np.empty((1, 1)), np.empty(1, np.uint64), R1, pad, di, dj, sw, rule, want_starts, delta,
+             starts, np.int64(0))
+
+
+def _word_cost_cache(weighted, nthr, Kmax):
+    """(Cbuf, Tbuf, last_t) of :func:`_mt_distance_kernel`: per thread 2^_CACHE_BITS slots of
+    weighted word costs (only with weighted costs; else placeholders)."""
+    if not weighted:
+        return np.empty((nthr, 1, 1)), np.empty((nthr, 1), np.uint64), np.full(nthr, -1, np.int64)
+    return (np.empty((nthr, 1 << _CACHE_BITS, Kmax)), np.full((nthr, 1 << _CACHE_BITS), _NO_WORD, np.uint64),
+            np.full(nthr, -1, np.int64))
 
 
 def _ring_shape(di, dj):
@@ -371,8 +420,69 @@ def cost_table(template, *, doc_weight=1.0):
                                 * factor[:, None])
 
 
-def _prepare_templates(ts, expand, di, dj):
+def _feature_weights(ts, feature_weights):
+    """Per template a (K, 40) float64 weight matrix (or None), checked against the templates."""
+    if feature_weights is None:
+        return [None] * len(ts)
+    fw = list(feature_weights)
+    if len(fw) != len(ts):
+        raise ParameterError(f"feature_weights must have one entry (or None) per template ({len(ts)}), got {len(fw)}")
+    out = []
+    for k, (t, w) in enumerate(zip(ts, fw)):
+        if w is not None:
+            w = np.ascontiguousarray(w, dtype=np.float64)
+            if w.shape != (len(t), N_FEATURES) or not np.isfinite(w).all() or (w < 0).any():
+                raise ParameterError(f"feature_weights[{k}] must be a ({len(t)}, {N_FEATURES}) array of finite "
+                                     f"non-negative weights, got shape {w.shape}")
+        out.append(w)
+    return out
+
+
+def weighted_cost_tables(template, feature_weights, *, doc_weight=1.0):
+    """Byte tables of a feature-weighted local cost (the weighted form of :func:`cost_table`).
+
+    The cost of template column i against a word is the weighted fraction of
+    its fixed features that disagree, ``Σ_f w[i, f]·[feature f differs] /
+    Σ_f w[i, f]`` over the non-wildcard features, times the column factor
+    and 1/K of :func:`cost_table`; with all weights equal it is
+    :func:`cost_table`'s cost. It is tabulated per byte of the 40-bit word,
+    so a cost is five table look-ups: ``Σ_b table[i, b, (word >> 8b) & 255]``.
+
+    Parameters
+    ----------
+    template : QuantizedTemplate
+        K columns (already expanded if it is to be).
+    feature_weights : array_like, shape (K, 40), float
+        Non-negative weight of every feature of every column (wildcards
+        ignore theirs). A column whose fixed features all weigh 0 costs 0.
+    doc_weight : float, default 1.0
+
+    Returns
+    -------
+    ndarray, shape (K, 5, 256), float64
+    """
+    (template,), _ = _as_templates(template)
+    (w,) = _feature_weights([template], [feature_weights])
+    K = len(template)
+    val = unpack_words(template.value).astype(np.float64)
+    w = np.where(unpack_words(template.mask), w, 0.0)
+    total = w.sum(axis=1)
+    factor = (template.weights + float(doc_weight)) / 2.0 / K / np.where(total > 0, total, 1.0)
+    # feature f of byte value x differs from v: x_f + v - 2·x_f·v, so a byte's table is an affine map of x's bits
+    bits = ((np.arange(256)[:, None] >> np.arange(8)) & 1).astype(np.float64)  # (256, 8)
+    out = np.empty((K, _N_BYTES, 256))
+    for b in range(_N_BYTES):
+        f = slice(8 * b, 8 * b + 8)
+        out[:, b, :] = ((w[:, f] * val[:, f]).sum(axis=1)[:, None] + (w[:, f] * (1.0 - 2.0 * val[:, f])) @ bits.T) \
+            * factor[:, None]
+    return np.maximum(out, 0.0, out=out)  # a full match sums to 0 up to rounding: never below
+
+
+def _prepare_templates(ts, expand, di, dj, feature_weights=None):
+    fw = _feature_weights(ts, feature_weights)
     if expand:
+        reps = [_expand_counts(t.weights)[0] for t in ts]
+        fw = [None if w is None else np.repeat(w, r, axis=0) for w, r in zip(fw, reps)]
         ts = [t.expand() for t in ts]
     Ks = np.array([len(t) for t in ts], dtype=np.int64)
     toff = np.zeros(len(ts) + 1, dtype=np.int64)
@@ -380,13 +490,18 @@ def _prepare_templates(ts, expand, di, dj):
     masks = np.concatenate([t.mask for t in ts])
     values = np.concatenate([t.value for t in ts])
     tables = np.concatenate([cost_table(t) for t in ts])
+    if all(w is None for w in fw):
+        btables = np.empty((0, _N_BYTES, 256))
+    else:  # a template without weights weighs its features equally
+        btables = np.concatenate([weighted_cost_tables(t, np.ones((len(t), N_FEATURES)) if w is None else w)
+                                  for t, w in zip(ts, fw)])
     overlap = np.array([_chunk_overlap(K, di, dj) for K in Ks], dtype=np.int64)
-    return masks, values, tables, toff, overlap
+    return masks, values, tables, btables, toff, overlap
 
 
 def mt_distance_slices(words, templates, task_template, task_start, task_stop, *,
                        steps=ANNOTATION_STEPS, rule="toolbox", expand=True,
-                       return_starts=False, chunk_size=DEFAULT_CHUNK):
+                       return_starts=False, chunk_size=DEFAULT_CHUNK, feature_weights=None):
     """Δ of templates on slices of a word sequence: one DP per (template, slice) task.
 
     Each task runs the subsequence DTW of template ``task_template[q]`` on
@@ -401,7 +516,7 @@ def mt_distance_slices(words, templates, task_template, task_start, task_stop, *
         Index into ``templates``.
     task_start, task_stop : array_like, shape (n_tasks,), int
         Half-open slice ``[start, stop)`` of ``words`` (0-based).
-    steps, rule, expand, return_starts, chunk_size
+    steps, rule, expand, return_starts, chunk_size, feature_weights
         As in :func:`mt_distance`.
 
     Returns
@@ -443,7 +558,7 @@ def mt_distance_slices(words, templates, task_template, task_start, task_stop, *
     starts = np.empty(int(offsets[-1]) if return_starts else 0, dtype=np.int64)
     if not ts or offsets[-1] == 0:
         return (delta, offsets, starts) if return_starts else (delta, offsets)
-    masks, values, tables, toff, overlap = _prepare_templates(ts, expand, di, dj)
+    masks, values, tables, btables, toff, overlap = _prepare_templates(ts, expand, di, dj, feature_weights)
     # work items: chunks of every non-empty task (whole task if not chunkable)
     keep = np.flatnonzero(lengths > 0)
     chunk = np.where(overlap[tt[keep]] >= 0, int(chunk_size), lengths[keep])
@@ -462,17 +577,17 @@ def mt_distance_slices(words, templates, task_template, task_start, task_stop, *
     Kmax = int(np.diff(toff).max())
     nthr = numba.config.NUMBA_NUM_THREADS
     _mt_distance_kernel(
-        w, masks, values, tables, toff, overlap, di, dj, sw, rule_id, R1, pad,
+        w, masks, values, tables, btables, toff, overlap, di, dj, sw, rule_id, R1, pad,
         tt[q], ta[q], ilo, ihi, iout, delta,
         starts if return_starts else np.empty(1, np.int64), bool(return_starts),
         np.empty((nthr, (R1 + 1) * (pad + Kmax))),
         np.empty((nthr, (R1 + 1) * (pad + Kmax)), np.int32),
-        np.empty((nthr, Kmax)))
+        np.empty((nthr, Kmax)), *_word_cost_cache(btables.shape[0] > 0, nthr, Kmax))
     return (delta, offsets, starts) if return_starts else (delta, offsets)
 
 
 def mt_distance(words, templates, *, doc_lengths=None, steps=ANNOTATION_STEPS,
-                rule="toolbox", expand=True, return_starts=False, chunk_size=DEFAULT_CHUNK):
+                rule="toolbox", expand=True, return_starts=False, chunk_size=DEFAULT_CHUNK, feature_weights=None):
     """The distance function Δ of quantized motion templates against documents.
 
     ``Δ(j)`` is the (1/K-normalised) cost of the subsequence-DTW path that
@@ -500,6 +615,12 @@ def mt_distance(words, templates, *, doc_lengths=None, steps=ANNOTATION_STEPS,
     chunk_size : int, default 8192
         Output frames per parallel work item; chunks overlap by the longest
         possible path so the result equals the serial one bit for bit.
+    feature_weights : sequence of (K, 40) array_like or None, optional
+        Per template (same order; None for equal weights) a weight for every
+        feature of every column: the local cost becomes the weighted fraction
+        of disagreeing fixed features (:func:`weighted_cost_tables`), e.g.
+        for retrieval, where rare feature values say more than common ones.
+        Default: every fixed feature counts the same (the paper's c^Q).
 
     Returns
     -------
@@ -532,7 +653,7 @@ def mt_distance(words, templates, *, doc_lengths=None, steps=ANNOTATION_STEPS,
     res = mt_distance_slices(
         w, ts, np.repeat(np.arange(nt), nd), np.tile(bounds[:-1], nt), np.tile(bounds[1:], nt),
         steps=steps, rule=rule, expand=expand, return_starts=return_starts,
-        chunk_size=chunk_size)
+        chunk_size=chunk_size, feature_weights=feature_weights)
     delta = res[0].reshape(nt, n)
     if single:
         delta = delta[0]

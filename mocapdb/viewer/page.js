@@ -1,7 +1,9 @@
 // mocapdb viewer: the skeleton of one motion, animated, above its labels over time.
 // Self-contained: no libraries, no network. The data are in <script id="mocapdb-data">
 // (see mocapdb/viewer/page.py for the encoding). ?selftest=1 clicks every segment and
-// reports in #selftest whether the animation went there.
+// reports in #selftest whether the animation went there, and drags a selection along the
+// timeline. #frame=N opens the page at frame N (1-based, 30 Hz), #frame=A-B with frames A–B
+// selected (the links of a `mocapdb similar --format html` results page).
 "use strict";
 (function () {
   const $ = (id) => document.getElementById(id);
@@ -185,16 +187,95 @@
     return e;
   }
 
+  function frameAt(track, clientX) {
+    const r = track.getBoundingClientRect();
+    return Math.min(N - 1, Math.max(0, Math.floor(((clientX - r.left) / r.width) * N)));
+  }
+
   function trackRow(name, extraClass) {
     const row = el("div", "row" + (extraClass ? " " + extraClass : ""));
     row.appendChild(el("div", "rowname", name)).title = name;
     const track = el("div", "track");
     track.addEventListener("click", (e) => {
-      const r = track.getBoundingClientRect();
-      seek(Math.floor(((e.clientX - r.left) / r.width) * N));
+      if (dragged) { dragged = false; return; }  // the end of a selection, not a click
+      seek(frameAt(track, e.clientX));
+    });
+    // dragging along a track selects a stretch (frames, 0-based inclusive)
+    track.addEventListener("pointerdown", (e) => {
+      selecting = { track, from: frameAt(track, e.clientX), x: e.clientX };
     });
     row.appendChild(track);
     return [row, track];
+  }
+
+  // -- selection: a stretch of the timeline, offered as a `mocapdb similar` command ---------------
+  let selecting = null, dragged = false, selectionBox = null;
+  const selection = { first: -1, last: -1 };
+
+  function shellWord(s) {
+    return /^[A-Za-z0-9_.:+\/-]+$/.test(s) ? s : `'${s.replace(/'/g, "'\\''")}'`;
+  }
+
+  function similarCommand(first, last) {
+    return `mocapdb similar ${shellWord(D.name)} --start-frame ${first + 1} --end-frame ${last + 1}`;
+  }
+
+  function select(first, last) {
+    selection.first = Math.min(N - 1, Math.max(0, Math.min(first, last)));
+    selection.last = Math.min(N - 1, Math.max(0, Math.max(first, last)));
+    const box = $("similar");
+    box.hidden = false;
+    $("similar-range").textContent = `${selection.first + 1}–${selection.last + 1} ` +
+      `(${(selection.first / FPS).toFixed(2)}–${((selection.last + 1) / FPS).toFixed(2)} s)`;
+    const cmd = similarCommand(selection.first, selection.last);
+    $("similar-command").textContent = cmd;
+    box.dataset.first = String(selection.first + 1);
+    box.dataset.last = String(selection.last + 1);
+    if (selectionBox) {
+      selectionBox.hidden = false;
+      selectionBox.style.left = `calc(var(--name-w) + (100% - var(--name-w)) * ${selection.first / N})`;
+      selectionBox.style.width = `calc((100% - var(--name-w)) * ${(selection.last - selection.first + 1) / N})`;
+    }
+    $("copy-similar").textContent = "copy";
+  }
+
+  async function copyCommand() {
+    const text = $("similar-command").textContent, button = $("copy-similar");
+    try {
+      await navigator.clipboard.writeText(text);
+    } catch (err) {  // no clipboard API (an insecure context): copy the selected text instead
+      const range = document.createRange();
+      range.selectNodeContents($("similar-command"));
+      const sel = window.getSelection();
+      sel.removeAllRanges();
+      sel.addRange(range);
+      document.execCommand("copy");
+    }
+    button.textContent = "copied";
+  }
+
+  function bindSelection() {
+    window.addEventListener("pointermove", (e) => {
+      if (!selecting) return;
+      if (!dragged && Math.abs(e.clientX - selecting.x) < 4) return;
+      dragged = true;
+      select(selecting.from, frameAt(selecting.track, e.clientX));
+    });
+    window.addEventListener("pointerup", () => {
+      if (selecting && dragged) seek(selection.first);
+      selecting = null;
+    });
+    $("copy-similar").addEventListener("click", copyCommand);
+  }
+
+  // #frame=N or #frame=A-B (1-based)
+  function applyFragment() {
+    const m = /^#frame=(\d+)(?:-(\d+))?$/.exec(location.hash);
+    if (!m) return false;
+    const a = Number(m[1]) - 1, b = m[2] === undefined ? a : Number(m[2]) - 1;
+    if (m[2] !== undefined) select(a, b);
+    seek(Math.min(a, b));
+    return true;
   }
 
   function segmentLane(title, lane, segs, rowLabels) {
@@ -281,6 +362,10 @@
     playhead = el("div");
     playhead.id = "playhead";
     tl.appendChild(playhead);
+    selectionBox = el("div");
+    selectionBox.id = "selection";
+    selectionBox.hidden = true;
+    tl.appendChild(selectionBox);
   }
 
   // -- interaction -------------------------------------------------------------------------------
@@ -337,6 +422,20 @@
     if (ink === 0) failures.push("the skeleton canvas is blank");
     const heat = document.querySelectorAll(".heat canvas").length;
     if (heat !== D.labels.length) failures.push(`${heat} heat-map rows for ${D.labels.length} labels`);
+    // a drag along the first track from 20 % to 40 % of its width selects those frames
+    const track = document.querySelector(".track"), r = track.getBoundingClientRect();
+    const at = (f) => r.left + r.width * f, y = r.top + r.height / 2;
+    const from = frameAt(track, at(0.2)), to = frameAt(track, at(0.4));
+    track.dispatchEvent(new PointerEvent("pointerdown", { clientX: at(0.2), clientY: y, bubbles: true }));
+    window.dispatchEvent(new PointerEvent("pointermove", { clientX: at(0.3), clientY: y, bubbles: true }));
+    window.dispatchEvent(new PointerEvent("pointermove", { clientX: at(0.4), clientY: y, bubbles: true }));
+    window.dispatchEvent(new PointerEvent("pointerup", { clientX: at(0.4), clientY: y, bubbles: true }));
+    track.dispatchEvent(new MouseEvent("click", { clientX: at(0.4), clientY: y, bubbles: true }));
+    const command = $("similar-command").textContent;
+    if (command !== similarCommand(from, to)) failures.push(`dragging selected "${command}"`);
+    if (Math.round(player.frame) !== from) failures.push(`after the selection at frame ${player.frame}, not ${from}`);
+    out.dataset.command = command;
+    out.dataset.selection = `${from + 1}-${to + 1}`;
     seek(0);
     // decoded poses at a few frames and joints, for the test to compare with the source
     const probes = [];
@@ -374,7 +473,12 @@
     }
     buildTimeline(deltaBytes);
     bindControls();
+    bindSelection();
     render();
+    if (applyFragment()) {
+      document.body.dataset.openedAt = String(Math.round(player.frame) + 1);
+    }
+    window.addEventListener("hashchange", applyFragment);
     document.body.dataset.ready = "1";
     document.body.dataset.loadMs = performance.now().toFixed(1);
     if (new URLSearchParams(location.search).has("selftest")) selfTest();

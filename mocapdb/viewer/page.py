@@ -34,7 +34,8 @@ import numpy as np
 from mocapdb.errors import ParameterError
 from mocapdb.readers import JOINT_INDEX, JOINT_NAMES
 
-__all__ = ["BONES", "PALETTE", "encode_poses", "encode_delta", "label_colors", "render_page", "render_index"]
+__all__ = ["BONES", "PALETTE", "encode_poses", "encode_delta", "label_colors", "render_page", "render_index",
+           "page_html"]
 
 #: bones between the 24 canonical joints (parent, child), drawn as lines
 BONES = tuple((JOINT_INDEX[a], JOINT_INDEX[b]) for a, b in (
@@ -138,7 +139,7 @@ def _fill(template, values):
     return _MARKER.sub(lambda m: values[m.group(1)], template)
 
 
-def _html(title, body):
+def page_html(title, body):
     """A whole page: ``shell.html`` (head, the stylesheet) around ``body``."""
     return _fill(_asset("shell.html"), {"TITLE": title, "CSS": _asset("page.css"), "BODY": body})
 
@@ -189,7 +190,7 @@ def render_page(view, joints, *, index_href=None):
         "index": index_href,
     }
     title = html.escape(f"{view.name} — mocapdb")
-    return _html(title, _fill(_asset("page.html"), {"TITLE": title, "JS": _asset("page.js"),
+    return page_html(title, _fill(_asset("page.html"), {"TITLE": title, "JS": _asset("page.js"),
                                                       "DATA": _json_script(data)}))
 
 
@@ -220,6 +221,6 @@ def render_index(entries, *, title="mocapdb motions"):
                     f'<td class="num">{e["seconds"]:.1f}</td><td class="num">{e["segments"]}</td>'
                     f'<td>{chips}</td></tr>')
     title = html.escape(title)
-    return _html(title, f'<header><h1>{title}</h1></header><main><table class="index"><thead><tr><th>motion</th>'
+    return page_html(title, f'<header><h1>{title}</h1></header><main><table class="index"><thead><tr><th>motion</th>'
                         f'<th>seconds</th><th>segments</th><th>labels</th></tr></thead><tbody>{"".join(rows)}'
                         '</tbody></table></main>')

@@ -1,0 +1,228 @@
+"""Query by example over a database: "find motions like this one" (issue 21; :mod:`mocapdb.retrieval`).
+
+:func:`query_stretch` resolves a motion and a range to its words;
+:func:`similar_stretches` runs the query over every motion and returns the
+ranked result rows. Where the archive's words come from:
+
+* with the keyframe index (every database has it unless dropped): the
+  connection's in-memory index (:mod:`mocapdb.storage.cache`), whose ``full``
+  runs rebuild any stretch exactly (:mod:`mocapdb.retrieval.archive`) — the
+  sample, the preselected segments, no ``features`` read at all;
+* without it: the ``features`` table, a batch of ranges at a time.
+
+Either way a query holds at most :data:`mocapdb.retrieval.BATCH_FRAMES`
+archive frames at once.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyarrow as pa
+
+from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.retrieval import BATCH_FRAMES, plan_query, preselect, sample_step, search_segments
+from mocapdb.retrieval.archive import index_sample, index_words
+from mocapdb.storage.cache import NO_INDEX, connection_cache
+from mocapdb.storage.postings import index_version, motion_positions
+from mocapdb.storage.sqltext import statement
+from mocapdb.storage.transaction import registered
+
+#: columns of a result row (frames 1-based inclusive at 30 Hz, seconds from the motion's start)
+RESULT_COLUMNS = ("document", "motion_id", "start_frame", "end_frame", "start_s", "end_s", "cost")
+
+
+def _sql(name):
+    return statement("retrieval.sql", name)
+
+
+def query_stretch(con, motion_id, start_frame=None, end_frame=None, *, start=None, end=None):
+    """One query stretch: a motion and a range of it (:func:`check_range`), with its words.
+
+    Returns
+    -------
+    (motion_id, first, last, words)
+        0-based inclusive frames and the stretch's words.
+
+    Raises
+    ------
+    SchemaError
+        No such motion.
+    ParameterError
+        As :func:`check_range`.
+    """
+    rows = con.execute(_sql("motion_meta"), {"ids": [int(motion_id)]}).fetchall()
+    if not rows:
+        raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
+    _, name, fps, n = rows[0]
+    first, last = check_range(f"motion {name!r}", n, fps, start_frame, end_frame, start=start, end=end)
+    words = np.asarray(con.execute(_sql("motion_words"), {"id": int(motion_id)}).fetchnumpy()["bits"], np.uint64)
+    return int(motion_id), first, last, words[first:last + 1]
+
+
+def _sql_fetch(con):
+    def fetch(motion, start, stop):
+        ranges = pa.table({"ord": pa.array(np.arange(len(motion)), pa.int64()),
+                           "motion_id": pa.array(motion, pa.int32()),
+                           "first": pa.array(start + 1, pa.int32()), "last": pa.array(stop, pa.int32())})
+        with registered(con, mocap_ranges=ranges):
+            return con.execute(_sql("range_words")).fetchnumpy()["bits"]
+    return fetch
+
+
+def check_range(what, n_frames, fps, start_frame=None, end_frame=None, *, start=None, end=None):
+    """A query range as 0-based inclusive frames ``(first, last)``; the whole motion without one.
+
+    Parameters
+    ----------
+    what : str
+        The motion, for the messages (``"motion 'kick1'"``).
+    n_frames : int
+    fps : float
+    start_frame, end_frame : int, optional
+        30 Hz frames, 1-based inclusive.
+    start, end : float, optional
+        Seconds from the motion's start (instead of frames): the frames
+        whose span [k/fps, (k+1)/fps) lies in [start, end).
+
+    Raises
+    ------
+    ParameterError
+        Frames and seconds both given, an empty range, or a range outside the motion.
+    """
+    if (start_frame is not None or end_frame is not None) and (start is not None or end is not None):
+        raise ParameterError("give the range in frames (start_frame, end_frame) or in seconds (start, end), "
+                             "not both")
+    where = f"{what} ({n_frames} frames at {fps:g} Hz, {n_frames / fps:.2f} s)"
+    if start is not None or end is not None:
+        s = 0.0 if start is None else float(start)
+        e = n_frames / fps if end is None else float(end)
+        if not (np.isfinite(s) and np.isfinite(e)) or s < 0 or e > n_frames / fps + 1e-9:
+            raise ParameterError(f"the range {s:g}–{e:g} s lies outside {where}")
+        first, last = int(np.floor(s * fps + 1e-9)), int(np.ceil(e * fps - 1e-9)) - 1
+        if last < first:
+            raise ParameterError(f"the range {s:g}–{e:g} s of {where} holds no frame; give end > start")
+        return first, last
+    first = 0 if start_frame is None else int(start_frame) - 1
+    last = n_frames - 1 if end_frame is None else int(end_frame) - 1
+    if first < 0 or last > n_frames - 1:
+        raise ParameterError(f"the range {first + 1}–{last + 1} lies outside {where}; frames are 1-based, "
+                             f"1–{n_frames}")
+    if last < first:
+        raise ParameterError(f"the range {first + 1}–{last + 1} of {where} is empty; give start_frame <= end_frame")
+    return first, last
+
+
+def search_index(index, ids, stretches, *, limit=10, features="all", tau=None, keyframes=None,
+                 batch_frames=BATCH_FRAMES) -> np.ndarray:
+    """The query over an archive given by its keyframe index (words rebuilt from its runs).
+
+    Parameters
+    ----------
+    index : mocapdb.keyframes.Index
+        With the ``full`` part; document d is motion ``ids[d]``.
+    ids : (n_docs,) int, ascending
+    stretches : sequence of (motion_id, first, last, words)
+    limit, features, tau, batch_frames
+        As :func:`similar_stretches`.
+    keyframes : bool, optional
+        Preselect with the query's keyframes: None as far as the archive's
+        size needs (:func:`mocapdb.retrieval.preselect`), True always, False never.
+
+    Returns
+    -------
+    ndarray of mocapdb.retrieval.RESULT_DTYPE
+        ``doc`` = motion id.
+    """
+    if index.n_frames == 0:
+        raise SchemaError("the archive is empty: ingest motions first")
+    query = plan_query([s[3] for s in stretches], index_sample(index, sample_step(index.n_frames)),
+                       features=features, tau=tau, keyframes=keyframes is not False)
+    segs = preselect(index, query, force=bool(keyframes))
+    if segs is None:
+        doc, start, stop = np.arange(index.n_docs), np.zeros(index.n_docs, np.int64), index.doc_lengths
+    else:
+        doc, start, stop = segs.doc, segs.start, segs.end + 1
+    qdoc = motion_positions(ids, [s[0] for s in stretches])
+    hits = search_segments(lambda d, a, b: index_words(index, d, a, b), doc, start, stop, query, limit=limit,
+                           exclude=[(int(d), s[1], s[2]) for d, s in zip(qdoc, stretches)],
+                           batch_frames=batch_frames)
+    hits["doc"] = np.asarray(ids, np.int64)[hits["doc"]]
+    return hits
+
+
+def _search_features(con, stretches, *, limit, features, tau, batch_frames):
+    """The query over the ``features`` table (no keyframe index), a batch of motions at a time."""
+    n_frames = con.execute(_sql("archive_frames")).fetchall()[0][1]
+    sample = np.asarray(con.execute(_sql("sample_words"), {"step": sample_step(n_frames)}).fetchnumpy()["bits"],
+                        np.uint64)
+    if sample.size == 0:
+        raise SchemaError("the archive is too small to search: ingest motions first")
+    query = plan_query([s[3] for s in stretches], sample, features=features, tau=tau, keyframes=False)
+    meta = con.execute(_sql("motion_lengths")).fetchnumpy()
+    motion = np.asarray(meta["motion_id"], np.int64)
+    return search_segments(_sql_fetch(con), motion, np.zeros(motion.size, np.int64),
+                           np.asarray(meta["n_frames"], np.int64), query, limit=limit,
+                           exclude=[(s[0], s[1], s[2]) for s in stretches], batch_frames=batch_frames)
+
+
+def similar_stretches(con, stretches, *, limit=10, features="all", tau=None, keyframes=None,
+                      batch_frames=BATCH_FRAMES):
+    """Rank every motion's stretches by their likeness to the query stretches.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    stretches : sequence of (motion_id, first, last, words)
+        :func:`query_stretch` results: one query, or several examples (a
+        template is learned from them).
+    limit : int
+    features : str or sequence of str
+        Feature subset (:func:`mocapdb.retrieval.feature_mask`).
+    tau : float, optional
+        Hit threshold (default: :data:`mocapdb.retrieval.TAU_FACTOR` × the query's chance level).
+    keyframes : bool, optional
+        Preselect with keyframes taken from the query (needs the keyframe
+        index): None (default) as far as the archive's size needs
+        (:data:`mocapdb.retrieval.CELL_BUDGET`), True always, False never.
+    batch_frames : int
+
+    Returns
+    -------
+    pyarrow.Table
+        :data:`RESULT_COLUMNS`, ranked by cost (then motion id, start frame);
+        no row overlaps another or a query stretch.
+    """
+    cur = con.cursor()
+    try:
+        version = index_version(cur)
+        if keyframes and version is None:
+            raise SchemaError(NO_INDEX)
+        if version is None:
+            hits = _search_features(cur, stretches, limit=limit, features=features, tau=tau,
+                                    batch_frames=batch_frames)
+        else:
+            _, index, ids = connection_cache(con).index(version)
+            hits = search_index(index, ids, stretches, limit=limit, features=features, tau=tau,
+                                keyframes=keyframes, batch_frames=batch_frames)
+        return result_table(cur, hits)
+    finally:
+        cur.close()
+
+
+def result_table(con, hits) -> pa.Table:
+    """Result rows of hits (``doc`` = motion id, 0-based inclusive frames): names, 1-based frames, seconds."""
+    ids = np.asarray(hits["doc"], np.int64)
+    meta = con.execute(_sql("motion_meta"), {"ids": sorted(set(ids.tolist()))}).fetchnumpy()
+    pos = np.searchsorted(np.asarray(meta["motion_id"], np.int64), ids)
+    fps = np.asarray(meta["fps"], np.float64)[pos]
+    return pa.table({
+        "document": pa.array(np.asarray(meta["name"], dtype=object)[pos] if ids.size else [], pa.string()),
+        "motion_id": pa.array(ids, pa.int32()),
+        "start_frame": pa.array(hits["start"] + 1, pa.int32()),
+        "end_frame": pa.array(hits["end"] + 1, pa.int32()),
+        "start_s": pa.array(hits["start"] / fps, pa.float64()),
+        "end_s": pa.array((hits["end"] + 1) / fps, pa.float64()),
+        "cost": pa.array(hits["cost"], pa.float64()),
+    })
+
+
+__all__ = ["RESULT_COLUMNS", "check_range", "query_stretch", "search_index", "similar_stretches", "result_table"]
