@@ -1,6 +1,6 @@
 """Turns while walking: does the default model label a walker who turns round with `turn`, and only them?
 
-Run: ``python benchmarks/eval_turns.py [--model-dir DIR …] [--json benchmarks/eval_turns.json]``.
+Run: ``python benchmarks/eval_turns.py [--previous REV …] [--model-dir DIR …] [--json benchmarks/eval_turns.json]``.
 
 Walks of three walkers from two labs, made to turn (:mod:`mocapdb.evaluation.turns`:
 the body's own motion kept, the path and heading turned):
@@ -27,11 +27,13 @@ development documents' false turns are in benchmarks/eval_quality.json
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "benchmarks"))
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 DATA = SHARED / "data"
 
@@ -145,26 +147,22 @@ def summary(res):
     return s
 
 
-def load_model_dir(path):
-    import pyarrow.parquet as pq
-
-    from mocapdb.storage.models import model_from_tables
-
-    return model_from_tables({p.stem: pq.read_table(p) for p in Path(path).glob("*.parquet")})
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model-dir", type=Path, action="append", default=[],
                     help="a model exported as Parquet files (train_default_model.py's format); repeatable; "
                          "default: the shipped default model")
+    ap.add_argument("--previous", metavar="REV", action="append", default=[],
+                    help="also the default model as committed at this git revision (repeatable)")
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     ap.add_argument("--verbose", action="store_true", help="every walk's segments")
     args = ap.parse_args()
     from mocapdb.storage.models import model_from_tables, shipped_model_tables
+    from timing import model_at, model_dir
 
-    models = {str(d): load_model_dir(d) for d in args.model_dir} or {
-        "shipped default": model_from_tables(shipped_model_tables("default"))}
+    models = {f"default at {rev}": model_at(rev) for rev in args.previous}
+    models.update({str(d): model_dir(d) for d in args.model_dir} or {
+        "shipped default": model_from_tables(shipped_model_tables("default"))})
     report = {}
     for name, model in models.items():
         print(f"## {name}")
