@@ -8,7 +8,8 @@ benchmarks/RESULTS.md (issue 8 targets):
     documents repeated), in one process, warm: without keyframe preselection
     (the reference mode) and with it (the default model's GA queries over the
     stored index), for issue 8's model (11 classes with GA queries, learned
-    here) and the shipped default. Target: ≥ 5× faster with preselection. Previous figures:
+    here) and the shipped default (bench_preselection.py has its cells per
+    class). Target: ≥ 5× faster with preselection. Previous figures:
     0.34 s without, 0.13 s with (2.6×), of which ~60 ms parsing the model.
 (b) what one query pays for the model: the first ``annotate`` on a new
     connection (parses the model, loads the index) against the next ones.
@@ -53,7 +54,7 @@ def bench_keyframes(path, repeat):
     learn_ga11(con)
     n = con.execute("SELECT sum(n_frames) FROM motions").fetchall()[0][0]
     for model, what in ((GA11, "11 classes, a GA query each (issue 8's default)"),
-                        ("default", "the shipped default: 38 classes, 20 with queries (issue 11)")):
+                        ("default", "the shipped default: every class with a designed query (issue 20)")):
         runs = {}
         print(f"model {model} — {what}")
         for kf in ("false", "true"):

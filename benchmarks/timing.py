@@ -33,3 +33,37 @@ def stored_words(con):
 
     docs = motion_documents(con)
     return docs.words, docs.lengths
+
+
+def model_dir(path, name=None):
+    """A model exported as Parquet files (benchmarks/train_default_model.py's format), renamed if ``name``."""
+    import dataclasses
+    from pathlib import Path
+
+    import pyarrow.parquet as pq
+
+    from mocapdb.storage.models import model_from_tables
+
+    model = model_from_tables({p.stem: pq.read_table(p) for p in Path(path).glob("*.parquet")})
+    return model if name is None else dataclasses.replace(model, name=name)
+
+
+def model_at(rev, name=None):
+    """The shipped default model as committed at git revision ``rev`` (e.g. the previous default)."""
+    import dataclasses
+    import io
+    import subprocess
+    from pathlib import Path
+
+    import pyarrow.parquet as pq
+
+    from mocapdb.storage.models import model_from_tables
+
+    repo = Path(__file__).resolve().parents[1]
+    tables = {}
+    for table in ("models", "classes", "templates", "keyframe_queries", "keyframes", "ga_statistics"):
+        blob = subprocess.run(["git", "-C", str(repo), "show", f"{rev}:mocapdb/models/default/{table}.parquet"],
+                              check=True, capture_output=True).stdout
+        tables[table] = pq.read_table(io.BytesIO(blob))
+    model = model_from_tables(tables)
+    return model if name is None else dataclasses.replace(model, name=name)

@@ -10,7 +10,7 @@ from mocapdb.annotation import annotate, preselection_for
 from mocapdb.cli import main
 from mocapdb.errors import ParseError
 from mocapdb.features import FEATURE_NAMES, MIRROR_FEATURES, N_FEATURES, pack_words
-from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, build_index, keyframe_search
+from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins, build_index, keyframe_search
 from mocapdb.annotation import ClassModel
 from mocapdb.learning.class_definitions import (WARP, KeyframeDefinition, attach_keyframes, compile_definition,
                                                 mirror_definition, parse_class_definitions, parse_definitions,
@@ -64,13 +64,15 @@ def test_a_compiled_definition_is_the_hand_built_template_and_query():
     for a in ("mask", "value", "weights"):
         np.testing.assert_array_equal(getattr(c.quantized, a), getattr(expected, a))
     # the keyframe query: phase 1's keyframe fixes only the foot; phase 2's all 40 features;
-    # keyframes at the phases' middle columns; the gap admits the last frame of phase 1 and
-    # the first of phase 2: adjacent phases -> [1, 1]
+    # the chain spans its phases (the first keyframe at its phase's first column, the last at
+    # its phase's last: annotation widens a found chain by twice the columns outside it); the
+    # gap admits the last frame of phase 1 and the first of phase 2: adjacent phases -> [1, 1]
     q = c.keyframe_query
     foot = 1 << F["foot_right_raised_rel_y_body_min"]
     assert q.mask.tolist() == [foot, (1 << N_FEATURES) - 1]
     assert q.value.tolist() == [foot, foot | (1 << F["root_high_vel"])]
-    assert q.positions.tolist() == [2, 6 + (n2 - 1) // 2]
+    assert q.positions.tolist() == [0, 6 + n2 - 1]
+    assert annot_margins(q) == (0, 0)
     assert q.d_min.tolist() == [1] and q.d_max.tolist() == [1]
     assert q.template_length == 6 + n2
     # the shortest motion the definition allows: 6 frames / 2 (a single duration warps by 2) + 0.2 s
@@ -99,6 +101,34 @@ knee_right_bent = 0
     text_inf = text.replace("frames = [3, 12]", "frames = [3, inf]")
     q = compile_definition(parse_class_definitions(text_inf)[0]).keyframe_query
     assert q.d_max.tolist() == [UNBOUNDED]
+
+
+def test_one_keyframe_phase_is_searched_at_both_of_its_ends():
+    """A class whose only keyframe phase lasts several columns (a pose held): the pose twice, at the
+    phase's first and last column, up to twice its columns apart; a frame of the pose alone is no
+    chain, two frames of it are, and the annotation does not widen the chain (the phase is the whole
+    template)."""
+    text = """
+[[class]]
+name = "held"
+label = "neutral"
+[[class.phase]]
+seconds = [1.0, inf]
+knee_right_bent = 0
+knee_left_bent = 0
+"""
+    c = compile_definition(parse_class_definitions(text)[0])
+    q = c.keyframe_query
+    bent = (1 << F["knee_right_bent"]) | (1 << F["knee_left_bent"])
+    assert q.n_keyframes == 2 and q.mask.tolist() == [bent, bent] and q.value.tolist() == [0, 0]
+    assert q.positions.tolist() == [0, 29] and annot_margins(q) == (0, 0)
+    assert q.d_min.tolist() == [1] and q.d_max.tolist() == [2 * 29]
+    words = np.full(10, bent, np.uint64)
+    for n_straight in (1, 2):
+        w = words.copy()
+        w[4:4 + n_straight] = 0
+        segs = keyframe_search(build_index(w, doc_lengths=[10]), q)
+        assert (segs.start.tolist(), segs.end.tolist()) == (([], []) if n_straight == 1 else ([4], [5]))
 
 
 def test_the_keyframe_query_finds_the_motion_it_describes():
@@ -201,7 +231,8 @@ def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir
     r = runner.invoke(main, ["--db", str(db), "define-class", str(mine), str(SHIPPED / "turn.toml"),
                              "--model", "mine"])
     assert r.exit_code == 0, r.output
-    assert "liftThenHop" in r.output and "turnAround" in r.output and "2 classes" in r.output
+    assert "liftThenHop" in r.output and "turnAround" in r.output and "turnWalking" in r.output
+    assert "3 classes" in r.output
     r = runner.invoke(main, ["--db", str(db), "annotate", "--model", "mine", "--format", "csv"])
     assert r.exit_code == 0, r.output
     labels = {line.split(",")[1] for line in r.output.strip().splitlines()[1:]}
@@ -223,9 +254,9 @@ def test_train_with_definitions_adds_the_designed_classes(tmp_path, data_dir):
     con = mocapdb.connect(tmp_path / "t.duckdb")
     try:
         m = train(con, model="m", folder=data_dir / "hdm05_cut", definitions=[SHIPPED / "turn.toml"])
-        assert "turnAround" in m.class_names and "turn" in m.labels and len(m.classes) == 12
-        stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'm' AND class = 'turnAround'")
-        assert stored.fetchall() == [("class definition",)]
+        assert {"turnAround", "turnWalking"} <= set(m.class_names) and "turn" in m.labels and len(m.classes) == 13
+        stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'm' AND class LIKE 'turn%'")
+        assert stored.fetchall() == [("class definition",)] * 2
     finally:
         con.close()
 
@@ -292,12 +323,36 @@ def test_keyframe_definitions_sit_where_the_template_has_them():
     real[12:16, F["foot_left_raised_rel_y_body_min"]] = 0.05
     q = attach_keyframes(_template_class(real), k).keyframe_query
     assert q.positions[1] >= q.positions[0] == 5
-    # a class with only a quantized template: the columns that agree
+    # a class with only a quantized template: the columns that agree; a single keyframe that holds
+    # over a run of columns (the hop phase, columns 6-15) is searched at both ends of the run
     (d,) = parse_class_definitions(TWO_PHASES)
     c = compile_definition(d)
-    one = KeyframeDefinition("liftThenHop", (((1 << F["root_high_vel"]), (1 << F["root_high_vel"])),))
+    hop = (1 << F["root_high_vel"])
+    one = KeyframeDefinition("liftThenHop", ((hop, hop),))
     q = attach_keyframes(c, one).keyframe_query
-    assert q.positions.tolist() == [6] and q.template_length == len(c.quantized)     # the first hop column
+    last = len(c.quantized) - 1
+    assert q.positions.tolist() == [6, last] and q.template_length == len(c.quantized)
+    assert q.mask.tolist() == [hop, hop] and (q.d_min.tolist(), q.d_max.tolist()) == ([1], [2 * (last - 6)])
+
+
+def test_keyframes_on_runs_of_columns_span_the_runs():
+    """Two keyframes whose best columns form runs (a pose the learned template holds): the first
+    takes its run's first column, the last its run's last; the gap admits the runs' nearest and
+    farthest columns, warped by the DTW steps; a keyframe that holds in one column only is unchanged."""
+    knee, foot = 1 << F["knee_left_bent"], 1 << F["foot_left_raised_rel_y_body_min"]
+    k = KeyframeDefinition("kickish", ((knee, knee), (foot, foot)))
+    real = np.full((30, N_FEATURES), 0.5)
+    real[:, F["knee_left_bent"]] = 0.1
+    real[3:9, F["knee_left_bent"]] = 1.0                       # columns 3-8
+    real[:, F["foot_left_raised_rel_y_body_min"]] = 0.0
+    real[15:25, F["foot_left_raised_rel_y_body_min"]] = 1.0    # columns 15-24
+    q = attach_keyframes(_template_class(real), k).keyframe_query
+    assert q.positions.tolist() == [3, 24] and annot_margins(q) == (6, 10)
+    assert (q.d_min.tolist(), q.d_max.tolist()) == ([math.ceil((15 - 8) / WARP)], [(24 - 3) * WARP])
+    real[4:9, F["knee_left_bent"]] = 0.9                       # column 3 alone is best now
+    q = attach_keyframes(_template_class(real), k).keyframe_query
+    assert q.positions.tolist() == [3, 24]
+    assert (q.d_min.tolist(), q.d_max.tolist()) == ([math.ceil((15 - 3) / WARP)], [(24 - 3) * WARP])
 
 
 @pytest.mark.parametrize("text, line, match", [

@@ -65,10 +65,21 @@ def reference_segments(docs, model):
             if e - s + 1 >= shortest[label] and 3 * won(label, d, s, e) >= shortest[label]]
 
 
-def test_default_keyframe_mode_equals_the_brute_force_reference(db):
+@pytest.mark.parametrize("name", ["default", "mixed"])
+def test_default_keyframe_mode_equals_the_brute_force_reference(db, name):
+    """The shipped default (every class preselected by its keyframe query) and a model whose learned
+    classes have no query (matched on whole documents beside preselected designed classes)."""
+    import dataclasses
+
+    from mocapdb.storage.models import save_model
+
     model = load_model(db, "default")
-    # both paths: classes preselected by their queries, classes matched on whole documents
-    assert 0 < sum(c.keyframe_query is not None for c in model.classes) < len(model.classes)
+    assert all(c.keyframe_query is not None for c in model.classes)
+    if name == "mixed":
+        model = dataclasses.replace(model, name="mixed", classes=tuple(
+            dataclasses.replace(c, keyframe_query=None) if c.template is not None else c for c in model.classes))
+        save_model(db, model, replace=True)
+        assert 0 < sum(c.keyframe_query is not None for c in model.classes) < len(model.classes)
     assert any(c.min_frames for c in model.classes)
     ids = [r[0] for r in db.execute("SELECT motion_id FROM motions ORDER BY motion_id").fetchall()]
     docs = [as_words(db.execute("SELECT bits FROM features WHERE motion_id = ? ORDER BY frame", [i])
@@ -77,13 +88,16 @@ def test_default_keyframe_mode_equals_the_brute_force_reference(db):
                   for label, d, s, e, cost in reference_segments(docs, model))
     got = sorted((m, label, s, e, round(cost, 12)) for m, label, s, e, cost in db.execute(
         """SELECT motion_id, label, start_frame, end_frame, cost FROM (
-             SELECT motion_id, unnest(annotate(motion_id), recursive := true) FROM motions)""").fetchall())
+             SELECT motion_id, unnest(annotate(motion_id, model := ?), recursive := true) FROM motions)""",
+        [name]).fetchall())
     assert got == want
     # preselection changes the answer (else the comparison would prove little) ...
-    reference_mode = db.execute("""SELECT count(*) FROM (SELECT unnest(annotate(motion_id, keyframes := false),
-                                   recursive := true) FROM motions)""").fetchall()[0][0]
-    assert reference_mode != len(got)
+    reference_mode = sorted((m, label, s, e, round(cost, 12)) for m, label, s, e, cost in db.execute(
+        """SELECT motion_id, label, start_frame, end_frame, cost FROM (
+             SELECT motion_id, unnest(annotate(motion_id, model := ?, keyframes := false), recursive := true)
+             FROM motions)""", [name]).fetchall())
+    assert reference_mode != got
     # ... and the Python API gives the same segments
-    table = mocapdb.annotate(db, store=False)
+    table = mocapdb.annotate(db, model=name, store=False)
     api = sorted(zip(*(table.column(c).to_pylist() for c in ("motion_id", "label", "start_frame", "end_frame"))))
     assert api == sorted(g[:4] for g in got)

@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mocapdb.annotation import Model, annotate
+from mocapdb.annotation import Model, annotate, preselection_for
 from mocapdb.annotation.postprocess import apply_margin, drop_short_segments, label_min_frames
 from mocapdb.errors import ParameterError
 from mocapdb.evaluation import cmu_stretches, mocap6_documents
@@ -273,15 +273,15 @@ def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
 def test_clip_costs_through_the_preselection_equal_annotation_with_keyframes(cut_clips):
     """clip_costs(preselect=…): Δ of a class with a query only where its keyframes let annotation
     match it — the same minima as annotate() with the keyframe preselection, clip by clip."""
-    from mocapdb.annotation import preselection_for
     from mocapdb.learning.thresholds import clip_costs
 
     names = ("kickLFront1Reps", "squat1Reps", "sneak2StepsLStart")
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c][:6]] for c in names}
     base = default_recipe()
+    # the kicks preselected by their keyframe, squat and sneak matched on whole clips
     recipe = dataclasses.replace(base, labels={c: base.labels[c] for c in names},
                                  mirrors={"kickLFront1Reps": "kickRFront1Reps"}, reversals={},
-                                 keyframes=tuple(k for k in base.keyframes if k.cls in names))
+                                 keyframes=tuple(k for k in base.keyframes if k.cls == "kickLFront1Reps"))
     model = build_model(clips, recipe, name="m")
     assert model.classes[model.class_names.index("kickRFront1Reps")].keyframe_query is not None
     words = [x.words for v in clips.values() for x in v]
@@ -297,19 +297,33 @@ def test_clip_costs_through_the_preselection_equal_annotation_with_keyframes(cut
                       for k in range(len(model.classes))])
     np.testing.assert_array_equal(costs, brute)
     others = [k for k in range(len(model.classes)) if k not in queried]
+    assert len(others) == 2
     np.testing.assert_array_equal(costs[others], plain[others])       # no query: whole clips
     assert np.isinf(costs[queried]).any() and (costs[queried] >= plain[queried]).all()
 
 
+def _held(model, clips, cls):
+    """Per clip (in ``clips`` order): whether ``cls``'s keyframe query (its whole chain) holds in it."""
+    words = [x.words for v in clips.values() for x in v]
+    lengths = np.array([w.size for w in words])
+    bounds = np.concatenate(([0], np.cumsum(lengths)))
+    slices = preselection_for(np.concatenate(words), lengths, model, True)[model.class_names.index(cls)]
+    held = np.zeros(len(words), bool)
+    held[np.searchsorted(bounds, np.asarray(slices).reshape(-1, 2)[:, 0], side="right") - 1] = True
+    return held
+
+
 def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
-    """The shipped throw keyframe (mocapdb/models/classes/throw.toml: the ball held up) holds in every
-    throwBasketball clip of every actor, but also in some hops, kicks and lie-downs: it is not specific
-    (specific_queries), so learn_taus(keyframes=True) gives the throw the τ of its template alone, while
-    the kick's query — in no other clip — earns the kick its τ through the preselection."""
+    """The shipped throw keyframes (mocapdb/models/classes/throw.toml: the ball held up, then the arms
+    down) hold in every throwBasketball clip of every actor. The ball held up also holds in some hops,
+    kicks and lie-downs: the query is not specific (specific_queries judges a chain by its most specific
+    keyframe: a recording supplies what a short clip lacks), although the whole chain fits into almost no
+    other clip; so learn_taus(keyframes=True) gives the throw the τ of its template alone, while the
+    kick's query — in no other clip — earns the kick its τ through the preselection."""
     from mocapdb.learning.thresholds import specific_queries
 
     k = next(k for k in default_recipe().keyframes if k.cls == "throwBasketball")
-    (mask, value), = k.keyframes
+    (mask, value), _ = k.keyframes
     assert all(((np.asarray(w, np.uint64) & np.uint64(mask)) == np.uint64(value)).any()
                for _, w in cut_clips["throwBasketball"])
     names = ("kickLFront1Reps", "throwBasketball", "hopBothLegs1hops", "squat1Reps", "lieDownFloor")
@@ -318,7 +332,11 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
                                  definitions=(), keyframes=tuple(k for k in base.keyframes
                                                                  if k.cls in ("kickLFront1Reps", "throwBasketball")))
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c]] for c in names}
-    spec = specific_queries(build_model(clips, recipe, name="m"), clips)
+    model = build_model(clips, recipe, name="m")
+    held = _held(model, clips, "throwBasketball")
+    owner = np.array([c for c, v in clips.items() for _ in v])
+    assert held[owner == "throwBasketball"].all() and held[owner != "throwBasketball"].mean() <= 0.02
+    spec = specific_queries(model, clips)
     assert set(spec) == {"kickLFront1Reps", "throwBasketball"}
     assert spec["kickLFront1Reps"] == (0.0, True)
     rate, ok = spec["throwBasketball"]
@@ -328,25 +346,28 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     assert through["throwBasketball"] == plain["throwBasketball"]
     assert through["kickLFront1Reps"] > plain["kickLFront1Reps"]
     # the share is what the bound is held against
-    model = build_model(clips, recipe, name="m")
     assert specific_queries(model, clips, max_rate=rate)["throwBasketball"] == (rate, True)
     assert specific_queries(model, clips, max_rate=0.0)["kickLFront1Reps"] == (0.0, True)
 
 
-def test_the_lie_down_keyframe_holds_in_every_lie_down_and_its_reverse_starts_lying(cut_clips):
-    """mocapdb/models/classes/lie_down.toml: the spine horizontal holds in every lieDownFloor clip, near
-    the template's end; the reversed class (standing up from the floor) takes it near its start."""
+def test_the_lie_down_keyframes_hold_in_every_lie_down_and_its_reverse_starts_lying(cut_clips):
+    """mocapdb/models/classes/lie_down.toml: down on bent knees, then lying (the spine horizontal) holds
+    in every lieDownFloor clip; lying ends the template (no widening after the chain); the reversed class
+    (standing up from the floor) takes the chain reversed: lying at its first column, then kneeling."""
     k = next(k for k in default_recipe().keyframes if k.cls == "lieDownFloor")
-    (mask, value), = k.keyframes
+    _, (mask, value) = k.keyframes
     assert all(((np.asarray(w, np.uint64) & np.uint64(mask)) == np.uint64(value)).any()
                for _, w in cut_clips["lieDownFloor"])
     base = default_recipe()
     recipe = dataclasses.replace(base, labels={"lieDownFloor": "sitLieDown"}, mirrors={}, definitions=(),
                                  reversals={"lieDownFloor": base.reversals["lieDownFloor"]},
                                  keyframes=(k,))
-    model = build_model({"lieDownFloor": [Clip(n, w) for n, w in cut_clips["lieDownFloor"]]}, recipe, name="l")
+    clips = {"lieDownFloor": [Clip(n, w) for n, w in cut_clips["lieDownFloor"]]}
+    model = build_model(clips, recipe, name="l")
+    assert _held(model, clips, "lieDownFloor").all()
     down, up = model.classes
     assert up.label == "standUp"
     n = down.keyframe_query.template_length
-    assert down.keyframe_query.positions[0] > 0.75 * n
-    assert up.keyframe_query.positions[0] == n - 1 - down.keyframe_query.positions[0]
+    assert down.keyframe_query.positions.tolist()[1] == n - 1 and down.keyframe_query.positions[0] < 0.5 * n
+    assert up.keyframe_query.positions.tolist() == [n - 1 - p for p in down.keyframe_query.positions[::-1]]
+    assert up.keyframe_query.mask.tolist() == down.keyframe_query.mask[::-1].tolist()

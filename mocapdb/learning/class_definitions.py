@@ -33,7 +33,12 @@ Compilation (:func:`compile_definition`):
   ``default``.
 * **keyframe query** — one keyframe per phase that has ``keyframe`` true (the
   default when the phase fixes a feature) or a list of names (only those
-  features, with the phase's values), placed at the phase's middle column.
+  features, with the phase's values), placed at the phase's middle column;
+  the first keyframe at its phase's first column and the last at its
+  phase's last, so that the chain spans as much of the template as it can
+  (annotation widens a found chain by twice the columns outside it). A
+  class with one keyframe phase longer than a column searches its pose at
+  both ends of the phase: twice, up to twice the phase's columns apart.
   The gap between keyframes of phases i < j admits the last frame of phase i
   and the first of phase j for every timing the durations allow:
   ``d_min = 1 + Σ min`` and ``d_max = 1 + Σ max`` over the phases strictly
@@ -560,6 +565,18 @@ def _query(defn: ClassDefinition, starts):
         d_min.append(1 + math.floor(sum(p.min_frames for p in between)))
         hi = 1 + sum(p.max_frames for p in between)
         d_max.append(UNBOUNDED if math.isinf(hi) else max(d_min[-1], math.ceil(hi)))
+    # the chain spans its phases: the first keyframe at its phase's first column, the last at
+    # its phase's last (the annotation widens a found chain by twice the columns outside it)
+    first, last = kf[0], kf[-1]
+    if len(kf) == 1 and _columns(defn.phases[first]) > 1:
+        # one keyframe phase: its pose searched at both ends of the phase, up to twice its columns apart
+        words.append(words[0])
+        pos.append(0)
+        d_min.append(1)
+        d_max.append(2 * (_columns(defn.phases[first]) - 1))
+    if len(pos) > 1:
+        pos[0] = starts[first]
+        pos[-1] = starts[last] + _columns(defn.phases[last]) - 1
     return KeyframeQuery(np.array([m for m, _ in words], np.uint64), np.array([v for _, v in words], np.uint64),
                          np.array(pos, np.int64), np.array(d_min, np.int64), np.array(d_max, np.int64),
                          defn.n_columns)
@@ -603,9 +620,19 @@ def attach_keyframes(cls: ClassModel, kdef: KeyframeDefinition) -> ClassModel:
     hold: for a learned template, the product over its fixed features of
     the column's probability of that value (the real-valued template);
     otherwise the columns of the quantized template that agree with it.
-    Keyframes keep their order (each at or after the one before); the gap
-    between two admits their column distance d warped as the DTW steps
-    allow, [⌈d / 2⌉, 2 d] (at least 1 frame).
+    Keyframes keep their order (each at or after the one before). A keyframe
+    may fit a run of columns equally well (a pose the template holds for a
+    while): it holds anywhere in the run, so the gap to the next keyframe
+    admits the runs' nearest and farthest columns, d_near and d_far, warped
+    as the DTW steps allow, [⌈d_near / 2⌉, 2 d_far] (at least 1 frame;
+    d_near = d_far = d for single columns). The query's positions are the
+    first keyframe's first column and the last keyframe's last column, so
+    the chain spans as much of the template as it can: annotation widens a
+    found chain by twice the columns outside it
+    (:func:`mocapdb.keyframes.annot_margins`). For the same reason a single
+    keyframe that fits a run of columns becomes a chain of itself at both
+    ends of the run (the pose held: any two frames of it up to twice the
+    run apart).
     """
     if not isinstance(kdef, KeyframeDefinition):
         raise ParameterError(f"expected a KeyframeDefinition, got {type(kdef).__name__}")
@@ -619,18 +646,33 @@ def attach_keyframes(cls: ClassModel, kdef: KeyframeDefinition) -> ClassModel:
         on = ((v[:, None] >> bits) & np.uint64(1)).astype(float)
         prob = np.where(fixed, on, 0.5)
     L = prob.shape[0]
-    pos, start = [], 0
+    runs, start = [], 0
     for mask, value in kdef.keyframes:
         fit = np.ones(L)
         for f in range(N_FEATURES):
             if (mask >> f) & 1:
                 fit *= prob[:, f] if (value >> f) & 1 else 1.0 - prob[:, f]
         fit[:start] = -1.0
-        start = int(np.argmax(fit))
-        pos.append(start)
-    gaps = np.diff(pos)
-    d_min = np.maximum(1, np.ceil(gaps / WARP)).astype(np.int64)
-    d_max = np.maximum(d_min, np.floor(gaps * WARP)).astype(np.int64)
-    q = KeyframeQuery(np.array([m for m, _ in kdef.keyframes], np.uint64),
-                      np.array([v for _, v in kdef.keyframes], np.uint64), np.array(pos, np.int64), d_min, d_max, L)
+        best = fit >= fit.max() - 1e-12
+        a = int(np.argmax(best))
+        b = a + int(np.argmin(np.append(best[a:], False))) - 1      # the run of best columns from a
+        runs.append((a, b))
+        start = a
+    words = list(kdef.keyframes)
+    if len(runs) == 1 and runs[0][1] > runs[0][0]:
+        # one keyframe the template holds over several columns: searched at both ends of them
+        runs.append(runs[0])
+        words.append(words[0])
+    a, b = (np.array(x, np.int64) for x in zip(*runs))
+    pos = a.copy()
+    if len(runs) > 1:
+        pos[-1] = b[-1]
+    # a keyframe may hold at any column of its run: the gap to the next spans the runs' nearest
+    # and farthest columns, warped as the DTW steps allow
+    near = np.maximum(0, a[1:] - b[:-1])
+    far = b[1:] - a[:-1]
+    d_min = np.maximum(1, np.ceil(near / WARP)).astype(np.int64)
+    d_max = np.maximum(d_min, np.floor(far * WARP)).astype(np.int64)
+    q = KeyframeQuery(np.array([m for m, _ in words], np.uint64), np.array([v for _, v in words], np.uint64),
+                      np.array(pos, np.int64), d_min, d_max, L)
     return dataclasses.replace(cls, keyframe_query=q)

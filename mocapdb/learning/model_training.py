@@ -104,8 +104,8 @@ def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=1
         A moving class claims at most this share of still poses (None: off);
         see :func:`mocapdb.learning.thresholds.learn_taus`.
     tau_keyframes : bool, default True
-        τ of learned classes with a specific keyframe definition (one that
-        holds in at most 2 % of other labels' clips,
+        τ of learned classes with a specific keyframe definition (one whose
+        most specific keyframe holds in at most 2 % of other labels' clips,
         :func:`mocapdb.learning.thresholds.specific_queries`) measured
         through their preselection (the default annotation mode uses
         keyframes); other queries only filter, and designed classes keep
