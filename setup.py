@@ -24,7 +24,10 @@ class BuildPyWithKernels(build_py):
         super().run()
         if getattr(self, "editable_mode", False) or os.environ.get("MOCAPDB_PRECOMPILE", "1") == "0":
             return
-        env = dict(os.environ, PYTHONPATH=os.path.abspath(self.build_lib), NUMBA_DISABLE_JIT="0")
+        # prepend, never replace: pip's isolated build environment reaches its own
+        # packages (numba, duckdb, ...) through PYTHONPATH
+        path = os.pathsep.join(p for p in (os.path.abspath(self.build_lib), os.environ.get("PYTHONPATH")) if p)
+        env = dict(os.environ, PYTHONPATH=path, NUMBA_DISABLE_JIT="0")
         env.pop("NUMBA_CACHE_DIR", None)  # the cache must land beside the built modules
         cmd = [sys.executable, "-m", "mocapdb.warmup"]
         t0 = time.perf_counter()

@@ -102,6 +102,22 @@ def test_modules_stay_small(path):
     assert n <= 850, f"{path.relative_to(REPO)} has {n} lines; split it by what it holds"
 
 
+def test_every_package_is_installed():
+    """pyproject.toml lists the packages pip installs (extension/ and sql/ are mapped into
+    mocapdb); a sub-package missing there imports in the checkout but not once installed."""
+    import tomllib
+
+    listed = set(tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["packages"])
+    found = set()
+    for init in [*(REPO / "mocapdb").rglob("__init__.py"), *(REPO / "extension").rglob("__init__.py"),
+                 *(REPO / "sql").rglob("__init__.py")]:
+        parts = list(init.parent.relative_to(REPO).parts)
+        if parts[0] != "mocapdb":
+            parts = ["mocapdb", *parts]
+        found.add(".".join(parts))
+    assert found - listed == set(), f"packages missing from pyproject.toml: {sorted(found - listed)}"
+
+
 def test_the_tests_run_against_the_installed_package():
     """CI installs the package (pip install .) and must test that, not the checkout
     (the README's test command runs ``python -P -m pytest``: no checkout on sys.path)."""

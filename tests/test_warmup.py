@@ -61,3 +61,27 @@ def test_unknown_parts_are_refused():
     assert set(PARTS) == {"ingest", "search", "segments"}
     with pytest.raises(ParameterError, match="unknown \\['linking'\\]"):
         compile_kernels(["linking"])
+
+
+def test_the_installed_package_carries_the_compiled_kernels():
+    """pip install . compiles the kernels at build time (setup.py): the installed package has
+    numba's cache beside its modules, valid here, so the main job compiles nothing."""
+    import importlib.metadata
+    import json
+
+    dist = importlib.metadata.distribution("mocapdb")
+    direct = dist.read_text("direct_url.json")
+    if direct and json.loads(direct).get("dir_info", {}).get("editable"):
+        pytest.skip("an editable install has no build step: its kernels compile on first use")
+    # the wheel's own files (its RECORD), not what earlier tests compiled since
+    cached = {Path(str(f)).name.split("-")[0] for f in dist.files or () if str(f).endswith(".nbi")}
+    for kernel in ("relational._upper_kernel", "distance._mt_distance_kernel", "chain_kernels._segments_kernel",
+                   "search_kernels._search_kernel", "textscan._parse_rows_kernel"):
+        assert kernel in cached, f"{kernel} is not in the installed package's numba cache"
+    env = dict(os.environ, NUMBA_DEBUG_CACHE="1")
+    env.pop("NUMBA_CACHE_DIR", None)
+    env.pop("NUMBA_DISABLE_JIT", None)
+    code = ("import mocapdb.warmup as w; w.compile_kernels(['ingest', 'search', 'segments'])")
+    r = subprocess.run([sys.executable, "-P", "-c", code], env=env, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr
+    assert "data saved to" not in r.stdout, "the main job's calls compiled kernels the build did not cache"
