@@ -21,6 +21,7 @@ CLI                           API
 ``mocapdb drop-index``        :func:`drop_index`
 ``mocapdb export-features``   :func:`export_features`
 ``mocapdb import-features``   :func:`import_features`
+``mocapdb attach``            :func:`attach`
 ``mocapdb ray-annotate``      :func:`ray_annotate`
 ``mocapdb sql``               ``connect(...).sql(query)``
 ============================  ==========================
@@ -32,8 +33,9 @@ import logging
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 
-from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_segments, read_truth,
+from mocapdb.annotation import (SEGMENT_DTYPE, class_labels, label_documents, read_class_labels, read_segments, read_truth,
                                 segment_table, segments_to_rows)
 from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
 from mocapdb.distributed import ray_annotate as run_on_ray
@@ -44,21 +46,23 @@ from mocapdb.extension import register
 from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
 from mocapdb.learning.class_definitions import attach_keyframes, compile_definitions, read_definitions
-from mocapdb.storage import parquet, postings
-from mocapdb.storage.annotations import EXPORT_FORMATS, annotate_documents, export_segments, store_annotations
+from mocapdb.storage import annotations as stored_annotations
+from mocapdb.storage import attached, parquet, postings
+from mocapdb.storage.annotations import (EXPORT_FORMATS, PartialAnnotationError, annotate_documents, annotate_motions,
+                                        export_segments, store_annotations)
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.models import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows, keyframe_query_stats,
                                     model_fingerprint, model_metadata, save_model)
-from mocapdb.storage.motions import documents_by_name, motion_documents, motion_ids
-from mocapdb.storage.schema import open_database
+from mocapdb.storage.motions import documents_by_name, motion_ids
+from mocapdb.storage.schema import open_database, require_own_tables
 from mocapdb.storage.sqltext import statement
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
 
 log = logging.getLogger("mocapdb")
 
 
-def connect(path=":memory:", *, read_only: bool = False):
+def connect(path=":memory:", *, read_only: bool = False, memory_limit=None):
     """Open (or create) a mocap database with the mocapdb SQL functions registered.
 
     Parameters
@@ -70,6 +74,11 @@ def connect(path=":memory:", *, read_only: bool = False):
     read_only : bool, keyword-only
         Open the file read-only; the SQL functions work all the same (the
         shipped models then come from the package if the file lacks them).
+    memory_limit : str, optional, keyword-only
+        DuckDB's memory limit, e.g. ``"4GB"`` (default ``$MOCAPDB_MEMORY_LIMIT``
+        or 512MB: mocapdb's own work runs a batch of motions at a time, and
+        DuckDB spills to disk beyond its limit; see
+        :data:`mocapdb.storage.schema.DEFAULT_MEMORY_LIMIT`).
 
     Returns
     -------
@@ -87,7 +96,7 @@ def connect(path=":memory:", *, read_only: bool = False):
     >>> con = mocapdb.connect("archive.duckdb")
     >>> con.sql("SELECT name, n_frames FROM motions").fetchall()
     """
-    con = open_database(path, read_only=read_only)
+    con = open_database(path, read_only=read_only, memory_limit=memory_limit)
     try:
         register(con)
     except BaseException:
@@ -120,6 +129,7 @@ def ingest(con, paths, *, asf=None, joint_map=None, marker_map=None, progress=No
     -------
     IngestReport
     """
+    require_own_tables(con, "ingest")
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map, progress=progress)
 
 
@@ -141,6 +151,7 @@ def delete(con, motions) -> int:
     int
         The number of motions deleted.
     """
+    require_own_tables(con, "delete")
     return delete_motions(con, motion_ids(con, motions))
 
 
@@ -192,16 +203,34 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     if (format is None) != (out is None) or (format is not None and format not in EXPORT_FORMATS):
         raise ParameterError(f"format and out go together, format one of {', '.join(EXPORT_FORMATS)}; "
                              f"got format={format!r}, out={out!r}")
+    if store:
+        require_own_tables(con, "annotate with store=True (--store)")
     cache = connection_cache(con)
     key, m = cache.model(model)
-    docs = motion_documents(con, None if motions is None else motion_ids(con, motions))
-    segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes,
-                              progress=progress, min_length=min_length, min_won=min_won, margin=margin)
-    table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
-    if store:
-        store_annotations(con, table, docs.motion_ids, model=model, tau=tau, keyframes=keyframes)
+    ids = None if motions is None else motion_ids(con, motions)
+    n_motions = len(set(ids)) if ids is not None else con.execute(statement("motions.sql", "count")).fetchall()[0][0]
+    tables, done, failed = [], [], []
+    if progress is not None:
+        progress(0, n_motions)
+    # a batch at a time, each stored in its own transaction: memory does not grow with the archive,
+    # and a motion that fails is reported without costing the others
+    for docs, segs, bad in annotate_motions(con, cache, key, m, ids, tau=tau, keyframes=keyframes,
+                                            min_length=min_length, min_won=min_won, margin=margin,
+                                            max_frames=stored_annotations.PROGRESS_FRAMES if progress else cache.batch_frames):
+        table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
+        if store:
+            store_annotations(con, table, docs.motion_ids, model=model, tau=tau, keyframes=keyframes)
+        tables.append(table)
+        done.extend(docs.motion_ids.tolist())
+        failed.extend(bad)
+        if progress is not None:
+            progress(len(done) + len(failed), n_motions)
+    table = pa.concat_tables(tables) if tables else segment_table(
+        np.empty(0, SEGMENT_DTYPE), motion_ids=np.zeros(0, np.int64), names=[], fps=np.zeros(0))
     if out is not None:
-        export_segments(con, table, out, format=format, motion_ids=docs.motion_ids)
+        export_segments(con, table, out, format=format, motion_ids=done)
+    if failed:
+        raise PartialAnnotationError(failed, table, n_motions, store)
     return table
 
 
@@ -608,11 +637,13 @@ def create_index(con) -> int:
     int
         The number of postings.
     """
+    require_own_tables(con, "create-index")
     return postings.create_index(con)
 
 
 def drop_index(con) -> None:
     """Remove the keyframe index (ingest and delete then stop maintaining it)."""
+    require_own_tables(con, "drop-index")
     postings.drop_index(con)
 
 
@@ -627,15 +658,46 @@ def export_features(con, directory, *, overwrite=False) -> int:
     return parquet.export_features(con, directory, overwrite=overwrite)
 
 
-def import_features(con, directory) -> dict:
-    """Load motions and features written by :func:`export_features` (motions already present are kept).
+def import_features(con, directory):
+    """Load motions and features written by :func:`export_features` or :func:`ray_annotate` (motions
+    already present are kept).
+
+    A batch of motions at a time, each checked to be exactly its frames 1 … n:
+    an incomplete motion is refused and named, the others are imported; an
+    unfinished archive (an export or a Ray run that was stopped) is refused.
+    See :func:`mocapdb.storage.parquet.import_features`.
 
     Returns
     -------
-    dict
-        Exported motion id → new motion id, for the motions added.
+    mocapdb.storage.parquet.ImportReport
+        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions.
     """
+    require_own_tables(con, "import-features")
     return parquet.import_features(con, directory)
+
+
+def attach(con, directory) -> int:
+    """Make a new database a set of views over a ``ray_annotate`` archive: queryable in place.
+
+    ``motions``, ``features``, ``annotations`` and the keyframe index become
+    views of the archive's Parquet (nothing is copied); every SQL function
+    (``annotate()``, ``keyframe_search()``, ``mt_distance()``, …) and every
+    reading command works on them, a batch of motions at a time. The views
+    name the archive by its absolute path. See :func:`mocapdb.storage.attached.attach`.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+        A database without motions of its own (a new one), or one attached before.
+    directory : str or Path
+        A finished ``ray_annotate`` archive (with its ``manifest.json``).
+
+    Returns
+    -------
+    int
+        The number of motions attached.
+    """
+    return attached.attach(con, directory)
 
 
 def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
@@ -672,5 +734,5 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
 
 __all__ = ["connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate", "report",
            "view",
-           "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
+           "create_index", "drop_index", "export_features", "import_features", "attach", "ray_annotate", "read_truth",
            "training_clips", "FIGURES"]

@@ -172,7 +172,7 @@ def main(ctx, db):
     """
     ctx.ensure_object(dict)
     ctx.obj["db"] = db
-    if ctx.invoked_subcommand not in (None, "delete", "drop-index", "export-features", "joint-map-template"):
+    if ctx.invoked_subcommand not in (None, "attach", "delete", "drop-index", "export-features", "joint-map-template"):
         _say_when_compiling(ctx.invoked_subcommand)
 
 
@@ -622,10 +622,44 @@ def export_features(ctx, directory, overwrite):
 @click.argument("directory", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.pass_context
 def import_features(ctx, directory):
-    """Load motions and features exported by export-features (motions already present are kept)."""
+    """Load motions and features exported by export-features or written by ray-annotate.
+
+    Motions already present are kept. Every motion is checked to be exactly
+    its frames 1 … n: an incomplete one is refused and named (exit 1), the
+    others are imported; an unfinished archive is refused.
+    """
     from mocapdb.api import import_features as api_import_features
 
-    click.echo(f"{len(api_import_features(_open(ctx), directory))} motion(s) imported")
+    report = api_import_features(_open(ctx), directory)
+    for name, reason in report.repaired:
+        click.echo(f"repaired {name}: {reason}", err=True)
+    for name, reason in report.failed:
+        click.echo(f"refused  {reason}", err=True)
+    click.echo(report.summary())
+    if report.failed:
+        ctx.exit(1)
+
+
+@command("attach")
+@click.argument("directory", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.pass_context
+def attach(ctx, directory):
+    """Query a ray-annotate archive in place: --db becomes views over its Parquet.
+
+    motions, features, annotations and the keyframe index of the new database
+    are views of the archive (nothing is copied); the SQL functions and the
+    reading commands work on them.
+
+    \b
+    Example:
+      mocapdb ray-annotate '../shared/data/hdm05_cut/**/*.amc' --out archive
+      mocapdb --db archive_views.duckdb attach archive
+      mocapdb --db archive_views.duckdb sql "SELECT count(*) FROM keyframe_search('kickLFront1Reps')"
+    """
+    from mocapdb.api import attach as api_attach
+
+    n = api_attach(_open(ctx), directory)
+    click.echo(f"{n} motion(s) of {directory} attached to {ctx.obj['db']}")
 
 
 @command("ray-annotate")

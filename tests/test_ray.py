@@ -237,7 +237,7 @@ def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, t
     out, report = archive
     con = api.connect(tmp_path / "imported.duckdb")
     try:
-        assert len(api.import_features(con, out)) == len(report.ingested)
+        assert len(api.import_features(con, out).imported) == len(report.ingested)
         by_file = ("SELECT m.source_path, s.label, s.start_frame, s.end_frame, s.cost FROM motions m, "
                    "LATERAL (SELECT unnest(annotate(m.motion_id), recursive := true)) s")
         sql = sorted(con.execute(by_file).fetchall())
@@ -248,7 +248,7 @@ def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, t
             q = (f"SELECT m.source_path, k.start_frame, k.end_frame FROM keyframe_search('{c}') k "
                  "JOIN motions m USING (motion_id)")
             assert sorted(con.execute(q).fetchall()) == sorted(single.execute(q).fetchall()), c
-        assert api.import_features(con, out) == {}  # the same motions again: nothing new
+        assert api.import_features(con, out).imported == {}  # the same motions again: nothing new
     finally:
         con.close()
 

@@ -38,7 +38,7 @@ from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.storage.ingest import MOTION_SUFFIXES, IngestReport, motion_files, reader_maps
 from mocapdb.storage.models import DEFAULT_MODEL, load_model
-from mocapdb.storage.parquet import table_schemas
+from mocapdb.storage.parquet import table_schemas, write_manifest
 from mocapdb.storage.schema import open_database
 
 log = logging.getLogger("mocapdb")
@@ -278,8 +278,24 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
         if r["error"] is not None:
             report.failed.append((r["file"], r["error"]))
     finish_output(out, parts, schemas)
+    # last: the archive is finished (import-features refuses an archive without it)
+    write_manifest(out, {"format": "mocapdb ray-annotate archive", "mocapdb": _version(), "started_at": stamp,
+                         "finished_at": datetime.now().replace(microsecond=0), "model": model, "tau": tau,
+                         "keyframes": keyframes, "files": len(files), "motions": len(report.ingested),
+                         "failed": len(report.failed), "skipped": len(report.skipped),
+                         "source_frames": report.source_frames, "segments": report.segments,
+                         "batch_files": batch_files, "bucket_motions": bucket_motions})
     log.info("ray_annotate: %s", report.summary())
     return report
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mocapdb")
+    except PackageNotFoundError:  # a source checkout
+        return "unknown"
 
 
 def _compute(ray, worker, init, files, cpus, batch_files) -> list:

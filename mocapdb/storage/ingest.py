@@ -19,6 +19,7 @@ import pyarrow as pa
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
 from mocapdb.readers import SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion
+from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
@@ -37,13 +38,14 @@ class IngestReport:
 
     ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
     skipped: list = field(default_factory=list)      # (path, reason): already stored
+    repaired: list = field(default_factory=list)     # (path, reason): stored with incomplete features, replaced
     failed: list = field(default_factory=list)       # (path, reason)
     unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
     source_frames: int = 0
 
     def summary(self) -> str:
-        out = (f"{len(self.ingested)} ingested, {len(self.skipped)} skipped, "
-               f"{len(self.failed)} failed")
+        out = (f"{len(self.ingested)} ingested{f' ({len(self.repaired)} repaired)' if self.repaired else ''}, "
+               f"{len(self.skipped)} skipped, {len(self.failed)} failed")
         if self.unsupported:
             out += f", {len(self.unsupported)} not motion files"
         return out
@@ -103,6 +105,7 @@ class _Prepared:
     words: np.ndarray | None = None
     error: str | None = None
     reader_options: str | None = None  # JSON of the reader options besides the skeleton
+    replaces: int | None = None  # a stored motion of the same bytes whose features are incomplete
 
 
 def _fingerprint(path: Path, asf) -> _Prepared:
@@ -207,32 +210,41 @@ def motions_table(preps) -> pa.Table:
 
 def store_motions(con, preps) -> list[int]:
     """Insert computed motions — their ``motions`` rows, ``features`` rows and,
-    when the keyframe index exists, postings — in one transaction.
+    when the keyframe index exists, postings — in one transaction (which first
+    deletes the stored motions they replace, ``prep.replaces``).
 
     Returns the new motion ids in the order of ``preps``.
     """
     meta = motions_table(preps)
     meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
-    return _insert(con, meta, [p.words for p in preps])
-
-
-def _insert(con, meta: pa.Table, words: list) -> list[int]:
-    """Insert ``motions`` rows (``meta``, with ``ord``) with their words, features and postings: one transaction."""
     with transaction(con):
-        with registered(con, mocap_new_motions=meta):
-            rows = con.execute(_sql("insert_motions")).fetchall()
-        by_key = {(a, b): mid for mid, a, b in rows}
-        ids = [by_key[k] for k in zip(meta.column("sha256").to_pylist(), meta.column("skeleton_sha256").to_pylist())]
-        counts = np.array([len(w) for w in words], dtype=np.int64)
-        feats = pa.table({
-            "motion_id": pa.array(np.repeat(np.array(ids, dtype=np.int32), counts)),
-            "frame": pa.array(np.concatenate([np.arange(1, c + 1, dtype=np.int32) for c in counts])),
-            "bits": pa.array(np.concatenate(words).astype(np.uint64, copy=False)),
-        })
-        with registered(con, mocap_new_features=feats):
-            con.execute(_sql("insert_features"))
-        index_motions(con, dict(zip(ids, words)))
+        remove_motions(con, [p.replaces for p in preps if p.replaces is not None])
+        return insert_motions(con, meta, [p.words for p in preps])
+
+
+def insert_motions(con, meta: pa.Table, words: list) -> list[int]:
+    """Insert ``motions`` rows (``meta``, with ``ord``) with their words as features and postings,
+    inside the caller's transaction; returns the new ids in the order of ``meta``."""
+    with registered(con, mocap_new_motions=meta):
+        rows = con.execute(_sql("insert_motions")).fetchall()
+    by_key = {(a, b): mid for mid, a, b in rows}
+    ids = [by_key[k] for k in zip(meta.column("sha256").to_pylist(), meta.column("skeleton_sha256").to_pylist())]
+    insert_features(con, ids, words)
     return ids
+
+
+def insert_features(con, ids, words: list) -> None:
+    """Insert the ``features`` rows (frames 1 … n) and postings of motions, inside the caller's transaction."""
+    counts = np.array([len(w) for w in words], dtype=np.int64)
+    feats = pa.table({
+        "motion_id": pa.array(np.repeat(np.array(ids, dtype=np.int32), counts)),
+        "frame": pa.array(np.concatenate([np.arange(1, c + 1, dtype=np.int32) for c in counts] or
+                                         [np.zeros(0, np.int32)])),
+        "bits": pa.array(np.concatenate(words or [np.zeros(0, np.uint64)]).astype(np.uint64, copy=False)),
+    })
+    with registered(con, mocap_new_features=feats):
+        con.execute(_sql("insert_features"))
+    index_motions(con, dict(zip(ids, words)))
 
 
 def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: str = "words") -> list[int]:
@@ -265,7 +277,8 @@ def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: 
         "skeleton_path": pa.array([None] * len(names), pa.string()),
         "reader_options": pa.array([None] * len(names), pa.string()),
     })
-    return _insert(con, meta, words)
+    with transaction(con):
+        return insert_motions(con, meta, words)
 
 
 #: computed files are stored in batches, one transaction per batch, once a batch
@@ -315,6 +328,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
     maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
     stored = _stored_keys(con)
     todo = []
+    already = []      # (path, prep, key) of files whose bytes are stored: decided after the loop
     first_of = {}     # key -> the first file of this ingest with those bytes
     duplicates = []   # (path, key): decided once the first file is read
     for path in files:
@@ -326,12 +340,26 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, progr
             continue
         key = (prep.sha256, prep.skeleton_sha256)
         if key in stored:
-            report.skipped.append((str(path), f"already ingested as motion {stored[key]}"))
+            already.append((path, prep, key))
+        elif key in first_of:
+            duplicates.append((path, key))
+        else:
+            first_of[key] = str(path)
+            todo.append(prep)
+    # a stored motion whose features are incomplete (an import of a partial archive by an older
+    # mocapdb) is stored again from its file, replacing it, in the same transaction
+    broken = {mid: reason for mid, _, reason in incomplete_motions(con, [stored[k] for _, _, k in already])}
+    for path, prep, key in already:
+        mid = stored[key]
+        if mid not in broken:
+            report.skipped.append((str(path), f"already ingested as motion {mid}"))
             _tick(progress, path, 0)
         elif key in first_of:
             duplicates.append((path, key))
         else:
             first_of[key] = str(path)
+            prep.replaces = mid
+            report.repaired.append((str(path), broken[mid]))
             todo.append(prep)
 
     batch = []
@@ -406,15 +434,24 @@ def delete_motions(con, motion_ids) -> int:
     int
         The number of motions deleted.
     """
+    ids = [int(i) for i in motion_ids]
+    if not ids:
+        return 0
+    with transaction(con):
+        return remove_motions(con, ids)
+
+
+def remove_motions(con, motion_ids) -> int:
+    """:func:`delete_motions` inside the caller's transaction; returns the number deleted."""
     ids = {"ids": [int(i) for i in motion_ids]}
     if not ids["ids"]:
         return 0
-    with transaction(con):
-        con.execute(_sql("delete_features"), ids)
-        unindex_motions(con, ids["ids"])
-        con.execute(_sql("delete_annotations"), ids)
-        return len(con.execute(_sql("delete_motions"), ids).fetchall())
+    con.execute(_sql("delete_features"), ids)
+    unindex_motions(con, ids["ids"])
+    con.execute(_sql("delete_annotations"), ids)
+    return len(con.execute(_sql("delete_motions"), ids).fetchall())
 
 
 __all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "store_words", "delete_motions",
+           "remove_motions", "insert_motions", "insert_features",
            "MOTION_SUFFIXES", "prepare_file", "compute_motion", "motions_table", "reader_maps"]
