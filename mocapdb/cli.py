@@ -427,9 +427,12 @@ def define_class(ctx, definitions, model, replace):
                                       "linked media): --out FILE.eaf for one motion, else a directory.")
 @click.option("--out", type=click.Path(path_type=Path), help="Write to a file (a directory for eaf of several "
                                                              "motions) instead of stdout.")
+@click.option("--store/--no-store", default=True, show_default=True,
+              help="Replace the stored annotations of these motions and this model (a database attached to an "
+                   "archive has none of its own: --no-store).")
 @silent_option
 @click.pass_context
-def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, fmt, out, silent):
+def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, fmt, out, store, silent):
     """Annotate motions (ids or names; default all) and store the segments in `annotations`.
 
     Frames are 30 Hz frames, 1-based inclusive; CSV columns
@@ -442,19 +445,28 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
       mocapdb --db a.duckdb annotate --format parquet --out segments.parquet
     """
     from mocapdb.api import annotate as api_annotate
+    from mocapdb.storage.annotations import PartialAnnotationError
 
     export = fmt in ("parquet", "eaf")
     if export and out is None:
         raise click.UsageError(f"--format {fmt} writes files: give --out")
+    failure = None
     with _progress(None, "annotate", silent, unit="motion") as bar:
-        table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes,
-                             format=fmt if export else None, out=out if export else None, progress=_set_bar(bar),
-                             min_length=min_length, min_won=min_won, margin=margin)
+        try:
+            table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes, store=store,
+                                 format=fmt if export else None, out=out if export else None,
+                                 progress=_set_bar(bar), min_length=min_length, min_won=min_won, margin=margin)
+        except PartialAnnotationError as exc:  # the others were annotated (and stored): show them
+            table, failure = exc.table, exc
     if export:
         click.echo(f"{table.num_rows} segment(s) written to {out}")
-        return
-    cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
-    write_rows(list(zip(*(table.column(c).to_pylist() for c in cols))), cols, fmt, out)
+    else:
+        cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
+        write_rows(list(zip(*(table.column(c).to_pylist() for c in cols))), cols, fmt, out)
+    if failure is not None:
+        for _, _, reason in failure.failed:
+            click.echo(f"failed  {reason}", err=True)
+        raise click.ClickException(str(failure))
 
 
 def _print_scores(rows):
