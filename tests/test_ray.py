@@ -330,6 +330,32 @@ def test_a_killed_ray_annotate_is_refused_until_run_again(local_ray, tmp_path):
         con.close()
 
 
+def test_a_cluster_with_token_authentication(tmp_path):
+    """`ray-annotate --address` on a cluster started with `ray start` and RAY_AUTH_MODE=token (Ray ≥ 2.52):
+    the client needs the same mode and the token (here RAY_AUTH_TOKEN_PATH); without them one clear line."""
+    import secrets
+
+    from ray_cluster import LocalCluster
+
+    token = tmp_path / "token"
+    token.write_text(secrets.token_hex(16))
+    auth = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token)}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_AUTH")}
+    env.update(PYTHONPATH=str(REPO), RAY_USAGE_STATS_ENABLED="0")
+    cmd = [sys.executable, "-P", "-m", "mocapdb.cli", "ray-annotate", str(DATA / "cmu" / "02")]
+    with LocalCluster(nodes=1, cpus=1, port=6397, env={**auth, "PYTHONPATH": str(REPO)}) as cluster:
+        p = subprocess.run([*cmd, "--out", str(tmp_path / "a"), "--address", cluster.address], env=env,
+                           capture_output=True, text=True, cwd=tmp_path, timeout=300)
+        assert p.returncode == 1
+        last = p.stderr.strip().splitlines()[-1]
+        assert last.startswith(f"Error: cannot connect to the Ray cluster at {cluster.address}")
+        assert "RAY_AUTH_MODE=token" in last and "RAY_AUTH_TOKEN_PATH" in last
+        p = subprocess.run([*cmd, "--out", str(tmp_path / "b"), "--address", cluster.address], env={**env, **auth},
+                           capture_output=True, text=True, cwd=tmp_path, timeout=600)
+        assert p.returncode == 0, p.stderr[-2000:]
+        assert p.stdout.startswith("9 motions") and (tmp_path / "b" / "manifest.json").exists()
+
+
 def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, tmp_path):
     """`mocapdb --db DB ray-annotate --model NAME --tau … --no-keyframes`: the model comes from the
     database; the segments equal `annotate` with the same options in that database."""
