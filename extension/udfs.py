@@ -82,7 +82,7 @@ def _annotated(cache, key, model, motion_ids, **options):
         for docs, segs, failed in annotate_motions(cur, cache, key, model, ids, skip_unknown=True,
                                                    max_frames=cache.batch_frames, **options):
             _refuse(failed)
-            yield docs, segs, failed
+            yield docs, segs
 
 
 def _groups(*columns):
@@ -140,8 +140,8 @@ def make_udfs(cache):
             key, model = cache.model(name, fp)
             _check_tau(t)
             per_motion = {}
-            for docs, segs, failed in _annotated(cache, key, model, motion[rows[known[rows]]], tau=t, keyframes=kf,
-                                                 index_version=version):
+            for docs, segs in _annotated(cache, key, model, motion[rows[known[rows]]], tau=t, keyframes=kf,
+                                         index_version=version):
                 table = segment_table(segs, motion_ids=docs.motion_ids, names=[""] * len(docs.names), fps=docs.fps)
                 values = pa.StructArray.from_arrays([_column(table.column(c)) for c in _SEGMENT_FIELDS],
                                                     fields=list(_SEGMENT_ARROW))

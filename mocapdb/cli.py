@@ -253,6 +253,8 @@ def _echo_report(ctx, report):
         click.echo(f"not a motion file {path}: {reason}", err=True)
     for path, reason in report.skipped:
         click.echo(f"skipped {path}: {reason}", err=True)
+    for path, reason in report.repaired:
+        click.echo(f"repaired {path}: {reason}", err=True)
     for path, reason in report.failed:
         click.echo(f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}", err=True)
     click.echo(f"{report.summary()} ({report.source_frames} source frames)")

@@ -184,10 +184,11 @@ def check_frames(motion_ids, n_frames, row_motion, row_frame, row_bits):
     return bits, complete, rows
 
 
-def incomplete_reason(motion_id, name, rows, n_frames) -> str:
-    """Why a stored motion cannot be used, and how to repair it."""
-    return (f"motion {int(motion_id)} ({name}) has {int(rows)} feature rows for its {int(n_frames)} frames "
-            f"(frames 1…{int(n_frames)} expected): ingest or import it again to repair it")
+def incomplete_reason(motion_id, name, rows, n_frames, *, what="motion",
+                      remedy="ingest or import it again to repair it") -> str:
+    """Why a motion's features cannot be used (``what``: whose motion), and what to do."""
+    return (f"{what} {int(motion_id)} ({name}) has {int(rows)} feature rows for its {int(n_frames)} frames "
+            f"(frames 1…{int(n_frames)} expected): {remedy}")
 
 
 def incomplete_motions(con, ids) -> list:

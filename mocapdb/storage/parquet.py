@@ -179,6 +179,7 @@ class Archive:
     root: Path
     kind: str
     motions: pa.Table
+    _parts: dict = field(default_factory=dict, repr=False)  # dataset -> its Ray parts, listed once
 
     @classmethod
     def open(cls, directory) -> "Archive":
@@ -227,10 +228,9 @@ class Archive:
         return out
 
     def _ray_parts(self, dataset):
-        cache = self.__dict__.setdefault("_part_cache", {})
-        if dataset not in cache:
-            cache[dataset] = _parts(self.root / dataset)
-        return cache[dataset]
+        if dataset not in self._parts:
+            self._parts[dataset] = _parts(self.root / dataset)
+        return self._parts[dataset]
 
 
 def _read_motions(path: Path) -> pa.Table:
@@ -371,9 +371,8 @@ def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, repor
         if not ok[k]:
             name = names[rows_k[k]]
             why = (f"archive motion {mid} ({name}): features unreadable: {unreadable[mid]}" if mid in unreadable
-                   else incomplete_reason(mid, name, n_rows[k], lengths[rows_k[k]]).replace(
-                       "motion", "archive motion", 1).replace("ingest or import it again to repair it",
-                                                              "not imported"))
+                   else incomplete_reason(mid, name, n_rows[k], lengths[rows_k[k]], what="archive motion",
+                                          remedy="not imported"))
             report.failed.append((name, why))
     if not ok.any():
         return
