@@ -144,6 +144,33 @@ def test_a_killed_export_is_refused_never_imported_in_part(source, tmp_path):
     assert "refused" in outcomes, outcomes  # a kill did land inside an export
 
 
+def test_a_killed_import_leaves_whole_motions_and_importing_again_finishes(source, tmp_path):
+    """SIGKILL of `mocapdb import-features` at random points: the database holds whole motions (features,
+    postings) or none of an unfinished batch, and importing again adds exactly the rest."""
+    _, export = source
+    rng = random.Random(7)
+    for trial in range(3):
+        db = tmp_path / f"killed{trial}.duckdb"
+        mocapdb.connect(db).close()  # the schema first: the kill lands in the import itself
+        env = dict(os.environ, PYTHONPATH=str(REPO))
+        p = subprocess.Popen([sys.executable, "-P", "-m", "mocapdb.cli", "--db", str(db), "import-features",
+                              str(export)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            time.sleep(rng.uniform(1.0, 6.0))
+        finally:
+            p.send_signal(signal.SIGKILL)
+            p.wait()
+        con = mocapdb.connect(db)
+        try:
+            check_invariants(con)
+            before = con.execute("SELECT count(*) FROM motions").fetchall()[0][0]
+            report = import_features(con, export)
+            assert len(report.imported) == 232 - before and len(report.skipped) == before and not report.failed
+            check_invariants(con)
+        finally:
+            con.close()
+
+
 def test_a_truncated_part_names_its_cause_and_costs_only_its_motion(source, tmp_path):
     _, export = source
     broken = tmp_path / "broken"
