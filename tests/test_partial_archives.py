@@ -43,6 +43,14 @@ def source(tmp_path_factory):
     return d / "source.duckdb", d / "export"
 
 
+@pytest.fixture
+def db_copy(source, tmp_path):
+    """A copy of the source database, to change."""
+    copy = tmp_path / "copy.duckdb"
+    shutil.copy(source[0], copy)
+    return copy
+
+
 def check_invariants(con):
     """Every motion is its frames 1 … n_frames and is in the keyframe index; nothing dangles."""
     bad = con.execute("""
@@ -86,13 +94,11 @@ def test_missing_feature_folders_are_refused_by_name_and_the_repair_goes_in(sour
         con.close()
 
 
-def test_partly_imported_motions_of_an_older_mocapdb_are_repaired(source, tmp_path):
+def test_partly_imported_motions_of_an_older_mocapdb_are_repaired(source, db_copy):
     """A database holding motions without all their features (what importing a partial archive left
     before): importing the archive again, or ingesting the files again, replaces them."""
-    db, export = source
-    copy = tmp_path / "copy.duckdb"
-    shutil.copy(db, copy)
-    con = mocapdb.connect(copy)
+    export = source[1]
+    con = mocapdb.connect(db_copy)
     try:
         con.execute("DELETE FROM features WHERE motion_id IN (3, 4) AND frame > 10")
         con.execute("DELETE FROM features WHERE motion_id = 5")
@@ -214,12 +220,9 @@ def test_a_failed_write_reports_its_own_error_not_the_aborted_transaction(source
         con.close()
 
 
-def test_export_overwrite_leaves_no_stale_partition(source, tmp_path):
-    db, _ = source
-    copy = tmp_path / "copy.duckdb"
-    shutil.copy(db, copy)
+def test_export_overwrite_leaves_no_stale_partition(db_copy, tmp_path):
     out = tmp_path / "export"
-    con = mocapdb.connect(copy)
+    con = mocapdb.connect(db_copy)
     try:
         assert export_features(con, out) == 232
         (out / "notes.txt").write_text("mine")
