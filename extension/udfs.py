@@ -1,13 +1,18 @@
 """Python UDFs behind the SQL functions, and their registration.
 
 Each UDF is Arrow in / Arrow out and a thin call of the library function of
-the same job. A UDF never queries its connection for data: the temporary
-macros of ``sql/macros.sql`` pass the motion's words, the model's fingerprint
-and the keyframe index version in, and the connection's
-:class:`~mocapdb.storage.cache.ConnectionCache` holds the parsed model and
-the loaded index (re-read only when a fingerprint or version changed).
-DuckDB calls a Python UDF from one thread with up to 2048 rows; the numba
-kernels underneath parallelise.
+the same job. The temporary macros of ``sql/macros.sql`` pass the motion id,
+the model's fingerprint and the keyframe index version in; the UDF reads
+the words (and postings) of its rows' motions itself, a batch of motions at a
+time, through a cursor of its connection
+(:func:`~mocapdb.storage.annotations.annotate_motions`). Handing the words in
+through the macro would make DuckDB collect every motion's words of the
+query at once (it decorrelates the macro's ``list(bits)`` subquery into one
+aggregate over the whole ``features`` table), memory that grows with the
+archive. The connection's :class:`~mocapdb.storage.cache.ConnectionCache`
+holds the parsed model (re-read only when its fingerprint changed). DuckDB
+calls a Python UDF from one thread with up to 2048 rows; the numba kernels
+underneath parallelise.
 """
 from __future__ import annotations
 
@@ -18,11 +23,12 @@ from duckdb import sqltypes as T
 
 from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.features import FEATURE_RATE, N_FEATURES
-from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins, keyframe_search
-from mocapdb.storage.annotations import annotate_documents
+from mocapdb.features import N_FEATURES
+from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins
+from mocapdb.storage.annotations import annotate_motions
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.retrieval import check_range, search_index
+from mocapdb.storage.motions import iter_documents
+from mocapdb.storage.retrieval import query_stretch, search_archive
 from mocapdb.storage.sqltext import sql_text
 from mocapdb.templates import mt_distance
 
@@ -52,15 +58,37 @@ def _column(arr):
     return arr.combine_chunks() if isinstance(arr, pa.ChunkedArray) else arr
 
 
-def _lists(arr):
-    """A LIST(UBIGINT) Arrow column as (flat words, lengths, null mask)."""
+def _motions(arr):
+    """A motion-id column as (int64 ids, not-NULL mask); NULL rows hold -1."""
     arr = _column(arr)
-    nulls = arr.is_null().to_numpy(zero_copy_only=False)
-    offsets = arr.offsets.to_numpy()
-    lengths = np.diff(offsets).astype(np.int64)
-    lengths[nulls] = 0
-    flat = arr.flatten().to_numpy(zero_copy_only=False).astype(np.uint64, copy=False)
-    return flat, lengths, nulls
+    known = ~arr.is_null().to_numpy(zero_copy_only=False)
+    return np.asarray(arr.fill_null(-1).to_numpy(zero_copy_only=False), dtype=np.int64), known
+
+
+def _nulls(parts, n_rows):
+    """Rows no group answered (a NULL or unknown motion): NULL."""
+    out = np.ones(n_rows, bool)
+    for rows, _, _ in parts:
+        out[rows] = False
+    return out
+
+
+def _refuse(failed):
+    """A motion a SQL function cannot use is an error that names it (and says how to repair it)."""
+    if failed:
+        raise SchemaError("; ".join(reason for _, _, reason in failed))
+
+
+def _annotated(cache, key, model, motion_ids, **options):
+    """:func:`~mocapdb.storage.annotations.annotate_motions` of the distinct known motions of a UDF call."""
+    ids = np.unique(motion_ids)
+    if not len(ids):
+        return
+    with cache.cursor() as cur:
+        for docs, segs, failed in annotate_motions(cur, cache, key, model, ids, skip_unknown=True,
+                                                   max_frames=cache.batch_frames, **options):
+            _refuse(failed)
+            yield docs, segs
 
 
 def _groups(*columns):
@@ -77,15 +105,6 @@ def _groups(*columns):
     for i, k in enumerate(zip(*[c.to_pylist() for c in columns])):
         out.setdefault(k, []).append(i)
     return {k: np.array(v, dtype=np.int64) for k, v in out.items()}
-
-
-def _rows_of(lengths, rows):
-    """Positions in the flat words of the given rows (each row's words in order)."""
-    if len(rows) == len(lengths) and np.array_equal(rows, np.arange(len(lengths))):
-        return slice(None)
-    mask = np.zeros(len(lengths), bool)
-    mask[rows] = True
-    return np.repeat(mask, lengths)
 
 
 def _list_array(parts, n_rows, nulls, values_type):
@@ -118,41 +137,50 @@ def _check_tau(tau):
 def make_udfs(cache):
     """The UDFs of one connection, bound to its cache."""
 
-    def annotate_udf(words, motion, fps, model_name, fingerprint, tau, keyframes, index_version):
+    def annotate_udf(motion, model_name, fingerprint, tau, keyframes, index_version):
         """``mocap_annotate(...)`` → LIST(segment) per row (see sql/macros.sql)."""
-        flat, lengths, nulls = _lists(words)
-        motion = _column(motion).to_numpy(zero_copy_only=False)
-        fps = _column(fps).to_numpy(zero_copy_only=False)
+        motion, known = _motions(motion)
         parts = []
         for (name, fp, t, kf, version), rows in _groups(model_name, fingerprint, tau, keyframes,
                                                        index_version).items():
             key, model = cache.model(name, fp)
             _check_tau(t)
-            rows = rows[~nulls[rows]]
-            if not len(rows):
-                continue
-            segs = annotate_documents(cache, key, model, flat[_rows_of(lengths, rows)], lengths[rows], motion[rows],
-                                      tau=t, keyframes=kf, index_version=version)
-            table = segment_table(segs, motion_ids=motion[rows], names=[""] * len(rows), fps=fps[rows])
-            values = pa.StructArray.from_arrays([_column(table.column(c)) for c in _SEGMENT_FIELDS],
-                                                fields=list(_SEGMENT_ARROW))
-            # the table is sorted by document (= position in rows) first
-            parts.append((rows, values, np.bincount(segs["doc"], minlength=len(rows))))
-        return _list_array(parts, len(lengths), nulls, _SEGMENT_ARROW)
+            per_motion = {}
+            for docs, segs in _annotated(cache, key, model, motion[rows[known[rows]]], tau=t, keyframes=kf,
+                                         index_version=version):
+                table = segment_table(segs, motion_ids=docs.motion_ids, names=[""] * len(docs.names), fps=docs.fps)
+                values = pa.StructArray.from_arrays([_column(table.column(c)) for c in _SEGMENT_FIELDS],
+                                                    fields=list(_SEGMENT_ARROW))
+                # the table is sorted by document first
+                ends = np.cumsum(np.bincount(segs["doc"], minlength=len(docs.motion_ids)))
+                for k, mid in enumerate(docs.motion_ids.tolist()):
+                    per_motion[mid] = values.slice(ends[k - 1] if k else 0, ends[k] - (ends[k - 1] if k else 0))
+            rows = rows[[int(motion[r]) in per_motion for r in rows]]  # unknown motions stay NULL
+            if len(rows):
+                got = [per_motion[int(motion[r])] for r in rows]
+                parts.append((rows, pa.concat_arrays(got), np.array([len(g) for g in got])))
+        return _list_array(parts, len(motion), _nulls(parts, len(motion)), _SEGMENT_ARROW)
 
-    def mt_distance_udf(words, model_name, fingerprint, cls):
-        """``mocap_mt_distance(words, model, fingerprint, class)`` → DOUBLE[] per row (Δ, inf where undefined)."""
-        flat, lengths, nulls = _lists(words)
-        starts = np.concatenate(([0], np.cumsum(lengths)))
+    def mt_distance_udf(motion, model_name, fingerprint, cls):
+        """``mocap_mt_distance(motion, model, fingerprint, class)`` → DOUBLE[] per row (Δ, inf where undefined)."""
+        motion, known = _motions(motion)
         parts = []
         for (name, fp, c), rows in _groups(model_name, fingerprint, cls).items():
             _, model = cache.model(name, fp)
             q = _class(model, c).quantized
-            rows = rows[~nulls[rows]]
+            per_motion = {}
+            with cache.cursor() as cur:
+                for docs, failed in iter_documents(cur, np.unique(motion[rows[known[rows]]]), skip_unknown=True,
+                                                   max_frames=cache.batch_frames):
+                    _refuse(failed)
+                    starts = np.concatenate(([0], np.cumsum(docs.lengths)))
+                    for k, mid in enumerate(docs.motion_ids.tolist()):
+                        per_motion[mid] = mt_distance(docs.words[starts[k]:starts[k + 1]], q)
+            rows = rows[[int(motion[r]) in per_motion for r in rows]]
             if len(rows):
-                deltas = [mt_distance(flat[starts[r]:starts[r + 1]], q) for r in rows]
-                parts.append((rows, pa.array(np.concatenate(deltas), pa.float64()), lengths[rows]))
-        return _list_array(parts, len(lengths), nulls, pa.float64())
+                got = [per_motion[int(motion[r])] for r in rows]
+                parts.append((rows, pa.array(np.concatenate(got), pa.float64()), np.array([len(g) for g in got])))
+        return _list_array(parts, len(motion), _nulls(parts, len(motion)), pa.float64())
 
     def keyframe_search_udf(model_name, fingerprint, cls, extend, index_version):
         """``mocap_keyframe_search(model, fingerprint, class, extend, version)`` → LIST(hit) per row."""
@@ -181,21 +209,23 @@ def make_udfs(cache):
             per_row.append(_search(cache, query, left, right, version))
         return _hits_array(per_row)
 
-    def similar_udf(words, motion, first, last, k, index_version):
-        """``mocap_similar(words, motion, first, last, k, version)`` → LIST(result) per row (sql/macros.sql)."""
-        flat, lengths, nulls = _lists(words)
-        starts = np.concatenate(([0], np.cumsum(lengths)))
+    def similar_udf(motion, first, last, k, index_version):
+        """``mocap_similar(motion, first, last, k, version)`` → LIST(result) per row (sql/macros.sql).
+
+        The query stretch is read here and the archive searched a batch of
+        motions at a time (:func:`~mocapdb.storage.retrieval.search_archive`),
+        for the same reason the other UDFs read their own words.
+        """
         per_row = []
-        for r, (m, a, b, limit, version) in enumerate(zip(*[_column(x).to_pylist() for x in
-                                                            (motion, first, last, k, index_version)])):
-            if m is None or nulls[r]:
-                raise SchemaError(f"similar_to: no motion with id {m} (see: SELECT motion_id, name FROM motions)")
+        for m, a, b, limit, version in zip(*[_column(x).to_pylist() for x in
+                                             (motion, first, last, k, index_version)]):
             if limit is None or limit < 1:
                 raise ParameterError(f"similar_to: k must be a positive integer, got {limit}")
-            lo, hi = check_range(f"motion {m}", int(lengths[r]), FEATURE_RATE, a, b)
-            _, index, ids = cache.index(version)
-            w = flat[starts[r]:starts[r + 1]]
-            hits = search_index(index, ids, [(int(m), lo, hi, w[lo:hi + 1])], limit=int(limit))
+            if m is None:
+                raise SchemaError("similar_to: no motion with id NULL (see: SELECT motion_id, name FROM motions)")
+            with cache.cursor() as cur:
+                stretch = query_stretch(cur, m, a, b)
+            hits = search_archive(cache, [stretch], limit=int(limit), version=version)
             per_row.append(pa.StructArray.from_arrays(
                 [pa.array(np.arange(1, hits.size + 1), pa.int32()), pa.array(hits["doc"], pa.int32()),
                  pa.array(hits["start"] + 1, pa.int32()), pa.array(hits["end"] + 1, pa.int32()),
@@ -222,12 +252,11 @@ def _class(model, name):
 
 
 def _search(cache, query, left, right, version):
-    """Hits of a keyframe query on the stored index as an Arrow struct array."""
-    _, index, ids = cache.index(version)
-    segs = keyframe_search(index, query, extend_left=int(left), extend_right=int(right))
+    """Hits of a keyframe query on the stored index (a batch of motions at a time) as an Arrow struct array."""
+    motion, start, end = cache.keyframe_search(query, extend_left=int(left), extend_right=int(right), version=version)
     return pa.StructArray.from_arrays(
-        [pa.array(ids[segs.doc], pa.int32()), pa.array(segs.start + 1, pa.int32()),
-         pa.array(segs.end + 1, pa.int32())], fields=list(_HIT_ARROW))
+        [pa.array(motion, pa.int32()), pa.array(start + 1, pa.int32()), pa.array(end + 1, pa.int32())],
+        fields=list(_HIT_ARROW))
 
 
 def inline_query(masks, values, gap_min, gap_max) -> KeyframeQuery:
@@ -284,12 +313,11 @@ def register(con, *, cache=None):
     """
     udfs = make_udfs(connection_cache(con) if cache is None else cache)
     annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, similar_udf = udfs
-    words = duckdb.list_type(T.UBIGINT)
     common = {"type": "arrow", "null_handling": "special", "side_effects": False}
     con.create_function("mocap_annotate", annotate_udf,
-                        [words, T.INTEGER, T.DOUBLE, T.VARCHAR, T.VARCHAR, T.DOUBLE, T.BOOLEAN, T.BIGINT],
+                        [T.INTEGER, T.VARCHAR, T.VARCHAR, T.DOUBLE, T.BOOLEAN, T.BIGINT],
                         duckdb.list_type(SEGMENT_TYPE), **common)
-    con.create_function("mocap_mt_distance", mt_distance_udf, [words, T.VARCHAR, T.VARCHAR, T.VARCHAR],
+    con.create_function("mocap_mt_distance", mt_distance_udf, [T.INTEGER, T.VARCHAR, T.VARCHAR, T.VARCHAR],
                         duckdb.list_type(T.DOUBLE), **common)
     con.create_function("mocap_keyframe_search", keyframe_search_udf,
                         [T.VARCHAR, T.VARCHAR, T.VARCHAR, T.BOOLEAN, T.BIGINT], duckdb.list_type(HIT_TYPE),
@@ -299,7 +327,7 @@ def register(con, *, cache=None):
                          duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
                         duckdb.list_type(HIT_TYPE), **common)
     con.create_function("mocap_similar", similar_udf,
-                        [words, T.INTEGER, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT], duckdb.list_type(SIMILAR_TYPE),
+                        [T.INTEGER, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT], duckdb.list_type(SIMILAR_TYPE),
                         **common)
     register_macros(con)
     return udfs

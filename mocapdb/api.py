@@ -22,6 +22,7 @@ CLI                           API
 ``mocapdb drop-index``        :func:`drop_index`
 ``mocapdb export-features``   :func:`export_features`
 ``mocapdb import-features``   :func:`import_features`
+``mocapdb attach``            :func:`attach`
 ``mocapdb ray-annotate``      :func:`ray_annotate`
 ``mocapdb convert-labels``    :func:`convert_labels`
 ``mocapdb relocate``          :func:`relocate`
@@ -36,9 +37,10 @@ import logging
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 
-from mocapdb.annotation import (class_labels, label_documents, read_class_labels, read_segments, read_truth,
-                                segment_table, segments_to_rows, write_labels)
+from mocapdb.annotation import (SEGMENT_DTYPE, class_labels, label_documents, read_class_labels, read_segments,
+                                read_truth, segment_table, segments_to_rows, write_labels)
 from mocapdb.annotation.foreign_labels import read_label_file
 from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
 from mocapdb.distributed import ray_annotate as run_on_ray
@@ -49,14 +51,17 @@ from mocapdb.extension import connect as connect_database
 from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
 from mocapdb.learning.class_definitions import attach_keyframes, compile_definitions, read_definitions
-from mocapdb.storage import parquet, postings
-from mocapdb.storage.annotations import EXPORT_FORMATS, annotate_documents, export_segments, store_annotations
+from mocapdb.storage import annotations as stored_annotations
+from mocapdb.storage import attached, parquet, postings
+from mocapdb.storage.annotations import (EXPORT_FORMATS, PartialAnnotationError, annotate_documents, annotate_motions,
+                                        export_segments, store_annotations)
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.models import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows, keyframe_query_stats,
                                     model_fingerprint, model_metadata, save_model)
-from mocapdb.storage.motions import (documents_by_name, motion_documents, motion_ids, motions_to_delete,
+from mocapdb.storage.motions import (documents_by_name, motion_ids, motions_to_delete,
                                      relocate_sources)
+from mocapdb.storage.schema import require_own_tables
 from mocapdb.storage.sqltext import statement
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
 from mocapdb.storage.retrieval import query_stretch, similar_stretches
@@ -67,7 +72,7 @@ from mocapdb.warmup import (PARTS, background_compile_running, cache_is_cold, co
 log = logging.getLogger("mocapdb")
 
 
-def connect(path=":memory:", *, read_only: bool = False, create: bool = True):
+def connect(path=":memory:", *, read_only: bool = False, create: bool = True, memory_limit=None):
     """Open (or create) a mocap database with the mocapdb SQL functions registered.
 
     Parameters
@@ -83,6 +88,11 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True):
         False: a missing file is an error instead of a new, empty database
         (the commands that only read an archive use it, so a mistyped
         ``--db`` is caught).
+    memory_limit : str, optional, keyword-only
+        DuckDB's memory limit, e.g. ``"4GB"`` (default ``$MOCAPDB_MEMORY_LIMIT``
+        or 512MB: mocapdb's own work runs a batch of motions at a time, and
+        DuckDB spills to disk beyond its limit; see
+        :data:`mocapdb.storage.schema.DEFAULT_MEMORY_LIMIT`).
 
     Returns
     -------
@@ -108,7 +118,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True):
     if not create and str(path) != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (a mistyped --db? `mocapdb ingest` or "
                           "`mocapdb import-features` create one)")
-    return connect_database(path, read_only=read_only)
+    return connect_database(path, read_only=read_only, memory_limit=memory_limit)
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
@@ -149,6 +159,7 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         ``failed`` lists every file that was not stored, with the reason
         (the command exits 1 when it is not empty).
     """
+    require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
                         marker_rules=marker_rules, progress=progress, replace=replace)
@@ -217,6 +228,7 @@ def delete(con, motions, *, all_named=False) -> DeleteReport:
     -------
     DeleteReport
     """
+    require_own_tables(con, "delete")
     rows, absent = motions_to_delete(con, motions, all_named=all_named)
     delete_motions(con, [r[0] for r in rows])
     return DeleteReport(rows, absent)
@@ -275,18 +287,36 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     if (format is None) != (out is None) or (format is not None and format not in EXPORT_FORMATS):
         raise ParameterError(f"format and out go together, format one of {', '.join(EXPORT_FORMATS)}; "
                              f"got format={format!r}, out={out!r}")
+    if store:
+        require_own_tables(con, "annotate with store=True (--store)")
     cache = connection_cache(con)
     key, m = cache.model(model)
-    docs = motion_documents(con, None if motions is None else motion_ids(con, motions))
-    if motions is None and not len(docs.motion_ids):
+    ids = None if motions is None else motion_ids(con, motions)
+    n_motions = len(set(ids)) if ids is not None else con.execute(statement("motions.sql", "count")).fetchall()[0][0]
+    if motions is None and not n_motions:
         raise SchemaError("the database holds no motions: ingest recordings first (mocapdb ingest PATH…)")
-    segs = annotate_documents(cache, key, m, docs.words, docs.lengths, docs.motion_ids, tau=tau, keyframes=keyframes,
-                              progress=progress, min_length=min_length, min_won=min_won, margin=margin)
-    table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
-    if store:
-        store_annotations(con, table, docs.motion_ids, model=model, tau=tau, keyframes=keyframes)
+    tables, done, failed = [], [], []
+    if progress is not None:
+        progress(0, n_motions)
+    # a batch at a time, each stored in its own transaction: memory does not grow with the archive,
+    # and a motion that fails is reported without costing the others
+    for docs, segs, bad in annotate_motions(con, cache, key, m, ids, tau=tau, keyframes=keyframes,
+                                            min_length=min_length, min_won=min_won, margin=margin,
+                                            max_frames=stored_annotations.PROGRESS_FRAMES if progress else cache.batch_frames):
+        table = segment_table(segs, motion_ids=docs.motion_ids, names=docs.names, fps=docs.fps)
+        if store:
+            store_annotations(con, table, docs.motion_ids, model=model, tau=tau, keyframes=keyframes)
+        tables.append(table)
+        done.extend(docs.motion_ids.tolist())
+        failed.extend(bad)
+        if progress is not None:
+            progress(len(done) + len(failed), n_motions)
+    table = pa.concat_tables(tables) if tables else segment_table(
+        np.empty(0, SEGMENT_DTYPE), motion_ids=np.zeros(0, np.int64), names=[], fps=np.zeros(0))
     if out is not None:
-        export_segments(con, table, out, format=format, motion_ids=docs.motion_ids)
+        export_segments(con, table, out, format=format, motion_ids=done)
+    if failed:
+        raise PartialAnnotationError(failed, table, n_motions, store)
     return table
 
 
@@ -779,11 +809,13 @@ def create_index(con) -> int:
     int
         The number of postings.
     """
+    require_own_tables(con, "create-index")
     return postings.create_index(con)
 
 
 def drop_index(con) -> None:
     """Remove the keyframe index (ingest and delete then stop maintaining it)."""
+    require_own_tables(con, "drop-index")
     postings.drop_index(con)
 
 
@@ -798,15 +830,46 @@ def export_features(con, directory, *, overwrite=False) -> int:
     return parquet.export_features(con, directory, overwrite=overwrite)
 
 
-def import_features(con, directory) -> dict:
-    """Load motions and features written by :func:`export_features` (motions already present are kept).
+def import_features(con, directory):
+    """Load motions and features written by :func:`export_features` or :func:`ray_annotate` (motions
+    already present are kept).
+
+    A batch of motions at a time, each checked to be exactly its frames 1 … n:
+    an incomplete motion is refused and named, the others are imported; an
+    unfinished archive (an export or a Ray run that was stopped) is refused.
+    See :func:`mocapdb.storage.parquet.import_features`.
 
     Returns
     -------
-    dict
-        Exported motion id → new motion id, for the motions added.
+    mocapdb.storage.parquet.ImportReport
+        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions.
     """
+    require_own_tables(con, "import-features")
     return parquet.import_features(con, directory)
+
+
+def attach(con, directory) -> int:
+    """Make a new database a set of views over a ``ray_annotate`` archive: queryable in place.
+
+    ``motions``, ``features``, ``annotations`` and the keyframe index become
+    views of the archive's Parquet (nothing is copied); every SQL function
+    (``annotate()``, ``keyframe_search()``, ``mt_distance()``, …) and every
+    reading command works on them, a batch of motions at a time. The views
+    name the archive by its absolute path. See :func:`mocapdb.storage.attached.attach`.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+        A database without motions of its own (a new one), or one attached before.
+    directory : str or Path
+        A finished ``ray_annotate`` archive (with its ``manifest.json``).
+
+    Returns
+    -------
+    int
+        The number of motions attached.
+    """
+    return attached.attach(con, directory)
 
 
 def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
@@ -913,7 +976,6 @@ def relocate(con, old_prefix, new_prefix):
 
 
 __all__ = ["warmup", "connect", "ingest", "delete", "annotate", "train", "learn_keyframes", "define_class", "evaluate",
-           "report",
-           "view", "similar", "SIMILAR_FORMATS",
-           "create_index", "drop_index", "export_features", "import_features", "ray_annotate", "read_truth",
-           "training_clips", "convert_labels", "relocate", "FIGURES"]
+           "report", "view", "similar", "SIMILAR_FORMATS", "create_index", "drop_index", "export_features",
+           "import_features", "attach", "ray_annotate", "read_truth", "training_clips", "convert_labels", "relocate",
+           "FIGURES"]

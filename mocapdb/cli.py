@@ -181,13 +181,13 @@ def main(ctx, db):
 
     \b
     Example:
-      mocapdb --db archive.duckdb ingest ../shared/data/cmu/86
+      mocapdb --db archive.duckdb ingest --sample
       mocapdb --db archive.duckdb annotate
       mocapdb --db archive.duckdb sql "SELECT name, n_frames FROM motions"
     """
     ctx.ensure_object(dict)
     ctx.obj["db"] = db
-    if ctx.invoked_subcommand not in (None, "delete", "drop-index", "export-features", "joint-map-template",
+    if ctx.invoked_subcommand not in (None, "attach", "delete", "drop-index", "export-features", "joint-map-template",
                                       "convert-labels", "relocate", "warmup"):
         _say_when_compiling(ctx, ctx.invoked_subcommand)
 
@@ -290,6 +290,7 @@ def _echo_report(ctx, report, *, all_must_succeed=True):
     lines = [f"not a motion file {path}: {reason}" for path, reason in report.unsupported]
     lines += [f"unreadable {path}: {reason}" for path, reason in getattr(report, "unreadable", ())]
     lines += [f"skipped {path}: {reason}" for path, reason in report.skipped]
+    lines += [f"repaired {path}: {reason}" for path, reason in getattr(report, "repaired", ())]
     lines += [f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}"
               for path, reason in report.failed]
     lines += [f"replaced motion {old} by {path}" for path, old in getattr(report, "replaced", ())]
@@ -503,9 +504,12 @@ def define_class(ctx, definitions, model, replace):
                                       "linked media): --out FILE.eaf for one motion, else a directory.")
 @click.option("--out", type=click.Path(path_type=Path), help="Write to a file (a directory for eaf of several "
                                                              "motions) instead of stdout.")
+@click.option("--store/--no-store", default=True, show_default=True,
+              help="Replace the stored annotations of these motions and this model (a database attached to an "
+                   "archive has none of its own: --no-store).")
 @silent_option
 @click.pass_context
-def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, fmt, out, silent):
+def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, fmt, out, store, silent):
     """Annotate motions (ids or names; default all) and store the segments in `annotations`.
 
     Frames are 30 Hz frames, 1-based inclusive; CSV (and JSON) columns
@@ -520,25 +524,34 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
       mocapdb --db a.duckdb annotate --format parquet --out segments.parquet
     """
     from mocapdb.api import annotate as api_annotate
+    from mocapdb.storage.annotations import PartialAnnotationError
 
     export = fmt in ("parquet", "eaf")
     if export and out is None:
         raise click.UsageError(f"--format {fmt} writes files: give --out")
+    failure = None
     with _progress(None, "annotate", silent, unit="motion") as bar:
-        table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes,
-                             format=fmt if export else None, out=out if export else None, progress=_set_bar(bar),
-                             min_length=min_length, min_won=min_won, margin=margin)
+        try:
+            table = api_annotate(_open(ctx), motions or None, model=model, tau=tau, keyframes=keyframes, store=store,
+                                 format=fmt if export else None, out=out if export else None,
+                                 progress=_set_bar(bar), min_length=min_length, min_won=min_won, margin=margin)
+        except PartialAnnotationError as exc:  # the others were annotated (and stored): show them
+            table, failure = exc.table, exc
     if export:
         click.echo(f"{table.num_rows} segment(s) written to {out}")
-        return
-    cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
-    rows = [(d, lab, s, e, round(a, 4), round(b, 4), round(c, 6))
-            for d, lab, s, e, a, b, c in zip(*(table.column(c).to_pylist() for c in cols))]
-    if fmt != "table":  # a file carries its frame grid (label files read it: the fps column)
-        rates = [int(r) if r.is_integer() else r for r in (round(x, 6) for x in _frame_rates(table))]
-        rows = [(*r[:4], f, *r[4:]) for r, f in zip(rows, rates)]
-        cols = cols[:4] + ["fps"] + cols[4:]
-    write_rows(rows, cols, fmt, out)
+    else:
+        cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
+        rows = [(d, lab, s, e, round(a, 4), round(b, 4), round(c, 6))
+                for d, lab, s, e, a, b, c in zip(*(table.column(c).to_pylist() for c in cols))]
+        if fmt != "table":  # a file carries its frame grid (label files read it: the fps column)
+            rates = [int(r) if r.is_integer() else r for r in (round(x, 6) for x in _frame_rates(table))]
+            rows = [(*r[:4], f, *r[4:]) for r, f in zip(rows, rates)]
+            cols = cols[:4] + ["fps"] + cols[4:]
+        write_rows(rows, cols, fmt, out)
+    if failure is not None:
+        for _, _, reason in failure.failed:
+            click.echo(f"failed  {reason}", err=True)
+        raise click.ClickException(str(failure))
 
 
 def _frame_rates(table):
@@ -777,10 +790,23 @@ def export_features(ctx, directory, overwrite):
 @click.argument("directory", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.pass_context
 def import_features(ctx, directory):
-    """Load motions and features exported by export-features (motions already present are kept)."""
+    """Load motions and features exported by export-features or written by ray-annotate.
+
+    Motions already present are kept. Every motion is checked to be exactly
+    its frames 1 … n: an incomplete one is refused and named (exit 1), the
+    others are imported; an unfinished archive is refused.
+    """
     from mocapdb.api import import_features as api_import_features
 
-    click.echo(f"{len(api_import_features(_open(ctx, create=True), directory))} motion(s) imported")
+    report = api_import_features(_open(ctx, create=True), directory)
+    for name, reason in report.repaired:
+        click.echo(f"repaired {name}: {reason}", err=True)
+    for name, reason in report.failed:
+        click.echo(f"refused  {reason}", err=True)
+    click.echo(report.summary())
+    if report.failed:
+        ctx.exit(1)
+
 
 
 @command("convert-labels")
@@ -852,6 +878,28 @@ def relocate(ctx, old_prefix, new_prefix):
     click.echo(f"{len(moved)} motion(s) repointed" + (f", {len(refused)} not" if refused else ""))
     if refused:
         ctx.exit(1)
+
+
+@command("attach")
+@click.argument("directory", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.pass_context
+def attach(ctx, directory):
+    """Query a ray-annotate archive in place: --db becomes views over its Parquet.
+
+    motions, features, annotations and the keyframe index of the new database
+    are views of the archive (nothing is copied); the SQL functions and the
+    reading commands work on them.
+
+    \b
+    Example:
+      mocapdb ray-annotate '../shared/data/hdm05_cut/**/*.amc' --out archive
+      mocapdb --db archive_views.duckdb attach archive
+      mocapdb --db archive_views.duckdb sql "SELECT count(*) FROM keyframe_search('kickLFront1Reps')"
+    """
+    from mocapdb.api import attach as api_attach
+
+    n = api_attach(_open(ctx, create=True), directory)
+    click.echo(f"{n} motion(s) of {directory} attached to {ctx.obj['db']}")
 
 
 @command("ray-annotate")

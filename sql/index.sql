@@ -51,6 +51,15 @@ SELECT p.motion_id,
 FROM %index_schema%.postings p
 WHERE list_contains($parts, p.feature_set);
 
+-- name: load_motions
+-- the postings of some motions (ids ascending, lo and hi the first and last): a batch of an
+-- archive-wide pass; the range lets DuckDB skip the row groups of other motions
+SELECT p.motion_id,
+       (list_position($all_parts, p.feature_set) - 1)::TINYINT AS part,
+       p.seg - 1 AS seg, p.word, p.start_frame - 1 AS start_frame, p.n_frames
+FROM %index_schema%.postings p
+WHERE p.motion_id BETWEEN $lo AND $hi AND p.motion_id IN (SELECT unnest($ids)) AND list_contains($parts, p.feature_set);
+
 -- name: motion_lengths
 SELECT motion_id, n_frames FROM motions ORDER BY motion_id;
 

@@ -1,9 +1,13 @@
 -- The SQL functions: temporary macros installed on every mocapdb.connect,
 -- because they call Python UDFs, which exist only on connections where Python
--- registered them. Each passes its data in — the motion's words, the model's
--- fingerprint, the index version — and the UDF keeps models and the keyframe
--- index parsed in memory per connection, re-reading one only when its
--- fingerprint or version changed. Parameter names differ from every column
+-- registered them. Each passes the motion id, the model's fingerprint and the
+-- index version in; the UDF reads the motions' words (and postings) itself, a
+-- batch of motions at a time, and keeps models parsed per connection,
+-- re-reading one only when its fingerprint changed. (A `list(bits ORDER BY
+-- frame)` subquery here would be decorrelated by DuckDB into one aggregate of
+-- every motion's words: memory that grows with the archive.) The UDFs read
+-- committed data: a motion inserted in a transaction not yet committed is
+-- unknown to them (NULL). Parameter names differ from every column
 -- the bodies read (DuckDB rejects the clash); table aliases are prefixed
 -- mocap_ so that an argument such as m.motion_id cannot be captured by an
 -- alias of the body (macros expand textually).
@@ -12,7 +16,7 @@
 -- where no template match can end. NULL for a NULL or unknown motion.
 CREATE OR REPLACE TEMP MACRO mt_distance(motion, cls, model := 'default') AS
     mocap_mt_distance(
-        (SELECT list(mocap_f.bits ORDER BY mocap_f.frame) FROM features mocap_f WHERE mocap_f.motion_id = motion),
+        motion::INTEGER,
         model,
         (SELECT mocap_v.fingerprint FROM model_fingerprints mocap_v WHERE mocap_v.model_name = model),
         cls);
@@ -22,9 +26,7 @@ CREATE OR REPLACE TEMP MACRO mt_distance(motion, cls, model := 'default') AS
 -- class's τ; a NULL keyframes preselects when the model has keyframe queries.
 CREATE OR REPLACE TEMP MACRO annotate(motion, model := 'default', tau := NULL, keyframes := NULL) AS
     mocap_annotate(
-        (SELECT list(mocap_f.bits ORDER BY mocap_f.frame) FROM features mocap_f WHERE mocap_f.motion_id = motion),
         motion::INTEGER,
-        (SELECT mocap_m.fps FROM motions mocap_m WHERE mocap_m.motion_id = motion),
         model,
         (SELECT mocap_v.fingerprint FROM model_fingerprints mocap_v WHERE mocap_v.model_name = model),
         tau::DOUBLE, keyframes::BOOLEAN,
@@ -56,12 +58,12 @@ SELECT unnest(mocap_keyframe_search_words(
 -- them, NULL) of a motion, k of them: rows (document, motion_id, start_frame,
 -- end_frame, start_s, end_s, cost) ranked by cost, none overlapping another or
 -- the query. The UDF reads the archive from the keyframe index the connection
--- keeps (its runs rebuild any stretch), so only the query's words travel in.
+-- keeps, a batch of motions at a time (its runs rebuild any stretch): only the
+-- motion id and the range travel in.
 CREATE OR REPLACE TEMP MACRO mocap_similar_rows(motion, first_frame, last_frame, k) AS TABLE
 SELECT mocap_m.name AS document, mocap_r.motion_id, mocap_r.start_frame, mocap_r.end_frame,
        (mocap_r.start_frame - 1) / mocap_m.fps AS start_s, mocap_r.end_frame / mocap_m.fps AS end_s, mocap_r.cost
 FROM (SELECT unnest(mocap_similar(
-          (SELECT list(mocap_f.bits ORDER BY mocap_f.frame) FROM features mocap_f WHERE mocap_f.motion_id = motion),
           motion::INTEGER, first_frame::INTEGER, last_frame::INTEGER, k::INTEGER,
           (SELECT mocap_s.version FROM %index_schema%.state mocap_s)), recursive := true)) mocap_r
 JOIN motions mocap_m ON mocap_m.motion_id = mocap_r.motion_id

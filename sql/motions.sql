@@ -10,8 +10,22 @@ SELECT motion_id FROM motions WHERE name = $name ORDER BY motion_id;
 SELECT motion_id, name, fps, n_frames, source_fps, n_source_frames FROM motions
 WHERE $ids IS NULL OR motion_id IN (SELECT unnest($ids)) ORDER BY motion_id;
 
--- name: words
-SELECT bits FROM features WHERE $ids IS NULL OR motion_id IN (SELECT unnest($ids)) ORDER BY motion_id, frame;
+-- name: words_of
+-- the features of some motions (ids ascending, lo and hi the first and last): the range lets
+-- DuckDB skip the row groups of other motions (features are stored in motion order)
+SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $lo AND $hi AND motion_id IN (SELECT unnest($ids));
+
+-- name: feature_counts
+-- a stored motion is complete when its feature rows are its frames 1…n once each: n rows from 1
+-- to n summing to n(n+1)/2 (a few numbers per motion, no state that grows with its length)
+SELECT m.motion_id, m.name, m.n_frames, coalesce(f.n, 0) AS n_rows,
+       coalesce(f.n = m.n_frames AND f.lo = 1 AND f.hi = m.n_frames
+                AND f.s = m.n_frames::BIGINT * (m.n_frames::BIGINT + 1) // 2, m.n_frames = 0) AS complete
+FROM motions m
+LEFT JOIN (SELECT motion_id, count(*) AS n, min(frame) AS lo, max(frame) AS hi, sum(frame::BIGINT) AS s
+           FROM features WHERE motion_id IN (SELECT unnest($ids)) GROUP BY motion_id) f USING (motion_id)
+WHERE m.motion_id IN (SELECT unnest($ids))
+ORDER BY m.motion_id;
 
 -- name: source
 SELECT source_path, skeleton_path, reader_options FROM motions WHERE motion_id = $id;

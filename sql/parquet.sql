@@ -1,25 +1,36 @@
 -- Statements of mocapdb.storage.parquet (features to and from Parquet).
 
+-- name: export_features
+-- a file per motion: DIR/features/motion_id=N/*.parquet (hive partitioning)
+COPY (SELECT motion_id, frame, bits FROM features ORDER BY motion_id, frame)
+TO $path (FORMAT parquet, PARTITION_BY (motion_id), OVERWRITE_OR_IGNORE);
+
+-- name: export_motions
+COPY (SELECT * FROM motions ORDER BY motion_id) TO $path (FORMAT parquet);
+
+-- name: archive_features
+-- an archive's features rows of motions lo…hi from the given files: an export's motion_id is its
+-- folder's (hive partitioning), a Ray archive's a column beside the motion_bucket folder
+SELECT motion_id::BIGINT AS motion_id, frame::BIGINT AS frame, bits
+FROM read_parquet($files, hive_partitioning = true, union_by_name = true)
+WHERE motion_id::BIGINT BETWEEN $lo AND $hi;
+
+-- name: archive_annotations
+SELECT motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes, annotated_at
+FROM read_parquet($files, hive_partitioning = true, union_by_name = true)
+WHERE motion_id BETWEEN $lo AND $hi;
+
 -- name: import_motions
 INSERT INTO motions BY NAME
 SELECT * EXCLUDE (motion_id, ord) FROM mocap_new_motions ORDER BY ord
-RETURNING motion_id;
-
--- name: import_features
-INSERT INTO features
-SELECT m.new, f.frame, f.bits
-FROM read_parquet($features, hive_partitioning = true) f JOIN mocap_id_map m ON f.motion_id::INTEGER = m.old
-ORDER BY m.new, f.frame;
-
--- name: words_of_motions
-SELECT motion_id, bits FROM features WHERE motion_id IN (SELECT unnest($ids)) ORDER BY motion_id, frame;
+RETURNING motion_id, sha256, skeleton_sha256;
 
 -- name: import_annotations
 INSERT INTO annotations (motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes,
                          annotated_at)
 SELECT m.new, a.model, a.label, a.start_frame, a.end_frame, a.cost, a.start_s, a.end_s, a.tau, a.keyframes,
        a.annotated_at
-FROM read_parquet($annotations, hive_partitioning = true) a JOIN mocap_id_map m ON a.motion_id = m.old
+FROM mocap_archive_annotations a JOIN mocap_id_map m ON a.motion_id = m.old
 ORDER BY m.new, a.start_frame, a.label;
 
 -- The tables an archive on Parquet mirrors (mocapdb.storage.parquet.table_schemas).

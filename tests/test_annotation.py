@@ -188,8 +188,12 @@ def test_match_num_max_raises():
         extract_hits(d, s, match_num_max=10)
     model = Model("m", [ClassModel("kick", "kick", quantized=quantized_template(
         TEMPLATES / "kickLFront1Reps"))])
-    with pytest.raises(ParameterError, match="'kick'.*match_num_max=5.*document 0"):
+    with pytest.raises(ParameterError, match=r"'kick'.*match_num_max=5.*doc_lengths\[0\].*match_num_max=None") as e:
         annotate(words("86_09"), model, match_num_max=5)
+    assert "document 0" not in str(e.value)
+    # the default has no limit: the same hits as the toolbox's loop without one
+    hits = annotate(words("86_09"), model).hits
+    assert len(hits) > 5
 
 
 def test_sort_kernel_equals_stable_argsort():

@@ -106,9 +106,10 @@ def test_parquet_export_import_round_trip(archive, tmp_path):
     # imported into a fresh database: same motions (by sha256) and identical words
     fresh = mocapdb.connect(tmp_path / "fresh.duckdb")
     try:
-        mapping = import_features(fresh, tmp_path / "export")
-        assert len(mapping) == n
-        assert import_features(fresh, tmp_path / "export") == {}  # idempotent
+        report = import_features(fresh, tmp_path / "export")
+        assert len(report.imported) == n and not report.failed
+        again = import_features(fresh, tmp_path / "export")  # idempotent
+        assert again.imported == {} and len(again.skipped) == n
         a = con.execute("SELECT m.sha256, f.frame, f.bits FROM features f JOIN motions m USING (motion_id) "
                         "ORDER BY ALL").fetchall()
         b = fresh.execute("SELECT m.sha256, f.frame, f.bits FROM features f JOIN motions m USING (motion_id) "

@@ -5,8 +5,10 @@ changes nothing, and the archive is usable from SQL."""
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import duckdb
@@ -237,7 +239,7 @@ def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, t
     out, report = archive
     con = api.connect(tmp_path / "imported.duckdb")
     try:
-        assert len(api.import_features(con, out)) == len(report.ingested)
+        assert len(api.import_features(con, out).imported) == len(report.ingested)
         by_file = ("SELECT m.source_path, s.label, s.start_frame, s.end_frame, s.cost FROM motions m, "
                    "LATERAL (SELECT unnest(annotate(m.motion_id), recursive := true)) s")
         sql = sorted(con.execute(by_file).fetchall())
@@ -248,9 +250,110 @@ def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, t
             q = (f"SELECT m.source_path, k.start_frame, k.end_frame FROM keyframe_search('{c}') k "
                  "JOIN motions m USING (motion_id)")
             assert sorted(con.execute(q).fetchall()) == sorted(single.execute(q).fetchall()), c
-        assert api.import_features(con, out) == {}  # the same motions again: nothing new
+        assert api.import_features(con, out).imported == {}  # the same motions again: nothing new
     finally:
         con.close()
+
+
+def test_the_archive_is_queryable_in_place(archive, single, tmp_path):
+    """`mocapdb attach DIR`: motions, features, annotations and the index are views of the archive's
+    Parquet; the SQL functions answer as in a database that holds the same motions (issue 20 item 3)."""
+    out, report = archive
+    db = tmp_path / "views.duckdb"
+    r = CliRunner().invoke(main, ["--db", str(db), "attach", str(out)])
+    assert r.exit_code == 0 and f"{len(report.ingested)} motion(s)" in r.output, r.output
+    con = api.connect(db)
+    try:
+        assert con.execute("SELECT table_type FROM information_schema.tables WHERE table_name = 'features'"
+                           ).fetchall() == [("VIEW",)]
+        for dataset in DB_TABLES:
+            assert _rows(con, dataset, DB_TABLES) == _rows(single, dataset, DB_TABLES), dataset
+        by_file = ("SELECT m.source_path, s.label, s.start_frame, s.end_frame, s.cost FROM motions m, "
+                   "LATERAL (SELECT unnest(annotate(m.motion_id{}), recursive := true)) s")
+        for options in ("", ", keyframes := false", ", model := 'toolbox'"):
+            q = by_file.format(options)
+            assert sorted(con.execute(q).fetchall()) == sorted(single.execute(q).fetchall()), options
+        for c in ("kickLFront1Reps", "throwBasketball", "lieDownFloor"):
+            q = (f"SELECT m.source_path, k.start_frame, k.end_frame FROM keyframe_search('{c}') k "
+                 "JOIN motions m USING (motion_id)")
+            assert sorted(con.execute(q).fetchall()) == sorted(single.execute(q).fetchall()) != [], c
+        q = ("SELECT m.source_path, mt_distance(m.motion_id, 'squat1Reps') FROM motions m "
+             "WHERE m.name LIKE '%squat%' ORDER BY 1")
+        assert con.execute(q).fetchall() == single.execute(q).fetchall()
+        # reading commands work; writing ones say why not
+        assert api.annotate(con, store=False).num_rows == report.segments
+        with pytest.raises(SchemaError, match="attached to the archive .* read-only views"):
+            api.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
+        with pytest.raises(SchemaError, match="attached to the archive"):
+            api.annotate(con)
+    finally:
+        con.close()
+    r = CliRunner().invoke(main, ["--db", str(db), "annotate", "--no-store", "--format", "csv"])
+    assert r.exit_code == 0 and len(r.output.splitlines()) == report.segments + 1
+    # a database with motions of its own is not attached
+    with pytest.raises(ParameterError, match="holds .* rows of its own"):
+        api.attach(single, out)
+
+
+def test_a_killed_ray_annotate_is_refused_until_run_again(local_ray, tmp_path):
+    """SIGKILL of a running `mocapdb ray-annotate` (its whole process group, Ray included): the batches
+    written so far have no manifest beside them, so import, attach and a new run without --overwrite
+    refuse the archive; running it again with --overwrite finishes it (issue 22 item 2)."""
+    out = tmp_path / "archive"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    p = subprocess.Popen([sys.executable, "-P", "-m", "mocapdb.cli", "ray-annotate", str(DATA / "hdm05_cut"),
+                          "--out", str(out), "--num-cpus", "1", "--batch-files", "4"], env=env, cwd=tmp_path,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while not list((out / "motions").glob("part-*.parquet")) and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+    assert p.returncode == -signal.SIGKILL  # killed while running
+    written = len(list((out / "motions").glob("part-*.parquet")))
+    assert 0 < written < 58 and not (out / "manifest.json").exists()
+    con = api.connect(tmp_path / "db.duckdb")
+    try:
+        with pytest.raises(ParameterError, match="unfinished ray-annotate archive .* run ray-annotate again"):
+            api.import_features(con, out)
+        with pytest.raises(ParameterError, match="unfinished ray-annotate archive"):
+            api.attach(con, out)
+        assert con.execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
+        with pytest.raises(ParameterError, match="holds an unfinished archive.*--overwrite"):
+            ray_annotate([DATA / "hdm05_cut"], out, batch_files=4)
+        report = ray_annotate([DATA / "hdm05_cut"], out, batch_files=4, overwrite=True)
+        assert len(report.ingested) == 232 and (out / "manifest.json").exists()
+        assert len(api.import_features(con, out).imported) == 232
+    finally:
+        con.close()
+
+
+def test_a_cluster_with_token_authentication(tmp_path):
+    """`ray-annotate --address` on a cluster started with `ray start` and RAY_AUTH_MODE=token (Ray ≥ 2.52):
+    the client needs the same mode and the token (here RAY_AUTH_TOKEN_PATH); without them one clear line."""
+    import secrets
+
+    from ray_cluster import LocalCluster
+
+    token = tmp_path / "token"
+    token.write_text(secrets.token_hex(16))
+    auth = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token)}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_AUTH")}
+    env.update(PYTHONPATH=str(REPO), RAY_USAGE_STATS_ENABLED="0")
+    cmd = [sys.executable, "-P", "-m", "mocapdb.cli", "ray-annotate", str(DATA / "cmu" / "02")]
+    with LocalCluster(nodes=1, cpus=1, port=6397, env={**auth, "PYTHONPATH": str(REPO)}) as cluster:
+        p = subprocess.run([*cmd, "--out", str(tmp_path / "a"), "--address", cluster.address], env=env,
+                           capture_output=True, text=True, cwd=tmp_path, timeout=300)
+        assert p.returncode == 1
+        last = p.stderr.strip().splitlines()[-1]
+        assert last.startswith(f"Error: cannot connect to the Ray cluster at {cluster.address}")
+        assert "RAY_AUTH_MODE=token" in last and "RAY_AUTH_TOKEN_PATH" in last
+        p = subprocess.run([*cmd, "--out", str(tmp_path / "b"), "--address", cluster.address], env={**env, **auth},
+                           capture_output=True, text=True, cwd=tmp_path, timeout=600)
+        assert p.returncode == 0, p.stderr[-2000:]
+        assert p.stdout.startswith("9 motions") and (tmp_path / "b" / "manifest.json").exists()
 
 
 def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, tmp_path):

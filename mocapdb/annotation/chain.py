@@ -31,7 +31,10 @@ from mocapdb.templates import ANNOTATION_STEPS, DEFAULT_CHUNK, mt_distance_slice
 __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotate", "annotate_sweep",
            "extract_hits", "combine_by_label", "frame_labels", "form_segments"]
 
-#: the toolbox's limit of hits per class and document (annotationScript.m)
+#: the toolbox's limit of hits per class and document (annotationScript.m), where it stops with an
+#: error: a long repetitive take (a treadmill walk) has thousands of hits of one class. annotate()
+#: has no limit unless asked for one (``match_num_max=MATCH_NUM_MAX``, the toolbox's behaviour);
+#: below the limit the segments are the same
 MATCH_NUM_MAX = 2000
 
 SEGMENT_DTYPE = np.dtype([("label", object), ("doc", np.int64), ("start", np.int64),
@@ -420,10 +423,12 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
                                                     want_hits=keep_hits)
         if (n_hits < 0).any():
             q = int(np.flatnonzero(n_hits < 0)[0])
+            d = int(task_doc[q])
             raise ParameterError(
-                f"class {model.classes[tc[q]].name!r}: match_num_max={match_num_max} "
-                f"hits reached in document {task_doc[q]} at tau={class_taus[tc[q]]:g} (the toolbox "
-                "stops with an error here); raise match_num_max, pass None, or use keyframe preselection")
+                f"class {model.classes[tc[q]].name!r}: match_num_max={match_num_max} hits reached at "
+                f"tau={class_taus[tc[q]]:g} in the document of doc_lengths[{d}] (words {int(bounds[d])}…"
+                f"{int(bounds[d + 1]) - 1}), where the toolbox stops with an error; pass "
+                "match_num_max=None (the default) for no limit")
         hits = None
         if keep_hits:
             # class, doc, start/end within the document
@@ -528,7 +533,7 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
 
 
 def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
-             match_num_max=MATCH_NUM_MAX, steps=ANNOTATION_STEPS, rule="toolbox",
+             match_num_max=None, steps=ANNOTATION_STEPS, rule="toolbox",
              keep_deltas=False, keep_hits=True, min_length=None, min_won=None, margin=None):
     """Annotate documents with a model of motion templates (the whole chain).
 
@@ -551,8 +556,11 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
         one); ``None`` for a class (or for all) means whole documents.
     tau : float, optional
         Hit threshold for every class; default each class's ``tau``.
-    match_num_max : int or None, default 2000
-        Maximum hits per class and document/slice (error when reached, as the toolbox).
+    match_num_max : int, optional
+        Stop with an error once this many hits of a class are found in one
+        document or slice, as the toolbox does (:data:`MATCH_NUM_MAX`);
+        default no limit: memory and time stay linear in the document's
+        length, and below the limit the segments are the same.
     steps, rule
         See :func:`mocapdb.templates.distance.mt_distance`.
     keep_deltas : bool, default False
@@ -582,7 +590,7 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
     Raises
     ------
     ParameterError
-        On bad input, or if ``match_num_max`` hits are reached for a class.
+        On bad input, or if ``match_num_max`` (when given) hits are reached for a class.
 
     References
     ----------
@@ -593,7 +601,7 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
                   keep_hits=keep_hits, min_length=min_length, min_won=min_won, margin=margin)[0]
 
 
-def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, match_num_max=MATCH_NUM_MAX,
+def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, match_num_max=None,
                    steps=ANNOTATION_STEPS, rule="toolbox", min_length=None, min_won=None, margin=None):
     """Annotation segments for many hit thresholds τ, computing Δ once (paper Fig. 8).
 

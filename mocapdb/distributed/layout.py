@@ -7,6 +7,7 @@
     OUT/postings/motion_bucket=<k>/part-<first>-<last>.parquet mocap_index.postings
     OUT/annotations/motion_bucket=<k>/part-<first>-<last>.parquet the annotations table
     OUT/errors/part-<first>-<last>.parquet                    file, reason
+    OUT/manifest.json                                         written last: the run finished
 
 Every part holds the rows of one batch of files, ``<first>``–``<last>`` being
 the batch's motion ids (zero-padded), so its name depends only on its rows: a
@@ -14,7 +15,10 @@ batch computed again after a worker died overwrites its own parts. A part is
 written under a temporary name and renamed, so a reader never sees half a
 file. Bucket ``k`` holds motions ``k·B + 1 … (k + 1)·B`` (``B`` =
 ``bucket_motions``): DuckDB prunes buckets on ``motion_bucket`` (hive
-partitioning) and parts on their ``motion_id`` statistics.
+partitioning) and parts on their ``motion_id`` statistics. The driver writes
+``manifest.json`` (:data:`mocapdb.storage.parquet.MANIFEST`) once every batch
+is written and checked: an archive without it is unfinished (a run that was
+stopped), and ``import-features`` refuses it.
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mocapdb.errors import ParameterError
+from mocapdb.storage.parquet import MANIFEST
 
 #: the datasets of an archive, in the order a batch writes them
 DATASETS = ("features", "postings", "annotations", "errors", "motions")
@@ -81,8 +86,12 @@ def prepare_output(out, *, overwrite: bool = False) -> Path:
         raise ParameterError(f"out: {str(d)!r} is a file; give a folder")
     if d.exists() and any(d.iterdir()):
         if not overwrite:
-            raise ParameterError(f"out: {str(d)!r} is not empty; pass overwrite=True (--overwrite) to replace "
+            what = ("holds an unfinished archive (no manifest.json: its run was stopped before the end)"
+                    if (d / "motions").is_dir() and not (d / MANIFEST).exists() else "is not empty")
+            raise ParameterError(f"out: {str(d)!r} {what}; pass overwrite=True (--overwrite) to replace "
                                  "the archive in it")
+        # the manifest first: a run stopped while replacing the archive leaves an unfinished one
+        (d / MANIFEST).unlink(missing_ok=True)
         for name in DATASETS:
             shutil.rmtree(d / name, ignore_errors=True)
     d.mkdir(parents=True, exist_ok=True)

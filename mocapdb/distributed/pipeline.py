@@ -38,7 +38,7 @@ from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.storage.ingest import MOTION_SUFFIXES, IngestReport, motion_files, reader_maps
 from mocapdb.storage.models import DEFAULT_MODEL, load_model
-from mocapdb.storage.parquet import table_schemas
+from mocapdb.storage.parquet import table_schemas, write_manifest
 from mocapdb.storage.schema import open_database
 
 log = logging.getLogger("mocapdb")
@@ -142,7 +142,10 @@ def ray_session(ray, *, address=None, num_cpus=None):
     if started:
         quiet = {"logging_level": logging.WARNING, "log_to_driver": False}
         if address is not None:
-            ray.init(address=address, **quiet)
+            try:
+                ray.init(address=address, **quiet)
+            except (ConnectionError, ray.exceptions.AuthenticationError) as exc:
+                raise MocapdbError(_cannot_connect(address, exc)) from None
         else:
             # Ray would otherwise try to send usage statistics (no network here, or not wanted)
             os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
@@ -153,6 +156,19 @@ def ray_session(ray, *, address=None, num_cpus=None):
     finally:
         if started:
             ray.shutdown()
+
+
+#: what a client of a cluster with token authentication needs (Ray ≥ 2.52; README "Archives larger than one machine")
+TOKEN_AUTH = ("a cluster started with token authentication (RAY_AUTH_MODE=token) needs it here too: "
+              "RAY_AUTH_MODE=token and its token in RAY_AUTH_TOKEN_PATH=FILE (or RAY_AUTH_TOKEN, or ~/.ray/auth_token)")
+
+
+def _cannot_connect(address, exc) -> str:
+    """Why ``ray.init(address=…)`` failed, with what token authentication needs when it is not set up."""
+    text = f"cannot connect to the Ray cluster at {address}"
+    if os.environ.get("RAY_AUTH_MODE", "").lower() != "token":
+        text += f"; {TOKEN_AUTH}"
+    return text + f" (Ray: {str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__})"
 
 
 @contextlib.contextmanager
@@ -278,8 +294,24 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
         if r["error"] is not None:
             report.failed.append((r["file"], r["error"]))
     finish_output(out, parts, schemas)
+    # last: the archive is finished (import-features refuses an archive without it)
+    write_manifest(out, {"format": "mocapdb ray-annotate archive", "mocapdb": _version(), "started_at": stamp,
+                         "finished_at": datetime.now().replace(microsecond=0), "model": model, "tau": tau,
+                         "keyframes": keyframes, "files": len(files), "motions": len(report.ingested),
+                         "failed": len(report.failed), "skipped": len(report.skipped),
+                         "source_frames": report.source_frames, "segments": report.segments,
+                         "batch_files": batch_files, "bucket_motions": bucket_motions})
     log.info("ray_annotate: %s", report.summary())
     return report
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mocapdb")
+    except PackageNotFoundError:  # a source checkout
+        return "unknown"
 
 
 def _compute(ray, worker, init, files, cpus, batch_files) -> list:

@@ -14,13 +14,13 @@ from mocapdb.retrieval.weights import chance_cost, feature_frequencies, informat
 from mocapdb.retrieval.keyframes import KEYFRAME_LEVELS, query_keyframes
 from mocapdb.retrieval.hits import HIT_DTYPE, best_hits, select_hits
 from mocapdb.retrieval.search import (BATCH_FRAMES, CELL_BUDGET, RESULT_DTYPE, SAMPLE_FRAMES, TAU_FACTOR,
-                                      RetrievalQuery, archive_sample, plan_query, preselect, rank_slices, sample_step,
-                                      search_documents, search_segments, template_query)
+                                      RetrievalQuery, archive_sample, plan_query, preselect, rank_cells, rank_slices,
+                                      sample_step, search_documents, search_segments, template_query)
 
 __all__ = [
     "FEATURE_CHOICES", "clip_template", "examples_template", "feature_mask", "mirror_template", "chance_cost",
     "feature_frequencies", "information_weights", "KEYFRAME_LEVELS", "query_keyframes", "HIT_DTYPE", "best_hits",
     "select_hits", "BATCH_FRAMES", "CELL_BUDGET", "RESULT_DTYPE", "SAMPLE_FRAMES", "TAU_FACTOR", "RetrievalQuery",
-    "archive_sample", "plan_query", "preselect", "rank_slices", "sample_step", "search_documents", "search_segments",
+    "archive_sample", "plan_query", "preselect", "rank_cells", "rank_slices", "sample_step", "search_documents", "search_segments",
     "template_query",
 ]

@@ -1,9 +1,12 @@
 """Annotating stored motions (with the stored keyframe index) and storing the results.
 
-:func:`annotate_documents` is the one annotation path of the database: the
-Python API (``mocapdb.api.annotate``, ``evaluate``) and the SQL function
-``annotate()`` both call it, with models and the index from the connection's
-:class:`~mocapdb.storage.cache.ConnectionCache`.
+:func:`annotate_documents` is the one annotation path of the database, with
+models and the keyframe index from the connection's
+:class:`~mocapdb.storage.cache.ConnectionCache`; :func:`annotate_motions`
+runs it over stored motions a batch at a time, so that the memory of the
+Python API (``mocapdb.api.annotate``) and of the SQL function ``annotate()``
+does not grow with the archive, and a motion that fails is reported on its
+own.
 """
 from __future__ import annotations
 
@@ -13,9 +16,10 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.annotation import SEGMENT_DTYPE, annotate, annotate_sweep, uses_keyframes, write_eaf
-from mocapdb.errors import ParameterError
+from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.storage.cache import UNKNOWN
 from mocapdb.storage.names import file_in, file_stems
+from mocapdb.storage.motions import BATCH_FRAMES, iter_documents
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
@@ -27,14 +31,9 @@ def stored_preselection(cache, key, model, motion_ids, lengths, *, keyframes=Non
     return cache.preselection(key, model, motion_ids, lengths, version=index_version)
 
 
-#: feature frames per piece when annotation reports progress (about a second of work each)
-PROGRESS_FRAMES = 300_000
-
-
 def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=None, keyframes=None,
-                       index_version=UNKNOWN, taus=None, progress=None, min_length=None, min_won=None,
-                       margin=None):
-    """Segments of stored motions (0-based inclusive, ``doc`` indexing ``motion_ids``).
+                       index_version=UNKNOWN, taus=None, min_length=None, min_won=None, margin=None):
+    """Segments of stored motions given with their words (0-based inclusive, ``doc`` indexing ``motion_ids``).
 
     Parameters
     ----------
@@ -48,13 +47,10 @@ def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=Non
     tau : float, optional
         One hit threshold for every class (default: each class's τ).
     keyframes : bool, optional
-        Keyframe preselection (default: when the model has keyframe queries).
+        Keyframe preselection from the motions' stored postings (default: when
+        the model has keyframe queries).
     taus : sequence of float, optional
         Annotate once per τ instead (paper Fig. 8): returns a list.
-    progress : callable, optional
-        ``progress(n_motions_done, n_motions)``: the motions are then
-        annotated in pieces of about :data:`PROGRESS_FRAMES` frames (whole
-        motions; the segments are the same).
     min_length, min_won, margin : optional
         The segment filters (:func:`mocapdb.annotation.annotate`; default the model's).
 
@@ -63,10 +59,6 @@ def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=Non
     ndarray of SEGMENT_DTYPE, or a list of them with ``taus``
     """
     lengths = np.asarray(lengths, dtype=np.int64)
-    if progress is not None:
-        return _annotate_in_pieces(cache, key, model, words, lengths, motion_ids, tau=tau, keyframes=keyframes,
-                                   index_version=index_version, taus=taus, progress=progress,
-                                   min_length=min_length, min_won=min_won, margin=margin)
     pre = stored_preselection(cache, key, model, motion_ids, lengths, keyframes=keyframes,
                               index_version=index_version)
     if taus is not None:
@@ -76,27 +68,100 @@ def annotate_documents(cache, key, model, words, lengths, motion_ids, *, tau=Non
                     min_length=min_length, min_won=min_won, margin=margin).segments
 
 
-def _annotate_in_pieces(cache, key, model, words, lengths, motion_ids, *, progress, taus, **kwargs):
-    """:func:`annotate_documents` piece by piece (whole documents), reporting progress."""
-    ends = np.cumsum(lengths)
-    n = len(lengths)
-    progress(0, n)
-    parts = []
-    first = 0
-    while first < n:
-        base = ends[first - 1] if first else 0
-        last = max(first + 1, int(np.searchsorted(ends, base + PROGRESS_FRAMES, side="right")))
-        segs = annotate_documents(cache, key, model, words[base:ends[last - 1]], lengths[first:last],
-                                  np.asarray(motion_ids)[first:last], taus=taus, **kwargs)
-        for s in segs if taus is not None else [segs]:
-            s["doc"] += first
+#: feature frames per batch when annotation reports progress (about a second of work each)
+PROGRESS_FRAMES = 300_000
+
+
+def annotate_motions(con, cache, key, model, motion_ids=None, *, max_frames=BATCH_FRAMES, index_version=UNKNOWN,
+                     skip_unknown=False, **options):
+    """Annotate stored motions a batch of whole motions at a time: the memory of one batch, whatever the archive.
+
+    Each batch reads its words and, with keyframe preselection, its postings
+    (:func:`mocapdb.storage.motions.iter_documents`,
+    :meth:`ConnectionCache.preselection`); the segments are those of
+    annotating everything at once (motions are independent). A motion that
+    cannot be annotated — features that are not its frames 1 … n, or an
+    error of its own — is reported and never costs the others.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    cache, key, model
+        As :func:`annotate_documents`.
+    motion_ids : sequence of int, optional
+        Default: every motion.
+    max_frames : int
+        Frames per batch (:data:`~mocapdb.storage.motions.BATCH_FRAMES`).
+    index_version : optional
+        The keyframe index version, when the caller knows it.
+    skip_unknown : bool
+        Leave out ids the database does not have instead of raising.
+    **options
+        ``tau``, ``keyframes``, ``min_length``, ``min_won``, ``margin`` of :func:`annotate_documents`.
+
+    Yields
+    ------
+    docs : Documents
+        The batch's motions that were annotated (motion-id order).
+    segments : ndarray of SEGMENT_DTYPE
+        Their segments, ``doc`` indexing ``docs``.
+    failed : list of (motion_id, name, reason)
+        The batch's motions that were not.
+
+    Raises
+    ------
+    SchemaError
+        Keyframe preselection without a keyframe index (before anything is annotated).
+    """
+    if uses_keyframes(model, options.get("keyframes")):
+        index_version = cache.version(index_version)
+    for docs, failed in iter_documents(con, motion_ids, max_frames=max_frames, skip_unknown=skip_unknown):
+        failed = list(failed)
+        try:
+            segs = annotate_documents(cache, key, model, docs.words, docs.lengths, docs.motion_ids,
+                                      index_version=index_version, **options)
+        except (MocapdbError, MemoryError):
+            # one motion's failure must not cost the batch: one at a time, to name the culprit
+            docs, segs, more = _one_by_one(cache, key, model, docs, index_version, options)
+            failed += more
+        yield docs, segs, failed
+
+
+def _one_by_one(cache, key, model, docs, index_version, options):
+    """:func:`annotate_motions` of one batch, motion by motion: (annotated docs, segments, failed)."""
+    starts = np.concatenate(([0], np.cumsum(docs.lengths)))
+    parts, ok, failed = [], [], []
+    for k in range(len(docs.motion_ids)):
+        try:
+            segs = annotate_documents(cache, key, model, docs.words[starts[k]:starts[k + 1]], docs.lengths[k:k + 1],
+                                      docs.motion_ids[k:k + 1], index_version=index_version, **options)
+        except (MocapdbError, MemoryError) as exc:
+            mid, name = int(docs.motion_ids[k]), docs.names[k]
+            failed.append((mid, name, f"motion {mid} ({name}): not annotated: {exc or type(exc).__name__}"))
+            continue
+        segs["doc"] = len(ok)
         parts.append(segs)
-        first = last
-        progress(first, n)
-    if taus is not None:
-        return [np.concatenate([p[k] for p in parts]) if parts else np.empty(0, SEGMENT_DTYPE)
-                for k in range(len(taus))]
-    return np.concatenate(parts) if parts else np.empty(0, SEGMENT_DTYPE)
+        ok.append(k)
+    segs = np.concatenate(parts) if parts else np.empty(0, SEGMENT_DTYPE)
+    return docs.take(ok), segs, failed
+
+
+class PartialAnnotationError(MocapdbError):
+    """Some motions could not be annotated; the others were (and, when asked, stored).
+
+    Attributes
+    ----------
+    failed : list of (motion_id, name, reason)
+    table : pyarrow.Table
+        The segments of the motions that were annotated.
+    """
+
+    def __init__(self, failed, table, n_motions, stored):
+        self.failed, self.table = list(failed), table
+        done = n_motions - len(self.failed)
+        more = f" (and {len(self.failed) - 1} more)" if len(self.failed) > 1 else ""
+        super().__init__(f"{len(self.failed)} of {n_motions} motions not annotated, the other {done} "
+                         f"{'annotated and stored' if stored else 'annotated'}: {self.failed[0][2]}{more}")
 
 
 def store_annotations(con, table, motion_ids, *, model, tau, keyframes) -> None:
@@ -184,5 +249,6 @@ def export_segments(con, table, out, *, format, motion_ids):
     return written
 
 
-__all__ = ["annotate_documents", "stored_preselection", "store_annotations", "motion_sources", "export_segments",
+__all__ = ["annotate_documents", "annotate_motions", "PartialAnnotationError", "stored_preselection",
+           "store_annotations", "motion_sources", "export_segments",
            "EXPORT_FORMATS", "PROGRESS_FRAMES"]

@@ -1,27 +1,35 @@
-"""What a connection keeps in memory: parsed models and the keyframe index.
+"""What a connection keeps in memory: parsed models and recently used pieces of the keyframe index.
 
 A model is parsed once per connection and kept while its fingerprint stays
-the same; the stored keyframe index (``mocap_index.postings``) is loaded once
-and kept while ``mocap_index.state.version`` stays the same (ingest, delete
-and import bump it in their transaction), together with the keyframe search
-results of each model on it. The SQL functions pass the fingerprint and the
-version in, so a UDF never queries its connection unless something changed;
-then the cache re-reads through a cursor of the connection, which also works
-inside a UDF.
+the same. The keyframe index is never held whole: an archive of any size is
+searched a batch of motions at a time, each batch's postings read from
+``mocap_index.postings`` (:func:`mocapdb.storage.postings.load_index`), so
+memory follows the batch (:data:`mocapdb.storage.motions.BATCH_FRAMES`), not
+the archive. The last batches loaded stay while they fit in
+:data:`INDEX_CACHE_BYTES` and ``mocap_index.state.version`` stays the same
+(ingest, delete and import bump it in their transaction): on an archive of a
+few hours the whole index is one batch, loaded once per connection. The SQL
+functions pass the fingerprint and the version in, so a UDF queries its
+connection only for what changed or is not kept; it reads through a cursor of
+the connection, which also works inside a UDF.
 """
 from __future__ import annotations
 
+import contextlib
 import threading
 import weakref
+from collections import OrderedDict
 
 import numpy as np
 
-from mocapdb.annotation import keyframe_preselection, preselection_slices
+from mocapdb.annotation import index_parts, keyframe_preselection, model_index_parts, preselection_slices
 from mocapdb.errors import SchemaError
+from mocapdb.keyframes import keyframe_search
 from mocapdb.storage.models import (SHIPPED_MODELS, model_fingerprint, model_from_tables, read_model_tables,
                                     shipped_model_tables, unknown_model)
-from mocapdb.storage.postings import index_version, load_index, motion_positions
-from mocapdb.storage.sqltext import INDEX_SCHEMA
+from mocapdb.storage.motions import BATCH_FRAMES, frame_batches
+from mocapdb.storage.postings import index_version, load_index
+from mocapdb.storage.sqltext import INDEX_SCHEMA, statement
 
 #: "ask the database" (the caller did not pass a fingerprint or version)
 UNKNOWN = object()
@@ -30,22 +38,43 @@ NO_INDEX = (f"this database has no keyframe index ({INDEX_SCHEMA}.postings); bui
             "`mocapdb create-index` (mocapdb.api.create_index), or annotate without keyframes "
             "(--no-keyframes, keyframes := false)")
 
+#: index batches kept per connection (Index arrays); a batch of BATCH_FRAMES frames is about 30 MB
+INDEX_CACHE_BYTES = 64 * 2**20
+
 
 class ConnectionCache:
-    """Models and the keyframe index of one connection (see the module docstring)."""
+    """Models and index batches of one connection (see the module docstring).
+
+    Attributes
+    ----------
+    batch_frames : int
+        Frames of a batch of motions in this connection's archive-wide passes
+        (SQL functions, ``mocapdb.api.annotate``); default
+        :data:`~mocapdb.storage.motions.BATCH_FRAMES`.
+    """
 
     def __init__(self, con):
+        self.batch_frames = BATCH_FRAMES
         self._con = weakref.ref(con)
         self._lock = threading.Lock()
-        self._models = {}      # name -> (fingerprint, Model)
-        self._index = None     # (version, Index, motion ids)
-        self._found = {}       # (model name, fingerprint, version) -> keyframe_preselection output
+        self._models = {}                # name -> (fingerprint, Model)
+        self._indexes = OrderedDict()    # (version, parts, motion ids) -> Index, least recently used first
 
     def _cursor(self):
         con = self._con()
         if con is None:
             raise SchemaError("the connection of this cache is closed")
         return con.cursor()
+
+    @contextlib.contextmanager
+    def cursor(self):
+        """A cursor of the connection for the ``with`` block (works inside a UDF, where the
+        connection itself is busy with the query calling it)."""
+        cur = self._cursor()
+        try:
+            yield cur
+        finally:
+            cur.close()
 
     def model(self, name, fingerprint=UNKNOWN):
         """The model ``name``; ``fingerprint`` as stored (None: not in the database).
@@ -84,49 +113,74 @@ class ConnectionCache:
                     cur.close()
 
     def clear(self) -> None:
-        """Forget the parsed models and the loaded index (the connections are gone)."""
+        """Forget the parsed models and the index batches kept (the connections are gone)."""
         with self._lock:
-            self._models, self._index, self._found = {}, None, {}
+            self._models, self._indexes = {}, OrderedDict()
 
-    def index(self, version=UNKNOWN):
-        """The stored keyframe index: ``(version, Index, motion_ids)``.
+    def version(self, version=UNKNOWN):
+        """The keyframe index version (``version`` if given).
 
         Raises
         ------
         SchemaError
             If the database has no keyframe index.
         """
-        with self._lock:
-            cur = None
+        if version is UNKNOWN:
+            cur = self._cursor()
             try:
-                if version is UNKNOWN:
-                    cur = self._cursor()
-                    version = index_version(cur)
-                if version is None:
-                    raise SchemaError(NO_INDEX)
-                if self._index is None or self._index[0] != version:
-                    cur = cur or self._cursor()
-                    index, ids = load_index(cur)
-                    self._index = (version, index, ids)
-                    self._found = {}
-                return self._index
+                version = index_version(cur)
             finally:
-                if cur is not None:
-                    cur.close()
+                cur.close()
+        if version is None:
+            raise SchemaError(NO_INDEX)
+        return version
+
+    def batch_index(self, motion_ids, lengths, parts, *, version=UNKNOWN):
+        """The stored keyframe index of some motions.
+
+        Parameters
+        ----------
+        motion_ids : (n,) int, ascending
+        lengths : (n,) int
+            Their frame counts.
+        parts : tuple of str
+            The index parts to load.
+
+        Returns
+        -------
+        mocapdb.keyframes.Index
+            Document ``d`` is ``motion_ids[d]``.
+        """
+        version = self.version(version)
+        ids = np.asarray(motion_ids, dtype=np.int64)
+        key = (version, tuple(parts), ids.tobytes())
+        with self._lock:
+            hit = self._indexes.get(key)
+            if hit is not None:
+                self._indexes.move_to_end(key)
+                return hit
+            cur = self._cursor()
+            try:
+                index, _ = load_index(cur, parts=parts, motions=(ids, lengths))
+            finally:
+                cur.close()
+            if any(k[0] != version for k in self._indexes):  # the index changed: what is kept is stale
+                self._indexes.clear()
+            self._indexes[key] = index
+            while sum(x.nbytes for x in self._indexes.values()) > INDEX_CACHE_BYTES and len(self._indexes) > 1:
+                self._indexes.popitem(last=False)
+            return index
 
     def preselection(self, key, model, motion_ids, lengths, *, version=UNKNOWN):
-        """The keyframe preselection of ``model`` for motions, from the stored index.
-
-        The search over the whole index runs once per model and index version;
-        this call only picks the motions' segments.
+        """The keyframe preselection of ``model`` for some motions, from their stored postings.
 
         Parameters
         ----------
         key : tuple
-            The model's key from :meth:`model`.
+            The model's key from :meth:`model` (kept for callers; the search depends on the model only).
         model : mocapdb.annotation.Model
         motion_ids : (n,) int
-            The motions to annotate, in concatenation order.
+            The motions to annotate, in concatenation order (each once).
         lengths : (n,) int
             Their word counts.
 
@@ -135,20 +189,39 @@ class ConnectionCache:
         list
             The ``preselection`` input of :func:`mocapdb.annotation.annotate`.
         """
-        version, index, ids = self.index(version)
-        with self._lock:
-            found = self._found.get((key, version))
-            if found is None:
-                found = self._found[(key, version)] = keyframe_preselection(index, model)
         motion_ids = np.asarray(motion_ids, dtype=np.int64)
-        docs = motion_positions(ids, motion_ids) if len(ids) else np.zeros(len(motion_ids), np.int64)
-        inside = (docs < len(ids)) & (ids[np.minimum(docs, len(ids) - 1)] == motion_ids) if len(ids) else \
-            np.zeros(len(motion_ids), bool)
-        if not inside.all():
-            missing = motion_ids[~inside].tolist()
-            raise SchemaError(f"motions {missing} are not in the keyframe index; rebuild it with "
-                              "`mocapdb create-index`")
-        return preselection_slices(found, docs, lengths)
+        lengths = np.asarray(lengths, dtype=np.int64)
+        order = np.argsort(motion_ids, kind="stable")
+        index = self.batch_index(motion_ids[order], lengths[order], model_index_parts(model) or ("full",),
+                                 version=version)
+        # documents of the index are the motions in id order; the slices follow the caller's order
+        docs = np.empty(len(order), np.int64)
+        docs[order] = np.arange(len(order))
+        return preselection_slices(keyframe_preselection(index, model), docs, lengths)
+
+    def keyframe_search(self, query, *, extend_left=0, extend_right=0, version=UNKNOWN):
+        """Segments of every stored motion that contain a keyframe query's chain, a batch of motions at a time.
+
+        Returns
+        -------
+        motion_id, start, end : (n,) int64
+            0-based inclusive 30 Hz frames, sorted by (motion, start).
+        """
+        version = self.version(version)
+        cur = self._cursor()
+        try:
+            meta = cur.execute(statement("index.sql", "motion_lengths")).fetchnumpy()
+        finally:
+            cur.close()
+        ids = np.asarray(meta["motion_id"], dtype=np.int64)
+        lengths = np.asarray(meta["n_frames"], dtype=np.int64)
+        parts = index_parts([query]) or ("full",)
+        found = [(np.zeros(0, np.int64),) * 3]
+        for a, b in frame_batches(lengths, self.batch_frames):
+            index = self.batch_index(ids[a:b], lengths[a:b], parts, version=version)
+            segs = keyframe_search(index, query, extend_left=int(extend_left), extend_right=int(extend_right))
+            found.append((ids[a:b][segs.doc], segs.start, segs.end))
+        return tuple(np.concatenate(x) for x in zip(*found))
 
 
 _CACHES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -166,9 +239,9 @@ def connection_cache(con) -> ConnectionCache:
 
 def share_cache(con, cache) -> None:
     """Make ``con`` use ``cache``: the connections of one database instance share one
-    (:mod:`mocapdb.extension.connection`), so a model or the index is parsed once."""
+    (:mod:`mocapdb.extension.connection`), so a model or an index batch is read once."""
     with _CACHES_LOCK:
         _CACHES[con] = cache
 
 
-__all__ = ["ConnectionCache", "connection_cache", "share_cache", "UNKNOWN", "NO_INDEX"]
+__all__ = ["ConnectionCache", "connection_cache", "share_cache", "UNKNOWN", "NO_INDEX", "INDEX_CACHE_BYTES"]

@@ -23,6 +23,7 @@ from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton
                              skeleton_note)
 from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, sha256,
                                      special_kind, split_archive, zip_members)
+from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
@@ -50,6 +51,7 @@ class IngestReport:
     ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
     replaced: list = field(default_factory=list)     # (path, former motion_id): read again with replace
     skipped: list = field(default_factory=list)      # (path, reason): already stored
+    repaired: list = field(default_factory=list)     # (path, reason): stored with incomplete features, replaced
     failed: list = field(default_factory=list)       # (path, reason)
     unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
     notes: list = field(default_factory=list)        # (path, note): what the reader decided for a stored file
@@ -59,6 +61,7 @@ class IngestReport:
     def summary(self) -> str:
         out = (f"{len(self.ingested)} ingested"
                + (f" ({len(self.replaced)} replacing stored motions)" if self.replaced else "")
+               + (f" ({len(self.repaired)} repaired)" if self.repaired else "")
                + f", {len(self.skipped)} skipped, {len(self.failed)} failed")
         if self.unsupported:
             out += f", {len(self.unsupported)} not motion files"
@@ -191,7 +194,8 @@ class _Prepared:
     words: np.ndarray | None = None
     error: str | None = None
     reader_options: str | None = None  # JSON of the reader options besides the skeleton
-    replaces: int | None = None  # the stored motion of the same bytes this one replaces (ingest replace=True)
+    replaces: int | None = None  # the stored motion of the same bytes this one replaces (replace=True,
+    #                              or its stored features are incomplete)
     notes: list = field(default_factory=list)   # what the reader decided (stored under reader_options "notes")
 
 
@@ -326,34 +330,41 @@ def motions_table(preps) -> pa.Table:
 
 def store_motions(con, preps) -> list[int]:
     """Insert computed motions — their ``motions`` rows, ``features`` rows and,
-    when the keyframe index exists, postings — in one transaction.
+    when the keyframe index exists, postings — in one transaction (which first
+    deletes the stored motions they replace, ``prep.replaces``).
 
     Returns the new motion ids in the order of ``preps``.
     """
     meta = motions_table(preps)
     meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
-    return _insert(con, meta, [p.words for p in preps], replaces=[p.replaces for p in preps if p.replaces])
-
-
-def _insert(con, meta: pa.Table, words: list, *, replaces=()) -> list[int]:
-    """Insert ``motions`` rows (``meta``, with ``ord``) with their words, features and postings, after deleting
-    the motions they ``replaces``: one transaction."""
     with transaction(con):
-        _delete(con, replaces)
-        with registered(con, mocap_new_motions=meta):
-            rows = con.execute(_sql("insert_motions")).fetchall()
-        by_key = {(a, b): mid for mid, a, b in rows}
-        ids = [by_key[k] for k in zip(meta.column("sha256").to_pylist(), meta.column("skeleton_sha256").to_pylist())]
-        counts = np.array([len(w) for w in words], dtype=np.int64)
-        feats = pa.table({
-            "motion_id": pa.array(np.repeat(np.array(ids, dtype=np.int32), counts)),
-            "frame": pa.array(np.concatenate([np.arange(1, c + 1, dtype=np.int32) for c in counts])),
-            "bits": pa.array(np.concatenate(words).astype(np.uint64, copy=False)),
-        })
-        with registered(con, mocap_new_features=feats):
-            con.execute(_sql("insert_features"))
-        index_motions(con, dict(zip(ids, words)))
+        remove_motions(con, [p.replaces for p in preps if p.replaces is not None])
+        return insert_motions(con, meta, [p.words for p in preps])
+
+
+def insert_motions(con, meta: pa.Table, words: list) -> list[int]:
+    """Insert ``motions`` rows (``meta``, with ``ord``) with their words as features and postings,
+    inside the caller's transaction; returns the new ids in the order of ``meta``."""
+    with registered(con, mocap_new_motions=meta):
+        rows = con.execute(_sql("insert_motions")).fetchall()
+    by_key = {(a, b): mid for mid, a, b in rows}
+    ids = [by_key[k] for k in zip(meta.column("sha256").to_pylist(), meta.column("skeleton_sha256").to_pylist())]
+    insert_features(con, ids, words)
     return ids
+
+
+def insert_features(con, ids, words: list) -> None:
+    """Insert the ``features`` rows (frames 1 … n) and postings of motions, inside the caller's transaction."""
+    counts = np.array([len(w) for w in words], dtype=np.int64)
+    feats = pa.table({
+        "motion_id": pa.array(np.repeat(np.array(ids, dtype=np.int32), counts)),
+        "frame": pa.array(np.concatenate([np.arange(1, c + 1, dtype=np.int32) for c in counts] or
+                                         [np.zeros(0, np.int32)])),
+        "bits": pa.array(np.concatenate(words or [np.zeros(0, np.uint64)]).astype(np.uint64, copy=False)),
+    })
+    with registered(con, mocap_new_features=feats):
+        con.execute(_sql("insert_features"))
+    index_motions(con, dict(zip(ids, words)))
 
 
 def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: str = "words") -> list[int]:
@@ -386,7 +397,8 @@ def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: 
         "skeleton_path": pa.array([None] * len(names), pa.string()),
         "reader_options": pa.array([None] * len(names), pa.string()),
     })
-    return _insert(con, meta, words)
+    with transaction(con):
+        return insert_motions(con, meta, words)
 
 
 #: computed files are stored in batches, one transaction per batch, once a batch
@@ -444,6 +456,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules)
     stored = _stored_keys(con)
     todo = []
+    already = []      # (path, prep, key) of files whose bytes are stored: decided after the loop
     first_of = {}     # key -> the first file of this ingest with those bytes
     duplicates = []   # (path, key): decided once the first file is read
     for path in files:
@@ -454,15 +467,29 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             _tick(progress, path, 0)
             continue
         key = (prep.sha256, prep.skeleton_sha256)
-        if key in stored and not replace:
-            report.skipped.append((str(path), f"already ingested as motion {stored[key]} (replace=True, "
+        if key in stored:
+            already.append((path, prep, key))
+        elif key in first_of:
+            duplicates.append((path, key))
+        else:
+            first_of[key] = str(path)
+            todo.append(prep)
+    # a stored motion is read again and replaced, in the insert's transaction, with replace=True, or
+    # when its features are incomplete (an import of a partial archive by an older mocapdb)
+    broken = {mid: reason for mid, _, reason in incomplete_motions(con, [stored[k] for _, _, k in already])}
+    for path, prep, key in already:
+        mid = stored[key]
+        if mid not in broken and not replace:
+            report.skipped.append((str(path), f"already ingested as motion {mid} (replace=True, "
                                               "ingest --replace, reads it again)"))
             _tick(progress, path, 0)
         elif key in first_of:
             duplicates.append((path, key))
         else:
             first_of[key] = str(path)
-            prep.replaces = stored.get(key)
+            prep.replaces = mid
+            if mid in broken:
+                report.repaired.append((str(path), broken[mid]))
             todo.append(prep)
 
     batch = []
@@ -481,7 +508,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         for p, mid in zip(batch, ids):
             if mid is not None:
                 report.ingested.append((str(p.path), mid, int(p.words.shape[0])))
-                if p.replaces is not None:
+                if p.replaces is not None and str(p.path) not in {r[0] for r in report.repaired}:
                     report.replaced.append((str(p.path), p.replaces))
                 report.source_frames += p.motion.n_frames
                 report.notes.extend((str(p.path), note) for note in p.notes)
@@ -544,15 +571,15 @@ def delete_motions(con, motion_ids) -> int:
     int
         The number of motions deleted.
     """
-    motion_ids = [int(i) for i in motion_ids]
-    if not motion_ids:
+    ids = [int(i) for i in motion_ids]
+    if not ids:
         return 0
     with transaction(con):
-        return _delete(con, motion_ids)
+        return remove_motions(con, ids)
 
 
-def _delete(con, motion_ids) -> int:
-    """:func:`delete_motions` inside the caller's transaction."""
+def remove_motions(con, motion_ids) -> int:
+    """:func:`delete_motions` inside the caller's transaction; returns the number deleted."""
     ids = {"ids": [int(i) for i in motion_ids]}
     if not ids["ids"]:
         return 0
@@ -563,4 +590,5 @@ def _delete(con, motion_ids) -> int:
 
 
 __all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "store_words", "delete_motions",
+           "remove_motions", "insert_motions", "insert_features",
            "MOTION_SUFFIXES", "prepare_file", "compute_motion", "motions_table", "reader_maps"]

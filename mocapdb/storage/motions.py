@@ -65,6 +65,14 @@ class Documents:
     source_fps: np.ndarray
     n_source_frames: np.ndarray
 
+    def take(self, positions) -> "Documents":
+        """The documents at ``positions`` (ascending), with their words."""
+        k = np.asarray(positions, dtype=np.int64)
+        starts = np.concatenate(([0], np.cumsum(self.lengths)))
+        words = np.concatenate([self.words[starts[i]:starts[i + 1]] for i in k] or [np.zeros(0, np.uint64)])
+        return Documents(self.motion_ids[k], [self.names[i] for i in k], self.fps[k], self.lengths[k], words,
+                         self.source_fps[k], self.n_source_frames[k])
+
     def words_of(self, name) -> np.ndarray:
         """The words of the motion named ``name`` (the first of that name)."""
         k = self.names.index(name)
@@ -72,27 +80,196 @@ class Documents:
         return self.words[start:start + int(self.lengths[k])]
 
 
-def motion_documents(con, ids=None) -> Documents:
-    """The motions ``ids`` (default: all) with their words, in motion-id order.
+#: feature frames an archive-wide pass (annotation, keyframe search, import) holds at a time: its
+#: memory then does not grow with the archive. 1 M frames are 8 MB of words, ~30 MB of keyframe
+#: index and ~16 MB per class-row array of the annotation chain's batches
+BATCH_FRAMES = 1_000_000
+
+
+def motion_rows(con, ids=None) -> dict:
+    """Metadata of the motions ``ids`` (default: all) in motion-id order; unknown ids are left out.
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``motion_id``, ``name``, ``fps``, ``n_frames``, ``source_fps``, ``n_source_frames``.
+    """
+    return con.execute(_sql("meta"), {"ids": None if ids is None else [int(i) for i in ids]}).fetchnumpy()
+
+
+def frame_batches(lengths, max_frames=BATCH_FRAMES) -> list:
+    """Consecutive motions in batches of at most ``max_frames`` frames (a longer motion alone).
+
+    Parameters
+    ----------
+    lengths : (n,) int
+        Frames of each motion, in order.
+    max_frames : int or None
+        None: one batch (also of no motions).
+
+    Returns
+    -------
+    list of (first, stop)
+        Positions into ``lengths``; every motion in exactly one batch, in order.
+    """
+    n = len(lengths)
+    if max_frames is None:
+        return [(0, n)]
+    ends = np.cumsum(np.asarray(lengths, dtype=np.int64))
+    out, first = [], 0
+    while first < n:
+        base = int(ends[first - 1]) if first else 0
+        stop = max(first + 1, int(np.searchsorted(ends, base + max_frames, side="right")))
+        out.append((first, stop))
+        first = stop
+    return out
+
+
+def read_words(con, motion_ids, n_frames):
+    """The words of motions, each checked to be exactly its frames 1 … ``n_frames``.
+
+    Parameters
+    ----------
+    motion_ids : (n,) int, ascending
+    n_frames : (n,) int
+        ``motions.n_frames`` of each.
+
+    Returns
+    -------
+    words : (N,) uint64
+        The words of the complete motions, concatenated in order.
+    complete : (n,) bool
+        Whether a motion's feature rows are its frames 1 … n_frames, once each.
+    rows : (n,) int64
+        Feature rows found per motion.
+    """
+    ids = np.asarray(motion_ids, dtype=np.int64)
+    n = np.asarray(n_frames, dtype=np.int64)
+    if not len(ids):
+        return np.zeros(0, np.uint64), np.zeros(0, bool), np.zeros(0, np.int64)
+    got = con.execute(_sql("words_of"), {"ids": ids.tolist(), "lo": int(ids[0]), "hi": int(ids[-1])}).fetchnumpy()
+    bits, complete, rows = check_frames(ids, n, got["motion_id"], got["frame"], got["bits"])
+    return (bits if complete.all() else bits[np.repeat(complete, rows)]), complete, rows
+
+
+def check_frames(motion_ids, n_frames, row_motion, row_frame, row_bits):
+    """Feature rows sorted by (motion, frame) and checked: is each motion exactly its frames 1 … n?
+
+    Parameters
+    ----------
+    motion_ids : (n,) int, ascending
+    n_frames : (n,) int
+    row_motion, row_frame, row_bits : (m,) arrays
+        Feature rows of these motions in any order (rows of other motions are not allowed).
+
+    Returns
+    -------
+    bits : (m,) uint64
+        The rows' words sorted by (motion, frame).
+    complete : (n,) bool
+        The motion's rows are its frames 1 … n_frames, once each.
+    rows : (n,) int64
+        Rows per motion.
+    """
+    ids = np.asarray(motion_ids, dtype=np.int64)
+    mid = np.asarray(row_motion, dtype=np.int64)
+    frame = np.asarray(row_frame, dtype=np.int64)
+    bits = np.asarray(row_bits, dtype=np.uint64)
+    key = (mid << 32) | frame
+    if len(key) > 1 and (np.diff(key) < 0).any():  # DuckDB usually returns the stored order, which is this one
+        order = np.argsort(key, kind="stable")
+        mid, frame, bits = mid[order], frame[order], bits[order]
+    pos = np.searchsorted(ids, mid)
+    rows = np.bincount(pos, minlength=len(ids)).astype(np.int64)
+    # frames 1, 2, … in order within each motion: no gap, no duplicate
+    expected = np.arange(len(mid)) - np.repeat(np.cumsum(rows) - rows, rows) + 1
+    complete = (rows == np.asarray(n_frames, dtype=np.int64)) & \
+        (np.bincount(pos[frame != expected], minlength=len(ids)) == 0)
+    return bits, complete, rows
+
+
+def incomplete_reason(motion_id, name, rows, n_frames, *, what="motion",
+                      remedy="ingest or import it again to repair it") -> str:
+    """Why a motion's features cannot be used (``what``: whose motion), and what to do."""
+    return (f"{what} {int(motion_id)} ({name}) has {int(rows)} feature rows for its {int(n_frames)} frames "
+            f"(frames 1…{int(n_frames)} expected): {remedy}")
+
+
+def incomplete_motions(con, ids) -> list:
+    """Stored motions among ``ids`` whose features are not their frames 1 … n_frames.
+
+    The check runs in DuckDB with a few numbers per motion (rows, first and
+    last frame, sum of frames), so that it costs one scan and no memory that
+    grows with the motions; an archive written by an older mocapdb could
+    hold such motions (an import of a partial archive).
+
+    Returns
+    -------
+    list of (motion_id, name, reason)
+    """
+    if not len(ids):
+        return []
+    rows = con.execute(_sql("feature_counts"), {"ids": [int(i) for i in ids]}).fetchall()
+    return [(mid, name, incomplete_reason(mid, name, n_rows, n)) for mid, name, n, n_rows, ok in rows if not ok]
+
+
+def iter_documents(con, ids=None, *, max_frames=BATCH_FRAMES, skip_unknown=False):
+    """The motions ``ids`` (default: all) in motion-id order, a batch of whole motions at a time.
+
+    Parameters
+    ----------
+    ids : sequence of int, optional
+    max_frames : int or None
+        Frames per batch (:data:`BATCH_FRAMES`; None: one batch).
+    skip_unknown : bool
+        Leave out ids the database does not have (the SQL functions answer NULL
+        for them) instead of raising.
+
+    Yields
+    ------
+    docs : Documents
+        The batch's complete motions.
+    incomplete : list of (motion_id, name, reason)
+        The batch's motions whose features are not their frames 1 … n_frames (left out of ``docs``).
 
     Raises
     ------
     SchemaError
-        For an unknown id, or when features and motions disagree.
+        For an id the database does not have.
     """
-    params = {"ids": None if ids is None else [int(i) for i in ids]}
-    meta = con.execute(_sql("meta"), params).fetchnumpy()
+    meta = motion_rows(con, ids)
     found = np.asarray(meta["motion_id"], dtype=np.int64)
-    if ids is not None and len(found) != len(set(params["ids"])):
-        missing = sorted(set(params["ids"]) - set(found.tolist()))
+    if ids is not None and not skip_unknown and len(found) != len({int(i) for i in ids}):
+        missing = sorted({int(i) for i in ids} - set(found.tolist()))
         raise SchemaError(f"no motion with id {missing} (see: SELECT motion_id, name FROM motions)")
-    bits = con.execute(_sql("words"), params).fetchnumpy()["bits"]
     lengths = np.asarray(meta["n_frames"], dtype=np.int64)
-    if int(lengths.sum()) != len(bits):
-        raise SchemaError("features and motions.n_frames disagree; the database is inconsistent")
-    return Documents(found, [str(n) for n in meta["name"]], np.asarray(meta["fps"], np.float64), lengths,
-                     np.asarray(bits, dtype=np.uint64), np.asarray(meta["source_fps"], np.float64),
-                     np.asarray(meta["n_source_frames"], np.int64))
+    for a, b in frame_batches(lengths, max_frames):
+        words, complete, rows = read_words(con, found[a:b], lengths[a:b])
+        names = [str(x) for x in meta["name"][a:b]]
+        bad = [(int(found[a + k]), names[k], incomplete_reason(found[a + k], names[k], rows[k], lengths[a + k]))
+               for k in np.flatnonzero(~complete)]
+        keep = np.flatnonzero(complete)
+        yield Documents(found[a:b][keep], [names[k] for k in keep],
+                        np.asarray(meta["fps"][a:b], np.float64)[keep], lengths[a:b][keep], words,
+                        np.asarray(meta["source_fps"][a:b], np.float64)[keep],
+                        np.asarray(meta["n_source_frames"][a:b], np.int64)[keep]), bad
+
+
+def motion_documents(con, ids=None) -> Documents:
+    """The motions ``ids`` (default: all) with their words, in motion-id order, in one piece.
+
+    For archive-wide passes use :func:`iter_documents`, whose memory does not
+    grow with the archive.
+
+    Raises
+    ------
+    SchemaError
+        For an unknown id, or a motion whose features are not its frames 1 … n_frames (named).
+    """
+    [(docs, bad)] = iter_documents(con, ids, max_frames=None)
+    if bad:
+        raise SchemaError("the database is inconsistent: " + "; ".join(r for _, _, r in bad))
+    return docs
 
 
 def documents_by_name(con, names) -> Documents:
@@ -279,4 +456,5 @@ def relocate_sources(con, old_prefix, new_prefix):
 
 
 __all__ = ["Documents", "motion_ids", "motion_documents", "documents_by_name", "source_motion", "motions_to_delete",
-           "relocate_sources"]
+           "relocate_sources", "iter_documents", "motion_rows", "frame_batches", "read_words", "check_frames",
+           "incomplete_reason", "incomplete_motions", "BATCH_FRAMES"]

@@ -2,7 +2,7 @@
 
 Layout written by :func:`export_features` (DuckDB reads it in place)::
 
-    DIR/motions.parquet                       one row per motion (the motions table)
+    DIR/motions.parquet                       one row per motion (the motions table), written last
     DIR/features/motion_id=<id>/*.parquet     frame, bits of that motion (hive partitioning)
 
 :func:`import_features` also reads the archives that ``mocapdb.distributed``
@@ -12,29 +12,48 @@ writes on a Ray cluster, whose datasets have the columns of the tables
     DIR/motions/*.parquet                              the motions table
     DIR/features/motion_bucket=<k>/*.parquet           motion_id, frame, bits
     DIR/annotations/motion_bucket=<k>/*.parquet        the annotations table (imported too)
+    DIR/manifest.json                                  written last: the run finished
+
+An archive is imported a batch of motions at a time (memory of one batch,
+one transaction each), and every motion is checked to be exactly its frames
+1 … ``n_frames``: a motion whose features are missing, partial or unreadable
+is refused and named, never stored, and the others go in. A Ray archive
+without its manifest (a run that did not finish) is refused whole, because
+the batches that never ran left no trace in it to check against.
 """
 from __future__ import annotations
 
+import json
+import os
+import re
+import shutil
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import duckdb
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mocapdb.errors import ParameterError
+from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.storage.ingest import insert_features, remove_motions
+from mocapdb.storage.motions import (BATCH_FRAMES, check_frames, frame_batches, incomplete_motions,
+                                     incomplete_reason)
 from mocapdb.storage.names import check_motion_names
-from mocapdb.storage.postings import index_motions
 from mocapdb.storage.schema import open_database
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
+#: the file that marks a finished ``ray_annotate`` archive (written last, by the driver)
+MANIFEST = "manifest.json"
+#: the motions of an export (written last: an export without it did not finish)
+EXPORT_MOTIONS = "motions.parquet"
+_PART = re.compile(r"^part-(\d+)-(\d+)\.parquet$")
+_MOTION_DIR = re.compile(r"^motion_id=(\d+)$")
+
 
 def _sql(name):
     return statement("parquet.sql", name)
-
-
-def _quote(path: Path) -> str:
-    return "'" + str(path).replace("'", "''") + "'"
 
 
 def export_features(con, directory, *, overwrite: bool = False) -> int:
@@ -44,22 +63,34 @@ def export_features(con, directory, *, overwrite: bool = False) -> int:
     ----------
     con : duckdb.DuckDBPyConnection
     directory : str or Path
-        Target folder; must be empty or absent unless ``overwrite``.
+        Target folder; must be empty or absent unless ``overwrite``, which
+        replaces an earlier export's ``features/`` and ``motions.parquet``
+        (and nothing else in the folder): a partition of a motion no longer
+        exported would otherwise stay behind for in-place readers.
     overwrite : bool, keyword-only
 
     Returns
     -------
     int
         Number of motions written.
+
+    Notes
+    -----
+    ``motions.parquet`` is written last, under a temporary name and renamed:
+    a folder without it is an export that did not finish.
     """
     d = Path(directory)
+    if d.exists() and not d.is_dir():
+        raise ParameterError(f"directory: {str(d)!r} is a file; give a folder")
     if d.exists() and any(d.iterdir()) and not overwrite:
         raise ParameterError(f"directory: {str(d)!r} is not empty; pass overwrite=True (--overwrite)")
     d.mkdir(parents=True, exist_ok=True)
-    con.execute(f"COPY (SELECT * FROM motions ORDER BY motion_id) TO {_quote(d / 'motions.parquet')} (FORMAT parquet)")
-    con.execute(
-        f"COPY (SELECT motion_id, frame, bits FROM features ORDER BY motion_id, frame) "
-        f"TO {_quote(d / 'features')} (FORMAT parquet, PARTITION_BY (motion_id), OVERWRITE_OR_IGNORE)")
+    (d / EXPORT_MOTIONS).unlink(missing_ok=True)
+    shutil.rmtree(d / "features", ignore_errors=True)
+    con.execute(_sql("export_features"), {"path": str(d / "features")})
+    tmp = d / f".{EXPORT_MOTIONS}.tmp"
+    con.execute(_sql("export_motions"), {"path": str(tmp)})
+    os.replace(tmp, d / EXPORT_MOTIONS)
     return con.execute(statement("motions.sql", "count")).fetchall()[0][0]
 
 
@@ -75,6 +106,10 @@ def features_sql(directory) -> str:
         raise ParameterError(f"directory: {str(d)!r} has no features/ folder (written by export_features)")
     return (f"SELECT motion_id::INTEGER AS motion_id, frame, bits "
             f"FROM read_parquet({_quote(d / 'features' / '*' / '*.parquet')}, hive_partitioning = true)")
+
+
+def _quote(path: Path) -> str:
+    return "'" + str(path).replace("'", "''") + "'"
 
 
 #: the DuckDB table each Parquet dataset of an archive mirrors (:func:`table_schemas`)
@@ -98,51 +133,269 @@ def table_schemas() -> dict:
         con.close()
 
 
-def _motions_file(d: Path):
-    """The motions of an export (one file) or of a Ray archive (a folder of parts)."""
-    for f in (d / "motions.parquet", d / "motions"):
-        if f.exists():
-            return f
-    raise ParameterError(f"directory: {str(d)!r} has no motions.parquet or motions/ (written by "
-                         "export_features or ray_annotate)")
+# -- reading an archive -----------------------------------------------------------------------
 
 
-def import_features(con, directory) -> dict[int, int]:
-    """Load an export, or an archive written by ``ray_annotate``, back (one transaction):
-    motions not yet present (by sha256) get new ids.
+def write_manifest(directory, manifest: dict) -> None:
+    """Write ``manifest.json`` (atomically: a temporary name, then a rename); the last file of an archive."""
+    d = Path(directory)
+    tmp = d / f".{MANIFEST}.tmp"
+    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True, default=str) + "\n", encoding="utf-8")
+    os.replace(tmp, d / MANIFEST)
 
-    The features of the new motions are imported (and indexed, when the
-    keyframe index exists) and, from a ``ray_annotate`` archive, their
-    annotations.
+
+def read_manifest(directory):
+    """The manifest of a finished ``ray_annotate`` archive, or None when there is none."""
+    f = Path(directory) / MANIFEST
+    if not f.is_file():
+        return None
+    try:
+        return json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise SchemaError(f"{f}: not a readable manifest ({exc})") from None
+
+
+def _parts(root: Path) -> list:
+    """``(first, last, path)`` of the ``part-<first>-<last>.parquet`` files under a dataset folder."""
+    out = []
+    for f in sorted(root.rglob("part-*.parquet")) if root.is_dir() else ():
+        m = _PART.match(f.name)
+        if m:
+            out.append((int(m[1]), int(m[2]), f))
+    return out
+
+
+@dataclass
+class Archive:
+    """An archive on disk: its motions and where each motion's rows are.
+
+    Attributes
+    ----------
+    root : Path
+    kind : {"export", "ray"}
+    motions : pyarrow.Table
+        The ``motions`` rows (archive motion ids).
+    """
+
+    root: Path
+    kind: str
+    motions: pa.Table
+    _parts: dict = field(default_factory=dict, repr=False)  # dataset -> its Ray parts, listed once
+
+    @classmethod
+    def open(cls, directory) -> "Archive":
+        """Recognise an export or a finished Ray archive.
+
+        Raises
+        ------
+        ParameterError
+            Neither layout, or an export or Ray run that did not finish (named).
+        """
+        d = Path(directory)
+        if (d / "motions").is_dir():
+            manifest = read_manifest(d)
+            if manifest is None:
+                raise ParameterError(
+                    f"directory: {str(d)!r} is an unfinished ray-annotate archive (no {MANIFEST}, which the run "
+                    "writes last): the run was stopped before the end, and the motions of its unfinished "
+                    "batches are missing; run ray-annotate again (--overwrite)")
+            motions = _read_motions(d / "motions")
+            if manifest.get("motions") != motions.num_rows:
+                raise ParameterError(f"directory: {str(d)!r} holds {motions.num_rows} motions, but its {MANIFEST} "
+                                     f"lists {manifest.get('motions')}: parts of motions/ are missing or foreign")
+            return cls(d, "ray", motions)
+        if (d / EXPORT_MOTIONS).is_file():
+            return cls(d, "export", _read_motions(d / EXPORT_MOTIONS))
+        if (d / "features").is_dir():
+            raise ParameterError(f"directory: {str(d)!r} has features/ but no {EXPORT_MOTIONS}, which "
+                                 "export-features writes last: the export did not finish; export again (--overwrite)")
+        raise ParameterError(f"directory: {str(d)!r} has no {EXPORT_MOTIONS} or motions/ (written by "
+                             "export_features or ray_annotate)")
+
+    def files(self, dataset, ids) -> dict:
+        """``{file: (first id, last id)}`` of a dataset's files that may hold rows of motions ``ids`` (ascending)."""
+        lo, hi = int(ids[0]), int(ids[-1])
+        if self.kind == "ray":
+            found = {f: (a, b) for a, b, f in self._ray_parts(dataset) if a <= hi and b >= lo}
+            # a part holds a batch's motions, which may interleave with ids of other batches
+            return {f: r for f, r in found.items() if np.any((ids >= r[0]) & (ids <= r[1]))}
+        if dataset != "features":
+            return {}
+        out = {}
+        for mid in ids.tolist():
+            folder = self.root / "features" / f"motion_id={mid}"
+            for f in sorted(folder.glob("*.parquet")) if folder.is_dir() else ():
+                out[f] = (mid, mid)
+        return out
+
+    def _ray_parts(self, dataset):
+        if dataset not in self._parts:
+            self._parts[dataset] = _parts(self.root / dataset)
+        return self._parts[dataset]
+
+
+def _read_motions(path: Path) -> pa.Table:
+    try:
+        table = pq.read_table(path, partitioning=None) if path.is_dir() else pq.read_table(path)
+    except (OSError, pa.ArrowException) as exc:
+        raise SchemaError(f"{path}: cannot read the archive's motions ({exc})") from None
+    return table.sort_by("motion_id")
+
+
+def _read_rows(con, name, files, lo, hi):
+    """Rows of an archive dataset in ``files`` for motions ``lo`` … ``hi``, and the files that did not read.
 
     Returns
     -------
-    dict
-        Exported motion id → motion id in this database, for the motions added.
+    rows : pyarrow.Table, or None (no file read)
+    bad : dict of Path to str
+        A file DuckDB could not read (truncated, not Parquet) and its error: the
+        rest is read without it, and the motions it would hold are refused.
     """
-    d = Path(directory)
-    motions = pq.read_table(_motions_file(d))
-    check_motion_names(motions.column("name").to_pylist(), source=d)
-    stored = {(a, b) for _, a, b in con.execute(statement("motions.sql", "stored_keys")).fetchall()}
-    keys = zip(motions.column("sha256").to_pylist(), motions.column("skeleton_sha256").to_pylist())
-    new = motions.filter(pa.array([k not in stored for k in keys], pa.bool_()))
-    if new.num_rows == 0:
-        return {}
-    new = new.append_column("ord", pa.array(np.arange(new.num_rows, dtype=np.int32)))
-    old_ids = new.column("motion_id").to_pylist()
+    def read(some):
+        return con.sql(_sql(name), params={"files": [str(f) for f in some], "lo": lo, "hi": hi}).to_arrow_table()
+
+    paths = sorted(files)
+    if not paths:
+        return None, {}
+    try:
+        return read(paths), {}
+    except duckdb.Error:
+        pass
+    good, bad = [], {}
+    for f in paths:  # which file is it? (each on its own)
+        try:
+            read([f])
+            good.append(f)
+        except duckdb.Error as exc:
+            bad[f] = str(exc).splitlines()[0]
+    return (read(good) if good else None), bad
+
+
+@dataclass
+class ImportReport:
+    """What an :func:`import_features` call did, motion by motion (names are the archive's)."""
+
+    imported: dict = field(default_factory=dict)   # archive motion id -> motion id in the database
+    skipped: list = field(default_factory=list)    # (name, reason): already in the database
+    repaired: list = field(default_factory=list)   # (name, reason): stored with incomplete features, replaced
+    failed: list = field(default_factory=list)     # (name, reason): incomplete in the archive, not imported
+
+    def summary(self) -> str:
+        out = f"{len(self.imported)} motion(s) imported"
+        if self.repaired:
+            out += f" ({len(self.repaired)} repaired)"
+        return out + f", {len(self.skipped)} already present, {len(self.failed)} refused"
+
+
+def import_features(con, directory, *, max_frames=BATCH_FRAMES) -> ImportReport:
+    """Load an export, or an archive written by ``ray_annotate``, into the database.
+
+    Motions not yet present (by sha256 of the file and skeleton) get new ids;
+    their features are imported (and indexed, when the keyframe index exists)
+    and, from a ``ray_annotate`` archive, their annotations. A motion already
+    present whose stored features are incomplete (an import of a partial
+    archive by an older mocapdb) is replaced.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    directory : str or Path
+    max_frames : int, keyword-only
+        Frames per batch: a batch of motions is read, checked and stored at a
+        time, in its own transaction (memory does not grow with the archive).
+
+    Returns
+    -------
+    ImportReport
+        ``failed`` names every motion of the archive whose features are not
+        exactly its frames 1 … n_frames (missing, partial or in an unreadable
+        file, whose error is given): those are not imported, the others are,
+        and importing the repaired archive again adds them.
+
+    Raises
+    ------
+    ParameterError
+        Not an archive, or an unfinished one (an export or a ``ray_annotate``
+        run that was stopped).
+    """
+    archive = Archive.open(directory)
+    motions = archive.motions
+    # names become file names (view --all, ELAN export): refuse what no ingest could give
+    check_motion_names(motions.column("name").to_pylist(), source=Path(directory))
+    report = ImportReport()
+    stored = {(a, b): mid for mid, a, b in con.execute(statement("motions.sql", "stored_keys")).fetchall()}
+    keys = list(zip(motions.column("sha256").to_pylist(), motions.column("skeleton_sha256").to_pylist()))
+    names = motions.column("name").to_pylist()
+    present = [stored[k] for k in keys if k in stored]
+    broken = {mid: reason for mid, _, reason in incomplete_motions(con, present)}
+    todo, replaces = [], {}
+    for k, (key, name) in enumerate(zip(keys, names)):
+        if key in stored and stored[key] not in broken:
+            report.skipped.append((name, f"already in the database as motion {stored[key]}"))
+            continue
+        if key in stored:
+            replaces[k] = stored[key]
+            report.repaired.append((name, broken[stored[key]]))
+        todo.append(k)
+    todo = np.asarray(todo, dtype=np.int64)
+    old_ids = motions.column("motion_id").to_numpy().astype(np.int64)
+    lengths = motions.column("n_frames").to_numpy().astype(np.int64)
+    for a, b in frame_batches(lengths[todo], max_frames):
+        _import_batch(con, archive, todo[a:b], old_ids, lengths, names, replaces, report)
+    return report
+
+
+def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, report) -> None:
+    """Read, check and store one batch of an archive's motions (positions ``rows_k`` of its motions table)."""
+    ids = old_ids[rows_k]
+    lo, hi = int(ids.min()), int(ids.max())
+    order = np.argsort(ids, kind="stable")
+    ids, rows_k = ids[order], rows_k[order]
+    files = archive.files("features", ids)
+    got, bad = _read_rows(con, "archive_features", files, lo, hi)
+    cols = [np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.uint64)] if got is None else \
+        [got.column(c).to_numpy() for c in ("motion_id", "frame", "bits")]
+    wanted = np.isin(cols[0], ids)
+    bits, complete, n_rows = check_frames(ids, lengths[rows_k], *(c[wanted] for c in cols))
+    unreadable = {}
+    for f, (first, last) in files.items():
+        if f in bad:
+            for mid in ids[(ids >= first) & (ids <= last)].tolist():
+                unreadable.setdefault(mid, f"{f}: {bad[f]}")
+    ann_files = archive.files("annotations", ids)
+    ann, ann_bad = _read_rows(con, "archive_annotations", ann_files, lo, hi)
+    for f, (first, last) in ann_files.items():
+        if f in ann_bad:
+            for mid in ids[(ids >= first) & (ids <= last)].tolist():
+                unreadable.setdefault(mid, f"{f}: {ann_bad[f]}")
+    ok = complete & ~np.isin(ids, list(unreadable))
+    for k, mid in enumerate(ids.tolist()):
+        if not ok[k]:
+            name = names[rows_k[k]]
+            why = (f"archive motion {mid} ({name}): features unreadable: {unreadable[mid]}" if mid in unreadable
+                   else incomplete_reason(mid, name, n_rows[k], lengths[rows_k[k]], what="archive motion",
+                                          remedy="not imported"))
+            report.failed.append((name, why))
+    if not ok.any():
+        return
+    starts = np.concatenate(([0], np.cumsum(n_rows)))
+    words = [bits[starts[k]:starts[k + 1]] for k in np.flatnonzero(ok)]
+    keep_k = rows_k[ok]
+    new = archive.motions.take(pa.array(keep_k)).append_column(
+        "ord", pa.array(np.arange(len(keep_k), dtype=np.int32)))
     with transaction(con):
+        remove_motions(con, [replaces[k] for k in keep_k.tolist() if k in replaces])
         with registered(con, mocap_new_motions=new):
-            new_ids = [r[0] for r in con.execute(_sql("import_motions")).fetchall()]
-        mapping = dict(zip(old_ids, new_ids))
-        id_map = pa.table({"old": pa.array(old_ids, pa.int32()), "new": pa.array(new_ids, pa.int32())})
-        with registered(con, mocap_id_map=id_map):
-            con.execute(_sql("import_features"), {"features": str(d / "features" / "*" / "*.parquet")})
-            if (d / "annotations").is_dir():
-                con.execute(_sql("import_annotations"), {"annotations": str(d / "annotations" / "*" / "*.parquet")})
-        rows = con.execute(_sql("words_of_motions"), {"ids": new_ids}).fetchnumpy()
-        ids, starts = np.unique(rows["motion_id"], return_index=True)
-        index_motions(con, dict(zip(ids.tolist(), np.split(np.asarray(rows["bits"], np.uint64), starts[1:]))))
-    return mapping
+            by_key = {(s, sk): mid for mid, s, sk in con.execute(_sql("import_motions")).fetchall()}
+        new_ids = [by_key[k] for k in zip(new.column("sha256").to_pylist(), new.column("skeleton_sha256").to_pylist())]
+        insert_features(con, new_ids, words)
+        if ann is not None:
+            id_map = pa.table({"old": pa.array(ids[ok], pa.int32()), "new": pa.array(new_ids, pa.int32())})
+            with registered(con, mocap_id_map=id_map, mocap_archive_annotations=ann):
+                con.execute(_sql("import_annotations"))
+    report.imported.update(zip(ids[ok].tolist(), new_ids))
 
 
-__all__ = ["export_features", "import_features", "features_sql", "table_schemas", "ARCHIVE_TABLES"]
+__all__ = ["export_features", "import_features", "features_sql", "table_schemas", "ARCHIVE_TABLES", "ImportReport",
+           "Archive", "MANIFEST", "EXPORT_MOTIONS", "write_manifest", "read_manifest"]

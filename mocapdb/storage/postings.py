@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
+from mocapdb.errors import SchemaError
 from mocapdb.keyframes import INDEX_PARTS, Index, build_index
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
@@ -136,23 +137,50 @@ def motion_positions(ids, motion_id) -> np.ndarray:
     return np.searchsorted(ids, motion_id)
 
 
-def load_index(con, *, parts=STORED_PARTS) -> tuple[Index, np.ndarray]:
+def load_index(con, *, parts=STORED_PARTS, motions=None) -> tuple[Index, np.ndarray]:
     """The stored postings as a searchable :class:`~mocapdb.keyframes.Index`.
+
+    Parameters
+    ----------
+    parts : sequence of str
+        The index parts to load (default all).
+    motions : (motion_ids, n_frames), optional
+        Only these motions (ids ascending, with their frame counts): a batch
+        of an archive-wide pass, whose memory then does not grow with the
+        archive (:mod:`mocapdb.storage.cache`). Default: every motion.
 
     Returns
     -------
     index : Index
         Document ``d`` is motion ``motion_ids[d]``.
     motion_ids : (n_docs,) int64, ascending
+
+    Raises
+    ------
+    SchemaError
+        A motion with frames has no postings (it was stored without the index).
     """
-    meta = con.execute(_sql("motion_lengths")).fetchnumpy()
-    ids = np.asarray(meta["motion_id"], dtype=np.int64)
     # the part as its integer code, computed by DuckDB: millions of Python
     # strings would cost more than the rest of the load together
-    rows = con.execute(_sql("load"), {"parts": list(parts), "all_parts": list(INDEX_PARTS)}).fetchnumpy()
+    params = {"parts": list(parts), "all_parts": list(INDEX_PARTS)}
+    if motions is None:
+        meta = con.execute(_sql("motion_lengths")).fetchnumpy()
+        ids = np.asarray(meta["motion_id"], dtype=np.int64)
+        lengths = np.asarray(meta["n_frames"], np.int64)
+        rows = con.execute(_sql("load"), params).fetchnumpy()
+    else:
+        ids, lengths = (np.asarray(x, dtype=np.int64) for x in motions)
+        rows = con.execute(_sql("load_motions"), {**params, "ids": ids.tolist(), "lo": int(ids[0]) if len(ids) else 0,
+                                                  "hi": int(ids[-1]) if len(ids) else -1}).fetchnumpy()
     doc = motion_positions(ids, rows["motion_id"])
+    indexed = np.zeros(len(ids), bool)
+    indexed[doc] = True
+    missing = ids[(lengths > 0) & ~indexed]
+    if len(missing):
+        raise SchemaError(f"motions {missing[:10].tolist()}{' …' if len(missing) > 10 else ''} are not in the "
+                          "keyframe index; rebuild it with `mocapdb create-index`")
     index = Index.from_columns(doc, rows["part"], rows["seg"], rows["word"], rows["start_frame"],
-                               rows["n_frames"], doc_lengths=np.asarray(meta["n_frames"], np.int64), parts=parts)
+                               rows["n_frames"], doc_lengths=lengths, parts=parts)
     return index, ids
 
 

@@ -5,9 +5,9 @@
 ranked result rows. Where the archive's words come from:
 
 * with the keyframe index (every database has it unless dropped): the
-  connection's in-memory index (:mod:`mocapdb.storage.cache`), whose ``full``
-  runs rebuild any stretch exactly (:mod:`mocapdb.retrieval.archive`) — the
-  sample, the preselected segments, no ``features`` read at all;
+  index a batch of motions at a time, through the connection's cache
+  (:mod:`mocapdb.storage.cache`), whose ``full`` runs rebuild any stretch
+  exactly (:mod:`mocapdb.retrieval.archive`);
 * without it: the ``features`` table, a batch of ranges at a time.
 
 Either way a query holds at most :data:`mocapdb.retrieval.BATCH_FRAMES`
@@ -19,10 +19,12 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.retrieval import BATCH_FRAMES, plan_query, preselect, sample_step, search_segments
-from mocapdb.retrieval.archive import index_sample, index_words
-from mocapdb.storage.cache import NO_INDEX, connection_cache
-from mocapdb.storage.postings import index_version, motion_positions
+from mocapdb.retrieval import (BATCH_FRAMES, CELL_BUDGET, best_hits, plan_query, preselect, rank_cells,
+                               sample_step, search_segments)
+from mocapdb.retrieval.archive import index_words
+from mocapdb.storage.cache import NO_INDEX, UNKNOWN, connection_cache
+from mocapdb.storage.motions import frame_batches
+from mocapdb.storage.postings import index_version
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered
 
@@ -111,42 +113,69 @@ def check_range(what, n_frames, fps, start_frame=None, end_frame=None, *, start=
     return first, last
 
 
-def search_index(index, ids, stretches, *, limit=10, features="all", tau=None, keyframes=None,
-                 batch_frames=BATCH_FRAMES) -> np.ndarray:
-    """The query over an archive given by its keyframe index (words rebuilt from its runs).
+def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyframes=None,
+                   batch_frames=BATCH_FRAMES, version=UNKNOWN) -> np.ndarray:
+    """The query over the archive's keyframe index, a batch of motions at a time.
+
+    Each batch's postings come from the connection's cache
+    (:meth:`mocapdb.storage.cache.ConnectionCache.batch_index`, the pieces
+    ``annotate()`` uses too), whose ``full`` runs rebuild any stretch exactly
+    (:mod:`mocapdb.retrieval.archive`): memory follows the batch, not the
+    archive. The archive sample that weighs the features comes from
+    ``features`` (:data:`mocapdb.retrieval.SAMPLE_FRAMES` frames).
 
     Parameters
     ----------
-    index : mocapdb.keyframes.Index
-        With the ``full`` part; document d is motion ``ids[d]``.
-    ids : (n_docs,) int, ascending
+    cache : ConnectionCache
     stretches : sequence of (motion_id, first, last, words)
     limit, features, tau, batch_frames
         As :func:`similar_stretches`.
     keyframes : bool, optional
         Preselect with the query's keyframes: None as far as the archive's
-        size needs (:func:`mocapdb.retrieval.preselect`), True always, False never.
+        size needs, True always, False never. Each batch takes its share of
+        :data:`mocapdb.retrieval.CELL_BUDGET` (its frames' part of the
+        archive) and the most lenient keyframe level that stays within it
+        (:func:`mocapdb.retrieval.preselect`).
+    version : int, optional
+        The index version (default: ask the database).
 
     Returns
     -------
     ndarray of mocapdb.retrieval.RESULT_DTYPE
         ``doc`` = motion id.
     """
-    if index.n_frames == 0:
-        raise SchemaError("the archive is empty: ingest motions first")
-    query = plan_query([s[3] for s in stretches], index_sample(index, sample_step(index.n_frames)),
-                       features=features, tau=tau, keyframes=keyframes is not False)
-    segs = preselect(index, query, force=bool(keyframes))
-    if segs is None:
-        doc, start, stop = np.arange(index.n_docs), np.zeros(index.n_docs, np.int64), index.doc_lengths
-    else:
-        doc, start, stop = segs.doc, segs.start, segs.end + 1
-    qdoc = motion_positions(ids, [s[0] for s in stretches])
-    hits = search_segments(lambda d, a, b: index_words(index, d, a, b), doc, start, stop, query, limit=limit,
-                           exclude=[(int(d), s[1], s[2]) for d, s in zip(qdoc, stretches)],
-                           batch_frames=batch_frames)
-    hits["doc"] = np.asarray(ids, np.int64)[hits["doc"]]
-    return hits
+    version = cache.version(version)
+    with cache.cursor() as cur:
+        meta = cur.execute(_sql("motion_lengths")).fetchnumpy()
+        ids = np.asarray(meta["motion_id"], np.int64)
+        lengths = np.asarray(meta["n_frames"], np.int64)
+        n_frames = int(lengths.sum())
+        if n_frames == 0:
+            raise SchemaError("the archive is empty: ingest motions first")
+        sample = np.asarray(cur.execute(_sql("sample_words"), {"step": sample_step(n_frames)})
+                            .fetchnumpy()["bits"], np.uint64)
+    query = plan_query([s[3] for s in stretches], sample, features=features, tau=tau,
+                       keyframes=keyframes is not False)
+    # the archive within the budget: no preselection anywhere (unless forced)
+    whole = keyframes is False or not query.keyframes or (not keyframes and rank_cells(n_frames, query) <= CELL_BUDGET)
+    found = []
+    for a, b in frame_batches(lengths, cache.batch_frames):
+        index = cache.batch_index(ids[a:b], lengths[a:b], ("full",), version=version)
+        share = int(CELL_BUDGET * lengths[a:b].sum() / n_frames)
+        segs = None if whole else preselect(index, query, budget=share, force=True)
+        if segs is None:
+            doc, start, stop = np.arange(index.n_docs), np.zeros(index.n_docs, np.int64), index.doc_lengths
+        else:
+            doc, start, stop = segs.doc, segs.start, segs.end + 1
+        # the query stretches of this batch's motions are no hits (batch positions; ids ascend)
+        here = np.searchsorted(ids[a:b], [s[0] for s in stretches])
+        exclude = [(int(d), s[1], s[2]) for d, s in zip(here, stretches)
+                   if d < b - a and ids[a + d] == s[0]]
+        hits = search_segments(lambda d, s0, s1: index_words(index, d, s0, s1), doc, start, stop, query,
+                               limit=limit, exclude=exclude, batch_frames=batch_frames)
+        hits["doc"] = ids[a:b][hits["doc"]]
+        found.append(hits)
+    return best_hits(found, limit, key=("cost", "doc", "start"))
 
 
 def _search_features(con, stretches, *, limit, features, tau, batch_frames):
@@ -200,9 +229,8 @@ def similar_stretches(con, stretches, *, limit=10, features="all", tau=None, key
             hits = _search_features(cur, stretches, limit=limit, features=features, tau=tau,
                                     batch_frames=batch_frames)
         else:
-            _, index, ids = connection_cache(con).index(version)
-            hits = search_index(index, ids, stretches, limit=limit, features=features, tau=tau,
-                                keyframes=keyframes, batch_frames=batch_frames)
+            hits = search_archive(connection_cache(con), stretches, limit=limit, features=features, tau=tau,
+                                  keyframes=keyframes, batch_frames=batch_frames, version=version)
         return result_table(cur, hits)
     finally:
         cur.close()
@@ -225,4 +253,4 @@ def result_table(con, hits) -> pa.Table:
     })
 
 
-__all__ = ["RESULT_COLUMNS", "check_range", "query_stretch", "search_index", "similar_stretches", "result_table"]
+__all__ = ["RESULT_COLUMNS", "check_range", "query_stretch", "search_archive", "similar_stretches", "result_table"]

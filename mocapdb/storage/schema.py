@@ -14,6 +14,7 @@ tables' comments and persisted stand-ins of the functions
 """
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -36,7 +37,17 @@ class DatabaseLockedError(SchemaError):
     """Another process has the database file open for writing."""
 
 
-def open_database(path=":memory:", *, read_only: bool = False) -> duckdb.DuckDBPyConnection:
+#: DuckDB's memory limit on a mocapdb database (DuckDB's own default is 80 % of RAM): DuckDB keeps
+#: table blocks it has read cached up to its limit, so without one a pass over a large archive
+#: grows the process to most of the machine's memory. mocapdb's own work runs a batch of motions
+#: at a time (mocapdb.storage.motions.BATCH_FRAMES) beside it; beyond the limit DuckDB spills
+#: to its temp directory (``<database>.tmp``). Override per connection (``memory_limit=``) or with
+#: the environment variable MOCAPDB_MEMORY_LIMIT, or later with ``SET memory_limit``.
+DEFAULT_MEMORY_LIMIT = "512MB"
+MEMORY_LIMIT_ENV = "MOCAPDB_MEMORY_LIMIT"
+
+
+def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None) -> duckdb.DuckDBPyConnection:
     """Open (or create) a DuckDB database with the mocapdb schema, without the SQL functions.
 
     Parameters
@@ -46,6 +57,10 @@ def open_database(path=":memory:", *, read_only: bool = False) -> duckdb.DuckDBP
         ``":memory:"`` gives a throw-away database.
     read_only : bool, keyword-only
         Open the file read-only (it must exist; nothing is created).
+    memory_limit : str, optional, keyword-only
+        DuckDB's memory limit (``"512MB"``, ``"4GB"``); default
+        ``$MOCAPDB_MEMORY_LIMIT`` or :data:`DEFAULT_MEMORY_LIMIT`. It applies to
+        the whole database instance (every connection to the file in this process).
 
     Raises
     ------
@@ -67,12 +82,49 @@ def open_database(path=":memory:", *, read_only: bool = False) -> duckdb.DuckDBP
             f"{path} is in use by another process (PID {m['pid']}, {m['program']}); DuckDB allows one "
             "writer at a time: wait for it to finish or stop it") from None
     try:
+        limit = memory_limit or os.environ.get(MEMORY_LIMIT_ENV) or DEFAULT_MEMORY_LIMIT
+        try:
+            con.execute(statement("settings.sql", "memory_limit"), {"memory_limit": str(limit)})
+        except duckdb.Error as exc:
+            raise SchemaError(f"memory_limit: {limit!r} is not a memory size such as 512MB or 4GB "
+                              f"({str(exc).splitlines()[0]})") from None
+        if is_attached(con):
+            # views over a ray-annotate archive (mocapdb.storage.attached): keep the Parquet footers read
+            con.execute(statement("attached.sql", "settings"))
         if not read_only:
             create_schema(con)
     except BaseException:
         con.close()
         raise
     return con
+
+
+def is_attached(con) -> bool:
+    """Whether the database's motions, features and annotations are views over an archive
+    (:mod:`mocapdb.storage.attached`)."""
+    return con.execute(statement("attached.sql", "is_attached")).fetchall()[0][0]
+
+
+def attached_archive(con):
+    """The archive folder a database is attached to (:mod:`mocapdb.storage.attached`), or None."""
+    if not is_attached(con):
+        return None
+    rows = con.execute(statement("attached.sql", "archive_root")).fetchall()
+    return rows[0][0] if rows else None
+
+
+def require_own_tables(con, what: str) -> None:
+    """Raise a clear error when ``con`` is attached to an archive and ``what`` would write its tables.
+
+    Raises
+    ------
+    SchemaError
+    """
+    root = attached_archive(con)
+    if root is not None:
+        raise SchemaError(f"{what}: this database is attached to the archive {root} (its motions, features, "
+                          "annotations and keyframe index are read-only views of the archive's Parquet); use a "
+                          "database of its own (import-features loads the archive into one)")
 
 
 def create_schema(con) -> None:
@@ -83,6 +135,9 @@ def create_schema(con) -> None:
     Shipped models installed earlier are refreshed when the package's differ.
     """
     new = not con.execute(statement("motions.sql", "schema_exists")).fetchall()[0][0]
+    if is_attached(con):  # its tables are views over an archive; the models are its own
+        install_shipped_models(con)
+        return
     with transaction(con):
         for name in SCHEMA_FILES:
             con.execute(sql_text(name))
@@ -92,4 +147,5 @@ def create_schema(con) -> None:
     install_shipped_models(con)
 
 
-__all__ = ["open_database", "create_schema", "DatabaseLockedError", "SCHEMA_FILES"]
+__all__ = ["open_database", "create_schema", "is_attached", "attached_archive", "require_own_tables", "DatabaseLockedError", "SCHEMA_FILES", "DEFAULT_MEMORY_LIMIT",
+           "MEMORY_LIMIT_ENV"]

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 
+import duckdb
+
 
 @contextmanager
 def transaction(con):
@@ -24,14 +26,28 @@ def transaction(con):
 
 @contextmanager
 def registered(con, **tables):
-    """Make Arrow tables visible to SQL under the given names for the ``with`` block."""
+    """Make Arrow tables visible to SQL under the given names for the ``with`` block.
+
+    When the block fails inside a transaction, DuckDB has aborted that
+    transaction and refuses every further statement, unregistering included
+    ("Current transaction is aborted"): that refusal must not replace the
+    block's own error, which names the cause (a truncated Parquet file, a
+    constraint). The registrations belong to the aborted transaction and go
+    with its rollback (:func:`transaction` rolls back on the way out).
+    """
     for name, table in tables.items():
         con.register(name, table)
     try:
         yield con
-    finally:
+    except BaseException:
         for name in tables:
-            con.unregister(name)
+            try:
+                con.unregister(name)
+            except duckdb.TransactionException:
+                pass  # the aborted transaction's rollback drops the view
+        raise
+    for name in tables:
+        con.unregister(name)
 
 
 __all__ = ["transaction", "registered"]
