@@ -119,7 +119,8 @@ def expand_sources(sources, *, unsupported=None) -> list[Path]:
             paths.extend(hits)
         else:
             paths.append(Path(s))
-    files = list(dict.fromkeys(p.resolve() for p in motion_files(paths, unsupported=unsupported)))
+    # absolute, symlinks kept: the paths `ingest` stores for the same files
+    files = list(dict.fromkeys(Path(os.path.abspath(p)) for p in motion_files(paths, unsupported=unsupported)))
     if not files:
         raise ParameterError(f"sources: no motion files ({', '.join(MOTION_SUFFIXES)}) in {[str(s) for s in sources]}")
     return files
@@ -271,7 +272,7 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     report = RayReport()
     files = expand_sources(sources, unsupported=report.unsupported)
     maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
-    asf = None if asf is None else str(Path(asf).resolve())  # workers have their own working directory
+    asf = None if asf is None else os.path.abspath(asf)  # workers have their own working directory
     the_model = _model(model, database)
     schemas = {**table_schemas(), "errors": ERRORS_SCHEMA}
     out = prepare_output(out, overwrite=overwrite)

@@ -1,7 +1,6 @@
 """Reading motions back from the database: ids, metadata and packed feature words."""
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from dataclasses import dataclass, replace
@@ -11,6 +10,7 @@ import pyarrow as pa
 
 from mocapdb.errors import ParameterError, SchemaError, shorten
 from mocapdb.readers import READER_OPTIONS, read_motion
+from mocapdb.readers.sources import is_file, sha256
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
@@ -334,7 +334,7 @@ def source_motion(con, motion_id):
         raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
     path, skeleton, options = rows[0]
     for f in (path, skeleton):
-        if f and os.path.isabs(f) and not os.path.exists(f):
+        if f and os.path.isabs(f) and not is_file(f):  # a file, or a member of a zip archive
             raise SchemaError(f"motion {motion_id}: {f} is gone; if the files moved, repoint the database: "
                               "mocapdb relocate OLD_FOLDER NEW_FOLDER")
     # only the reader's own options: notes and source frames stored beside them only inform
@@ -387,11 +387,6 @@ def motions_to_delete(con, motions, *, all_named=False):
     return [found[k] for k in sorted(found)], absent
 
 
-def _sha256(path) -> str:
-    with open(path, "rb") as fh:
-        return hashlib.file_digest(fh, "sha256").hexdigest()
-
-
 def _moved(path, old, new):
     """``path`` with the folder ``old`` replaced by ``new`` (whole path components), or None."""
     if path is None:
@@ -434,9 +429,9 @@ def relocate_sources(con, old_prefix, new_prefix):
         for path, digest in ((target[0], sha), (target[1], skel_sha)):
             if path is None or digest is None:
                 continue
-            if not os.path.isfile(path):
+            if not is_file(path):
                 problem = f"{path} does not exist"
-            elif _sha256(path) != digest:
+            elif sha256(path) != digest:  # the digest ingest stored: of the bytes, decompressed
                 problem = f"{path} has other bytes than the file ingested"
             if problem:
                 break
