@@ -22,7 +22,7 @@ import pyarrow as pa
 from duckdb import sqltypes as T
 
 from mocapdb.annotation import segment_table
-from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.errors import ParameterError, SchemaError, check_nonnegative
 from mocapdb.features import N_FEATURES
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins
 from mocapdb.storage.annotations import annotate_motions
@@ -129,11 +129,6 @@ def _list_array(parts, n_rows, nulls, values_type):
     return pa.ListArray.from_arrays(pa.array(offsets), values, mask=pa.array(np.asarray(nulls, bool)))
 
 
-def _check_tau(tau):
-    if tau is not None and not (np.isfinite(tau) and tau >= 0):
-        raise ParameterError(f"tau must be a non-negative number or NULL (each class's τ), got {tau!r}")
-
-
 def make_udfs(cache):
     """The UDFs of one connection, bound to its cache."""
 
@@ -144,7 +139,7 @@ def make_udfs(cache):
         for (name, fp, t, kf, version), rows in _groups(model_name, fingerprint, tau, keyframes,
                                                        index_version).items():
             key, model = cache.model(name, fp)
-            _check_tau(t)
+            check_nonnegative(t, "tau", none="each class's τ")
             per_motion = {}
             for docs, segs in _annotated(cache, key, model, motion[rows[known[rows]]], tau=t, keyframes=kf,
                                          index_version=version):

@@ -1,4 +1,5 @@
 """Exceptions raised by mocapdb. Every error derives from :class:`MocapdbError`."""
+import math
 import re
 
 #: a message's words longer than this are cut (a name can be megabytes long)
@@ -80,5 +81,54 @@ class SchemaError(MocapdbError):
     """The database lacks an object (table, motion, model, class) that a call needs."""
 
 
-__all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError", "shorten", "clip_message",
-           "escape_control"]
+class PartialAnnotationError(MocapdbError):
+    """Some motions could not be annotated; the others were (and, when asked, stored).
+
+    Attributes
+    ----------
+    failed : list of (motion_id, name, reason)
+    table : pyarrow.Table
+        The segments of the motions that were annotated.
+    """
+
+    def __init__(self, failed, table, n_motions, stored):
+        self.failed, self.table = list(failed), table
+        done = n_motions - len(self.failed)
+        more = f" (and {len(self.failed) - 1} more)" if len(self.failed) > 1 else ""
+        super().__init__(f"{len(self.failed)} of {n_motions} motions not annotated, the other {done} "
+                         f"{'annotated and stored' if stored else 'annotated'}: {self.failed[0][2]}{more}")
+
+
+def check_nonnegative(value, name, *, none="") -> float | None:
+    """``value`` as a non-negative finite float: the one check of τ, margins and the like.
+
+    Parameters
+    ----------
+    value
+        A number (not a bool); None only when ``none`` says what None means.
+    name : str
+        The parameter, for the message.
+    none : str
+        What None stands for (e.g. "each class's τ"); empty: None is refused.
+
+    Raises
+    ------
+    ParameterError
+        "NAME must be a non-negative number[ or None (...)], got VALUE".
+    """
+    if value is None and none:
+        return None
+    if (isinstance(value, bool) or not isinstance(value, (int, float)) and not _is_numpy_number(value)
+            or not math.isfinite(value) or value < 0):
+        also = f" or None ({none})" if none else ""
+        raise ParameterError(f"{name} must be a non-negative number{also}, got {value!r}")
+    return float(value)
+
+
+def _is_numpy_number(value) -> bool:
+    # errors is the bottom layer: numpy scalars are recognised without importing numpy
+    return type(value).__module__ == "numpy" and hasattr(value, "dtype") and value.dtype.kind in "iuf"
+
+
+__all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError", "PartialAnnotationError",
+           "check_nonnegative", "shorten", "clip_message", "escape_control"]

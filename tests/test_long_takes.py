@@ -15,7 +15,7 @@ from mocapdb import api
 from mocapdb.cli import main
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
-from mocapdb.storage.annotations import PartialAnnotationError
+from mocapdb.errors import PartialAnnotationError
 from mocapdb.storage.ingest import store_words
 
 from conftest import DATA

@@ -71,7 +71,7 @@ def test_public_functions_have_docstrings(path):
     tree = ast.parse(path.read_text(encoding="utf-8"))
     missing = [n.name for n in tree.body
                if isinstance(n, (ast.FunctionDef, ast.ClassDef)) and not n.name.startswith("_")
-               and ast.get_docstring(n) is None and not (path.name == "cli.py")]
+               and ast.get_docstring(n) is None and "cli" not in path.relative_to(REPO).parts]
     assert not missing, f"{path.name}: no docstring for {missing}"
 
 
@@ -94,6 +94,39 @@ def test_imports_follow_the_pipeline(path):
         if other != own:
             private = [n for n in names if n.startswith("_")]
             assert not private, f"{mod}:{line} imports private names {private} from another sub-package"
+
+
+@pytest.mark.parametrize("path", [p for p in LIBRARY if "cli" in p.relative_to(REPO).parts],
+                         ids=lambda p: str(p.relative_to(REPO)))
+def test_the_cli_imports_only_the_api_and_the_errors(path):
+    """The command line is a skin over mocapdb.api (sqlite-utils style): from the library it
+    imports only mocapdb.api, mocapdb.errors and its own modules."""
+    for line, target, _ in _imports(path):
+        if target.startswith("mocapdb"):
+            assert target.split(".")[:2] in (["mocapdb", "api"], ["mocapdb", "errors"], ["mocapdb", "cli"]), \
+                f"{_module(path)}:{line} imports {target}; the CLI calls mocapdb.api"
+
+
+_SQL_FSTRING = re.compile(r"\.(execute|sql|executemany)\(\s*f[\"']")
+
+
+@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
+def test_sql_lives_in_sql_files(path):
+    """SQL text is in sql/*.sql (named statements); no statement is built with an f-string."""
+    text = path.read_text(encoding="utf-8")
+    lines = [text[:m.start()].count("\n") + 1 for m in _SQL_FSTRING.finditer(text)]
+    assert not lines, f"{path.relative_to(REPO)}: SQL built with an f-string at lines {lines}; put it in sql/*.sql"
+
+
+def test_the_api_exports_exactly_the_commands():
+    """api.__all__ is the commands: each is a CLI command of the same name (dashes for
+    underscores), and every command but sql is in it."""
+    import mocapdb.api as api
+    from mocapdb.cli import main
+
+    commands = {c.replace("-", "_") for c in main.commands} - {"sql"}
+    assert set(api.__all__) == commands | {"connect"}
+    assert all(callable(getattr(api, name)) for name in api.__all__)
 
 
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))

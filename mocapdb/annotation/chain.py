@@ -21,7 +21,7 @@ import numpy as np
 
 from mocapdb.annotation.chain_kernels import (_count_candidates_kernel, _extract_hits_kernel, _label_scatter_kernel,
                                               _merge_kernel, _scatter_kernel, _segments_kernel, _sort_by_key)
-from mocapdb.errors import ParameterError
+from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.annotation.model import DEFAULT_TAU, Model
 from mocapdb.annotation.postprocess import (apply_margin, drop_short_segments, drop_unwon_segments, label_min_frames,
                                            label_min_won)
@@ -51,13 +51,6 @@ BATCH_CELLS = 1 << 21
 
 # ---------------------------------------------------------------------------
 # public steps
-
-
-def _check_tau(tau, name="tau"):
-    if (isinstance(tau, bool) or not isinstance(tau, (int, float, np.floating, np.integer))
-            or not np.isfinite(tau) or tau < 0):
-        raise ParameterError(f"{name} must be a non-negative finite number, got {tau!r}")
-    return float(tau)
 
 
 def _check_limit(match_num_max):
@@ -149,7 +142,7 @@ def extract_hits(delta, starts, *, tau=DEFAULT_TAU, match_num_max=MATCH_NUM_MAX)
     limit = _check_limit(match_num_max)
     cd, hs, he, hc, cap_off, n_hits = _run_hits(
         d, s, np.array([0, d.size], np.int64), np.zeros(1, np.int64),
-        np.array([_check_tau(tau)]), limit)
+        np.array([check_nonnegative(tau, "tau")]), limit)
     if n_hits[0] < 0:
         raise ParameterError(
             f"match_num_max={match_num_max} hits reached (the toolbox stops with an error "
@@ -476,11 +469,8 @@ def _filters(model, min_length, min_won, margin):
             raise ParameterError(f"{name} must be True, False or None (the model's), got {v!r}")
     lengths = None if min_length is False else label_min_frames(model)
     won = None if min_won is False else label_min_won(model)
-    margin = model.margin if margin is None else margin
-    if isinstance(margin, bool) or not isinstance(margin, (int, float, np.floating)) or not (
-            np.isfinite(margin) and margin >= 0):
-        raise ParameterError(f"margin must be a non-negative number or None (the model's), got {margin!r}")
-    return lengths, won, float(margin)
+    margin = check_nonnegative(margin, "margin", none="the model's")
+    return lengths, won, model.margin if margin is None else margin
 
 
 def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, steps, rule, keep_deltas, keep_hits,
@@ -492,7 +482,7 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
     w = _as_words(words)
     bounds = _doc_bounds(doc_lengths, w.shape[0])
     limit = _check_limit(match_num_max)
-    taus = [np.array([_check_tau(c.tau if tau is None else tau) for c in model.classes]) for tau in taus]
+    taus = [np.array([check_nonnegative(c.tau if tau is None else tau, "tau") for c in model.classes]) for tau in taus]
     tc, ta, tb = _preselection_tasks(preselection, model, bounds)
     tasks = (tc, ta, tb, np.searchsorted(bounds, ta, side="right") - 1)
     labels = model.labels
@@ -624,7 +614,7 @@ def annotate_sweep(words, model, taus, *, doc_lengths=None, preselection=None, m
     """
     taus = [float(t) for t in np.atleast_1d(np.asarray(taus, dtype=np.float64))]
     for t in taus:
-        _check_tau(t, "taus")
+        check_nonnegative(t, "taus")
     return [a.segments for a in _chain(words, model, taus, doc_lengths=doc_lengths, preselection=preselection,
                                        match_num_max=match_num_max, steps=steps, rule=rule, keep_deltas=False,
                                        keep_hits=False, min_length=min_length, min_won=min_won,

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from mocapdb.errors import ParameterError
+from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.templates import MotionTemplate, QuantizedTemplate
 
 __all__ = ["ClassModel", "Model", "DEFAULT_DELTA", "DEFAULT_TAU"]
@@ -76,9 +76,7 @@ class ClassModel:
             raise ParameterError(
                 f"quantized of class {self.name!r} must be a QuantizedTemplate, "
                 f"got {type(self.quantized).__name__}")
-        if not np.isfinite(self.tau) or self.tau < 0:
-            raise ParameterError(
-                f"tau of class {self.name!r} must be a non-negative number, got {self.tau!r}")
+        check_nonnegative(self.tau, f"tau of class {self.name!r}")
         if (isinstance(self.min_frames, bool) or not isinstance(self.min_frames, (int, np.integer))
                 or self.min_frames < 0):
             raise ParameterError(
@@ -127,9 +125,7 @@ class Model:
             missing = sorted({c.label for c in classes} - set(labels))
             if missing:
                 raise ParameterError(f"labels lacks the class labels {missing}; add them")
-        if (isinstance(self.margin, bool) or not isinstance(self.margin, (int, float, np.floating))
-                or not np.isfinite(self.margin) or self.margin < 0):
-            raise ParameterError(f"margin must be a non-negative number, got {self.margin!r}")
+        check_nonnegative(self.margin, "margin")
         object.__setattr__(self, "classes", classes)
         object.__setattr__(self, "labels", labels)
         object.__setattr__(self, "margin", float(self.margin))

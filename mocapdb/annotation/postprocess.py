@@ -25,7 +25,7 @@ All run inside :func:`mocapdb.annotation.annotate` (``min_length``,
 import numpy as np
 
 from mocapdb.annotation.chain_kernels import _margin_kernel, _won_kernel
-from mocapdb.errors import ParameterError
+from mocapdb.errors import ParameterError, check_nonnegative
 
 __all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
            "apply_margin", "WON_FRACTION"]
@@ -145,8 +145,7 @@ def apply_margin(label_cd, margin):
     -------
     label_cd
     """
-    if not (np.isfinite(margin) and margin >= 0):
-        raise ParameterError(f"margin must be a non-negative number, got {margin!r}")
+    margin = check_nonnegative(margin, "margin")
     if margin > 0:
         _margin_kernel(label_cd, float(margin))
     return label_cd

@@ -28,14 +28,13 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from mocapdb.distributed.layout import ERRORS_SCHEMA, finish_output, prepare_output, write_part
 from mocapdb.distributed.worker import MotionWorker
-from mocapdb.errors import MocapdbError, ParameterError
+from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
 from mocapdb.storage.ingest import MOTION_SUFFIXES, IngestReport, motion_files, reader_maps
 from mocapdb.storage.models import DEFAULT_MODEL, load_model
 from mocapdb.storage.parquet import table_schemas, write_manifest
@@ -200,8 +199,7 @@ def _model(name, database):
 
 
 def _check(tau, num_cpus, batch_files, bucket_motions):
-    if tau is not None and not (np.isfinite(tau) and tau >= 0):
-        raise ParameterError(f"tau must be a non-negative number, got {tau!r}")
+    check_nonnegative(tau, "tau", none="each class's τ")
     if num_cpus is not None and not (isinstance(num_cpus, int) and num_cpus >= 1):
         raise ParameterError(f"num_cpus must be a positive integer (--num-cpus), got {num_cpus!r}")
     for name, v in (("batch_files", batch_files), ("bucket_motions", bucket_motions)):

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mocapdb.errors import ParameterError
+from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.retrieval.kernels import _select_hits_kernel
 
 #: one hit: ``task`` indexes the tasks of the call (or a caller's documents), frames 0-based inclusive
@@ -27,14 +27,6 @@ def check_limit(limit) -> int:
     if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
         raise ParameterError(f"limit must be a positive integer, got {limit!r}")
     return int(limit)
-
-
-def check_tau(tau) -> float:
-    """``tau`` as a non-negative finite float (ParameterError otherwise)."""
-    if (isinstance(tau, bool) or not isinstance(tau, (int, float, np.integer, np.floating))
-            or not np.isfinite(tau) or tau < 0):
-        raise ParameterError(f"tau must be a non-negative finite number, got {tau!r}")
-    return float(tau)
 
 
 def select_hits(delta, starts, offsets, task_first, *, tau, limit, taken=None, minima=False):
@@ -78,7 +70,7 @@ def select_hits(delta, starts, offsets, task_first, *, tau, limit, taken=None, m
                              "(n_tasks,) must agree")
     if np.isnan(d).any():
         raise ParameterError("delta must not contain NaN (use +inf for 'no path')")
-    tau = check_tau(tau)
+    tau = check_nonnegative(tau, "tau")
     limit = check_limit(limit)
     n_tasks = off.size - 1
     ok = d <= tau
@@ -129,4 +121,4 @@ def best_hits(parts, limit, *, key=("cost", "task", "start")):
     return hits[order[:check_limit(limit)]]
 
 
-__all__ = ["HIT_DTYPE", "select_hits", "best_hits", "check_limit", "check_tau"]
+__all__ = ["HIT_DTYPE", "select_hits", "best_hits", "check_limit"]

@@ -35,10 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapdb.errors import ParameterError
+from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.features import as_doc_lengths
 from mocapdb.keyframes import Index, Segments, annot_margins, keyframe_search
-from mocapdb.retrieval.hits import best_hits, check_limit, check_tau, select_hits
+from mocapdb.retrieval.hits import best_hits, check_limit, select_hits
 from mocapdb.retrieval.keyframes import query_keyframes
 from mocapdb.retrieval.queries import clip_template, examples_template
 from mocapdb.retrieval.weights import chance_cost, feature_frequencies, information_weights
@@ -144,7 +144,7 @@ def template_query(template: QuantizedTemplate, sample, *, tau=None, keyframes=T
         raise ParameterError("the archive sample must be a non-empty 1-D array of words (an empty archive?)")
     p_on = feature_frequencies(sample)
     chance = chance_cost(template, p_on)
-    tau = TAU_FACTOR * chance if tau is None else check_tau(tau)
+    tau = TAU_FACTOR * chance if tau is None else check_nonnegative(tau, "tau")
     levels = query_keyframes(template, sample) if keyframes else ()
     return RetrievalQuery(template, information_weights(template, p_on), tau, chance, levels)
 

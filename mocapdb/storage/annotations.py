@@ -146,24 +146,6 @@ def _one_by_one(cache, key, model, docs, index_version, options):
     return docs.take(ok), segs, failed
 
 
-class PartialAnnotationError(MocapdbError):
-    """Some motions could not be annotated; the others were (and, when asked, stored).
-
-    Attributes
-    ----------
-    failed : list of (motion_id, name, reason)
-    table : pyarrow.Table
-        The segments of the motions that were annotated.
-    """
-
-    def __init__(self, failed, table, n_motions, stored):
-        self.failed, self.table = list(failed), table
-        done = n_motions - len(self.failed)
-        more = f" (and {len(self.failed) - 1} more)" if len(self.failed) > 1 else ""
-        super().__init__(f"{len(self.failed)} of {n_motions} motions not annotated, the other {done} "
-                         f"{'annotated and stored' if stored else 'annotated'}: {self.failed[0][2]}{more}")
-
-
 def store_annotations(con, table, motion_ids, *, model, tau, keyframes) -> None:
     """Replace the stored annotations of ``motion_ids`` under ``model`` (one transaction).
 
@@ -249,6 +231,6 @@ def export_segments(con, table, out, *, format, motion_ids):
     return written
 
 
-__all__ = ["annotate_documents", "annotate_motions", "PartialAnnotationError", "stored_preselection",
+__all__ = ["annotate_documents", "annotate_motions", "stored_preselection",
            "store_annotations", "motion_sources", "export_segments",
            "EXPORT_FORMATS", "PROGRESS_FRAMES"]

@@ -430,7 +430,8 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         toolbox's formulas, the reference; :func:`mocapdb.readers.read_c3d`).
         Stored in ``motions.reader_options``.
     progress : callable, optional, keyword-only
-        Called as ``progress(path, n_source_frames)`` once per file.
+        Called as ``progress(n_files_done, n_files, path)`` once per file (the
+        ``progress(n_done, n_total, …)`` of every long command).
     workers : int, keyword-only
         Threads that read and compute features (the kernels release the GIL).
     replace : bool, keyword-only
@@ -453,6 +454,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     """
     report = IngestReport()
     files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable)
+    tick = _ticker(progress, len(files))
     maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules)
     stored = _stored_keys(con)
     todo = []
@@ -464,7 +466,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             prep = prepare_file(path, asf=asf, maps=maps)
         except MocapdbError as exc:
             report.failed.append((str(path), str(exc)))
-            _tick(progress, path, 0)
+            tick(path)
             continue
         key = (prep.sha256, prep.skeleton_sha256)
         if key in stored:
@@ -482,7 +484,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         if mid not in broken and not replace:
             report.skipped.append((str(path), f"already ingested as motion {mid} (replace=True, "
                                               "ingest --replace, reads it again)"))
-            _tick(progress, path, 0)
+            tick(path)
         elif key in first_of:
             duplicates.append((path, key))
         else:
@@ -512,7 +514,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
                     report.replaced.append((str(p.path), p.replaces))
                 report.source_frames += p.motion.n_frames
                 report.notes.extend((str(p.path), note) for note in p.notes)
-            _tick(progress, p.path, p.motion.n_frames)
+            tick(p.path)
             p.motion = p.words = None  # free memory early on big archives
         batch.clear()
 
@@ -520,7 +522,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         for prep in pool.map(compute_motion, todo):
             if prep.error is not None:
                 report.failed.append((str(prep.path), prep.error))
-                _tick(progress, prep.path, 0)
+                tick(prep.path)
                 continue
             batch.append(prep)
             if len(batch) >= BATCH_FILES or sum(p.motion.n_frames for p in batch) >= BATCH_FRAMES:
@@ -535,7 +537,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             report.failed.append((str(path), f"{path}: same bytes as {first}, which failed: {failed[first]}"))
         else:
             report.skipped.append((str(path), f"same bytes as {first} of this ingest"))
-        _tick(progress, path, 0)
+        tick(path)
     return report
 
 
@@ -558,9 +560,16 @@ def _reader_options(path: Path, maps: dict) -> str | None:
     return json.dumps(opts, sort_keys=True) if opts else None
 
 
-def _tick(progress, path, n):
-    if progress is not None:
-        progress(path, n)
+def _ticker(progress, total):
+    """``tick(path)``: one more file of ``total`` done, told to ``progress``."""
+    done = 0
+
+    def tick(path):
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total, path)
+    return tick
 
 
 def delete_motions(con, motion_ids) -> int:

@@ -226,11 +226,11 @@ def _write(con, tables: dict) -> None:
     """Replace the rows of the model in ``tables`` (inside the caller's transaction)."""
     name = tables["models"].column("model")[0].as_py()
     for table in MODEL_TABLES:
-        con.execute(f"DELETE FROM {table} WHERE model = $model", {"model": name})
+        con.execute(_sql(f"delete_{table}"), {"model": name})
     for table in MODEL_TABLES:
         if table in tables and tables[table].num_rows:
             with registered(con, mocap_new_rows=tables[table]):
-                con.execute(f"INSERT INTO {table} BY NAME SELECT * FROM mocap_new_rows")
+                con.execute(_sql(f"insert_{table}"))
 
 
 def save_model(con, model: Model, *, replace=False, **metadata) -> str:
@@ -262,7 +262,7 @@ def save_model(con, model: Model, *, replace=False, **metadata) -> str:
 
 def read_model_tables(con, name: str) -> dict:
     """The rows of a stored model as Arrow tables (the input of :func:`model_from_tables`)."""
-    return {t: con.sql(f"SELECT * FROM {t} WHERE model = $model", params={"model": name}).to_arrow_table()
+    return {t: con.sql(_sql(f"rows_{t}"), params={"model": name}).to_arrow_table()
             for t in MODEL_TABLES}
 
 

@@ -73,6 +73,14 @@ class Documents:
         return Documents(self.motion_ids[k], [self.names[i] for i in k], self.fps[k], self.lengths[k], words,
                          self.source_fps[k], self.n_source_frames[k])
 
+    def native_rates(self) -> dict:
+        """Document name → its source frame rate (label files in seconds land on native frames)."""
+        return dict(zip(self.names, self.source_fps.tolist()))
+
+    def native_lengths(self) -> dict:
+        """Document name → its number of source frames (a label beyond it is an error)."""
+        return dict(zip(self.names, self.n_source_frames.tolist()))
+
     def words_of(self, name) -> np.ndarray:
         """The words of the motion named ``name`` (the first of that name)."""
         k = self.names.index(name)

@@ -1,0 +1,76 @@
+"""The options several commands share (one definition each, one help text)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+
+FORMATS = ("table", "csv", "json")
+
+
+def model_option(help="Model name (default: the shipped default model)."):
+    return click.option("--model", default="default", show_default=True, help=help)
+
+
+tau_option = click.option("--tau", type=float,
+                          help="Hit threshold τ for every class (default: each class's; paper 0.13).")
+
+
+keyframes_option = click.option("--keyframes/--no-keyframes", default=None,
+                                help="Keyframe preselection (default: on when the model has keyframe "
+                                     "queries; --no-keyframes is the toolbox's reference mode).")
+
+
+silent_option = click.option("--silent", is_flag=True, help="No progress bar.")
+
+
+min_length_option = click.option("--min-length/--no-min-length", default=None,
+                                 help="Drop segments shorter than their label's minimum (default: on; models "
+                                      "without minimums, as the toolbox's, keep every segment).")
+
+
+min_won_option = click.option("--min-won/--no-min-won", default=None,
+                              help="Drop segments whose label is the best label on fewer than a third of its "
+                                   "minimum length (default: on; no effect on models without minimums).")
+
+
+margin_option = click.option("--margin", type=float,
+                             help="Leave frames unlabelled where the best label wins by less than this "
+                                  "(default: the model's margin, 0 for the shipped models = off, as the paper).")
+
+
+format_option = click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True)
+
+
+folder_option = click.option("--folder", type=click.Path(exists=True, file_okay=False, path_type=Path),
+                             help="Clips in the HDM05 cut layout: one folder per class (files read directly).")
+
+
+labels_option = click.option("--labels", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                             help="Label file document,label,start_frame,end_frame (native frames, 1-based) "
+                                  "or ELAN .eaf file cutting clips out of ingested documents.")
+
+
+truth_help = ("Ground truth: a CSV document,label,start_frame,end_frame[,fps] (native frames, 1-based, unless an fps "
+              "column gives their rate; `annotate --format csv` output reads back as it is) or an ELAN .eaf file "
+              "(each annotation's value is the label; the document is the linked media file's stem). Other "
+              "formats: `mocapdb convert-labels`.")
+
+
+map_option = click.option("--label-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                          help="CSV class,label renaming truth labels to model labels (e.g. walk -> move).")
+
+
+def reader_options(fn):
+    """``--asf``, ``--joint-map`` and ``--marker-map``: how files are read (ingest, ray-annotate)."""
+    fn = click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")(fn)
+    fn = click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      help="TOML/JSON file: canonical joint = the BVH joint (its origin), \"Joint/end\" (its End "
+                           "Site) or a list of joints (their mean); overrides the automatic mapping of every "
+                           "BVH file.")(fn)
+    return click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                        help="Skeleton for every AMC file (default: found by the dataset conventions: "
+                             "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")(fn)

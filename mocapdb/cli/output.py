@@ -1,0 +1,95 @@
+"""Printing results: tables, CSV and JSON rows, ingest reports, scores."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import click
+
+from mocapdb.errors import escape_control
+
+
+def write_rows(rows, columns, fmt, out=None):
+    """Print rows as an aligned table, CSV or JSON (to stdout or ``out``)."""
+    stream = io.StringIO()
+    if fmt == "csv":
+        w = csv.writer(stream, lineterminator="\n")
+        w.writerow(columns)
+        w.writerows(rows)
+    elif fmt == "json":
+        json.dump([dict(zip(columns, r)) for r in rows], stream, indent=1, default=_json_default)
+        stream.write("\n")
+    else:
+        cells = [[_cell(v) for v in r] for r in rows]
+        widths = [max([len(str(c))] + [len(r[i]) for r in cells]) for i, c in enumerate(columns)]
+        stream.write("  ".join(str(c).ljust(w) for c, w in zip(columns, widths)).rstrip() + "\n")
+        stream.write("  ".join("-" * w for w in widths) + "\n")
+        for r in cells:
+            stream.write("  ".join(c.rjust(w) if _numeric(c) else c.ljust(w) for c, w in zip(r, widths)).rstrip()
+                         + "\n")
+    if out is None:
+        click.echo(stream.getvalue(), nl=False)
+    else:
+        Path(out).write_text(stream.getvalue(), encoding="utf-8")
+
+
+def _cell(v):
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return "NULL" if v is None else str(v)
+
+
+def _numeric(s):
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return "_" not in s  # float() accepts "86_09"
+
+
+def _json_default(v):
+    if hasattr(v, "isoformat"):
+        return v.isoformat()
+    if hasattr(v, "tolist"):
+        return v.tolist()
+    return str(v)
+
+
+def echo_report(ctx, report, *, all_must_succeed=True):
+    """The files a run did not store, a line each, what the readers noted about the stored ones,
+    then its summary; exit 1 when any file failed (``all_must_succeed``), else when no file went in."""
+    lines = [f"not a motion file {path}: {reason}" for path, reason in report.unsupported]
+    lines += [f"unreadable {path}: {reason}" for path, reason in getattr(report, "unreadable", ())]
+    lines += [f"skipped {path}: {reason}" for path, reason in report.skipped]
+    lines += [f"repaired {path}: {reason}" for path, reason in getattr(report, "repaired", ())]
+    lines += [f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}"
+              for path, reason in report.failed]
+    lines += [f"replaced motion {old} by {path}" for path, old in getattr(report, "replaced", ())]
+    lines += [f"note    {path}: {note}" for path, note in getattr(report, "notes", ())]
+    for line in lines:
+        # control characters of a file name or a binary file's bytes are never sent raw
+        click.echo(escape_control(line), err=True)
+    click.echo(f"{report.summary()} ({report.source_frames} source frames)")
+    if report.failed and (all_must_succeed or not (report.ingested or report.skipped)):
+        ctx.exit(1)
+
+
+def frame_rates(table):
+    """The rate of each segment's frames (30 Hz feature frames): its frames over its seconds."""
+    return [(e - s + 1) / (b - a) for s, e, a, b in zip(*(table.column(c).to_pylist() for c in
+                                                       ("start_frame", "end_frame", "start_s", "end_s")))]
+
+
+def print_scores(rows):
+    """rows: (setting, Scores) pairs → a table of the paper's six measures."""
+    cols = ["", "P1", "R1", "F1", "P2", "R2", "F2", "frames M/A", "segments M/A"]
+    out = [[str(name), *(f"{getattr(sc, k):.3f}" for k in ("p1", "r1", "f1", "p2", "r2", "f2")),
+            f"{sc.truth_frames}/{sc.auto_frames}", f"{sc.truth_segments}/{sc.auto_segments}"]
+           for name, sc in rows]
+    write_rows(out, cols, "table")
+    dropped = rows[0][1].dropped_truth if rows else {}
+    if dropped:
+        click.echo("truth labels outside the scored vocabulary (not scored): "
+                   + ", ".join(f"{k} ({v})" for k, v in sorted(dropped.items())))
