@@ -55,7 +55,7 @@ def query_stretch(con, motion_id, start_frame=None, end_frame=None, *, start=Non
     if not rows:
         raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
     _, name, fps, n = rows[0]
-    first, last = check_range(f"motion {name!r}", n, fps, start_frame, end_frame, start=start, end=end)
+    first, last = check_range(f"motion {motion_id} ({name!r})", n, fps, start_frame, end_frame, start=start, end=end)
     words = np.asarray(con.execute(_sql("motion_words"), {"id": int(motion_id)}).fetchnumpy()["bits"], np.uint64)
     return int(motion_id), first, last, words[first:last + 1]
 
