@@ -119,7 +119,7 @@ def _sub_intervals_kernel(list_doc, list_seg, list_start, list_end, seg_start, s
     """Intervals of one single-part sub-keyframe in the documents ``docs[:n_alive]``.
 
     ``idx``/``lst_lo``/``lst_hi``/``total``: its matching words and their
-    lists (:func:`~mocapdb.keyframes.index._match_lists_kernel`) in a part with
+    lists (:func:`~mocapdb.keyframes.index_kernels._match_lists_kernel`) in a part with
     ``n_words`` words from ``word_lo`` and document row ``offsets``.
     Without ``filtered``, ``docs`` holds every document d0 <= d < d1; with
     it, ``alive`` flags exactly ``docs[:n_alive]`` and the other documents'

@@ -63,7 +63,7 @@ __all__ = ["read_c3d", "fit_bone_lengths", "SKELETON_EDGES", "MAX_GAP_S", "UNITS
 
 #: POINT:UNITS → millimetres per unit
 UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
-#: coordinates beyond this many millimetres (1000 km) are refused as absurd (READERS.md §4)
+#: coordinates beyond this many millimetres (1000 km) are absurd: read as missing samples (READERS.md §3.3)
 MAX_ABS_MM = 1e9
 
 #: the toolbox's skeleton tree for the bone-length fit, parents before children

@@ -20,7 +20,7 @@ label is read in three steps (:func:`landmark_of`):
 Each landmark belongs to a rigid segment (:data:`SEGMENT_OF`: pelvis,
 thorax, head, thigh, shank, foot, upper arm, forearm, hand); a marker lost
 for longer than the gap limit is rebuilt from the other markers of its
-segment (:mod:`~mocapdb.readers.c3d_gaps`).
+segment (:mod:`~mocapdb.readers.gaps`; READERS.md §3.1, §3.3).
 
 References
 ----------

@@ -12,7 +12,7 @@ Four sources of rules, tried per joint in this order:
 
    - pelvis (root) and hips from the ASIS pair with the PSIS pair, the
      sacrum or the lateral waist markers (a missing one of four is mirrored
-     by :mod:`~mocapdb.readers.c3d`); hip centres by Bell et al. (1990);
+     by :mod:`~mocapdb.readers.c3d`); hip centres by Bell et al. (1989);
    - knee and ankle: the midpoint of the lateral and medial epicondyles /
      malleoli, or the lateral marker moved medially by a fraction of the
      pelvis width; without malleoli the ankle follows the foot (heel, toes

@@ -1,12 +1,13 @@
 """Read any supported motion file into a :class:`~mocapdb.readers.motion.Motion`.
 
 :func:`read_motion` dispatches on the extension (``.amc`` with its ASF
-skeleton, ``.bvh``); :func:`find_skeleton` implements the dataset
-conventions for locating the ASF of an AMC file.
+skeleton, ``.bvh``, ``.c3d``; each also compressed or inside a zip archive,
+:mod:`~mocapdb.readers.sources`); :func:`find_skeleton` implements the
+dataset conventions for locating the ASF of an AMC file.
 
 References
 ----------
-DESIGN.md §1, §6; data/README.md (file conventions).
+DESIGN.md §1, §6; READERS.md §5, §7.
 """
 from __future__ import annotations
 

@@ -43,7 +43,7 @@ for its End Site, or a list of names whose mean it is) overrides any of it.
 Legs, arms and a head do not make a human: :func:`humanoid_problem` checks the
 mapped body's proportions and that it stands upright in its rest pose or in
 some of its frames (a dog's "arms" reach the floor, its trunk is longer than
-its legs).
+its legs; READERS.md §2.1).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""User mapping files: canonical joint → the file's own names (READERS.md §2, §3).
+"""User mapping files: canonical joint → the file's own names (READERS.md §6).
 
 A BVH joint map (``--joint-map FILE``) names, for a canonical joint, the BVH
 joint whose origin it is, or two joints whose midpoint it is; a C3D marker
