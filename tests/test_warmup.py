@@ -53,6 +53,9 @@ def test_the_sample_ships_with_the_package():
     assert names == ["86_09.amc.xz", "HDM_mm_01-02_03_120.c3d.xz", "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh.xz"]
     total = sum(p.stat().st_size for p in sample_files()[0].parent.iterdir())
     assert total < 2.5 * 2**20  # about 2 MB in all
+    # the credits and licence notices travel with the files (MIT asks for its notice in copies)
+    credits = (sample_files()[0].parent / "CREDITS.txt").read_text(encoding="utf-8")
+    assert all(n.split(".")[0] in credits for n in names) and "Permission is hereby granted" in credits
 
 
 def test_unknown_parts_are_refused():
