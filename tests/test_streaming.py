@@ -88,6 +88,37 @@ def test_sql_functions_read_a_batch_of_motions_at_a_time(db, monkeypatch):
     assert any(len(v) for v in whole.values()) and len(whole["keyframe_search"]) >= 20
 
 
+def test_a_pass_larger_than_the_index_cache_finds_its_first_batches_again(db, monkeypatch):
+    """The cache keeps the first batches of a pass (it evicts the batch used last): the second
+    pass over an archive larger than the cache reads only the batches that did not fit, and a
+    pass within the cache reads nothing."""
+    con = mocapdb.connect(db, read_only=True)
+    try:
+        cache = connection_cache(con)
+        cache.batch_frames = BATCH
+        query = QUERIES["keyframe_search"]
+        want = con.execute(query).fetchall()
+        sizes = [x.nbytes for x in cache._indexes.values()]
+        # room for the first two batches of a pass and one more
+        monkeypatch.setattr(cache_module, "INDEX_CACHE_BYTES", sum(sizes[:2]) + max(sizes))
+        cache._indexes.clear()
+        spy = Spy(monkeypatch)
+        assert con.execute(query).fetchall() == want
+        first = len(spy.index)
+        assert con.execute(query).fetchall() == want
+        second = len(spy.index) - first
+        monkeypatch.setattr(cache_module, "INDEX_CACHE_BYTES", 2**40)
+        assert con.execute(query).fetchall() == want  # fills the cache
+        before = len(spy.index)
+        assert con.execute(query).fetchall() == want
+        third = len(spy.index) - before
+    finally:
+        con.close()
+    assert len(sizes) > 5 and first == len(sizes)
+    assert second == first - 2  # the first two batches were kept for the next pass
+    assert third == 0
+
+
 def test_the_api_annotates_and_stores_a_batch_at_a_time(db, tmp_path, monkeypatch):
     import shutil
 

@@ -5,8 +5,8 @@ the same. The keyframe index is never held whole: an archive of any size is
 searched a batch of motions at a time, each batch's postings read from
 ``mocap_index.postings`` (:func:`mocapdb.storage.postings.load_index`), so
 memory follows the batch (:data:`mocapdb.storage.motions.BATCH_FRAMES`), not
-the archive. The last batches loaded stay while they fit in
-:data:`INDEX_CACHE_BYTES` and ``mocap_index.state.version`` stays the same
+the archive. The batches loaded stay while they fit in
+:data:`INDEX_CACHE_BYTES` (the first ones of a pass, when the archive is larger) and ``mocap_index.state.version`` stays the same
 (ingest, delete and import bump it in their transaction): on an archive of a
 few hours the whole index is one batch, loaded once per connection. The SQL
 functions pass the fingerprint and the version in, so a UDF queries its
@@ -38,8 +38,10 @@ NO_INDEX = (f"this database has no keyframe index ({INDEX_SCHEMA}.postings); bui
             "`mocapdb create-index` (mocapdb.api.create_index), or annotate without keyframes "
             "(--no-keyframes, keyframes := false)")
 
-#: index batches kept per connection (Index arrays); a batch of BATCH_FRAMES frames is about 30 MB
-INDEX_CACHE_BYTES = 64 * 2**20
+#: index batches kept per connection (Index arrays): a batch of BATCH_FRAMES frames is about 30 MB
+#: with every part (annotation), 13 MB with the ``full`` runs alone (query by example), so the
+#: runs of a 100 h archive stay in memory and a query by example reads no postings
+INDEX_CACHE_BYTES = 192 * 2**20
 
 
 class ConnectionCache:
@@ -58,7 +60,7 @@ class ConnectionCache:
         self._con = weakref.ref(con)
         self._lock = threading.Lock()
         self._models = {}                # name -> (fingerprint, Model)
-        self._indexes = OrderedDict()    # (version, parts, motion ids) -> Index, least recently used first
+        self._indexes = OrderedDict()    # (version, parts, motion ids) -> Index, in the order loaded
 
     def _cursor(self):
         con = self._con()
@@ -157,7 +159,6 @@ class ConnectionCache:
         with self._lock:
             hit = self._indexes.get(key)
             if hit is not None:
-                self._indexes.move_to_end(key)
                 return hit
             cur = self._cursor()
             try:
@@ -166,9 +167,14 @@ class ConnectionCache:
                 cur.close()
             if any(k[0] != version for k in self._indexes):  # the index changed: what is kept is stale
                 self._indexes.clear()
+            # Archive-wide passes read the batches in the same order every time. Evicting the least
+            # recently used batch would then miss on every batch of an archive larger than the cache;
+            # evicting the one loaded last keeps the first batches for the next pass (the classic
+            # policy for cyclic scans), so the part of the archive that fits is read once.
+            kept = sum(x.nbytes for x in self._indexes.values())
+            while self._indexes and kept + index.nbytes > INDEX_CACHE_BYTES:
+                kept -= self._indexes.popitem(last=True)[1].nbytes
             self._indexes[key] = index
-            while sum(x.nbytes for x in self._indexes.values()) > INDEX_CACHE_BYTES and len(self._indexes) > 1:
-                self._indexes.popitem(last=False)
             return index
 
     def preselection(self, key, model, motion_ids, lengths, *, version=UNKNOWN):
