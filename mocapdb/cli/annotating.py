@@ -7,20 +7,15 @@ import click
 
 import mocapdb.api as api
 from mocapdb.errors import PartialAnnotationError
-from mocapdb.cli.options import (FORMATS, keyframes_option, map_option, margin_option, min_length_option,
-                                 min_won_option, model_option, reader_options, silent_option, tau_option, truth_help)
+from mocapdb.cli.options import (FORMATS, annotation_options, keyframes_option, map_option, model_option,
+                                 reader_options, silent_option, tau_option, truth_help)
 from mocapdb.cli.group import command, open_db, progress_bar, bar_progress
 from mocapdb.cli.output import write_rows, echo_report, print_scores, frame_rates
 
 
 @command()
 @click.argument("motions", nargs=-1)
-@model_option()
-@tau_option
-@keyframes_option
-@min_length_option
-@min_won_option
-@margin_option
+@annotation_options
 @click.option("--format", "fmt", type=click.Choice(FORMATS + ("parquet", "eaf")), default="table",
               show_default=True, help="table/csv/json print (or write --out); parquet writes the segments to "
                                       "--out; eaf writes ELAN files (one tier per label, the source file as "
@@ -84,12 +79,7 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
 @map_option
 @click.option("--vocabulary", help="Comma-separated labels to score (default: the model's labels; with "
                                    "--pred: every truth label).")
-@model_option()
-@tau_option
-@keyframes_option
-@min_length_option
-@min_won_option
-@margin_option
+@annotation_options
 @click.option("--sweep-tau", help="START:STOP:STEP, e.g. 0.05:0.25:0.01 — P/R/F per τ (paper Fig. 8).")
 @click.option("--by-label", is_flag=True, help="Also score every label on its own.")
 @click.pass_context

@@ -74,3 +74,11 @@ def reader_options(fn):
     return click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                         help="Skeleton for every AMC file (default: found by the dataset conventions: "
                              "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")(fn)
+
+
+def annotation_options(fn):
+    """``--model``, ``--tau``, ``--keyframes``, ``--min-length``, ``--min-won`` and ``--margin``: how
+    motions are annotated (annotate, evaluate: one set of options, one help text)."""
+    for option in (margin_option, min_won_option, min_length_option, keyframes_option, tau_option, model_option()):
+        fn = option(fn)
+    return fn
