@@ -6,8 +6,8 @@ import pytest
 
 import mocapdb
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.models import (FROM_PACKAGE, MODEL_TABLES, load_model, model_fingerprint, model_version,
-                                    save_model)
+from mocapdb.storage.model_store import (FROM_PACKAGE, MODEL_TABLES, load_model, model_fingerprint,
+                                         model_version, save_model)
 from mocapdb.storage.sqltext import statement
 
 

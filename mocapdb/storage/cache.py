@@ -25,7 +25,7 @@ import numpy as np
 from mocapdb.annotation import index_parts, keyframe_preselection, model_index_parts, preselection_slices
 from mocapdb.errors import SchemaError
 from mocapdb.keyframes import keyframe_search
-from mocapdb.storage.models import load_model, model_fingerprint, model_version
+from mocapdb.storage.model_store import load_model, model_fingerprint, model_version
 from mocapdb.storage.motions import BATCH_FRAMES, frame_batches
 from mocapdb.storage.postings import index_version, load_index
 from mocapdb.storage.sqltext import INDEX_SCHEMA, statement
@@ -83,14 +83,14 @@ class ConnectionCache:
         name : str
         fingerprint : str or None
             As stored (None: not in the database); default: ask the database.
-            :func:`~mocapdb.storage.models.load_model` reads it (or the package's
+            :func:`~mocapdb.storage.model_store.load_model` reads it (or the package's
             copy of a shipped model the database lacks).
 
         Returns
         -------
         key : tuple
             (name, version) — identifies the parsed model (version: see
-            :func:`~mocapdb.storage.models.model_version`).
+            :func:`~mocapdb.storage.model_store.model_version`).
         model : mocapdb.annotation.Model
         """
         if name is None:

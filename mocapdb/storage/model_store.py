@@ -6,7 +6,7 @@ all keyed by the model name. :func:`model_tables` encodes a
 :class:`~mocapdb.annotation.Model` as Arrow tables of exactly those rows and
 :func:`model_from_tables` decodes them — the one codec, used for the
 database, for the Parquet files of the shipped models
-(``mocapdb/models/<name>/<table>.parquet``) and for the SQL functions. An
+(``mocapdb/shipped_models/<name>/<table>.parquet``) and for the SQL functions. An
 unbounded keyframe gap is NULL in rows and :data:`mocapdb.keyframes.UNBOUNDED`
 in memory.
 
@@ -347,7 +347,7 @@ def model_metadata(con, name: str) -> dict:
 
 def shipped_model_dir(name: str = DEFAULT_MODEL):
     """Where a model shipped with the package keeps its Parquet files."""
-    return resources.files("mocapdb.models").joinpath(name)
+    return resources.files("mocapdb.shipped_models").joinpath(name)
 
 
 def shipped_model_tables(name: str) -> dict:
