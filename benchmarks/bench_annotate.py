@@ -212,7 +212,7 @@ def cold_compile(npz):
     """First ``annotate_words`` call in a fresh process: empty numba cache, then warm cache."""
     code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
             "import time, numpy as np, mocapdb; from timing import annotate_words; "
-            "from mocapdb.storage.models import load_model; m = load_model(mocapdb.connect(), 'toolbox'); "
+            "from mocapdb.storage.model_store import load_model; m = load_model(mocapdb.connect(), 'toolbox'); "
             f"z = np.load(r'{npz}'); t = time.perf_counter(); "
             "annotate_words(z['words'], z['lengths'], m, keyframes=False); "
             "print(time.perf_counter() - t)")
@@ -237,7 +237,7 @@ def scale_child(npz, n_frames, n_classes):
     """Run in a fresh process: annotate ``n_frames`` repeated real frames, print JSON."""
     t0 = time.perf_counter()
     import mocapdb
-    from mocapdb.storage.models import load_model
+    from mocapdb.storage.model_store import load_model
 
     con = mocapdb.connect()
     model = load_model(con, "toolbox")
@@ -312,7 +312,7 @@ def main():
 
     import mocapdb  # noqa: F401
     from mocapdb.api import annotate as annotate_motions
-    from mocapdb.storage.models import load_model, save_model
+    from mocapdb.storage.model_store import load_model, save_model
 
     hours = 1 if args.quick else 10
     scale_hours = 10 if args.quick else 100

@@ -34,7 +34,7 @@ def main():
     args = ap.parse_args()
 
     import mocapdb
-    from mocapdb.storage.models import load_model
+    from mocapdb.storage.model_store import load_model
     from mocapdb.storage.postings import create_index
 
     machine_header("annotation speed of the shipped default model")

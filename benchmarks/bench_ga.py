@@ -31,7 +31,7 @@ import numpy as np
 from mocapdb import ga
 from mocapdb.keyframes import keyframe_hit_documents, keyframe_search
 from mocapdb.templates import learn_template
-from mocapdb.learning.training import clip_actor, clips_from_folders
+from mocapdb.learning.class_templates import clip_actor, clips_from_folders
 
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", Path(__file__).resolve().parents[2] / "shared"))
 CUT = SHARED / "data" / "hdm05_cut"

@@ -164,7 +164,7 @@ def main():
 
     import mocapdb  # noqa: F401
     from mocapdb.keyframes import annot_margins
-    from mocapdb.storage.models import load_model
+    from mocapdb.storage.model_store import load_model
     from mocapdb.learning.toolbox_queries import has_toolbox_query, toolbox_keyframe_queries
 
     machine_header("bench_keyframes" + (" --quick" if args.quick else ""))

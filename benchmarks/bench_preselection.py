@@ -77,7 +77,7 @@ def main():
     args = ap.parse_args()
 
     import mocapdb
-    from mocapdb.storage.models import load_model, save_model
+    from mocapdb.storage.model_store import load_model, save_model
     from mocapdb.storage.postings import create_index, load_index
 
     machine_header("keyframe preselection with the shipped default model")

@@ -94,7 +94,7 @@ def run_worker_alone(sources, tmp: Path, batch_files: int):
 
     from mocapdb._numba import limit_threads
     from mocapdb.distributed import ERRORS_SCHEMA, MotionWorker, expand_sources
-    from mocapdb.storage.models import DEFAULT_MODEL, load_model
+    from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
     from mocapdb.storage.parquet import table_schemas
     from mocapdb.storage.schema import open_database
 

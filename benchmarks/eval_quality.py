@@ -10,10 +10,10 @@ annotation):
   ``--no-keyframes``, bit-identical to the authors' toolbox);
 * **previous default** — the same 11 templates with GA keyframe queries
   learned on each fold's clips (the default model before issue 11);
-* **new default** — :func:`mocapdb.learning.model_training.train_recipe`
+* **new default** — :func:`mocapdb.learning.default_model.train_recipe`
   with :func:`mocapdb.learning.recipe.default_recipe` on each fold's
   clips: learned HDM05 and CMU-stretch classes, mirrored and reversed
-  classes, the designed classes and keyframes of ``mocapdb/models/classes``
+  classes, the designed classes and keyframes of ``mocapdb/shipped_models/classes``
   (``--ga``: also robust GA keyframe queries), τ per class, minimum segment
   length — annotated in its default mode and with each addition switched off.
 
@@ -38,7 +38,7 @@ import numba
 
 from mocapdb.evaluation import SETTINGS, development_data, development_evaluation, evaluate_by_label
 from mocapdb.learning import learn_keyframe_queries
-from mocapdb.learning.model_training import train_recipe
+from mocapdb.learning.default_model import train_recipe
 from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
 
 REPO = Path(__file__).resolve().parents[1]

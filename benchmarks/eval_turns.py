@@ -157,7 +157,7 @@ def main():
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     ap.add_argument("--verbose", action="store_true", help="every walk's segments")
     args = ap.parse_args()
-    from mocapdb.storage.models import model_from_tables, shipped_model_tables
+    from mocapdb.storage.model_store import model_from_tables, shipped_model_tables
     from timing import model_at, model_dir
 
     models = {f"default at {rev}": model_at(rev) for rev in args.previous}

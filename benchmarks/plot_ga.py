@@ -13,7 +13,7 @@ from pathlib import Path
 
 from mocapdb import ga
 from mocapdb.evaluation.figures import plot_ga_statistics
-from mocapdb.learning.training import clips_from_folders
+from mocapdb.learning.class_templates import clips_from_folders
 
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", Path(__file__).resolve().parents[2] / "shared"))
 

@@ -42,7 +42,7 @@ def model_dir(path, name=None):
 
     import pyarrow.parquet as pq
 
-    from mocapdb.storage.models import model_from_tables
+    from mocapdb.storage.model_store import model_from_tables
 
     model = model_from_tables({p.stem: pq.read_table(p) for p in Path(path).glob("*.parquet")})
     return model if name is None else dataclasses.replace(model, name=name)
@@ -57,12 +57,16 @@ def model_at(rev, name=None):
 
     import pyarrow.parquet as pq
 
-    from mocapdb.storage.models import model_from_tables
+    from mocapdb.storage.model_store import model_from_tables
 
     repo = Path(__file__).resolve().parents[1]
+    # the shipped models lived in mocapdb/models/ before they moved to mocapdb/shipped_models/
+    folder = next(f for f in ("mocapdb/shipped_models", "mocapdb/models")
+                  if subprocess.run(["git", "-C", str(repo), "cat-file", "-e", f"{rev}:{f}/default"],
+                                    capture_output=True).returncode == 0)
     tables = {}
     for table in ("models", "classes", "templates", "keyframe_queries", "keyframes", "ga_statistics"):
-        blob = subprocess.run(["git", "-C", str(repo), "show", f"{rev}:mocapdb/models/default/{table}.parquet"],
+        blob = subprocess.run(["git", "-C", str(repo), "show", f"{rev}:{folder}/default/{table}.parquet"],
                               check=True, capture_output=True).stdout
         tables[table] = pq.read_table(io.BytesIO(blob))
     model = model_from_tables(tables)

@@ -1,4 +1,4 @@
-"""Retrain the models shipped in ``mocapdb/models/default`` and ``mocapdb/models/toolbox`` (reproducible).
+"""Retrain the models shipped in ``mocapdb/shipped_models/default`` and ``mocapdb/shipped_models/toolbox`` (reproducible).
 
 Run: ``python benchmarks/train_default_model.py [--runs 20] [--seed 0] [--jobs N]``.
 
@@ -7,18 +7,18 @@ Run: ``python benchmarks/train_default_model.py [--runs 20] [--seed 0] [--jobs N
   HDM05 classes of ``hdm05_cut`` (all four actors) and the classes cut out
   of labelled CMU stretches (walks, jogs, the mocap6 exercise sets, one
   repetition each), their mirror images and reversals, and the designed
-  classes of ``mocapdb/models/classes/*.toml``
+  classes of ``mocapdb/shipped_models/classes/*.toml``
   (:func:`mocapdb.learning.recipe.default_recipe`); designed keyframe
   queries (``--ga``: also robust GA queries), τ per class and minimum
   segment lengths
-  (:func:`mocapdb.learning.model_training.train_recipe`). Every random step
+  (:func:`mocapdb.learning.default_model.train_recipe`). Every random step
   is seeded: the same seed gives the same Parquet files, whatever ``--jobs``.
 * ``toolbox`` — the 11 HDM05 templates, identical to the authors' toolbox
   templates (../shared/oracle/templates), τ = 0.13, no keyframe queries: the
   reference mode.
 
 Writes each model's rows as Parquet files (the shipped-model format,
-:func:`mocapdb.storage.models.export_model`).
+:func:`mocapdb.storage.model_store.export_model`).
 """
 import argparse
 import os
@@ -29,9 +29,9 @@ from pathlib import Path
 import mocapdb
 from mocapdb.api import train
 from mocapdb.evaluation import development_data
-from mocapdb.learning.model_training import train_recipe
+from mocapdb.learning.default_model import train_recipe
 from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
-from mocapdb.storage.models import export_model, save_model
+from mocapdb.storage.model_store import export_model, save_model
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
@@ -40,8 +40,8 @@ DATA = SHARED / "data"
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=REPO / "mocapdb" / "models" / "default")
-    ap.add_argument("--toolbox-out", type=Path, default=REPO / "mocapdb" / "models" / "toolbox")
+    ap.add_argument("--out", type=Path, default=REPO / "mocapdb" / "shipped_models" / "default")
+    ap.add_argument("--toolbox-out", type=Path, default=REPO / "mocapdb" / "shipped_models" / "toolbox")
     ap.add_argument("--runs", type=int, default=20, help="GA runs per class (paper: 100-500)")
     ap.add_argument("--generations", type=int, default=100)
     ap.add_argument("--inner-runs", type=int, default=3, help="GA runs per class and held-out group")
@@ -88,7 +88,7 @@ def main():
                                    "../shared/data, mirrored, reversed and designed classes, designed keyframe "
                                    "queries, tau per class, minimum segment lengths",
                        source=f"benchmarks/train_default_model.py: {n_clips} clips (hdm05_cut, CMU stretches), "
-                              f"class and keyframe definitions mocapdb/models/classes"
+                              f"class and keyframe definitions mocapdb/shipped_models/classes"
                               + (f", GA {args.runs} runs x {args.generations} generations (inner "
                                  f"{args.inner_runs} x {args.inner_generations}), seed {args.seed}" if args.ga else ""))
             print(f"default: {len(model.classes)} classes, {len(model.labels)} labels in "

@@ -21,7 +21,7 @@ import numpy as np
 import pyarrow as pa
 from duckdb import sqltypes as T
 
-from mocapdb.annotation import segment_table
+from mocapdb.annotation import SEGMENT_ARROW, segment_table
 from mocapdb.errors import ParameterError, SchemaError, check_nonnegative
 from mocapdb.features import N_FEATURES
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins
@@ -38,20 +38,24 @@ MAX_KEYFRAMES = 32
 #: largest finite gap bound, in 30 Hz frames (one hour)
 MAX_GAP = 30 * 3600
 
-#: SQL type of one annotation segment (frames 1-based at 30 Hz)
-SEGMENT_TYPE = duckdb.struct_type({
-    "label": T.VARCHAR, "start_frame": T.INTEGER, "end_frame": T.INTEGER, "cost": T.DOUBLE,
-    "start_s": T.DOUBLE, "end_s": T.DOUBLE})
-_SEGMENT_FIELDS = ("label", "start_frame", "end_frame", "cost", "start_s", "end_s")
-_SEGMENT_ARROW = pa.struct([("label", pa.string()), ("start_frame", pa.int32()), ("end_frame", pa.int32()),
-                            ("cost", pa.float64()), ("start_s", pa.float64()), ("end_s", pa.float64())])
-HIT_TYPE = duckdb.struct_type({"motion_id": T.INTEGER, "start_frame": T.INTEGER, "end_frame": T.INTEGER})
-#: SQL type of one result of ``similar_to`` (ranked; frames 1-based at 30 Hz)
-SIMILAR_TYPE = duckdb.struct_type({"rank": T.INTEGER, "motion_id": T.INTEGER, "start_frame": T.INTEGER,
-                                   "end_frame": T.INTEGER, "cost": T.DOUBLE})
+#: DuckDB's names of the Arrow types the UDFs return
+_SQL_TYPE_NAMES = {pa.string(): "VARCHAR", pa.int32(): "INTEGER", pa.float64(): "DOUBLE"}
+
+
+def _sql_struct(arrow: pa.StructType):
+    """The DuckDB struct type of an Arrow struct type (the UDF's declared return type of its values)."""
+    return duckdb.struct_type({field.name: _SQL_TYPE_NAMES[field.type] for field in arrow})
+
+
+#: SQL type of one annotation segment (frames 1-based at 30 Hz): :data:`mocapdb.annotation.SEGMENT_ARROW`
+SEGMENT_TYPE = _sql_struct(SEGMENT_ARROW)
+#: one hit of ``keyframe_search`` (frames 1-based at 30 Hz)
+_HIT_ARROW = pa.struct([("motion_id", pa.int32()), ("start_frame", pa.int32()), ("end_frame", pa.int32())])
+HIT_TYPE = _sql_struct(_HIT_ARROW)
+#: one result of ``similar_to`` (ranked; frames 1-based at 30 Hz)
 _SIMILAR_ARROW = pa.struct([("rank", pa.int32()), ("motion_id", pa.int32()), ("start_frame", pa.int32()),
                             ("end_frame", pa.int32()), ("cost", pa.float64())])
-_HIT_ARROW = pa.struct([("motion_id", pa.int32()), ("start_frame", pa.int32()), ("end_frame", pa.int32())])
+SIMILAR_TYPE = _sql_struct(_SIMILAR_ARROW)
 
 
 def _column(arr):
@@ -144,8 +148,8 @@ def make_udfs(cache):
             for docs, segs in _annotated(cache, key, model, motion[rows[known[rows]]], tau=t, keyframes=kf,
                                          index_version=version):
                 table = segment_table(segs, motion_ids=docs.motion_ids, names=[""] * len(docs.names), fps=docs.fps)
-                values = pa.StructArray.from_arrays([_column(table.column(c)) for c in _SEGMENT_FIELDS],
-                                                    fields=list(_SEGMENT_ARROW))
+                values = pa.StructArray.from_arrays([_column(table.column(f.name)) for f in SEGMENT_ARROW],
+                                                    fields=list(SEGMENT_ARROW))
                 # the table is sorted by document first
                 ends = np.cumsum(np.bincount(segs["doc"], minlength=len(docs.motion_ids)))
                 for k, mid in enumerate(docs.motion_ids.tolist()):
@@ -154,7 +158,7 @@ def make_udfs(cache):
             if len(rows):
                 got = [per_motion[int(motion[r])] for r in rows]
                 parts.append((rows, pa.concat_arrays(got), np.array([len(g) for g in got])))
-        return _list_array(parts, len(motion), _nulls(parts, len(motion)), _SEGMENT_ARROW)
+        return _list_array(parts, len(motion), _nulls(parts, len(motion)), SEGMENT_ARROW)
 
     def mt_distance_udf(motion, model_name, fingerprint, cls):
         """``mocap_mt_distance(motion, model, fingerprint, class)`` → DOUBLE[] per row (Δ, inf where undefined)."""

@@ -42,7 +42,7 @@ from mocapdb.readers import read_motion
 from mocapdb.storage.annotations import annotate_documents
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import ingest_files, motion_files
-from mocapdb.storage.models import DEFAULT_MODEL
+from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_documents
 
 __all__ = ["sample_files", "compile_kernels", "cache_is_cold", "start_background_compile", "background_compile_running",

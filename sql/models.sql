@@ -1,4 +1,4 @@
--- Statements of mocapdb.storage.models (class models side by side, keyed by name).
+-- Statements of mocapdb.storage.model_store (class models side by side, keyed by name).
 
 -- name: names
 SELECT model FROM models ORDER BY model;

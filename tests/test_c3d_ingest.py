@@ -17,7 +17,7 @@ from mocapdb.cli import main
 from mocapdb.features import motion_features
 from mocapdb.keyframes import UNBOUNDED
 from mocapdb.readers import read_motion
-from mocapdb.storage.models import load_model
+from mocapdb.storage.model_store import load_model
 
 from conftest import DATA
 from fuzzing import mutate, pack

@@ -19,7 +19,7 @@ from mocapdb.learning.recipe import PAPER_LABELS
 from mocapdb.templates import QuantizedTemplate
 
 F = {name: k for k, name in enumerate(FEATURE_NAMES)}
-SHIPPED = REPO / "mocapdb" / "models" / "classes"
+SHIPPED = REPO / "mocapdb" / "shipped_models" / "classes"
 
 TWO_PHASES = """
 # a hand-written class: lift the right foot, then hop on the left leg

@@ -184,7 +184,7 @@ def test_eval_from_database_equals_eval_of_the_written_predictions(run, tmp_path
     from importlib import resources
 
     truth = write_truth_86_09(tmp_path / "truth.csv")
-    walk_is_move = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
+    walk_is_move = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
     run("ingest", DATA / "cmu" / "86", "--silent")
     pred = tmp_path / "pred.csv"
     run("annotate", "--no-keyframes", "--format", "csv", "--out", pred)

@@ -9,7 +9,7 @@ import mocapdb
 from conftest import REPO
 from mocapdb.evaluation import development_data
 from mocapdb.learning.recipe import DEFAULT_MIRRORS, DEFAULT_REVERSALS, PAPER_LABELS, build_model, default_recipe
-from mocapdb.storage.models import load_model
+from mocapdb.storage.model_store import load_model
 
 FIGURES = REPO / "benchmarks" / "eval_quality.json"
 
@@ -90,7 +90,7 @@ def development_clips(data_dir):
 
 
 def test_every_learned_class_s_keyframes_hold_in_its_own_clips(shipped, development_clips):
-    """The designed keyframes of the learned classes (mocapdb/models/classes/*.toml) hold in every training
+    """The designed keyframes of the learned classes (mocapdb/shipped_models/classes/*.toml) hold in every training
     clip of their class, of every actor and subject, mirror images included (one jumping-jack repetition,
     the routine's first, lacks the star), and preselect a tenth of the class × frame cells of the clips."""
     from mocapdb.annotation import preselection_for
@@ -155,7 +155,7 @@ def test_a_walker_who_turns_round_gets_turn_and_one_who_bends_does_not(shipped, 
 
 
 def test_the_kicks_are_preselected_by_their_designed_keyframe(shipped):
-    """mocapdb/models/classes/kick.toml: both kick classes carry the stretched-leg keyframe (the right
+    """mocapdb/shipped_models/classes/kick.toml: both kick classes carry the stretched-leg keyframe (the right
     kick's mirrored), and the kick segments of the development evaluation are all found."""
     model, _ = shipped
     by = {c.name: c for c in model.classes}

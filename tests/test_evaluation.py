@@ -10,7 +10,7 @@ from mocapdb.evaluation import (
 from mocapdb.annotation.labels import class_labels
 from mocapdb.evaluation.metrics import evaluate_by_label
 from mocapdb.readers import read_motion
-from mocapdb.learning.training import clip_files
+from mocapdb.learning.class_templates import clip_files
 
 from conftest import DATA, amc_frame_count
 

@@ -13,7 +13,7 @@ from mocapdb.errors import ParseError
 
 from conftest import DATA, truth_86_09_rows, write_truth_86_09
 
-CMU86_MAP = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
+CMU86_MAP = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
 AMC_86_09 = DATA / "cmu" / "86" / "86_09.amc"
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:2]
 

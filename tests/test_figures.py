@@ -10,7 +10,7 @@ from mocapdb.cli import main
 
 from conftest import DATA, write_truth_86_09, write_truth_86_09_eaf
 
-CMU86_MAP = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
+CMU86_MAP = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
 
 
 @pytest.fixture(scope="module")

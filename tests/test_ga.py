@@ -14,7 +14,7 @@ from mocapdb.features import N_FEATURES
 from mocapdb.keyframes import build_index
 from mocapdb.keyframes import KeyframeQuery, keyframe_search
 from mocapdb.templates import learn_template
-from mocapdb.learning.training import clips_from_folders
+from mocapdb.learning.class_templates import clips_from_folders
 
 CLASSES = ["hopBothLegs1hops", "jogLeftCircle4StepsRstart", "kickLFront1Reps",
            "sneak2StepsLStart"]

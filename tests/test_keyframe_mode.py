@@ -7,7 +7,7 @@ import pytest
 import mocapdb
 from mocapdb.features import as_words
 from mocapdb.keyframes import UNBOUNDED, annot_margins
-from mocapdb.storage.models import load_model
+from mocapdb.storage.model_store import load_model
 from mocapdb.templates import mt_distance
 
 from conftest import DATA
@@ -71,7 +71,7 @@ def test_default_keyframe_mode_equals_the_brute_force_reference(db, name):
     classes have no query (matched on whole documents beside preselected designed classes)."""
     import dataclasses
 
-    from mocapdb.storage.models import save_model
+    from mocapdb.storage.model_store import save_model
 
     model = load_model(db, "default")
     assert all(c.keyframe_query is not None for c in model.classes)

@@ -19,7 +19,7 @@ from mocapdb.keyframes.search_kernels import (_AUTO, _BITSET, _FORWARD, _HEAP, _
 from mocapdb.keyframes.search import _intervals, _plan, _search, _sub_arrays
 from mocapdb.keyframes import (UNBOUNDED, KeyframeQuery,
                                annot_margins, choose_keyframes_equally_distributed,
-                               intervals_from_runs, keyframe_hit_documents, keyframe_intervals,
+                               keyframe_hit_documents, keyframe_intervals,
                                keyframe_mask_value, keyframe_postings, keyframe_search,
                                keyframe_search_batch, stiffness_bounds)
 from naive_keyframes import (int_table, load_feat30_words, load_toolbox_query,
@@ -444,33 +444,6 @@ def test_document_filter_changes_nothing_on_oracle_documents(oracle_dir, oracle_
             assert 1 <= kept < oracle_index.n_docs
         segs = keyframe_search(oracle_index, rare, extend_left=el, extend_right=er)
         assert d in segs.doc
-
-
-def test_intervals_from_runs_equals_naive():
-    """Matching runs (in any order, or already sorted) -> maximal intervals."""
-    rng = np.random.default_rng(5)
-    for case in range(200):
-        runs = []  # segments of documents, some of which match keyframe k
-        for k in range(int(rng.integers(1, 4))):
-            for d in range(int(rng.integers(1, 5))):
-                t = 0
-                for _ in range(int(rng.integers(0, 12))):
-                    n = int(rng.integers(1, 4))
-                    if rng.random() < 0.6:
-                        runs.append((k - 1 if case % 5 == 0 else k,  # ids may be negative
-                                     d * (1 if case % 4 else 10**7), t, n))
-                    t += n
-        expected = []
-        for k, d, t, n in sorted(runs):  # adjacent runs of one keyframe and document merge
-            if expected and expected[-1][:2] == [k, d] and t == expected[-1][3] + 1:
-                expected[-1][3] = t + n - 1
-            else:
-                expected.append([k, d, t, t + n - 1])
-        if case % 3:
-            runs = [runs[i] for i in rng.permutation(len(runs))]
-        cols = np.array(runs, dtype=np.int64).reshape(-1, 4).T
-        got = intervals_from_runs(*cols)
-        assert np.stack(got, 1).reshape(-1, 4).tolist() == expected, case
 
 
 # ---- building queries -----------------------------------------------------------

@@ -69,7 +69,7 @@ def test_an_hour_long_repetitive_take_annotates_with_the_others(db, model):
 def test_the_toolbox_limit_only_when_asked_and_named_by_what_exists():
     from mocapdb.annotation import MATCH_NUM_MAX, annotate
     from mocapdb.errors import ParameterError
-    from mocapdb.storage.models import load_model
+    from mocapdb.storage.model_store import load_model
 
     con = mocapdb.connect()
     try:

@@ -17,7 +17,7 @@ from mocapdb.learning import clips_from_folders, learn_keyframe_queries, learn_k
 from mocapdb.learning.cutting import cut_repetitions, matching_runs, onsets
 from mocapdb.learning.generalisation import generalise_query, loosen_gaps, query_changes
 from mocapdb.learning.genetic import fitness_from_hits, fixed_entries
-from mocapdb.learning.model_training import half_median_template
+from mocapdb.learning.default_model import half_median_template
 from mocapdb.learning.recipe import Clip, Recipe, build_model, default_recipe, mirror_class
 from mocapdb.learning.thresholds import learn_taus
 from mocapdb.templates import learn_template
@@ -162,7 +162,7 @@ def test_segment_filters():
 def test_the_toolbox_model_ignores_the_filters(cut_clips, data_dir):
     """A model without min_frames and margin annotates the same with the filters on or off."""
     from mocapdb.api import connect
-    from mocapdb.storage.models import load_model
+    from mocapdb.storage.model_store import load_model
 
     con = connect()
     try:
@@ -240,7 +240,7 @@ def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
 
 
 def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
-    """The shipped kick keyframe (mocapdb/models/classes/kick.toml: the raised leg stretched) holds in
+    """The shipped kick keyframe (mocapdb/shipped_models/classes/kick.toml: the raised leg stretched) holds in
     every kick clip of every actor and in no clip of walking, jogging, sneaking, hopping, squats,
     elbow-to-knee, throwing, grabbing or arm rotations (lying on the back may show it), nor in the CMU
     walks and jogs; its mirror holds in no HDM05 clip but a lie-down (no right kicks here)."""
@@ -314,7 +314,7 @@ def _held(model, clips, cls):
 
 
 def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
-    """The shipped throw keyframes (mocapdb/models/classes/throw.toml: the ball held up, then the arms
+    """The shipped throw keyframes (mocapdb/shipped_models/classes/throw.toml: the ball held up, then the arms
     down) hold in every throwBasketball clip of every actor. The ball held up also holds in some hops,
     kicks and lie-downs: the query is not specific (specific_queries judges a chain by its most specific
     keyframe: a recording supplies what a short clip lacks), although the whole chain fits into almost no
@@ -351,7 +351,7 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
 
 
 def test_the_lie_down_keyframes_hold_in_every_lie_down_and_its_reverse_starts_lying(cut_clips):
-    """mocapdb/models/classes/lie_down.toml: down on bent knees, then lying (the spine horizontal) holds
+    """mocapdb/shipped_models/classes/lie_down.toml: down on bent knees, then lying (the spine horizontal) holds
     in every lieDownFloor clip; lying ends the template (no widening after the chain); the reversed class
     (standing up from the floor) takes the chain reversed: lying at its first column, then kneeling."""
     k = next(k for k in default_recipe().keyframes if k.cls == "lieDownFloor")

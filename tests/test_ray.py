@@ -23,7 +23,7 @@ from mocapdb.cli import main
 from mocapdb.distributed import (DATASETS, ERRORS_SCHEMA, MissingExtraError, MotionWorker, expand_sources,
                                  ray_annotate, ray_session, require_ray)
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.storage.models import load_model
+from mocapdb.storage.model_store import load_model
 from mocapdb.storage.parquet import table_schemas
 
 from conftest import DATA, REPO

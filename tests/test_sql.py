@@ -8,7 +8,7 @@ import pytest
 import mocapdb
 from mocapdb import ingest
 from mocapdb.api import annotate as annotate_motions
-from mocapdb.storage.models import load_model, save_model
+from mocapdb.storage.model_store import load_model, save_model
 
 from conftest import DATA, ORACLE
 from template_oracle import DOCS, oracle_model, quantized_template

@@ -16,7 +16,7 @@ from mocapdb.errors import ParameterError, ParseError
 from mocapdb.keyframes import INDEX_PARTS, build_index
 from mocapdb.keyframes import (UNBOUNDED, annot_margins, choose_keyframes_equally_distributed,
                                keyframe_hit_documents, keyframe_search)
-from mocapdb.storage.models import load_model
+from mocapdb.storage.model_store import load_model
 from mocapdb.learning.toolbox_queries import has_toolbox_query, read_toolbox_query, toolbox_keyframe_queries
 from naive_keyframes import int_table, load_feat30_words, load_toolbox_query, read_rows
 

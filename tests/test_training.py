@@ -5,7 +5,7 @@ import pytest
 from mocapdb.annotation import annotate
 from mocapdb.errors import ParameterError
 from mocapdb.annotation.labels import class_labels, label_rows
-from mocapdb.learning.training import (
+from mocapdb.learning.class_templates import (
     clip_actor, clip_files, clips_from_folders, clips_from_segments, train_model)
 from template_oracle import (
     ANNOTATION, COARSE, SQUAT, TEMPLATES, csv_rows, quantized_template, real_template, stats,

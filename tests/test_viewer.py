@@ -18,7 +18,7 @@ from mocapdb.viewer import encode_delta, encode_poses, motion_poses, motion_view
 from browser import Elements, console_errors, dump_dom, screenshot
 from conftest import DATA, REPO, write_truth_86_09_eaf
 
-CMU86_MAP = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
+CMU86_MAP = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:2]
 
 

@@ -12,7 +12,7 @@ from mocapdb.annotation.preselection import (index_parts, keyframe_preselection,
                                             preselection_slices, uses_keyframes)
 from mocapdb.annotation.elan import EAF_FPS_PROPERTY, eaf_document, eaf_source_fps, is_eaf, read_eaf, write_eaf
 from mocapdb.annotation.labels import (LABEL_COLUMNS, LABEL_DTYPE, SHIPPED_CLASS_LABELS, as_label_rows, class_labels, feature_to_native_frames, label_documents, label_rows, map_labels, native_factor, native_to_feature_frames, read_class_labels, read_labels, read_segments, read_text, read_truth, segments_to_rows, to_feature_grid, to_native_grid, write_class_labels, write_labels)
-from mocapdb.annotation.results import SEGMENT_COLUMNS, segment_table
+from mocapdb.annotation.results import SEGMENT_ARROW, SEGMENT_COLUMNS, SEGMENT_SCHEMA, segment_table
 
 __all__ = [
     "ClassModel", "Model", "DEFAULT_DELTA", "DEFAULT_TAU", "Annotation", "HIT_DTYPE", "SEGMENT_DTYPE",
@@ -22,5 +22,5 @@ __all__ = [
     "write_eaf", "as_label_rows", "read_labels", "read_segments", "read_truth", "write_labels",
     "native_to_feature_frames", "feature_to_native_frames", "native_factor", "to_feature_grid", "to_native_grid",
     "segments_to_rows", "map_labels", "read_class_labels", "write_class_labels", "class_labels", "read_text",
-    "SHIPPED_CLASS_LABELS", "SEGMENT_COLUMNS", "segment_table",
+    "SHIPPED_CLASS_LABELS", "SEGMENT_SCHEMA", "SEGMENT_COLUMNS", "SEGMENT_ARROW", "segment_table",
 ]

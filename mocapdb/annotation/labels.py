@@ -35,7 +35,7 @@ of 4.
 
 A class-label mapping file (CSV ``class,label``) maps fine classes (or the
 action names of a foreign label set) to the coarse labels a model annotates
-with; :func:`class_labels` loads the ones shipped in ``mocapdb/models/``
+with; :func:`class_labels` loads the ones shipped in ``mocapdb/shipped_models/``
 (``hdm05`` — the 11 HDM05 classes of the development data, Table 1 of the
 paper; ``cmu86`` and ``cmu_mocap6`` — the CMU ground-truth actions of the
 development evaluation, see :mod:`mocapdb.evaluation`; ``default`` — the
@@ -71,7 +71,7 @@ LABEL_COLUMNS = ("document", "label", "start_frame", "end_frame")
 LABEL_DTYPE = np.dtype([("document", object), ("label", object), ("start", np.int64),
                         ("end", np.int64)])
 
-#: class-label mapping files shipped in mocapdb/models/ (name → file)
+#: class-label mapping files shipped in mocapdb/shipped_models/ (name → file)
 SHIPPED_CLASS_LABELS = {
     "hdm05": "hdm05_labels.csv",
     "cmu86": "cmu86_labels.csv",
@@ -667,7 +667,7 @@ def write_class_labels(path, mapping):
 
 
 def class_labels(name="hdm05"):
-    """A class → label mapping shipped with the package (``mocapdb/models/``).
+    """A class → label mapping shipped with the package (``mocapdb/shipped_models/``).
 
     Parameters
     ----------
@@ -683,6 +683,6 @@ def class_labels(name="hdm05"):
     """
     if name not in SHIPPED_CLASS_LABELS:
         raise ParameterError(f"name must be one of {sorted(SHIPPED_CLASS_LABELS)}, got {name!r}")
-    ref = resources.files("mocapdb.models").joinpath(SHIPPED_CLASS_LABELS[name])
+    ref = resources.files("mocapdb.shipped_models").joinpath(SHIPPED_CLASS_LABELS[name])
     with resources.as_file(ref) as p:
         return read_class_labels(p)

@@ -4,7 +4,9 @@
 (0-based inclusive frames per document) into rows with 1-based inclusive
 30 Hz frames and seconds, ordered by document, start frame and label — what
 ``mocapdb.api.annotate`` returns, the CLI prints and the SQL ``annotate()``
-returns per motion.
+returns per motion. :data:`SEGMENT_SCHEMA` is the one definition of a
+segment's fields and types; the SQL functions derive their segment type from
+:data:`SEGMENT_ARROW`.
 """
 from __future__ import annotations
 
@@ -13,8 +15,15 @@ import pyarrow as pa
 
 from mocapdb.errors import ParameterError
 
-#: columns of :func:`segment_table` (frames 1-based, inclusive, at the feature rate)
-SEGMENT_COLUMNS = ("motion_id", "document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost")
+#: Arrow schema of :func:`segment_table` (frames 1-based, inclusive, at the feature rate; seconds)
+SEGMENT_SCHEMA = pa.schema([("motion_id", pa.int32()), ("document", pa.string()), ("label", pa.string()),
+                            ("start_frame", pa.int32()), ("end_frame", pa.int32()), ("start_s", pa.float64()),
+                            ("end_s", pa.float64()), ("cost", pa.float64())])
+#: columns of :func:`segment_table`
+SEGMENT_COLUMNS = tuple(SEGMENT_SCHEMA.names)
+#: a segment of one motion, as SQL ``annotate(motion_id)`` lists them (the motion is the row's)
+SEGMENT_ARROW = pa.struct([SEGMENT_SCHEMA.field(name) for name in
+                           ("label", "start_frame", "end_frame", "cost", "start_s", "end_s")])
 
 
 def segment_table(segments, *, motion_ids, names, fps) -> pa.Table:
@@ -43,16 +52,16 @@ def segment_table(segments, *, motion_ids, names, fps) -> pa.Table:
     segs = segments[np.lexsort((segments["label"], segments["start"], segments["doc"]))]
     doc = segs["doc"]
     seg_fps = fps[doc]
-    return pa.table({
-        "motion_id": pa.array(ids[doc], pa.int32()),
-        "document": pa.array(np.asarray(names, dtype=object)[doc] if len(doc) else [], pa.string()),
-        "label": pa.array(segs["label"].tolist(), pa.string()),
-        "start_frame": pa.array(segs["start"] + 1, pa.int32()),
-        "end_frame": pa.array(segs["end"] + 1, pa.int32()),
-        "start_s": pa.array(segs["start"] / seg_fps, pa.float64()),
-        "end_s": pa.array((segs["end"] + 1) / seg_fps, pa.float64()),
-        "cost": pa.array(segs["cost"], pa.float64()),
-    })
+    return pa.Table.from_pydict({
+        "motion_id": ids[doc],
+        "document": np.asarray(names, dtype=object)[doc] if len(doc) else [],
+        "label": segs["label"].tolist(),
+        "start_frame": segs["start"] + 1,
+        "end_frame": segs["end"] + 1,
+        "start_s": segs["start"] / seg_fps,
+        "end_s": (segs["end"] + 1) / seg_fps,
+        "cost": segs["cost"],
+    }, schema=SEGMENT_SCHEMA)
 
 
-__all__ = ["SEGMENT_COLUMNS", "segment_table"]
+__all__ = ["SEGMENT_SCHEMA", "SEGMENT_COLUMNS", "SEGMENT_ARROW", "segment_table"]

@@ -14,7 +14,7 @@ from mocapdb.storage import annotations as stored_annotations
 from mocapdb.storage.annotations import (EXPORT_FORMATS, annotate_documents, annotate_motions,
                                         export_segments, store_annotations)
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.models import DEFAULT_MODEL
+from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import documents_by_name, motion_ids
 from mocapdb.storage.schema import require_own_tables
 from mocapdb.storage.sqltext import statement

@@ -10,8 +10,8 @@ from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
 from mocapdb.learning.class_definitions import attach_keyframes, compile_definitions, read_definitions
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.models import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows, keyframe_query_stats,
-                                    model_fingerprint, model_metadata, save_model)
+from mocapdb.storage.model_store import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows,
+                                         keyframe_query_stats, model_fingerprint, model_metadata, save_model)
 from mocapdb.storage.motions import documents_by_name
 
 

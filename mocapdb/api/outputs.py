@@ -8,7 +8,7 @@ import numpy as np
 from mocapdb.api.annotating import evaluate
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.models import DEFAULT_MODEL
+from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_ids
 from mocapdb.storage.sqltext import statement
 from mocapdb.viewer import motion_view, write_motion_page, write_pages

@@ -36,7 +36,7 @@ from mocapdb.distributed.layout import ERRORS_SCHEMA, finish_output, prepare_out
 from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
 from mocapdb.storage.ingest import MOTION_SUFFIXES, IngestReport, motion_files, reader_maps
-from mocapdb.storage.models import DEFAULT_MODEL, load_model
+from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
 from mocapdb.storage.parquet import table_schemas, write_manifest
 from mocapdb.storage.schema import open_database
 

@@ -47,7 +47,7 @@ from mocapdb.evaluation.metrics import evaluate_annotation
 from mocapdb.features import motion_features
 from mocapdb.learning.cutting import clips_from_stretches
 from mocapdb.learning.recipe import Clip, default_recipe
-from mocapdb.learning.training import clip_actor, clip_files, train_model
+from mocapdb.learning.class_templates import clip_actor, clip_files, train_model
 from mocapdb.readers import read_motion
 
 __all__ = ["DocumentSet", "DevelopmentEvaluation", "DevelopmentData", "concatenate_motions", "loao_documents",

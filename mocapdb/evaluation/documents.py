@@ -5,7 +5,7 @@ scores it):
 
 * **leave-one-actor-out (LOAO)** documents (:func:`loao_documents`) joined
   from one ``hdm05_cut`` actor's clips, ground truth = the clip boundaries
-  with the coarse labels of ``mocapdb/models/hdm05_labels.csv``; their
+  with the coarse labels of ``mocapdb/shipped_models/hdm05_labels.csv``; their
   left/right mirror images (:func:`mirror_document_set`);
 * **real documents** (:func:`cmu86_documents`, :func:`mocap6_documents`):
   CMU 86_09 with its segment ground truth, and the CMU exercise routines
@@ -28,13 +28,13 @@ Judgement calls (documented here, data not code where possible):
   turn rate see the joins), not clip by clip.
 * CMU 86_09 (``labels/cmu86_segmentation``, 120 Hz frames): only ``walk``
   has a counterpart among the paper's labels (→ ``move``,
-  ``mocapdb/models/cmu86_labels.csv``); ``look_around``, ``clap``,
+  ``mocapdb/shipped_models/cmu86_labels.csv``); ``look_around``, ``clap``,
   ``stand_and_clap`` are dropped and reported. The unlabelled transition
   windows are not ground truth of any label.
 * mocap6 (``labels/cmu_mocap6/<trial>.txt``, one action id per block of 12
   native frames): JumpJack → jump, Jog → move, ArmCircle → rotateArms, Box
   → punch, Squat/KneeRaise/SideBend/ToeTouch… → exercise
-  (``mocapdb/models/cmu_mocap6_labels.csv``); Twist, SideReach and UpDown
+  (``mocapdb/shipped_models/cmu_mocap6_labels.csv``); Twist, SideReach and UpDown
   stay unmapped (dropped and reported: stretches a good annotation leaves
   unlabelled, like the authors' ``others``). Block k (1-based) covers native
   frames 12k − 11 … 12k, clipped to the recording (the label files run up
@@ -75,7 +75,7 @@ from mocapdb.readers.motion import Motion
 from mocapdb.learning.class_definitions import compile_definition
 from mocapdb.learning.cutting import matching_runs
 from mocapdb.learning.recipe import Clip
-from mocapdb.learning.training import clip_actor, clip_files
+from mocapdb.learning.class_templates import clip_actor, clip_files
 
 __all__ = ["DocumentSet", "concatenate_motions", "loao_documents", "cmu86_documents", "mocap6_documents",
            "mirror_document_set", "cmu_stretches", "pose_clips", "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT",

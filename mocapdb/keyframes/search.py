@@ -11,7 +11,6 @@ keyframe_search                        one query -> segments (and raw hits)
 keyframe_search_batch                  many queries on one index -> segments per query
 keyframe_hit_documents                 many queries -> (n_queries, n_docs) "has a hit" (GA fitness)
 keyframe_intervals, keyframe_postings  the per-keyframe intermediate results (§3)
-intervals_from_runs, chain_search      the search on matching runs from SQL
 
 The numba kernels live in :mod:`mocapdb.keyframes.search_kernels`.  Frames,
 template positions and documents are 0-based, segment ends inclusive.
@@ -29,8 +28,7 @@ from mocapdb.features import FEATURE_SETS
 from mocapdb.keyframes.index import SET_PARTS, Index, Segments, fuzzy_postings
 from mocapdb.keyframes.query import KeyframeQuery, set_bits
 from mocapdb.keyframes.search_kernels import (_AUTO, _chain_batch_kernel, _hit_documents_kernel,
-                                              _keyframe_intervals_kernel, _runs_intervals_kernel,
-                                              _search_kernel)
+                                              _keyframe_intervals_kernel, _search_kernel)
 
 
 # --------------------------------------------------------------------------
@@ -357,67 +355,5 @@ def keyframe_hit_documents(index: Index, queries, *, layout=None, cache=None) ->
     return out
 
 
-def intervals_from_runs(keyframe, doc, start, length):
-    """Frame intervals of keyframes from their matching runs (KEYFRAMES.md §3 re-segmentation).
-
-    Parameters
-    ----------
-    keyframe, doc, start, length : (n,) int
-        Runs of constant word that match keyframe ``keyframe`` (any order;
-        already sorted by (keyframe, doc, start) is detected and costs no
-        sort): document, first frame (0-based) and number of frames — e.g.
-        the rows of a postings table filtered by ``word & mask = value``.
-
-    Returns
-    -------
-    keyframe, doc, start, end : (m,) int64
-        Maximal intervals (adjacent runs merged), sorted by (keyframe, doc, start).
-    """
-    k, d, s, n = (np.ascontiguousarray(x, dtype=np.int64) for x in (keyframe, doc, start, length))
-    if not (len(k) == len(d) == len(s) == len(n)):
-        raise ParameterError(f"keyframe, doc, start, length have lengths {len(k)}, {len(d)}, "
-                             f"{len(s)}, {len(n)}; they must be equal")
-    order = np.empty(0, np.int64)
-    n_docs = n_groups = 0
-    if len(k):
-        n_docs = int(d.max()) + 1
-        n_groups = (int(k.max()) + 1) * n_docs
-        if k.min() < 0 or d.min() < 0 or n_groups > 4 * len(k) + (1 << 20):
-            order = np.lexsort((s, d, k))  # too many (keyframe, doc) groups to count
-    return _runs_intervals_kernel(k, d, s, n, n_docs, n_groups, order)
-
-
-def chain_search(intervals, query: KeyframeQuery, doc_lengths, *, extend_left=0, extend_right=0):
-    """The chain search (§5) on given per-keyframe intervals instead of an index.
-
-    Parameters
-    ----------
-    intervals : tuple (keyframe, doc, start, end) of (m,) int
-        As returned by :func:`intervals_from_runs`: keyframe k's maximal
-        matching intervals, sorted by (keyframe, doc, start), 0-based inclusive.
-    query : KeyframeQuery
-        Gap bounds (its masks are not used: ``intervals`` already answer them).
-    doc_lengths : (n_docs,) int
-        Frames per document (segments are clipped to them).
-    extend_left, extend_right : int
-
-    Returns
-    -------
-    Segments
-        As :func:`keyframe_search` on an index whose keyframes give these intervals.
-    """
-    kf, doc, start, end = (np.ascontiguousarray(x, dtype=np.int64) for x in intervals)
-    K = query.n_keyframes
-    if len(kf) and (kf.min() < 0 or kf.max() >= K):
-        raise ParameterError(f"interval keyframe numbers must be in 0..{K - 1}")
-    kf_offset = np.searchsorted(kf, np.arange(K + 1)).astype(np.int64)
-    el = _margins(extend_left, 1, "extend_left")
-    er = _margins(extend_right, 1, "extend_right")
-    segs, _, _, _ = _chain_batch_kernel(doc, start, end, kf_offset, np.arange(K, dtype=np.int64),
-                                        np.array([0, K], np.int64), query.d_min, query.d_max,
-                                        np.asarray(doc_lengths, dtype=np.int64), el, er, False)
-    return _to_segments(segs)
-
-
-__all__ = ["PARALLEL_MIN_FRAMES", "chain_search", "intervals_from_runs", "keyframe_hit_documents",
-           "keyframe_intervals", "keyframe_postings", "keyframe_search", "keyframe_search_batch"]
+__all__ = ["PARALLEL_MIN_FRAMES", "keyframe_hit_documents", "keyframe_intervals", "keyframe_postings",
+           "keyframe_search", "keyframe_search_batch"]

@@ -6,8 +6,7 @@
   documents where not every keyframe matches are skipped, keyframes from the
   fewest postings up; each keyframe by heap merge, bitset or forward scan);
 * the chain search of C_KeyframeSearch.c (:func:`_chain_scan_kernel` and its
-  drivers), and the re-segmentation of matching runs from SQL
-  (:func:`_runs_intervals_kernel`).
+  drivers).
 
 Kernels do no validation; the wrappers in :mod:`mocapdb.keyframes` do.
 Frames and documents are 0-based, interval ends inclusive.
@@ -606,68 +605,3 @@ def _hit_documents_kernel(iv_doc, iv_start, iv_end, kf_offset, q_kf, q_kf_offset
         _chain_query_kernel(iv_doc, iv_start, iv_end, kf_lo, kf_hi, d_min[g0:g0 + b - a - 1],
                             d_max[g0:g0 + b - a - 1], doc_lengths, np.int64(0), np.int64(0), np.int64(2), np.int64(0),
                             empty, np.int64(0), empty, np.int64(0), out[q])
-
-
-@jit
-def _runs_intervals_kernel(k, d, s, n, n_docs, n_groups, order):  # pragma: no cover
-    """Maximal intervals of runs (:func:`intervals_from_runs`).
-
-    The runs are put in (keyframe, doc, start) order by ``order`` if given
-    (non-empty), else not at all when they already are (one O(n) check),
-    else by a counting sort on the group ``keyframe·n_docs + doc`` (then by
-    start within a group, which is rarely needed).  Adjacent runs of a group
-    merge.  Returns (keyframe, doc, start, end).
-    """
-    m = len(k)
-    if len(order) == 0:
-        ordered = True
-        for i in range(1, m):
-            if k[i] != k[i - 1]:
-                if k[i] < k[i - 1]:
-                    ordered = False
-                    break
-            elif d[i] != d[i - 1]:
-                if d[i] < d[i - 1]:
-                    ordered = False
-                    break
-            elif s[i] < s[i - 1]:
-                ordered = False
-                break
-        if ordered:
-            order = np.arange(m)
-        else:
-            first = np.zeros(n_groups + 1, np.int64)
-            for i in range(m):
-                first[k[i] * n_docs + d[i] + 1] += 1
-            for g in range(n_groups):
-                first[g + 1] += first[g]
-            nxt = first[:-1].copy()
-            order = np.empty(m, np.int64)
-            for i in range(m):
-                g = k[i] * n_docs + d[i]
-                order[nxt[g]] = i
-                nxt[g] += 1
-            for g in range(n_groups):
-                a = first[g]
-                b = first[g + 1]
-                for i in range(a + 1, b):
-                    if s[order[i]] < s[order[i - 1]]:  # unordered group: sort it by start
-                        _insertion_sort_by(order, a, b, s)
-                        break
-    out_k = np.empty(m, np.int64)
-    out_d = np.empty(m, np.int64)
-    out_s = np.empty(m, np.int64)
-    out_e = np.empty(m, np.int64)
-    j = -1
-    for i in range(m):
-        r = order[i]
-        end = s[r] + n[r] - 1
-        if j >= 0 and k[r] == out_k[j] and d[r] == out_d[j] and s[r] == out_e[j] + 1:
-            out_e[j] = end
-        else:
-            j += 1
-            out_k[j] = k[r]
-            out_d[j] = d[r]
-            out_s[j] = s[r]
-            out_e[j] = end
-    return out_k[:j + 1], out_d[:j + 1], out_s[:j + 1], out_e[:j + 1]

@@ -414,7 +414,7 @@ def _evolve(index, relevant, documents, strict, loose, rng, cache, *, population
 
 def _clip_words(clip, where):
     """Words of one clip: an (n,) uint64 array or a (name, words) pair
-    (as :func:`mocapdb.learning.training.clips_from_folders` gives)."""
+    (as :func:`mocapdb.learning.class_templates.clips_from_folders` gives)."""
     if isinstance(clip, tuple) and len(clip) == 2 and isinstance(clip[0], str):
         clip = clip[1]
     w = np.asarray(clip)

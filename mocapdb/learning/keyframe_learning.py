@@ -270,7 +270,7 @@ def learn_keyframe_queries(clips_by_class, *, classes=None, runs=20, templates=N
     Parameters
     ----------
     clips_by_class : mapping str -> sequence of (n_i,) uint64 or of (name, words)
-        Training clips per class (e.g. ``mocapdb.learning.training.clips_from_folders``).
+        Training clips per class (e.g. ``mocapdb.learning.class_templates.clips_from_folders``).
     classes : sequence of str, optional
         Classes to learn (default: all); T− always holds every other class.
     runs : int, default 20

@@ -50,7 +50,7 @@ DEFAULT_MIRRORS = {"kickLFront1Reps": "kickRFront1Reps", "sneak2StepsLStart": "s
                    "elbowToKnee1RepsLelbowStart": "elbowToKnee1RepsRelbowStart"}
 #: the shipped default model's reversed classes: lying down played backwards is standing up
 DEFAULT_REVERSALS = {"lieDownFloor": ("standUpLieFloor", "standUp")}
-#: the shipped class definitions (hand-designed classes), ``mocapdb/models/classes/*.toml``
+#: the shipped class definitions (hand-designed classes), ``mocapdb/shipped_models/classes/*.toml``
 DEFINITIONS_DIR = "classes"
 
 #: the paper's 15 labels (Table 1), in its order (Δarg ties go to the earlier label)
@@ -234,13 +234,13 @@ def default_recipe(definitions=None) -> Recipe:
     """The recipe of the shipped default model.
 
     Learned classes and labels from the shipped ``default`` mapping
-    (``mocapdb/models/default_labels.csv``), :data:`DEFAULT_MIRRORS`,
+    (``mocapdb/shipped_models/default_labels.csv``), :data:`DEFAULT_MIRRORS`,
     :data:`DEFAULT_REVERSALS`, and the class and keyframe definitions
-    shipped in ``mocapdb/models/classes/`` (or ``definitions``: files or
+    shipped in ``mocapdb/shipped_models/classes/`` (or ``definitions``: files or
     folders).
     """
     if definitions is None:
-        with resources.as_file(resources.files("mocapdb.models").joinpath(DEFINITIONS_DIR)) as d:
+        with resources.as_file(resources.files("mocapdb.shipped_models").joinpath(DEFINITIONS_DIR)) as d:
             defs, keyframes = read_definitions(d)
     else:
         defs, keyframes = read_definitions(definitions)

@@ -25,8 +25,7 @@ import numpy as np
 from mocapdb.annotation import index_parts, keyframe_preselection, model_index_parts, preselection_slices
 from mocapdb.errors import SchemaError
 from mocapdb.keyframes import keyframe_search
-from mocapdb.storage.models import (SHIPPED_MODELS, model_fingerprint, model_from_tables, read_model_tables,
-                                    shipped_model_tables, unknown_model)
+from mocapdb.storage.model_store import load_model, model_fingerprint, model_version
 from mocapdb.storage.motions import BATCH_FRAMES, frame_batches
 from mocapdb.storage.postings import index_version, load_index
 from mocapdb.storage.sqltext import INDEX_SCHEMA, statement
@@ -79,12 +78,21 @@ class ConnectionCache:
             cur.close()
 
     def model(self, name, fingerprint=UNKNOWN):
-        """The model ``name``; ``fingerprint`` as stored (None: not in the database).
+        """The model ``name``, parsed once while its version stays the same.
+
+        Parameters
+        ----------
+        name : str
+        fingerprint : str or None
+            As stored (None: not in the database); default: ask the database.
+            :func:`~mocapdb.storage.model_store.load_model` reads it (or the package's
+            copy of a shipped model the database lacks).
 
         Returns
         -------
         key : tuple
-            (name, fingerprint) — identifies the parsed model.
+            (name, version) — identifies the parsed model (version: see
+            :func:`~mocapdb.storage.model_store.model_version`).
         model : mocapdb.annotation.Model
         """
         if name is None:
@@ -95,21 +103,14 @@ class ConnectionCache:
                 if fingerprint is UNKNOWN:
                     cur = self._cursor()
                     fingerprint = model_fingerprint(cur, name)
-                if fingerprint is None and name in SHIPPED_MODELS:
-                    # a read-only database without the shipped models: read them from the package
-                    fingerprint = "shipped"
+                version = model_version(name, fingerprint)
                 hit = self._models.get(name)
-                if hit is not None and hit[0] == fingerprint:
-                    return (name, fingerprint), hit[1]
-                if fingerprint == "shipped":
-                    model = model_from_tables(shipped_model_tables(name))
-                else:
-                    cur = cur or self._cursor()
-                    if fingerprint is None:
-                        raise unknown_model(cur, name)
-                    model = model_from_tables(read_model_tables(cur, name))
-                self._models[name] = (fingerprint, model)
-                return (name, fingerprint), model
+                if hit is not None and hit[0] == version:
+                    return (name, version), hit[1]
+                cur = cur or self._cursor()
+                model = load_model(cur, name, version=version)
+                self._models[name] = (version, model)
+                return (name, version), model
             finally:
                 if cur is not None:
                     cur.close()

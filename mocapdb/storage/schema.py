@@ -3,7 +3,7 @@
 The schema lives in ``sql/schema.sql``, ``sql/views.sql`` and ``sql/index.sql``
 (plain tables and views, persisted in the file). A read-write open creates
 what is missing — a new database gets the tables, the keyframe index and
-the shipped models (:data:`mocapdb.storage.models.SHIPPED_MODELS`) — so every
+the shipped models (:data:`mocapdb.storage.model_store.SHIPPED_MODELS`) — so every
 SQL function works on a fresh database. A read-only open changes nothing; the
 shipped models then come from the package.
 
@@ -21,7 +21,7 @@ from pathlib import Path
 import duckdb
 
 from mocapdb.errors import SchemaError
-from mocapdb.storage.models import install_shipped_models
+from mocapdb.storage.model_store import install_shipped_models
 from mocapdb.storage.postings import create_index, create_index_schema
 from mocapdb.storage.sqltext import sql_text, statement
 from mocapdb.storage.transaction import transaction

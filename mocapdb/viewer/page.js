@@ -1,6 +1,6 @@
 // mocapdb viewer: the skeleton of one motion, animated, above its labels over time.
 // Self-contained: no libraries, no network. The data are in <script id="mocapdb-data">
-// (see mocapdb/viewer/page.py for the encoding). ?selftest=1 clicks every segment and
+// (see mocapdb/viewer/encoding.py for the encoding). ?selftest=1 clicks every segment and
 // reports in #selftest whether the animation went there, and drags a selection along the
 // timeline. #frame=N opens the page at frame N (1-based, 30 Hz), #frame=A-B with frames A–B
 // selected (the links of a `mocapdb similar --format html` results page).

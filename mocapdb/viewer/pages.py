@@ -8,7 +8,7 @@ from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.storage.annotations import motion_sources
 from mocapdb.storage.names import file_in, file_stems
 from mocapdb.viewer.data import motion_poses, motion_view
-from mocapdb.viewer.page import label_colors, render_index, render_page
+from mocapdb.viewer.encoding import label_colors, render_index, render_page
 
 __all__ = ["write_motion_page", "write_pages", "INDEX_STEM", "is_viewer_page"]
 

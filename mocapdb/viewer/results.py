@@ -14,7 +14,7 @@ from pathlib import Path
 
 from mocapdb.errors import MocapdbError
 from mocapdb.storage.annotations import file_stems, motion_sources
-from mocapdb.viewer.page import page_html
+from mocapdb.viewer.encoding import page_html
 from mocapdb.viewer.pages import write_motion_page
 
 __all__ = ["write_results_pages", "render_results"]

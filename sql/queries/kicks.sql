@@ -1,5 +1,5 @@
 -- Every kick in the archive with one query: the default model's designed kick
--- keyframe (the raised leg stretched, mocapdb/models/classes/kick.toml) for
+-- keyframe (the raised leg stretched, mocapdb/shipped_models/classes/kick.toml) for
 -- the left leg and, mirrored, the right, with the matched frame ranges.
 SELECT m.name, k.leg, k.start_frame, k.end_frame,
        round((k.end_frame - k.start_frame + 1) / m.fps, 2) AS seconds

@@ -1,6 +1,6 @@
-"""The viewer page: one self-contained HTML file per motion (inline CSS, JS and data, no network).
+"""A viewer page's data, encoded compactly and inlined with its HTML, CSS and JS (no network).
 
-The page (``shell.html``, ``page.html``, ``page.css``, ``page.js`` beside this module) draws
+Each page is one self-contained HTML file per motion. The page (``shell.html``, ``page.html``, ``page.css``, ``page.js`` beside this module) draws
 the skeleton with its own perspective projection on a 2-D canvas (orbit by
 dragging, zoom by the wheel, play/pause, scrubber, speed), the annotation
 under it as a timeline (one element ``.seg[data-label]`` per segment, one

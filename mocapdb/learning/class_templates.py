@@ -1,4 +1,4 @@
-"""Building an annotation :class:`~mocapdb.annotation.model.Model` from labelled clips.
+"""A template per class from labelled clips: an annotation :class:`~mocapdb.annotation.model.Model`.
 
 * :func:`train_model` — one motion template per class (TEMPLATES.md §7,
   :func:`mocapdb.templates.learn_template`), quantized with δ, τ attached,

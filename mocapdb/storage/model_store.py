@@ -6,7 +6,7 @@ all keyed by the model name. :func:`model_tables` encodes a
 :class:`~mocapdb.annotation.Model` as Arrow tables of exactly those rows and
 :func:`model_from_tables` decodes them — the one codec, used for the
 database, for the Parquet files of the shipped models
-(``mocapdb/models/<name>/<table>.parquet``) and for the SQL functions. An
+(``mocapdb/shipped_models/<name>/<table>.parquet``) and for the SQL functions. An
 unbounded keyframe gap is NULL in rows and :data:`mocapdb.keyframes.UNBOUNDED`
 in memory.
 
@@ -266,19 +266,54 @@ def read_model_tables(con, name: str) -> dict:
             for t in MODEL_TABLES}
 
 
-def load_model(con, name: str = DEFAULT_MODEL) -> Model:
+#: the version of a shipped model that the database lacks (a read-only database made before it
+#: shipped): it is read from the package; stored fingerprints are hex digits, never this
+FROM_PACKAGE = "shipped"
+_ASK = object()
+
+
+def model_version(name: str, fingerprint):
+    """Which version of model ``name`` :func:`load_model` reads, given its stored fingerprint.
+
+    Parameters
+    ----------
+    name : str
+    fingerprint : str or None
+        As stored (:func:`model_fingerprint`); None: the database has no such model.
+
+    Returns
+    -------
+    str or None
+        ``fingerprint``; :data:`FROM_PACKAGE` for a shipped model the database
+        lacks; None if there is no such model at all.
+    """
+    if fingerprint is None and name in SHIPPED_MODELS:
+        return FROM_PACKAGE
+    return fingerprint
+
+
+def load_model(con, name: str = DEFAULT_MODEL, *, version=_ASK) -> Model:
     """A stored model; a shipped model missing from a read-only database comes from the package.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    name : str
+    version : str or None, keyword-only
+        The model's :func:`model_version`, when the caller knows it (a cache
+        keyed by it); default: ask the database.
 
     Raises
     ------
     SchemaError
         If the database has no such model (the message lists the stored ones).
     """
-    if model_fingerprint(con, name) is not None:
-        return model_from_tables(read_model_tables(con, name))
-    if name in SHIPPED_MODELS:
-        return model_from_tables(shipped_model_tables(name))
-    raise unknown_model(con, name)
+    if version is _ASK:
+        version = model_version(name, model_fingerprint(con, name))
+    if version is None:
+        raise unknown_model(con, name)
+    tables = shipped_model_tables(name) if version == FROM_PACKAGE else read_model_tables(con, name)
+    return model_from_tables(tables)
 
 
 def unknown_model(con, name) -> SchemaError:
@@ -312,7 +347,7 @@ def model_metadata(con, name: str) -> dict:
 
 def shipped_model_dir(name: str = DEFAULT_MODEL):
     """Where a model shipped with the package keeps its Parquet files."""
-    return resources.files("mocapdb.models").joinpath(name)
+    return resources.files("mocapdb.shipped_models").joinpath(name)
 
 
 def shipped_model_tables(name: str) -> dict:
@@ -375,6 +410,7 @@ def export_model(con, name: str, directory) -> Path:
 
 
 __all__ = ["DEFAULT_MODEL", "SHIPPED_MODELS", "MODEL_TABLES", "fingerprint", "model_tables", "model_from_tables",
-           "model_names", "model_fingerprint", "save_model", "read_model_tables", "load_model", "unknown_model",
+           "model_names", "model_fingerprint", "save_model", "read_model_tables", "FROM_PACKAGE", "model_version",
+           "load_model", "unknown_model",
            "keyframe_query_stats", "ga_statistics_rows", "model_metadata", "shipped_model_dir",
            "shipped_model_tables", "install_shipped_models", "export_model"]
