@@ -151,17 +151,14 @@ def current_rss_mb():
 
 
 def preselection_share(con, mid, a, b):
-    """Frames the query's preselection keeps, as a fraction of the archive."""
-    from mocapdb.retrieval import plan_query, preselect, sample_step
-    from mocapdb.retrieval.archive import index_sample
+    """Frames the query's preselection keeps, as a fraction of the archive (batch by batch, as
+    ``similar`` searches it)."""
     from mocapdb.storage.cache import connection_cache
-    from mocapdb.storage.retrieval import query_stretch
+    from mocapdb.storage.retrieval import query_stretch, search_archive
 
-    _, index, _ = connection_cache(con).index()
-    s = query_stretch(con, mid, a, b)
-    q = plan_query([s[3]], index_sample(index, sample_step(index.n_frames)))
-    segs = preselect(index, q)
-    return 1.0 if segs is None else segs.n_frames / index.n_frames
+    stats = {}
+    search_archive(connection_cache(con), [query_stretch(con, mid, a, b)], stats=stats)
+    return stats["ranked_frames"] / stats["archive_frames"]
 
 
 def measure(path, queries, label):

@@ -114,7 +114,7 @@ def check_range(what, n_frames, fps, start_frame=None, end_frame=None, *, start=
 
 
 def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyframes=None,
-                   batch_frames=BATCH_FRAMES, version=UNKNOWN) -> np.ndarray:
+                   batch_frames=BATCH_FRAMES, version=UNKNOWN, stats=None) -> np.ndarray:
     """The query over the archive's keyframe index, a batch of motions at a time.
 
     Each batch's postings come from the connection's cache
@@ -138,6 +138,9 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
         (:func:`mocapdb.retrieval.preselect`).
     version : int, optional
         The index version (default: ask the database).
+    stats : dict, optional
+        Filled with ``archive_frames`` and ``ranked_frames`` (the frames
+        the preselection kept; all of them without one), for benchmarks.
 
     Returns
     -------
@@ -158,7 +161,7 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
                        keyframes=keyframes is not False)
     # the archive within the budget: no preselection anywhere (unless forced)
     whole = keyframes is False or not query.keyframes or (not keyframes and rank_cells(n_frames, query) <= CELL_BUDGET)
-    found = []
+    found, ranked = [], 0
     for a, b in frame_batches(lengths, cache.batch_frames):
         index = cache.batch_index(ids[a:b], lengths[a:b], ("full",), version=version)
         share = int(CELL_BUDGET * lengths[a:b].sum() / n_frames)
@@ -167,6 +170,7 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
             doc, start, stop = np.arange(index.n_docs), np.zeros(index.n_docs, np.int64), index.doc_lengths
         else:
             doc, start, stop = segs.doc, segs.start, segs.end + 1
+        ranked += int(np.sum(stop - start))
         # the query stretches of this batch's motions are no hits (batch positions; ids ascend)
         here = np.searchsorted(ids[a:b], [s[0] for s in stretches])
         exclude = [(int(d), s[1], s[2]) for d, s in zip(here, stretches)
@@ -175,6 +179,8 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
                                limit=limit, exclude=exclude, batch_frames=batch_frames)
         hits["doc"] = ids[a:b][hits["doc"]]
         found.append(hits)
+    if stats is not None:
+        stats.update(archive_frames=n_frames, ranked_frames=ranked)
     return best_hits(found, limit, key=("cost", "doc", "start"))
 
 
