@@ -15,12 +15,14 @@ archive frames at once.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.retrieval import (BATCH_FRAMES, CELL_BUDGET, best_hits, plan_query, preselect, rank_cells,
-                               sample_step, search_segments)
+from mocapdb.retrieval import (BATCH_FRAMES, CELL_BUDGET, best_hits, plan_query, preselect, query_keyframes,
+                               rank_cells, sample_step, search_segments)
 from mocapdb.retrieval.archive import index_words
 from mocapdb.storage.cache import NO_INDEX, UNKNOWN, connection_cache
 from mocapdb.storage.motions import frame_batches
@@ -157,10 +159,14 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
             raise SchemaError("the archive is empty: ingest motions first")
         sample = np.asarray(cur.execute(_sql("sample_words"), {"step": sample_step(n_frames)})
                             .fetchnumpy()["bits"], np.uint64)
-    query = plan_query([s[3] for s in stretches], sample, features=features, tau=tau,
-                       keyframes=keyframes is not False)
-    # the archive within the budget: no preselection anywhere (unless forced)
-    whole = keyframes is False or not query.keyframes or (not keyframes and rank_cells(n_frames, query) <= CELL_BUDGET)
+    words = [s[3] for s in stretches]
+    query = plan_query(words, sample, features=features, tau=tau, keyframes=False)
+    # the archive within the budget: no preselection anywhere (unless forced), and no keyframes to
+    # take from the query (that costs more than ranking a small archive)
+    whole = keyframes is False or (not keyframes and rank_cells(n_frames, query) <= CELL_BUDGET)
+    if not whole:
+        query = dataclasses.replace(query, keyframes=query_keyframes(query.template, sample))
+        whole = not query.keyframes
     found, ranked = [], 0
     for a, b in frame_batches(lengths, cache.batch_frames):
         index = cache.batch_index(ids[a:b], lengths[a:b], ("full",), version=version)
