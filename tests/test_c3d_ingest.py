@@ -23,6 +23,8 @@ from conftest import DATA
 from fuzzing import mutate, pack
 from naive_keyframes import naive_keyframe_search
 
+pytestmark = pytest.mark.shared
+
 FOREIGN = DATA / "foreign" / "c3d"
 GOOD = [DATA / "cmu" / "c3d" / "85_02.c3d", DATA / "cmu" / "c3d" / "85_12.c3d",
         DATA / "cmu" / "c3d" / "135_02.c3d", DATA / "hdm05_full" / "HDM_mm_01-02_03_120.c3d"]

@@ -10,6 +10,8 @@ from mocapdb.cli import main
 
 from conftest import DATA, write_truth_86_09, write_truth_86_09_eaf
 
+pytestmark = pytest.mark.shared
+
 CMU86_MAP = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
 
 

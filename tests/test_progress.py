@@ -14,6 +14,8 @@ from mocapdb.storage import annotations as stored
 
 from conftest import DATA
 
+pytestmark = pytest.mark.shared
+
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:6]
 
 

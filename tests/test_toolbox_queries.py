@@ -20,6 +20,8 @@ from mocapdb.storage.models import load_model
 from mocapdb.learning.toolbox_queries import has_toolbox_query, read_toolbox_query, toolbox_keyframe_queries
 from naive_keyframes import int_table, load_feat30_words, load_toolbox_query, read_rows
 
+pytestmark = pytest.mark.shared
+
 HAND_MADE = ["squat1Reps", "kickLFront1Reps", "hopBothLegs1hops", "rotateArmsBothBackward1Reps",
              "elbowToKnee1RepsLelbowStart"]
 
