@@ -1,4 +1,5 @@
 """Storage: schema, ingest (idempotent, atomic per file), the feature view, Parquet round trip."""
+import lzma
 import math
 import re
 import shutil
@@ -12,7 +13,7 @@ from mocapdb import ingest
 from mocapdb.storage.ingest import motion_files
 from mocapdb.readers import read_motion
 
-from conftest import DATA, amc_frame_count, c3d_frame_count
+from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH, amc_frame_count, c3d_frame_count
 
 CMU_ASF = DATA / "cmu" / "02" / "02.asf"
 NO_ASF_DIRS = (DATA / "cmu" / "13", DATA / "cmu" / "14")
@@ -31,6 +32,7 @@ def archive(tmp_path_factory):
     con.close()
 
 
+@pytest.mark.shared
 def test_whole_data_ingests_with_right_frame_counts(archive):
     con, first, second = archive
     amcs = [p for p in motion_files(ARCHIVE) if p.suffix == ".amc"]
@@ -55,6 +57,7 @@ def test_whole_data_ingests_with_right_frame_counts(archive):
                        ).fetchall()[0][0] == 56733
 
 
+@pytest.mark.shared
 def test_stored_words_are_the_features_of_the_file(archive):
     con = archive[0]
     for name in ("86_09", "HDM_bd_kickLFront1Reps_001_120", "13_29", "85_02"):
@@ -64,6 +67,7 @@ def test_stored_words_are_the_features_of_the_file(archive):
         np.testing.assert_array_equal(stored, motion_features(read_motion(path, asf=asf)))
 
 
+@pytest.mark.shared
 def test_reingest_is_a_noop(archive):
     con = archive[0]
     before = con.execute("SELECT count(*), sum(motion_id), (SELECT count(*) FROM features) FROM motions").fetchall()
@@ -74,6 +78,7 @@ def test_reingest_is_a_noop(archive):
                        ).fetchall() == before
 
 
+@pytest.mark.shared
 def test_feature_flags_view_names_every_bit(archive):
     con = archive[0]
     cols = [r[0] for r in con.execute("DESCRIBE feature_flags").fetchall()]
@@ -91,6 +96,7 @@ def test_feature_flags_view_names_every_bit(archive):
     assert squat > 0.3 > walk
 
 
+@pytest.mark.shared
 def test_parquet_export_import_round_trip(archive, tmp_path):
     from mocapdb.storage.parquet import export_features, features_sql, import_features
 
@@ -135,6 +141,7 @@ def _broken_copies(tmp_path):
     return d, good
 
 
+@pytest.mark.shared
 def test_failed_files_change_nothing_and_others_go_in(tmp_path):
     d, good = _broken_copies(tmp_path)
     con = mocapdb.connect(tmp_path / "t.duckdb")
@@ -155,6 +162,7 @@ def test_failed_files_change_nothing_and_others_go_in(tmp_path):
         con.close()
 
 
+@pytest.mark.shared
 def test_delete_removes_everything_of_a_motion(tmp_path):
     from mocapdb.storage.ingest import delete_motions
 
@@ -171,6 +179,7 @@ def test_delete_removes_everything_of_a_motion(tmp_path):
         con.close()
 
 
+@pytest.mark.shared
 def test_a_take_in_two_formats_is_named_by_its_file(archive):
     """hdm05_full holds the dg excerpt as .amc and as .c3d: both are stored, the
     stem names two motions, and a label file names either by its file name."""
@@ -196,7 +205,7 @@ def test_a_second_connect_in_one_process_and_cursors_have_the_functions(tmp_path
 
     path = tmp_path / "twice.duckdb"
     first = mocapdb.connect(path)
-    ingest(first, [DATA / "cmu" / "86" / "86_09.amc"])
+    ingest(first, [SAMPLE_86_09])
     want = first.sql("SELECT annotate(1)").fetchall()
     again = mocapdb.connect(path)
     assert again.sql("SELECT annotate(1)").fetchall() == want
@@ -243,6 +252,7 @@ def test_plain_duckdb_is_told_how_to_get_the_functions(tmp_path):
         con.close()
 
 
+@pytest.mark.shared
 def test_an_archive_with_names_no_ingest_gives_is_refused(archive, tmp_path):
     """import-features checks motion names: ../x, absolute paths, control characters are refused, naming them."""
     import pyarrow as pa
@@ -268,6 +278,7 @@ def test_an_archive_with_names_no_ingest_gives_is_refused(archive, tmp_path):
         fresh.close()
 
 
+@pytest.mark.shared
 def test_delete_asks_which_when_a_name_names_several(archive, tmp_path):
     """hdm05_full holds one take as .amc and .c3d: delete NAME names both, so it needs an id or --all-named."""
     from mocapdb.errors import ParameterError
@@ -293,7 +304,7 @@ def test_replace_reads_a_stored_file_again(tmp_path):
     """A file re-ingested with replace=True (a corrected joint map) replaces its motion; without, it is skipped."""
     from mocapdb.api import joint_map_template
 
-    bvh = DATA / "foreign" / "bvh" / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh"
+    bvh = SAMPLE_BVH
     joint_map = tmp_path / "map.toml"
     joint_map.write_text(joint_map_template(bvh), encoding="utf-8")
     con = mocapdb.connect(tmp_path / "r.duckdb")
@@ -321,8 +332,8 @@ def test_paths_are_stored_as_given_and_relocate_repoints_them(tmp_path):
     relocate repoints the motions whose bytes are at the new place, and view works again."""
     real = tmp_path / "real"
     real.mkdir()
-    for name in ("86.asf", "86_09.amc"):
-        shutil.copy(DATA / "cmu" / "86" / name, real / name)
+    shutil.copy(SAMPLE_86_ASF, real / "86.asf")
+    (real / "86_09.amc").write_bytes(lzma.decompress(SAMPLE_86_09.read_bytes()))
     link = tmp_path / "link"
     link.symlink_to(real, target_is_directory=True)
     con = mocapdb.connect(tmp_path / "m.duckdb")

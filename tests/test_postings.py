@@ -14,6 +14,7 @@ from conftest import DATA
 POSTINGS = f"SELECT motion_id, feature_set, seg, word, start_frame, n_frames FROM {INDEX_SCHEMA}.postings ORDER BY ALL"
 
 
+@pytest.mark.shared
 def test_index_follows_ingests_and_deletes(tmp_path):
     """After any sequence of ingests and deletes the index equals one rebuilt from features."""
     rng = np.random.default_rng(7)
@@ -33,6 +34,7 @@ def test_index_follows_ingests_and_deletes(tmp_path):
         con.close()
 
 
+@pytest.mark.shared
 def test_stored_index_equals_build_index_of_the_features(tmp_path):
     con = mocapdb.connect(tmp_path / "t.duckdb")
     try:
@@ -60,6 +62,7 @@ def test_stored_index_equals_build_index_of_the_features(tmp_path):
         con.close()
 
 
+@pytest.mark.shared
 def test_drop_and_create(tmp_path):
     con = mocapdb.connect(tmp_path / "t.duckdb")
     try:
@@ -83,6 +86,7 @@ def test_drop_and_create(tmp_path):
         con.close()
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("parts", [("full",), ("upper", "lower", "mix")])
 def test_load_index_parts(tmp_path, parts):
     con = mocapdb.connect(tmp_path / "t.duckdb")
