@@ -26,7 +26,7 @@ from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.storage.models import load_model
 from mocapdb.storage.parquet import table_schemas
 
-from conftest import DATA, REPO
+from conftest import DATA, REPO, SAMPLE_86_09
 
 #: Ray Data's own DataContext warns about its deprecated fields whenever it copies itself
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context")
@@ -106,6 +106,7 @@ def _archive_rows(con, out, prefix, dataset):
     return _rows(con, dataset, {k: f"{prefix}_{k}" for k in DB_TABLES})
 
 
+@pytest.mark.shared
 def test_the_archive_equals_ingest_and_annotate(single, archive):
     out, report = archive
     n = single.execute("SELECT count(*) FROM motions").fetchall()[0][0]
@@ -120,6 +121,7 @@ def test_the_archive_equals_ingest_and_annotate(single, archive):
     assert report.segments == segs[0] > 200 and segs[1] > 5
 
 
+@pytest.mark.shared
 def test_motion_ids_follow_the_file_list_and_parts_their_buckets(archive):
     out, report = archive
     files = expand_sources(SOURCES)
@@ -139,6 +141,7 @@ def test_motion_ids_follow_the_file_list_and_parts_their_buckets(archive):
     assert not [p for p in out.rglob("*") if p.name.startswith(".")]  # no temporary files left
 
 
+@pytest.mark.shared
 def test_every_format_and_every_failure_as_ingest(local_ray, tmp_path):
     """Foreign recordings (BVH of other tools, an AMC of another lab): the same motions and
     rows as ingest + annotate, and the files ingest refuses are the errors, with its reasons."""
@@ -172,6 +175,7 @@ def _broken_folder(tmp_path):
     return d, good
 
 
+@pytest.mark.shared
 def test_broken_files_become_rows_of_errors_and_the_rest_goes_on(local_ray, tmp_path):
     d, good = _broken_folder(tmp_path)
     out = tmp_path / "archive"
@@ -217,6 +221,7 @@ def _dies_once(victim: str, marker: Path):
     return DiesOnce
 
 
+@pytest.mark.shared
 def test_a_worker_killed_mid_run_changes_nothing(local_ray, archive, single, tmp_path):
     out, clean = archive
     files = expand_sources(SOURCES)
@@ -235,6 +240,7 @@ def test_a_worker_killed_mid_run_changes_nothing(local_ray, archive, single, tmp
         sorted(p.relative_to(out) for p in out.rglob("*") if p.is_file())
 
 
+@pytest.mark.shared
 def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, tmp_path):
     out, report = archive
     con = api.connect(tmp_path / "imported.duckdb")
@@ -255,6 +261,7 @@ def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, t
         con.close()
 
 
+@pytest.mark.shared
 def test_the_archive_is_queryable_in_place(archive, single, tmp_path):
     """`mocapdb attach DIR`: motions, features, annotations and the index are views of the archive's
     Parquet; the SQL functions answer as in a database that holds the same motions (issue 20 item 3)."""
@@ -295,6 +302,7 @@ def test_the_archive_is_queryable_in_place(archive, single, tmp_path):
         api.attach(single, out)
 
 
+@pytest.mark.shared
 def test_a_killed_ray_annotate_is_refused_until_run_again(local_ray, tmp_path):
     """SIGKILL of a running `mocapdb ray-annotate` (its whole process group, Ray included): the batches
     written so far have no manifest beside them, so import, attach and a new run without --overwrite
@@ -330,6 +338,7 @@ def test_a_killed_ray_annotate_is_refused_until_run_again(local_ray, tmp_path):
         con.close()
 
 
+@pytest.mark.shared
 def test_a_cluster_with_token_authentication(tmp_path):
     """`ray-annotate --address` on a cluster started with `ray start` and RAY_AUTH_MODE=token (Ray ≥ 2.52):
     the client needs the same mode and the token (here RAY_AUTH_TOKEN_PATH); without them one clear line."""
@@ -356,6 +365,7 @@ def test_a_cluster_with_token_authentication(tmp_path):
         assert p.stdout.startswith("9 motions") and (tmp_path / "b" / "manifest.json").exists()
 
 
+@pytest.mark.shared
 def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, tmp_path):
     """`mocapdb --db DB ray-annotate --model NAME --tau … --no-keyframes`: the model comes from the
     database; the segments equal `annotate` with the same options in that database."""
@@ -388,6 +398,7 @@ def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, 
         con.close()
 
 
+@pytest.mark.shared
 def test_the_readme_example_queries_the_parquet_in_place(archive, tmp_path, monkeypatch):
     """The README section's Python block, run where `archive` is the archive."""
     out, report = archive
@@ -405,6 +416,7 @@ def test_the_readme_example_queries_the_parquet_in_place(archive, tmp_path, monk
     assert sum(n for _, n, _ in rows) == report.segments and all(s > 0 for _, _, s in rows)
 
 
+@pytest.mark.shared
 def test_sources_expand_like_ingest_and_globs(tmp_path):
     cmu = DATA / "cmu" / "02"
     assert expand_sources([cmu]) == expand_sources([f"{cmu}/*.amc"]) == sorted(cmu.glob("*.amc"))
@@ -416,6 +428,7 @@ def test_sources_expand_like_ingest_and_globs(tmp_path):
         expand_sources([tmp_path / "nowhere"])
 
 
+@pytest.mark.shared
 def test_parameters_are_checked_before_any_work(tmp_path):
     with pytest.raises(SchemaError, match="no model 'nope'"):
         ray_annotate(SOURCES, tmp_path / "a", model="nope")
@@ -435,7 +448,7 @@ def test_without_ray_one_clear_error(monkeypatch, tmp_path):
     monkeypatch.setitem(sys.modules, "ray", None)  # what `import ray` sees without the extra
     with pytest.raises(MissingExtraError, match=re.escape("pip install 'mocapdb[ray]'")):
         require_ray()
-    r = CliRunner().invoke(main, ["ray-annotate", str(DATA / "cmu" / "02"), "--out", str(tmp_path / "a")])
+    r = CliRunner().invoke(main, ["ray-annotate", str(SAMPLE_86_09), "--out", str(tmp_path / "a")])
     assert r.exit_code == 1
     assert r.output == "Error: ray_annotate needs Ray, which is not installed: pip install 'mocapdb[ray]'\n"
 

@@ -8,15 +8,13 @@ from importlib import resources
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import mocapdb
 from mocapdb.annotation import read_truth
-from mocapdb.cli import main
 from mocapdb.viewer import encode_delta, encode_poses, motion_poses, motion_view
 
 from browser import Elements, console_errors, dump_dom, screenshot
-from conftest import DATA, REPO, write_truth_86_09_eaf
+from conftest import DATA, REPO, run, write_truth_86_09_eaf
 
 CMU86_MAP = resources.files("mocapdb.models").joinpath("cmu86_labels.csv")
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:2]
@@ -32,12 +30,6 @@ def db(tmp_path_factory):
     return path, write_truth_86_09_eaf(root / "86_09_truth.eaf")
 
 
-def run(db_path, *args):
-    r = CliRunner().invoke(main, ["--db", str(db_path), *map(str, args)], catch_exceptions=False)
-    assert r.exit_code == 0, r.output
-    return r
-
-
 @pytest.fixture(scope="module")
 def page(db, tmp_path_factory):
     """The 86_09 page with the ELAN ground truth, and the DOM Chromium made of it with ?selftest."""
@@ -48,6 +40,7 @@ def page(db, tmp_path_factory):
     return out, Elements(dom), log
 
 
+@pytest.mark.shared
 def test_every_segment_is_an_element_with_its_label(db, page):
     path, eaf = db
     out, dom, log = page
@@ -75,6 +68,7 @@ def test_every_segment_is_an_element_with_its_label(db, page):
     assert all(len(c) == 1 for c in colours.values()) and len({min(c) for c in colours.values()}) == len(colours)
 
 
+@pytest.mark.shared
 def test_the_page_runs_without_javascript_errors(page):
     out, dom, log = page
     body = next(e for e in dom.elements if e[0] == "body")
@@ -83,6 +77,7 @@ def test_the_page_runs_without_javascript_errors(page):
     assert dom.by_id("errors")[2].strip() == ""
 
 
+@pytest.mark.shared
 def test_a_javascript_error_fails_the_check(page, tmp_path):
     """The harness sees a broken page (so the checks above can fail)."""
     out, _, _ = page
@@ -94,6 +89,7 @@ def test_a_javascript_error_fails_the_check(page, tmp_path):
     assert "data-ready" not in dump_dom(broken)[0].split("<body", 1)[1].split(">", 1)[0]
 
 
+@pytest.mark.shared
 def test_clicking_a_segment_seeks_there(page):
     out, dom, log = page
     test = dom.by_id("selftest")
@@ -101,6 +97,7 @@ def test_clicking_a_segment_seeks_there(page):
     assert int(test[1]["data-segments"]) == len(dom.by_class("seg"))
 
 
+@pytest.mark.shared
 def test_dragging_along_the_timeline_offers_a_similar_command(page):
     """The self test drags from 20 % to 40 % of the first track: frames selected, the command shown."""
     out, dom, log = page
@@ -113,6 +110,7 @@ def test_dragging_along_the_timeline_offers_a_similar_command(page):
     assert "hidden" not in box[1] and (box[1]["data-first"], box[1]["data-last"]) == (str(first), str(last))
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("fragment, opened, selected", [("#frame=100-160", "100", ("100", "160")),
                                                        ("#frame=250", "250", None)])
 def test_a_frame_fragment_opens_the_page_there(page, fragment, opened, selected):
@@ -133,6 +131,7 @@ def test_a_frame_fragment_opens_the_page_there(page, fragment, opened, selected)
                                                  f"--end-frame {selected[1]}"
 
 
+@pytest.mark.shared
 def test_the_decoded_poses_are_the_source_joints(db, page):
     """The page's own decoder (JavaScript) gives back the re-read joints within the quantization step."""
     path, _ = db
@@ -151,6 +150,7 @@ def test_the_decoded_poses_are_the_source_joints(db, page):
         np.testing.assert_allclose(xyz, joints[t, j], atol=1.01 * unit + 1e-4 * np.abs(joints[t, j]).max())
 
 
+@pytest.mark.shared
 def test_the_screenshot_is_not_blank(page, tmp_path):
     out, _, _ = page
     png = tmp_path / "viewer.png"
@@ -169,6 +169,7 @@ def test_the_screenshot_is_not_blank(page, tmp_path):
         shutil.copyfile(png, REPO / "docs" / "viewer.png")
 
 
+@pytest.mark.shared
 def test_the_page_is_self_contained(page):
     out, _, _ = page
     text = out.read_text(encoding="utf-8")
@@ -176,6 +177,7 @@ def test_the_page_is_self_contained(page):
     assert not re.search(r"https?://(?!www\.w3\.org)", text.split('id="mocapdb-data"')[0])
 
 
+@pytest.mark.shared
 def test_all_writes_a_page_per_motion_and_an_index(db, tmp_path):
     path, _ = db
     r = run(path, "view", "--all", tmp_path / "pages", "--silent")
@@ -189,14 +191,14 @@ def test_all_writes_a_page_per_motion_and_an_index(db, tmp_path):
     assert console_errors(log) == [] and Elements(dom).by_id("selftest")[1]["data-status"] == "pass"
 
 
+@pytest.mark.shared
 def test_view_needs_a_motion_and_out_or_all(db):
     path, _ = db
-    r = CliRunner().invoke(main, ["--db", str(path), "view", "86_09"])
-    assert r.exit_code == 1 and r.output.startswith("Error: give a motion and out")
-    r = CliRunner().invoke(main, ["--db", str(path), "view", "no_such", "--out", "x.html"])
-    assert r.exit_code == 1 and "no motion 'no_such'" in r.output
+    assert run(path, "view", "86_09", code=1).output.startswith("Error: give a motion and out")
+    assert "no motion 'no_such'" in run(path, "view", "no_such", "--out", "x.html", code=1).output
 
 
+@pytest.mark.shared
 def test_the_distance_functions_are_those_of_sql_mt_distance(db):
     """Δ̄^τ of the page (reference mode) is made of the SQL function's Δ: every finite value is a
     value of Δ below τ, and where Δ has its smallest value below τ, Δ̄^τ has it too."""
@@ -241,6 +243,7 @@ def test_poses_fall_back_to_int32_for_big_jumps():
     assert encode_poses(j[:2])["dtype"] == "int16" and encode_poses(j)["dtype"] == "int32"
 
 
+@pytest.mark.shared
 def test_all_lists_a_motion_whose_source_moved_without_a_page(tmp_path):
     """A source file moved after ingest costs its own page only; the index says why."""
     src = tmp_path / "takes"
@@ -284,6 +287,7 @@ def _files(root):
     return {p for p in root.rglob("*") if p.is_file()}
 
 
+@pytest.mark.shared
 def test_no_page_lands_outside_the_folder_whatever_the_names(hostile_db, tmp_path):
     """view --all with hostile names: every file inside the folder, one page per motion, and the
     index's links, resolved by the browser, open each motion's own page."""
@@ -326,14 +330,15 @@ def test_no_page_lands_outside_the_folder_whatever_the_names(hostile_db, tmp_pat
     assert _files(root.parent) - before == new
 
 
+@pytest.mark.shared
 def test_all_never_overwrites_a_file_it_did_not_write(hostile_db, tmp_path):
     root, names = hostile_db
     folder = tmp_path / "mine"
     folder.mkdir()
     (folder / "index.html").write_text("my own index", encoding="utf-8")
     (folder / "notes.txt").write_text("x", encoding="utf-8")
-    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "view", "--all", str(folder), "--silent"])
-    assert r.exit_code == 1 and "index.html" in r.output and "did not write" in r.output
+    r = run(root / "h.duckdb", "view", "--all", folder, "--silent", code=1)
+    assert "index.html" in r.output and "did not write" in r.output
     assert sorted(p.name for p in folder.iterdir()) == ["index.html", "notes.txt"]
     assert (folder / "index.html").read_text(encoding="utf-8") == "my own index"
     # a symbolic link of a page's name is not written through
@@ -342,10 +347,11 @@ def test_all_never_overwrites_a_file_it_did_not_write(hostile_db, tmp_path):
     outside = tmp_path / "outside.html"
     outside.write_text("outside", encoding="utf-8")
     (other / "index.html").symlink_to(outside)
-    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "view", "--all", str(other), "--silent"])
-    assert r.exit_code == 1 and outside.read_text(encoding="utf-8") == "outside"
+    run(root / "h.duckdb", "view", "--all", other, "--silent", code=1)
+    assert outside.read_text(encoding="utf-8") == "outside"
 
 
+@pytest.mark.shared
 def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path):
     root, names = hostile_db
     written = mocapdb.view(mocapdb.connect(root / "h.duckdb", read_only=True), all=tmp_path / "p")
@@ -357,13 +363,12 @@ def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path):
     assert by_motion["CON"] == "_CON.html"
 
 
+@pytest.mark.shared
 def test_annotate_eaf_files_stay_in_their_folder(hostile_db, tmp_path):
     root, names = hostile_db
     before = _files(root.parent)
     out = tmp_path / "eaf"
-    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "annotate", "--format", "eaf", "--out", str(out),
-                                  "--silent"])
-    assert r.exit_code == 0, r.output
+    run(root / "h.duckdb", "annotate", "--format", "eaf", "--out", out, "--silent")
     files = sorted(out.iterdir())
     assert _files(root.parent) - before == set(files)
     assert len(files) == len(names) and all(p.parent == out and p.suffix == ".eaf" for p in files)
