@@ -221,6 +221,7 @@ def test_errors_name_file_and_line(text, line, match):
     assert e.value.line == line
 
 
+@pytest.mark.shared
 def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir):
     db = tmp_path / "a.duckdb"
     runner = CliRunner()
@@ -247,6 +248,7 @@ def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir
                                 "root_high_vel, root_high_ang_vel, foot_left_high_vel?")
 
 
+@pytest.mark.shared
 def test_train_with_definitions_adds_the_designed_classes(tmp_path, data_dir):
     import mocapdb
     from mocapdb.api import train
