@@ -390,11 +390,8 @@ def test_the_readme_names_only_options_the_commands_have():
         checked += 1
     assert checked >= 15
     # the --margin default: the model's, 0 (off) for the shipped models, in help and README alike
-    con = mocapdb.connect()
-    try:
+    with mocapdb.connect() as con:
         margins = dict(con.execute("SELECT model, margin FROM models WHERE shipped").fetchall())
-    finally:
-        con.close()
     assert margins == {"default": 0.0, "toolbox": 0.0}
     help_text = CliRunner().invoke(main, ["annotate", "--help"]).output
     assert "default: the model's margin, 0 for the shipped models = off" in " ".join(help_text.split())

@@ -16,11 +16,8 @@ FIGURES = REPO / "benchmarks" / "eval_quality.json"
 
 @pytest.fixture(scope="module")
 def shipped():
-    con = mocapdb.connect()
-    try:
+    with mocapdb.connect() as con:
         return load_model(con, "default"), load_model(con, "toolbox")
-    finally:
-        con.close()
 
 
 def test_the_default_model_knows_the_paper_s_15_labels(shipped):

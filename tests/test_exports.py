@@ -69,11 +69,8 @@ def test_eaf_file_layout(db, tmp_path):
     """ELAN's conventions: one tier per label, ms times, the recording as linked media."""
     import pympi
 
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         table = mocapdb.annotate(con, ["86_09"], store=False)
-    finally:
-        con.close()
     out = tmp_path / "86_09.eaf"
     run(db, "annotate", "86_09", "--format", "eaf", "--out", out)
     eaf = pympi.Elan.Eaf(str(out))
@@ -101,11 +98,8 @@ def test_eaf_of_several_motions_is_a_directory_of_files(db, tmp_path):
 def test_parquet_export_holds_the_segments(db, tmp_path):
     out = tmp_path / "segments.parquet"
     r = run(db, "annotate", "--format", "parquet", "--out", out)
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         table = mocapdb.annotate(con, store=False)
-    finally:
-        con.close()
     back = pq.read_table(out)
     assert back.equals(table) and f"{table.num_rows} segment(s) written" in r.output
 
@@ -146,12 +140,9 @@ def test_an_eaf_of_the_truth_reads_as_the_csv_and_trains_the_same_model(db, tmp_
     assert sorted(map(tuple, a.tolist())) == sorted(map(tuple, b.tolist()))
     run(db, "train", "--model", "from_csv", "--labels", truth_csv, "--silent")
     run(db, "train", "--model", "from_eaf", "--labels", truth_eaf, "--silent")
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         t = {m: con.execute("SELECT class, col, mask, value, weight FROM templates WHERE model = ? "
                             "ORDER BY class, col", [m]).fetchall() for m in ("from_csv", "from_eaf")}
-    finally:
-        con.close()
     assert t["from_csv"] and t["from_csv"] == t["from_eaf"]
     by_csv = eval_scores(run(db, "evaluate", "--truth", truth_csv, "--label-map", CMU86_MAP).output)
     by_eaf = eval_scores(run(db, "evaluate", "--truth", truth_eaf, "--label-map", CMU86_MAP).output)

@@ -254,7 +254,7 @@ def test_a_rig_lying_at_rest_with_its_root_axis_along_the_spine(amc_120, tmp_pat
 
 
 @pytest.mark.shared
-def test_a_mixed_folder_stores_every_good_file(tmp_path):
+def test_a_mixed_folder_stores_every_good_file(tmp_path, open_db):
     """Good AMC takes, a truncated one, the zero-length-bone BVH, an unsupported
     file and two identical broken copies: each good file stored, each bad one
     failed with its reason, the unsupported one listed."""
@@ -269,21 +269,18 @@ def test_a_mixed_folder_stores_every_good_file(tmp_path):
     (folder / "copy_b.bvh").write_bytes(b"HIERARCHY\nROOT Hips\n{\n")
     shutil.copy(FOREIGN / "fairmotion_pfnn_hierarchy.bvh", folder / "pfnn.bvh")
     (folder / "notes.txt").write_text("session notes")
-    con = mocapdb.connect(tmp_path / "m.duckdb")
-    try:
-        report = mocapdb.ingest(con, [folder])
-        assert sorted(p.split("/")[-1] for p, *_ in report.ingested) == ["02_01.amc", "02_02.amc", "pfnn.bvh"]
-        failed = dict(report.failed)
-        assert sorted(p.split("/")[-1] for p in failed) == ["02_03.amc", "copy_a.bvh", "copy_b.bvh"]
-        assert "02_03.amc:" in failed[str(folder / "02_03.amc")]
-        assert "same bytes as" in failed[str(folder / "copy_b.bvh")] and "which failed" in failed[str(folder / "copy_b.bvh")]
-        unsupported = dict(report.unsupported)
-        assert sorted(p.split("/")[-1] for p in unsupported) == ["02.asf", "notes.txt"]
-        assert "unsupported file type '.txt'" in unsupported[str(folder / "notes.txt")]
-        assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == 3
-        assert report.summary() == "3 ingested, 0 skipped, 3 failed, 2 not motion files"
-    finally:
-        con.close()
+    con = open_db(tmp_path / "m.duckdb")
+    report = mocapdb.ingest(con, [folder])
+    assert sorted(p.split("/")[-1] for p, *_ in report.ingested) == ["02_01.amc", "02_02.amc", "pfnn.bvh"]
+    failed = dict(report.failed)
+    assert sorted(p.split("/")[-1] for p in failed) == ["02_03.amc", "copy_a.bvh", "copy_b.bvh"]
+    assert "02_03.amc:" in failed[str(folder / "02_03.amc")]
+    assert "same bytes as" in failed[str(folder / "copy_b.bvh")] and "which failed" in failed[str(folder / "copy_b.bvh")]
+    unsupported = dict(report.unsupported)
+    assert sorted(p.split("/")[-1] for p in unsupported) == ["02.asf", "notes.txt"]
+    assert "unsupported file type '.txt'" in unsupported[str(folder / "notes.txt")]
+    assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == 3
+    assert report.summary() == "3 ingested, 0 skipped, 3 failed, 2 not motion files"
 
 
 @pytest.mark.shared

@@ -15,7 +15,7 @@ from mocapdb.annotation.labels import (
     to_feature_grid, to_native_grid, write_class_labels, write_labels)
 from mocapdb.readers import read_motion
 
-from conftest import DATA, SAMPLE_86_09
+from conftest import DATA, SAMPLE_86_09, run
 
 SEGMENTS_86 = DATA / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv"
 
@@ -254,16 +254,13 @@ def test_label_errors_speak_in_the_files_own_frames(tmp_path):
 def test_train_labels_beyond_a_document_name_the_file_line_and_native_frames(tmp_path):
     import mocapdb
 
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "t.duckdb") as con:
         mocapdb.ingest(con, [SAMPLE_86_09])
         path = tmp_path / "labels.csv"
         path.write_text("document,label,start_frame,end_frame\n86_09,walk,1,880\n86_09,clap,4000,4800\n")
         with pytest.raises(ParseError, match=r"labels\.csv:3: end_frame 4800 is beyond the last frame of document "
                                              r"'86_09' \(4794 frames at the native rate\)"):
             mocapdb.train(con, model="m", labels=path)
-    finally:
-        con.close()
 
 
 def test_labels_of_any_length_annotate(tmp_path):
@@ -278,8 +275,7 @@ def test_labels_of_any_length_annotate(tmp_path):
                             for k, (label, features) in enumerate([
                                 (long_a, "knee_left_bent = 0\nknee_right_bent = 0"),
                                 (long_b, "knee_left_bent = 0")], 1)))
-    con = mocapdb.connect(tmp_path / "l.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "l.duckdb") as con:
         mocapdb.ingest(con, [SAMPLE_86_09])
         mocapdb.api.define_class(con, [toml], model="long")
         table = mocapdb.annotate(con, model="long")
@@ -288,8 +284,6 @@ def test_labels_of_any_length_annotate(tmp_path):
         sql = con.sql("SELECT DISTINCT s.label FROM motions m, LATERAL (SELECT unnest(annotate(m.motion_id, "
                       "model := 'long'), recursive := true)) s").fetchall()
         assert {r[0] for r in sql} == set(table.column("label").to_pylist())
-    finally:
-        con.close()
 
 
 def test_an_elan_annotation_with_a_bad_time_slot_is_an_error(tmp_path):
@@ -353,12 +347,11 @@ def test_convert_labels_reads_the_published_label_files_as_the_development_evalu
     con.close()
     lab = DATA / "labels" / "cmu_mocap6"
     out = tmp_path / "13_29.csv"
-    r = CliRunner().invoke(main, ["--db", str(db), "convert-labels", str(lab / "13_29.txt"), "--frames-per-label",
-                                  "12", "--names", str(lab / "action_names.txt"), "--out", str(out)])
-    assert r.exit_code == 0, r.output
+    run(db, "convert-labels", lab / "13_29.txt", "--frames-per-label", "12", "--names", lab / "action_names.txt",
+        "--out", out)
     want = mocap6_documents(DATA, trials=("13_29",), class_labels={}).truth_native
     assert [tuple(x) for x in read_labels(out)] == [tuple(x) for x in want]
     assert read_labels(out)["end"].max() == 4592  # the last block of 12 ends at the take's last frame
     # the converted file is ground truth as it is
-    r = CliRunner().invoke(main, ["--db", str(db), "evaluate", "--truth", str(out)])
-    assert r.exit_code == 0 and "all " in r.output, r.output
+    r = run(db, "evaluate", "--truth", out)
+    assert "all " in r.output, r.output

@@ -171,11 +171,8 @@ def test_the_toolbox_model_ignores_the_filters(cut_clips, data_dir):
     from mocapdb.api import connect
     from mocapdb.storage.models import load_model
 
-    con = connect()
-    try:
+    with connect() as con:
         toolbox = load_model(con, "toolbox")
-    finally:
-        con.close()
     assert label_min_frames(toolbox).tolist() == [0] * len(toolbox.labels) and toolbox.margin == 0
     docs = mocap6_documents(data_dir, trials=("13_30",))
     on = annotate(docs.words, toolbox, doc_lengths=docs.doc_lengths).segments

@@ -18,7 +18,7 @@ from click.testing import CliRunner
 
 from mocapdb.cli import main
 
-from conftest import REPO, SHARED
+from conftest import REPO, SHARED, run
 
 pytestmark = pytest.mark.shared
 
@@ -70,8 +70,7 @@ def workdir(tmp_path_factory):
 def test_every_sql_example_runs_as_printed(workdir, k):
     query = blocks("sql")[k]
     db = workdir / next(c[c.index("--db") + 1] for c in commands() if "--db" in c)  # the README's first database
-    r = CliRunner().invoke(main, ["--db", str(db), "sql", query])
-    assert r.exit_code == 0, r.output
+    r = run(db, "sql", query)
     statements = [s for s in re.split(r";\s*(?:\n|$)", query) if re.sub(r"--[^\n]*", "", s).strip()]
     assert len(re.findall(r"^-{3,}", r.output, flags=re.M)) == len(statements), r.output  # a table each
     # pasted on stdin the same

@@ -144,7 +144,7 @@ def test_sql_file(path, tmp_path):
     Runner(path, tmp_path / "test.duckdb").run()
 
 
-def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path):
+def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path, open_db):
     """Each ```sql block of the README, statement by statement, on a new database with one motion."""
     from conftest import REPO
 
@@ -152,10 +152,7 @@ def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path):
     blocks = re.findall(r"```sql\n(.*?)```", readme, flags=re.S)
     statements = [s.strip() for b in blocks for s in re.sub(r"(?m)^--.*$", "", b).split(";") if s.strip()]
     assert len(statements) >= 3
-    con = mocapdb.connect(tmp_path / "fresh.duckdb")
-    try:
-        mocapdb.ingest(con, [SAMPLE_86_09])
-        for sql in statements:
-            con.execute(sql).fetchall()
-    finally:
-        con.close()
+    con = open_db(tmp_path / "fresh.duckdb")
+    mocapdb.ingest(con, [SAMPLE_86_09])
+    for sql in statements:
+        con.execute(sql).fetchall()

@@ -34,11 +34,8 @@ def queries_dir(oracle_dir):
 @pytest.fixture(scope="module")
 def default_model():
     """The toolbox's 11 templates (the shipped model ``toolbox``), which the toolbox's queries belong to."""
-    con = mocapdb.connect()
-    try:
+    with mocapdb.connect() as con:
         return load_model(con, "toolbox")
-    finally:
-        con.close()
 
 
 @pytest.fixture(scope="module")

@@ -44,12 +44,9 @@ def page(db, tmp_path_factory):
 def test_every_segment_is_an_element_with_its_label(db, page):
     path, eaf = db
     out, dom, log = page
-    con = mocapdb.connect(path, read_only=True)
-    try:
+    with mocapdb.connect(path, read_only=True) as con:
         table = mocapdb.annotate(con, ["86_09"], store=False)
         n_frames = con.execute("SELECT n_frames FROM motions WHERE name = '86_09'").fetchone()[0]
-    finally:
-        con.close()
     want = sorted(zip(["annotation"] * table.num_rows, table.column("label").to_pylist(),
                       table.column("start_frame").to_pylist(), table.column("end_frame").to_pylist()))
     truth = read_truth(eaf, label_map=str(CMU86_MAP), fps=120.0)
@@ -136,12 +133,9 @@ def test_the_decoded_poses_are_the_source_joints(db, page):
     """The page's own decoder (JavaScript) gives back the re-read joints within the quantization step."""
     path, _ = db
     out, dom, log = page
-    con = mocapdb.connect(path, read_only=True)
-    try:
+    with mocapdb.connect(path, read_only=True) as con:
         mid = con.execute("SELECT motion_id FROM motions WHERE name = '86_09'").fetchone()[0]
         joints = motion_poses(con, mid)
-    finally:
-        con.close()
     unit = encode_poses(joints)["unit"]
     probes = json.loads(dom.by_id("selftest")[1]["data-poses"])
     assert len(probes) == 12
@@ -203,8 +197,7 @@ def test_the_distance_functions_are_those_of_sql_mt_distance(db):
     """Δ̄^τ of the page (reference mode) is made of the SQL function's Δ: every finite value is a
     value of Δ below τ, and where Δ has its smallest value below τ, Δ̄^τ has it too."""
     path, _ = db
-    con = mocapdb.connect(path, read_only=True)
-    try:
+    with mocapdb.connect(path, read_only=True) as con:
         v = motion_view(con, "86_09", keyframes=False)
         checked = 0
         for k, (cls, tau) in enumerate(zip(v.class_names, v.taus)):
@@ -222,8 +215,6 @@ def test_the_distance_functions_are_those_of_sql_mt_distance(db):
         for k, lab in enumerate(v.labels):  # per label: the minimum over the label's classes
             rows = v.class_delta[label_of == lab]
             np.testing.assert_array_equal(v.label_delta[k], rows.min(axis=0) if len(rows) else np.inf)
-    finally:
-        con.close()
     assert checked >= 2  # at least move and throwR have hits on 86_09
 
 
@@ -244,22 +235,19 @@ def test_poses_fall_back_to_int32_for_big_jumps():
 
 
 @pytest.mark.shared
-def test_all_lists_a_motion_whose_source_moved_without_a_page(tmp_path):
+def test_all_lists_a_motion_whose_source_moved_without_a_page(tmp_path, open_db):
     """A source file moved after ingest costs its own page only; the index says why."""
     src = tmp_path / "takes"
     src.mkdir()
     for name in ("02.asf", "02_01.amc", "02_02.amc"):
         shutil.copy(DATA / "cmu/02" / name, src / name)
-    con = mocapdb.connect(tmp_path / "moved.duckdb")
-    try:
-        assert len(mocapdb.ingest(con, [src]).ingested) == 2
-        (src / "02_02.amc").unlink()
-        written = mocapdb.view(con, all=tmp_path / "pages")
-        assert [p.name for p in written] == ["index.html", "02_01.html"]
-        index = written[0].read_text(encoding="utf-8")
-        assert 'class="unreadable"' in index and "02_02" in index and "no page:" in index
-    finally:
-        con.close()
+    con = open_db(tmp_path / "moved.duckdb")
+    assert len(mocapdb.ingest(con, [src]).ingested) == 2
+    (src / "02_02.amc").unlink()
+    written = mocapdb.view(con, all=tmp_path / "pages")
+    assert [p.name for p in written] == ["index.html", "02_01.html"]
+    index = written[0].read_text(encoding="utf-8")
+    assert 'class="unreadable"' in index and "02_02" in index and "no page:" in index
 
 
 #: motion names an imported archive or a hand-edited database may hold (issue 22 items 3, 6, 9)
@@ -273,13 +261,10 @@ def hostile_db(tmp_path_factory):
     root = tmp_path_factory.mktemp("hostile")
     clips = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:len(HOSTILE)]
     names = [n.format(tmp=root) for n in HOSTILE]
-    con = mocapdb.connect(root / "h.duckdb")
-    try:
+    with mocapdb.connect(root / "h.duckdb") as con:
         mocapdb.ingest(con, clips)
         for mid, name in enumerate(names, 1):
             con.execute("UPDATE motions SET name = ? WHERE motion_id = ?", [name, mid])
-    finally:
-        con.close()
     return root, names
 
 
@@ -352,9 +337,9 @@ def test_all_never_overwrites_a_file_it_did_not_write(hostile_db, tmp_path):
 
 
 @pytest.mark.shared
-def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path):
+def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path, open_db):
     root, names = hostile_db
-    written = mocapdb.view(mocapdb.connect(root / "h.duckdb", read_only=True), all=tmp_path / "p")
+    written = mocapdb.view(open_db(root / "h.duckdb", read_only=True), all=tmp_path / "p")
     by_motion = {json.loads(p.read_text(encoding="utf-8").split('id="mocapdb-data">', 1)[1]
                             .split("</script>", 1)[0])["name"]: p.name for p in written[1:]}
     assert written[0].name == "index.html"
