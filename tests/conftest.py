@@ -3,8 +3,10 @@
 The data is never copied into the repository; it is read from ``../shared``
 beside the checkout (override with ``MOCAPDB_SHARED``). A test that needs it
 is marked ``@pytest.mark.shared`` (a whole module: ``pytestmark =
-pytest.mark.shared``; a module that reads the data while it is collected
-calls :func:`require_shared` first). In a bare clone such tests are skipped
+pytest.mark.shared``). A module that reads the data while it is collected
+reads it only if :data:`HAVE_SHARED` (its parametrizations through
+:func:`shared_cases`), or, when every test of it needs the data, calls
+:func:`require_shared` first. In a bare clone such tests are skipped
 with the reason shown; with ``MOCAPDB_REQUIRE_SHARED=1`` (``.ci/run``) a
 missing ``../shared`` fails the run instead. The recordings shipped in the
 package (``mocapdb/sample/``, :data:`SAMPLE`) are there in a bare clone too: a
