@@ -18,13 +18,13 @@ from mocapdb.features import downsample, motion_features, pack_words, relational
 from mocapdb.readers import JOINT_INDEX, load_mapping, read_c3d, read_motion
 from mocapdb.readers.c3d import MAX_GAP_S, SKELETON_EDGES
 
-from conftest import DATA, ORACLE, REPO, humerus
+from conftest import DATA, ORACLE, REPO, SAMPLE_C3D, humerus
 
 C3D_ORACLE = ORACLE / "c3d"
 #: oracle stem -> the C3D file it was computed from (oracle/c3d/README.md)
 ORACLE_FILES = {
     "HDM_dg_06-03_03_120_c3d": DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d",
-    "HDM_mm_01-02_03_120_c3d": DATA / "hdm05_full" / "HDM_mm_01-02_03_120.c3d",
+    "HDM_mm_01-02_03_120_c3d": SAMPLE_C3D,  # hdm05_full/HDM_mm_01-02_03_120.c3d, shipped with mocapdb
     "85_02_c3d": DATA / "cmu" / "c3d" / "85_02.c3d",
 }
 DG_C3D = ORACLE_FILES["HDM_dg_06-03_03_120_c3d"]
@@ -128,9 +128,9 @@ def test_fit_makes_bone_lengths_constant_and_separates_the_clavicles_from_the_ne
     assert 0.2 < gap.mean() < 0.4   # 0.28 cm on dg (FEATURES.md §2.4.6)
 
 
-@pytest.mark.shared
-@pytest.mark.parametrize("stem, height", [("HDM_dg_06-03_03_120_c3d", 103.0),
-                                          ("HDM_mm_01-02_03_120_c3d", 98.5), ("85_02_c3d", 50.4)])
+@pytest.mark.parametrize("stem, height", [pytest.param("HDM_dg_06-03_03_120_c3d", 103.0, marks=pytest.mark.shared),
+                                          ("HDM_mm_01-02_03_120_c3d", 98.5),
+                                          pytest.param("85_02_c3d", 50.4, marks=pytest.mark.shared)])
 def test_toolbox_unit_is_mm_times_minus_point_scale(stem, height):
     """cm for SCALE −0.1 (HDM05), 2-cm units for SCALE −0.05 (CMU 85_xx): root height at frame 1 (§2.4.3)."""
     motion = read_c3d(ORACLE_FILES[stem])
