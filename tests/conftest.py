@@ -3,22 +3,40 @@
 The data is never copied into the repository; it is read from ``../shared``
 beside the checkout (override with ``MOCAPDB_SHARED``). A test that needs it
 is marked ``@pytest.mark.shared`` (a whole module: ``pytestmark =
-pytest.mark.shared``; a module that reads the data while it is collected
-calls :func:`require_shared` first). In a bare clone such tests are skipped
+pytest.mark.shared``). A module that reads the data while it is collected
+reads it only if :data:`HAVE_SHARED` (its parametrizations through
+:func:`shared_cases`), or, when every test of it needs the data, calls
+:func:`require_shared` first. In a bare clone such tests are skipped
 with the reason shown; with ``MOCAPDB_REQUIRE_SHARED=1`` (``.ci/run``) a
-missing ``../shared`` fails the run instead.
+missing ``../shared`` fails the run instead. The recordings shipped in the
+package (``mocapdb/sample/``, :data:`SAMPLE`) are there in a bare clone too: a
+test that needs only one of them reads it from there and always runs.
+
+The helpers the test modules share live here too: the connection fixture
+:func:`open_db`, :func:`humerus`, :func:`run` (a CLI command) and
+:func:`eval_scores`.
 """
 import csv
 import os
 import re
+from importlib import resources
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared")).resolve()
 DATA = SHARED / "data"
 ORACLE = SHARED / "oracle"
+
+#: the recordings shipped with mocapdb (byte for byte the same takes as in ../shared/data:
+#: cmu/86/86.asf and 86_09.amc, hdm05_full/HDM_mm_01-02_03_120.c3d, foreign/bvh/pymo_…bvh)
+SAMPLE = Path(str(resources.files("mocapdb") / "sample"))
+SAMPLE_86_ASF = SAMPLE / "86.asf"
+SAMPLE_86_09 = SAMPLE / "86_09.amc.xz"
+SAMPLE_C3D = SAMPLE / "HDM_mm_01-02_03_120.c3d.xz"
+SAMPLE_BVH = SAMPLE / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh.xz"
 
 
 HAVE_SHARED = DATA.is_dir() and ORACLE.is_dir()
@@ -51,6 +69,14 @@ def require_shared():
     """Skip the calling module in a bare clone (call it before reading ``../shared`` at collection)."""
     if not HAVE_SHARED:
         pytest.skip(NO_SHARED, allow_module_level=True)
+
+
+def shared_cases(cases):
+    """Parametrization values read from ``../shared``, as they are; in a bare clone one
+    skipped case instead (no cases at all is a collection error: ``empty_parameter_set_mark``)."""
+    if HAVE_SHARED:
+        return cases
+    return [pytest.param(None, marks=pytest.mark.skip(reason=NO_SHARED), id="no-shared")]
 
 
 @pytest.fixture(scope="session")
@@ -109,3 +135,54 @@ def write_truth_86_09_eaf(path, fps=120.0):
                            round(int(r["end_frame"]) * 1000 / fps), r["label"])
     pympi.Elan.to_eaf(str(path), eaf)
     return path
+
+
+# --------------------------------------------------------------------------
+# helpers shared by the test modules
+
+@pytest.fixture
+def open_db():
+    """``open_db(path=":memory:", **options)``: :func:`mocapdb.connect`, closed when the test ends
+    (whatever it raised). A test that must close a connection before it goes on (another
+    process or the CLI opens the file next) uses ``with mocapdb.connect(…) as con:`` instead."""
+    import mocapdb
+
+    opened = []
+
+    def connect(path=":memory:", **options):
+        con = mocapdb.connect(path, **options)
+        opened.append(con)
+        return con
+
+    yield connect
+    for con in reversed(opened):
+        con.close()
+
+
+def humerus(joints):
+    """The unit of the position tolerances: |rshoulder − relbow| at frame 1 (joints: (n, 24, 3))."""
+    from mocapdb.readers.joints import JOINT_INDEX
+
+    return float(np.linalg.norm(joints[0, JOINT_INDEX["rshoulder"]] - joints[0, JOINT_INDEX["relbow"]]))
+
+
+def run(db, *args, code=0):
+    """``mocapdb --db DB ARGS…`` in this process (click's runner; a Python exception propagates).
+
+    Asserts the exit status is ``code`` (``None``: any, the test looks itself) and returns the
+    click ``Result`` (``output``, ``stderr``, ``exit_code``).
+    """
+    from click.testing import CliRunner
+
+    from mocapdb.cli import main
+
+    r = CliRunner().invoke(main, ["--db", str(db), *map(str, args)], catch_exceptions=False)
+    if code is not None:
+        assert r.exit_code == code, r.output
+    return r
+
+
+def eval_scores(output):
+    """The six figures of the ``all`` row of ``mocapdb eval``'s table, as floats."""
+    line = next(ln for ln in output.splitlines() if ln.startswith("all "))
+    return [float(x) for x in line.split()[1:7]]

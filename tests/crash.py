@@ -68,8 +68,7 @@ def invariants(path) -> list[str]:
     Opening it is part of the check (DuckDB replays its write-ahead log), and
     so is answering ``annotate()`` on its first motion.
     """
-    con = mocapdb.connect(path)
-    try:
+    with mocapdb.connect(path) as con:
         broken = []
         postings = con.execute("SELECT count(*) FROM duckdb_tables() WHERE schema_name = 'mocap_index' "
                                "AND table_name = 'postings'").fetchall()[0][0]
@@ -86,8 +85,6 @@ def invariants(path) -> list[str]:
             except Exception as exc:  # noqa: BLE001 - any failure is a broken database
                 broken.append(f"annotate() on the first motion: {str(exc).splitlines()[0][:300]}")
         return broken
-    finally:
-        con.close()
 
 
 def _descendants(pid) -> list[int]:
@@ -162,19 +159,13 @@ class CrashHarness:
     def _prepare(self, cut):
         self.root.mkdir(parents=True, exist_ok=True)
         full = self.root / "full.duckdb"
-        con = mocapdb.connect(full)
-        try:
+        with mocapdb.connect(full) as con:
             mocapdb.ingest(con, [*self.new_files, self.data / "cmu" / "86"])
             mocapdb.api.export_features(con, self.export)
-        finally:
-            con.close()
-        con = mocapdb.connect(self.base)
-        try:
+        with mocapdb.connect(self.base) as con:
             mocapdb.ingest(con, [cut / "rotateArmsBothBackward1Reps", cut / "throwBasketball",
                                  self.data / "cmu" / "86"])
             mocapdb.annotate(con)
-        finally:
-            con.close()
 
     def _cli(self, *args, cwd):
         with open(Path(cwd) / "stderr.txt", "wb") as err:  # a file: a pipe nobody reads could block the command

@@ -24,6 +24,7 @@ def model():
     return oracle_model()
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("doc", DOCS)
 def test_annotation_reproduces_toolbox(model, doc):
     folder = ANNOTATION / doc
@@ -53,6 +54,7 @@ def test_annotation_reproduces_toolbox(model, doc):
     _same(r.segments["cost"], np.array([float(s["cost"]) for s in segs]))
 
 
+@pytest.mark.shared
 def test_concatenated_documents_reproduce_toolbox(model):
     ws = [words(d) for d in DOCS]
     layout = csv_rows(ANNOTATION / "concat_layout.csv")
@@ -78,6 +80,7 @@ def _archive():
     return np.concatenate(ws), [len(w) for w in ws]
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("cells", [1, 1500 * 11, 4000 * 11])
 def test_batched_annotation_equals_one_batch(model, monkeypatch, cells):
     import mocapdb.annotation.chain as ann
@@ -116,6 +119,7 @@ def test_batches_cover_the_documents_in_order():
     assert _batches(np.zeros(1, np.int64), 10) == [(0, 0)]
 
 
+@pytest.mark.shared
 def test_keep_hits_false_gives_the_same_segments(model):
     w, lens = _archive()
     full = annotate(w, model, doc_lengths=lens)
@@ -127,6 +131,7 @@ def test_keep_hits_false_gives_the_same_segments(model):
         annotate(words("86_09"), model, match_num_max=5, keep_hits=False)
 
 
+@pytest.mark.shared
 def test_hits_of_many_tasks_equal_one_task_at_a_time(model):
     """annotate extracts the hits of every (class, document) task in one parallel
     kernel whose threads reuse one scratch row across tasks (one thread: a
@@ -154,6 +159,7 @@ def test_hits_of_many_tasks_equal_one_task_at_a_time(model):
 
 # --- hit extraction ---------------------------------------------------------
 
+@pytest.mark.shared
 def test_extract_hits_matches_toolbox_loop_on_real_delta():
     d, s = mt_distance(words("86_09"), quantized_template(TEMPLATES / "kickLFront1Reps"),
                        return_starts=True)
@@ -180,6 +186,7 @@ def test_extract_hits_matches_toolbox_loop_on_random_ties():
         np.testing.assert_array_equal(cd, cdn)
 
 
+@pytest.mark.shared
 def test_match_num_max_raises():
     d = np.zeros(10)
     s = np.arange(10)
@@ -237,6 +244,7 @@ def test_frame_labels_ties_go_to_the_first_label():
 
 # --- keyframe preselection (§10.1) ------------------------------------------
 
+@pytest.mark.shared
 def test_preselection_limits_delta_to_slices(model):
     w = words("86_09")
     full = annotate(w, model, keep_deltas=True)
@@ -258,6 +266,7 @@ def test_preselection_limits_delta_to_slices(model):
     np.testing.assert_array_equal(r.delta[other], full.delta[other])
 
 
+@pytest.mark.shared
 def test_preselection_slices_must_stay_in_one_document(model):
     ws = [words(d) for d in DOCS[:2]]
     with pytest.raises(ParameterError, match="crosses a document boundary"):
@@ -269,6 +278,7 @@ def test_preselection_slices_must_stay_in_one_document(model):
 
 # --- model ------------------------------------------------------------------
 
+@pytest.mark.shared
 def test_model_validation():
     q = quantized_template(TEMPLATES / "squat1Reps")
     with pytest.raises(ParameterError, match="unique"):

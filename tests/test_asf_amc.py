@@ -7,6 +7,7 @@ joint positions equal the toolbox oracle, and the edge cases of the text
 bone order, line endings).
 """
 import csv
+import lzma
 import math
 import re
 from dataclasses import replace
@@ -14,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import DATA, ORACLE
+from conftest import DATA, HAVE_SHARED, ORACLE, SAMPLE_86_09, SAMPLE_86_ASF, humerus, shared_cases
 from mocapdb.readers.textscan import NUM_BAD, NUM_OK, NUM_SLOW, parse_numbers
 from mocapdb.readers.amc import column_layout, parse_amc, read_amc
 from mocapdb.readers.asf import parse_asf, read_asf
@@ -39,17 +40,11 @@ CMU86 = DATA / "cmu/86/86_09.amc"
 SAMPLE = [CMU86, DATA / "cmu/02/02_01.amc", DATA / "cmu/13/13_29.amc",
           DATA / "cmu/14/14_14.amc", DATA / "hdm05_full/HDM_dg_06-03_03_120.amc"] + [
     sorted(d.glob("*.amc"))[k % 7]
-    for k, d in enumerate(sorted(p for p in (DATA / "hdm05_cut").iterdir() if p.is_dir()))]
+    for k, d in enumerate(sorted(p for p in (DATA / "hdm05_cut").iterdir() if p.is_dir()))] if HAVE_SHARED else []
 
 
 def skeleton_path(amc):
     return find_skeleton(amc) or DATA / "cmu/02/02.asf"  # cmu/13, cmu/14: any CMU ASF
-
-
-def humerus(joints):
-    """The unit of the tolerances: rshoulder-relbow distance at frame 1."""
-    return float(np.linalg.norm(joints[0, JOINT_INDEX["rshoulder"]]
-                                - joints[0, JOINT_INDEX["relbow"]]))
 
 
 def fk(asf_text, amc_bytes, path="x"):
@@ -61,7 +56,8 @@ def fk(asf_text, amc_bytes, path="x"):
 # ----------------------------------------------------------------------------
 # ASF
 
-@pytest.mark.parametrize("asf", PUBLISHED_ASF, ids=lambda p: str(p.relative_to(DATA)))
+@pytest.mark.shared
+@pytest.mark.parametrize("asf", shared_cases(PUBLISHED_ASF), ids=lambda p: str(p.relative_to(DATA)))
 def test_asf_reads_as_published(asf):
     s = read_asf(asf)
     text = asf.read_bytes().decode("latin-1")
@@ -79,12 +75,14 @@ def test_asf_reads_as_published(asf):
     assert list(s.topological_order()) == list(range(30))
 
 
+@pytest.mark.shared
 def test_every_asf_reads():
     for asf in ALL_ASF:
         s = read_asf(asf)
         assert len(s.bones) >= 15 and s.topological_order() is not None, asf
 
 
+@pytest.mark.shared
 def test_named_and_unknown_units_read():
     # foreign2: `:units mass kg / length m / angle deg`, and `fps:30` in :documentation
     s = read_asf(MASS_KG)
@@ -130,6 +128,7 @@ def test_named_and_unknown_units_read():
         parse_asf(text.replace("length mm", "length -2"), path="t.asf")
 
 
+@pytest.mark.shared
 def test_asf_offsets_follow_the_toolbox_rounding():
     text = (DATA / "hdm05_cut/HDM_bd.asf").read_bytes().decode("latin-1")
     s = read_asf(DATA / "hdm05_cut/HDM_bd.asf")
@@ -144,6 +143,7 @@ def test_asf_offsets_follow_the_toolbox_rounding():
 # ----------------------------------------------------------------------------
 # AMC: every file, exact numbers
 
+@pytest.mark.shared
 def test_every_amc_reads_with_the_right_frame_count():
     frame_line = re.compile(rb"(?m)^[ \t]*\d+[ \t\r]*$")
     total = 0
@@ -163,6 +163,7 @@ def test_every_amc_reads_with_the_right_frame_count():
     assert read_amc(CMU86, read_asf(DATA / "cmu/86/86.asf")).n_frames == 4794
 
 
+@pytest.mark.shared
 def test_frame_counts_match_the_oracle_manifest():
     rows = list(csv.DictReader(open(ORACLE / "features/manifest.csv")))
     skels = {}
@@ -171,7 +172,8 @@ def test_frame_counts_match_the_oracle_manifest():
         assert read_amc(DATA / r["amc"], s).n_frames == int(r["frames_120hz"]), r["stem"]
 
 
-@pytest.mark.parametrize("amc", SAMPLE, ids=lambda p: p.stem)
+@pytest.mark.shared
+@pytest.mark.parametrize("amc", shared_cases(SAMPLE), ids=lambda p: p.stem)
 def test_amc_values_equal_python_float(amc):
     s = read_asf(skeleton_path(amc))
     data = amc.read_bytes()
@@ -183,6 +185,7 @@ def test_amc_values_equal_python_float(amc):
         assert np.array_equal(m.values[:, sl], ref), name  # bit for bit
 
 
+@pytest.mark.shared
 def test_number_parser_equals_float_on_real_tokens():
     toks = set()
     for p in SAMPLE[:5] + ALL_ASF:
@@ -231,11 +234,12 @@ def test_number_parser_rejects_non_numbers(tok):
 # ----------------------------------------------------------------------------
 # forward kinematics
 
-MANIFEST = {r["stem"]: r for r in csv.DictReader(open(ORACLE / "features/manifest.csv"))}
+MANIFEST = {r["stem"]: r for r in csv.DictReader(open(ORACLE / "features/manifest.csv"))} if HAVE_SHARED else {}
 ORACLE_FILES = sorted((ORACLE / "positions").glob("*_pos120.csv"))
 
 
-@pytest.mark.parametrize("oracle", ORACLE_FILES, ids=lambda p: p.name[:-len("_pos120.csv")])
+@pytest.mark.shared
+@pytest.mark.parametrize("oracle", shared_cases(ORACLE_FILES), ids=lambda p: p.name[:-len("_pos120.csv")])
 def test_joint_positions_equal_the_toolbox_oracle(oracle):
     row = MANIFEST[oracle.name[:-len("_pos120.csv")]]
     m = read_motion(DATA / row["amc"], asf=DATA / row["asf"])
@@ -249,7 +253,8 @@ def test_joint_positions_equal_the_toolbox_oracle(oracle):
     assert err <= 1e-12 * unit         # what the kernel achieves (~1e-13 absolute)
 
 
-@pytest.mark.parametrize("amc", SAMPLE[:5] + SAMPLE[5::3], ids=lambda p: p.stem)
+@pytest.mark.shared
+@pytest.mark.parametrize("amc", shared_cases(SAMPLE[:5] + SAMPLE[5::3]), ids=lambda p: p.stem)
 def test_fk_kernel_equals_naive_reference(amc):
     s = read_asf(skeleton_path(amc))
     data = amc.read_bytes()
@@ -284,6 +289,7 @@ def _perturbed_skeleton_text(seed):
     return text
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_fk_kernel_equals_naive_on_random_skeletons_and_angles(seed):
     rng = np.random.default_rng(seed)
@@ -301,6 +307,7 @@ def test_fk_kernel_equals_naive_on_random_skeletons_and_angles(seed):
     assert np.abs(rot - ref_rot).max() <= 1e-14
 
 
+@pytest.mark.shared
 def test_root_rotation_is_the_amc_root_without_orientation():
     s = parse_asf(_perturbed_skeleton_text(5))
     m = parse_amc(SQUAT.read_bytes(), s)
@@ -314,7 +321,7 @@ def test_root_rotation_is_the_amc_root_without_orientation():
 
 def test_sincos_within_one_ulp():
     rng = np.random.default_rng(0)
-    real = np.radians(read_amc(CMU86, read_asf(DATA / "cmu/86/86.asf")).values.ravel())
+    real = np.radians(read_amc(SAMPLE_86_09, read_asf(SAMPLE_86_ASF)).values.ravel())
     for x in (real, rng.uniform(-10, 10, 100_000), rng.uniform(-9e4, 9e4, 100_000),
               np.array([0.0, -0.0, 1e-300, math.pi / 4, math.pi / 2, math.pi, 2e5, -3e7])):
         s, c = sincos(x)
@@ -355,6 +362,7 @@ def _to_radians(asf_text, amc_bytes):
     return asf_rad, "\n".join(lines).encode("latin-1")
 
 
+@pytest.mark.shared
 def test_radians_give_the_same_positions():
     asf_text = (DATA / "cmu/02/02.asf").read_bytes().decode("latin-1")
     amc = (DATA / "cmu/02/02_01.amc").read_bytes()
@@ -370,6 +378,7 @@ def test_radians_give_the_same_positions():
     assert m2.angle_unit == "rad" and np.array_equal(j2, j_rad)
 
 
+@pytest.mark.shared
 def test_samples_per_second():
     amc = SQUAT.read_bytes().replace(b":DEGREES", b":SAMPLES-PER-SECOND 60\r\n:DEGREES", 1)
     s = read_asf(DATA / "hdm05_cut/HDM_bd.asf")
@@ -378,6 +387,7 @@ def test_samples_per_second():
     assert np.array_equal(m.values, read_amc(SQUAT, s).values)
 
 
+@pytest.mark.shared
 def test_root_position_and_orientation_are_applied():
     text = (DATA / "hdm05_cut/HDM_bd.asf").read_bytes().decode("latin-1")
     amc = SQUAT.read_bytes()
@@ -398,6 +408,7 @@ def test_root_position_and_orientation_are_applied():
     assert np.array_equal(r2, r0)
 
 
+@pytest.mark.shared
 def test_bone_with_zero_direction_sits_on_its_parent():
     text = (DATA / "hdm05_cut/HDM_bd.asf").read_bytes().decode("latin-1")
     text = re.sub(r"(name lhipjoint\s+direction)[^\r\n]*", r"\1 0 0 0", text)
@@ -406,6 +417,7 @@ def test_bone_with_zero_direction_sits_on_its_parent():
     assert np.array_equal(j[:, JOINT_INDEX["lhip"]], j[:, JOINT_INDEX["root"]])
 
 
+@pytest.mark.shared
 def test_dof_subset_equals_zero_for_the_missing_dof():
     text = (DATA / "hdm05_cut/HDM_bd.asf").read_bytes().decode("latin-1")
     # lfemur: "dof rx ry rz" -> "dof rx rz" (and two limits)
@@ -430,6 +442,7 @@ def test_dof_subset_equals_zero_for_the_missing_dof():
     assert np.abs(j_ref - asf_forward_kinematics(s, m)[0]).max() > 1e-3  # ry mattered
 
 
+@pytest.mark.shared
 def test_bone_order_line_endings_case_and_comments_do_not_matter():
     s = read_asf(DATA / "cmu/02/02.asf")
     data = (DATA / "cmu/02/02_01.amc").read_bytes()
@@ -460,8 +473,8 @@ def test_bone_order_line_endings_case_and_comments_do_not_matter():
 
 
 def test_a_bone_absent_from_the_amc_reads_as_zero():
-    s = read_asf(DATA / "cmu/86/86.asf")
-    data = CMU86.read_bytes()
+    s = read_asf(SAMPLE_86_ASF)
+    data = lzma.decompress(SAMPLE_86_09.read_bytes())
     ref = parse_amc(data, s)
     cut = b"\n".join(x for x in data.split(b"\n") if not x.startswith(b"lthumb "))
     m = parse_amc(cut, s)
@@ -471,6 +484,7 @@ def test_a_bone_absent_from_the_amc_reads_as_zero():
     assert np.array_equal(m.values[:, keep], ref.values[:, keep])
 
 
+@pytest.mark.shared
 def test_motion_from_read_motion():
     m = read_motion(SQUAT)
     assert m.name == SQUAT.stem and m.skeleton == "HDM_bd" and m.source_format == "amc"
@@ -480,6 +494,7 @@ def test_motion_from_read_motion():
     assert m13.skeleton == "02" and m13.n_frames > 1000
 
 
+@pytest.mark.shared
 def test_a_folders_only_asf_is_the_skeleton(tmp_path):
     # names that follow neither the CMU nor the HDM05 pattern
     (tmp_path / "subject.asf").write_bytes(MASS_KG.read_bytes())

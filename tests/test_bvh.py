@@ -6,13 +6,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import DATA
+from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, humerus
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import read_asf
-from mocapdb.readers import CMU_BONE_NAMES, euler_angles, read_bvh, write_bvh
+from mocapdb.readers import euler_angles, read_bvh, write_bvh
 from mocapdb.readers.bvh import bvh_node_positions, fps_from_frame_time, parse_bvh
 from mocapdb.errors import ParseError
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.kinematics import asf_forward_kinematics, euler_matrix
 from mocapdb.readers.motion import Motion
 from mocapdb.readers import read_motion
@@ -20,15 +20,9 @@ from naive_kinematics import naive_bvh_fk
 
 HDM_ASF = DATA / "hdm05_cut/HDM_bd.asf"
 HDM_AMC = DATA / "hdm05_cut/kickLFront1Reps/HDM_bd_kickLFront1Reps_001_120.amc"
-CMU_ASF = DATA / "cmu/86/86.asf"
-CMU_AMC = DATA / "cmu/86/86_09.amc"
+CMU_ASF = SAMPLE_86_ASF  # cmu/86/86.asf and 86_09.amc, shipped with mocapdb
+CMU_AMC = SAMPLE_86_09
 ORDERS = ["ZYX", "XYZ", "YZX", "ZXY", "XZY", "YXZ"]
-
-
-def humerus(joints):
-    """The unit of the tolerances: rshoulder-relbow distance at frame 1."""
-    return float(np.linalg.norm(joints[0, JOINT_INDEX["rshoulder"]]
-                                - joints[0, JOINT_INDEX["relbow"]]))
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +59,7 @@ CMU_EXACT = ["root", "lhip", "lknee", "lankle", "ltoes", "rhip", "rknee", "rankl
              "relbow", "rfingers"]
 
 
-@pytest.mark.parametrize("which", ["hdm", "cmu500"])
+@pytest.mark.parametrize("which", [pytest.param("hdm", marks=pytest.mark.shared), "cmu500"])
 def test_asf_names_round_trip_reproduces_asf_joints_and_root_rotation(which, request, tmp_path):
     s, m, (joints, rot) = request.getfixturevalue(which)
     path = write_bvh(tmp_path / "take.bvh", s, m, layout="asf", precision=17)
@@ -79,7 +73,7 @@ def test_asf_names_round_trip_reproduces_asf_joints_and_root_rotation(which, req
     assert_same_motion(read_motion(path), joints, rot)
 
 
-@pytest.mark.parametrize("which", ["hdm", "cmu500"])
+@pytest.mark.parametrize("which", [pytest.param("hdm", marks=pytest.mark.shared), "cmu500"])
 def test_cmuconvert_names_map_onto_the_asf_points(which, request, tmp_path):
     s, m, (joints, rot) = request.getfixturevalue(which)
     path = write_bvh(tmp_path / "take.bvh", s, m, layout="cmu", rest_frame=True, precision=17)
@@ -97,6 +91,7 @@ def test_cmuconvert_names_map_onto_the_asf_points(which, request, tmp_path):
         assert (np.linalg.norm(p - root, axis=1) < spine).all() and (np.linalg.norm(p - neck, axis=1) < spine).all()
 
 
+@pytest.mark.shared
 def test_cmu_layout_matches_the_cmuconvert_facts(hdm, tmp_path):
     s, m, _ = hdm
     text = write_bvh(tmp_path / "c.bvh", s, m, layout="cmu", rest_frame=True).read_text()
@@ -115,6 +110,7 @@ def test_cmu_layout_matches_the_cmuconvert_facts(hdm, tmp_path):
     assert read_bvh(tmp_path / "c.bvh").n_frames == m.n_frames
 
 
+@pytest.mark.shared
 def test_a_rest_frame_that_is_not_all_zero_is_dropped(hdm, tmp_path):
     """cmuconvert keeps the root and a few degrees on the limbs in some rest frames
     (READERS.md §2): detected by its jump to frame 2, not by zeros."""
@@ -136,6 +132,7 @@ def test_a_rest_frame_that_is_not_all_zero_is_dropped(hdm, tmp_path):
     assert read_bvh(plain).n_frames == m.n_frames and not read_bvh(plain).meta.get("rest_frame_skipped")
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("order", ORDERS)
 def test_every_rotation_order_gives_the_same_positions(hdm, order, tmp_path):
     s, m, (joints, rot) = hdm
@@ -144,6 +141,7 @@ def test_every_rotation_order_gives_the_same_positions(hdm, order, tmp_path):
     assert_same_motion(read_bvh(path), joints, rot)
 
 
+@pytest.mark.shared
 def test_mixed_orders_and_position_channels_anywhere(hdm, tmp_path):
     s, m, (joints, rot) = hdm
     orders = {b.name: ORDERS[k % 6] for k, b in enumerate(s.bones)}
@@ -169,6 +167,7 @@ def test_mixed_orders_and_position_channels_anywhere(hdm, tmp_path):
     assert_same_motion(read_bvh(moved), joints, rot)
 
 
+@pytest.mark.shared
 def test_fk_kernel_equals_naive_on_random_channels(hdm, tmp_path):
     s, m, _ = hdm
     path = write_bvh(tmp_path / "r.bvh", s, replace(m, values=m.values[:20]),
@@ -220,6 +219,7 @@ def test_fps_from_frame_time_snaps_to_common_rates(frame_time, fps):
     assert fps_from_frame_time(frame_time) == fps
 
 
+@pytest.mark.shared
 def test_names_without_meaning_map_by_topology(hdm, tmp_path):
     """Joint names that say nothing (j0, j1, …) still give the cmuconvert points: limbs
     from the tree and their two longest bones, sides from the rest pose."""
@@ -240,6 +240,7 @@ def test_names_without_meaning_map_by_topology(hdm, tmp_path):
     assert np.abs(b.joints[:, idx] - named.joints[:, idx]).max() <= 1e-12 * humerus(joints)
 
 
+@pytest.mark.shared
 def test_a_joint_map_overrides_the_automatic_mapping(hdm, tmp_path):
     s, m, _ = hdm
     path = write_bvh(tmp_path / "x.bvh", s, replace(m, values=m.values[:10]), layout="cmu")
@@ -260,6 +261,7 @@ def test_a_joint_map_overrides_the_automatic_mapping(hdm, tmp_path):
         read_bvh(path, joint_map={"lwrist": "Nope"})
 
 
+@pytest.mark.shared
 def test_cmuconvert_offsets_give_distinct_spine_points(hdm, tmp_path):
     """Real cmuconvert files drop the ASF thorax and wrist vectors (OFFSET 0 for
     Neck, Left/RightShoulder, Left/RightFingerBase, L/RThumb; FEATURES.md §2.3b):
@@ -290,6 +292,7 @@ def test_cmuconvert_offsets_give_distinct_spine_points(hdm, tmp_path):
     assert chest_len > 0.2 * np.linalg.norm(b.joints[0, JOINT_INDEX["neck"]] - b.joints[0, JOINT_INDEX["root"]])
 
 
+@pytest.mark.shared
 def test_motion_values_equal_python_float(hdm, tmp_path):
     s, m, _ = hdm
     for precision in (17, 12, 6):

@@ -9,7 +9,6 @@ whatever was read before it. Rigs are built from real takes: an HDM05 kick writt
 pose turned on its side (the motion kept upright), joints renamed as the Bandai dataset names them.
 """
 import re
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -110,17 +109,14 @@ def test_a_take_with_little_left_is_refused(tmp_path):
     ("chicken_walk.bvh", "not a humanoid skeleton mocapdb can map: cannot find the joints of an arm in "
                          "Bip01_Spine1 → BN_Finger_R_01 → BN_Finger_R_02 → BN_Finger_R_02/end (an arm has upper "
                          "arm, forearm and hand)")])
-def test_animals_are_refused_in_one_line_that_says_why(name, why, tmp_path):
+def test_animals_are_refused_in_one_line_that_says_why(name, why, tmp_path, open_db):
     path = FOREIGN2 / name
     with pytest.raises(ParseError) as info:
         read_motion(path)
     assert str(info.value).startswith(f"{path}: {why}") and "\n" not in str(info.value)
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
-        report = mocapdb.ingest(con, [path])
-        assert report.failed == [(str(path), str(info.value))] and not report.ingested
-    finally:
-        con.close()
+    con = open_db(tmp_path / "t.duckdb")
+    report = mocapdb.ingest(con, [path])
+    assert report.failed == [(str(path), str(info.value))] and not report.ingested
 
 
 def test_every_human_rig_of_the_other_labs_reads():
@@ -227,10 +223,7 @@ def test_a_file_reads_the_same_whatever_was_read_before_it(kick, tmp_path):
     assert outcome(kicking) == alone
     assert np.array_equal(outcome(standing), first)
     for order in ([standing, kicking], [kicking, standing]):
-        con = mocapdb.connect(tmp_path / f"{order[0].stem}.duckdb")
-        try:
+        with mocapdb.connect(tmp_path / f"{order[0].stem}.duckdb") as con:
             report = mocapdb.ingest(con, order)
             assert [p for p, *_ in report.ingested] == [str(standing)]
             assert [p for p, _ in report.failed] == [str(kicking)]
-        finally:
-            con.close()

@@ -18,13 +18,13 @@ from mocapdb.features import downsample, motion_features, pack_words, relational
 from mocapdb.readers import JOINT_INDEX, load_mapping, read_c3d, read_motion
 from mocapdb.readers.c3d import MAX_GAP_S, SKELETON_EDGES
 
-from conftest import DATA, ORACLE, REPO
+from conftest import DATA, ORACLE, REPO, SAMPLE_C3D, humerus
 
 C3D_ORACLE = ORACLE / "c3d"
 #: oracle stem -> the C3D file it was computed from (oracle/c3d/README.md)
 ORACLE_FILES = {
     "HDM_dg_06-03_03_120_c3d": DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d",
-    "HDM_mm_01-02_03_120_c3d": DATA / "hdm05_full" / "HDM_mm_01-02_03_120.c3d",
+    "HDM_mm_01-02_03_120_c3d": SAMPLE_C3D,  # hdm05_full/HDM_mm_01-02_03_120.c3d, shipped with mocapdb
     "85_02_c3d": DATA / "cmu" / "c3d" / "85_02.c3d",
 }
 DG_C3D = ORACLE_FILES["HDM_dg_06-03_03_120_c3d"]
@@ -48,11 +48,6 @@ def oracle_features(stem, rate, prefit=False):
 
 def oracle_f40(stem, rate):
     return np.loadtxt(C3D_ORACLE / "features" / f"{stem}_f40hipaxis{rate}.csv", skiprows=1).astype(bool)
-
-
-def humerus(joints):
-    """|relbow − rshoulder| at frame 1: the length the position tolerance is relative to."""
-    return float(np.linalg.norm(joints[0, JOINT_INDEX["relbow"]] - joints[0, JOINT_INDEX["rshoulder"]]))
 
 
 def knee_angle(j, side):
@@ -87,6 +82,7 @@ def set_points(c, fn):
 # ----------------------------------------------------------------------------
 # 1. the toolbox oracle (three files)
 
+@pytest.mark.shared
 @pytest.mark.parametrize("stem", list(ORACLE_FILES))
 def test_joints_match_the_toolbox_before_and_after_the_fit(stem):
     for prefit in (True, False):
@@ -98,6 +94,7 @@ def test_joints_match_the_toolbox_before_and_after_the_fit(stem):
     assert motion.root_rotation is None and motion.skeleton == "c3d:toolbox"
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("stem", list(ORACLE_FILES))
 def test_features_1_to_39_bit_for_bit_at_120_and_30_hz(stem):
     for prefit in (True, False):
@@ -107,6 +104,7 @@ def test_features_1_to_39_bit_for_bit_at_120_and_30_hz(stem):
         np.testing.assert_array_equal(downsample(f120)[:, :39], oracle_features(stem, 30, prefit))
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("stem", list(ORACLE_FILES))
 def test_feature_40_is_the_hip_axis_version(stem):
     """Without a root rotation the pipeline's #40 is the oracle's f40hipaxis; the stored words are the
@@ -119,6 +117,7 @@ def test_feature_40_is_the_hip_axis_version(stem):
     np.testing.assert_array_equal(motion_features(motion), pack_words(expected))
 
 
+@pytest.mark.shared
 def test_fit_makes_bone_lengths_constant_and_separates_the_clavicles_from_the_neck():
     j = read_c3d(DG_C3D).joints
     for parent, child in SKELETON_EDGES:
@@ -129,8 +128,9 @@ def test_fit_makes_bone_lengths_constant_and_separates_the_clavicles_from_the_ne
     assert 0.2 < gap.mean() < 0.4   # 0.28 cm on dg (FEATURES.md §2.4.6)
 
 
-@pytest.mark.parametrize("stem, height", [("HDM_dg_06-03_03_120_c3d", 103.0),
-                                          ("HDM_mm_01-02_03_120_c3d", 98.5), ("85_02_c3d", 50.4)])
+@pytest.mark.parametrize("stem, height", [pytest.param("HDM_dg_06-03_03_120_c3d", 103.0, marks=pytest.mark.shared),
+                                          ("HDM_mm_01-02_03_120_c3d", 98.5),
+                                          pytest.param("85_02_c3d", 50.4, marks=pytest.mark.shared)])
 def test_toolbox_unit_is_mm_times_minus_point_scale(stem, height):
     """cm for SCALE −0.1 (HDM05), 2-cm units for SCALE −0.05 (CMU 85_xx): root height at frame 1 (§2.4.3)."""
     motion = read_c3d(ORACLE_FILES[stem])
@@ -140,6 +140,7 @@ def test_toolbox_unit_is_mm_times_minus_point_scale(stem, height):
 # ----------------------------------------------------------------------------
 # 2. the same take as AMC (dg excerpt)
 
+@pytest.mark.shared
 def test_dg_agrees_with_its_amc_twin_as_well_as_the_toolbox_does():
     amc, c3d = read_motion(DG_AMC), read_motion(DG_C3D)
     fa = downsample(relational_features(amc.joints, amc.root_rotation, amc.fps))[:, :39]
@@ -155,6 +156,7 @@ def test_dg_agrees_with_its_amc_twin_as_well_as_the_toolbox_does():
 # ----------------------------------------------------------------------------
 # 3. units and axes
 
+@pytest.mark.shared
 @pytest.mark.parametrize("unit, factor", [("m", 1e-3), ("cm", 0.1)])
 def test_a_copy_in_other_units_gives_the_same_joints_and_features(tmp_path, unit, factor):
     def edit(c):
@@ -167,6 +169,7 @@ def test_a_copy_in_other_units_gives_the_same_joints_and_features(tmp_path, unit
     np.testing.assert_array_equal(motion_features(b), motion_features(a))
 
 
+@pytest.mark.shared
 def test_unknown_units_are_refused(tmp_path):
     copy = derived(DG_C3D, tmp_path / "inch.c3d",
                    lambda c: c["parameters"]["POINT"]["UNITS"].__setitem__("value", ["in"]))
@@ -174,6 +177,7 @@ def test_unknown_units_are_refused(tmp_path):
         read_c3d(copy)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("screen, rotate", [
     ("+Y", lambda p: np.stack([p[0], p[2], -p[1]])),     # Y-up lab: (X, Z, −Y), a rotation about X
     ("-Z", lambda p: np.stack([-p[0], p[1], -p[2]])),    # upside-down Z: 180° about Y (sign from the data)
@@ -194,6 +198,7 @@ def test_other_vertical_axes_give_the_same_body(tmp_path, screen, rotate):
     assert np.mean(motion_features(a) == motion_features(b)) == 1.0
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("path", [DG_C3D, ORACLE_FILES["85_02_c3d"], QUALISYS])
 def test_left_stays_left(path):
     """Z-up files become Y-up by a rotation, never a mirror: lhip is on the body's left (in all but
@@ -217,6 +222,7 @@ def param_data_offset(buf, group, name):
     raise KeyError(name)
 
 
+@pytest.mark.shared
 def test_integer_c3d_reads_right_side_up(tmp_path):
     """An int16 copy of dg (POINT:SCALE +0.1, FEATURES.md §2.4.3): ezc3d applies the scale; the
     toolbox's double scaling and negation (the body upside down) is not copied."""
@@ -241,6 +247,7 @@ def test_integer_c3d_reads_right_side_up(tmp_path):
 # ----------------------------------------------------------------------------
 # 4. other marker sets: the Qualisys landmark set and a marker map
 
+@pytest.mark.shared
 def test_qualisys_landmarks_read_at_200_hz_with_straight_stance_legs():
     """The Qualisys take (a walk, 200 Hz, ISB landmark names) reads at its native rate. Rule for
     a standing frame: for each leg, the frame of the take where the pelvis is highest while the
@@ -264,6 +271,7 @@ def test_qualisys_landmarks_read_at_200_hz_with_straight_stance_legs():
         assert lo < d.mean() < hi and d.std() < 1.0, (a, b)
 
 
+@pytest.mark.shared
 def test_marker_map_overrides_and_the_rest_stays_automatic(tmp_path):
     auto = read_c3d(QUALISYS)
     mapping = tmp_path / "qualisys.toml"
@@ -285,6 +293,7 @@ def test_marker_map_overrides_and_the_rest_stays_automatic(tmp_path):
         read_motion(QUALISYS, marker_map=bad)
 
 
+@pytest.mark.shared
 def test_a_marker_map_reads_a_file_of_unknown_names(tmp_path):
     """dg relabelled M1…M44: refused without a map; with a map naming the 24 joints' markers it reads."""
     labels = ezc3d.c3d(str(DG_C3D))["parameters"]["POINT"]["LABELS"]["value"]
@@ -317,6 +326,7 @@ def test_a_marker_map_reads_a_file_of_unknown_names(tmp_path):
 LELB = 14   # Daniel:LELB, point 15 of dg (3 unlabelled points first)
 
 
+@pytest.mark.shared
 def test_short_gaps_are_interpolated_and_unused_markers_ignored(tmp_path):
     n = int(MAX_GAP_S * 120)  # 30 frames = 0.25 s: the longest gap filled
 
@@ -337,6 +347,7 @@ def test_short_gaps_are_interpolated_and_unused_markers_ignored(tmp_path):
     assert np.abs(b.joints - a.joints).max() < 15.0   # cm: the body stays in place
 
 
+@pytest.mark.shared
 def test_a_gap_in_one_landmark_falls_back_to_another_rule(tmp_path):
     """Qualisys without the medial epicondyle: the knee comes from the lateral one moved medially."""
     labels = ezc3d.c3d(str(QUALISYS))["parameters"]["POINT"]["LABELS"]["value"]
@@ -349,6 +360,7 @@ def test_a_gap_in_one_landmark_falls_back_to_another_rule(tmp_path):
     assert knee_angle(b.joints, "l").max() > 170.0
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("value", [np.inf, 1e13])
 def test_non_finite_or_absurd_coordinates_are_missing_samples(tmp_path, value):
     """An infinite or absurd coordinate (beyond 1000 km) is a lost sample, interpolated as a gap."""
@@ -371,6 +383,7 @@ PARTIAL = {  # foreign file -> the joints its message names (and the file's own 
 }
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("name", list(PARTIAL))
 def test_partial_and_unknown_marker_sets_are_refused_naming_the_joints(name):
     path = FOREIGN / name
@@ -385,6 +398,7 @@ def test_partial_and_unknown_marker_sets_are_refused_naming_the_joints(name):
     assert f"from the markers {markers}" in msg and "--marker-map" in msg
 
 
+@pytest.mark.shared
 def test_files_without_points_are_refused(tmp_path):
     def no_points(c):
         c["data"]["points"] = np.zeros((4, 0, c["data"]["points"].shape[2]))

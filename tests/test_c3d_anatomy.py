@@ -256,7 +256,7 @@ def test_broken_analog_metadata_never_blocks_the_points(tmp_path, name):
     np.testing.assert_array_equal(pts.xyz[pts.valid], ref.xyz[ref.valid])
     assert pts.meta["notes"] == [f"analog channels not read: ANALOG:{name} "
                                  + ("is missing, but the file declares analog channels" if name == "GEN_SCALE"
-                                    else f"has 0 values for ANALOG:USED = 24 channels") + " (the points do not need them)"]
+                                    else "has 0 values for ANALOG:USED = 24 channels") + " (the points do not need them)"]
 
 
 def test_the_anatomical_path_brings_the_dg_c3d_to_its_amc_twin():

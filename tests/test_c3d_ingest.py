@@ -10,18 +10,18 @@ import textwrap
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import mocapdb
-from mocapdb.cli import main
 from mocapdb.features import motion_features
 from mocapdb.keyframes import UNBOUNDED
 from mocapdb.readers import read_motion
 from mocapdb.storage.model_store import load_model
 
-from conftest import DATA
+from conftest import DATA, run
 from fuzzing import mutate, pack
 from naive_keyframes import naive_keyframe_search
+
+pytestmark = pytest.mark.shared
 
 FOREIGN = DATA / "foreign" / "c3d"
 GOOD = [DATA / "cmu" / "c3d" / "85_02.c3d", DATA / "cmu" / "c3d" / "85_12.c3d",
@@ -114,8 +114,7 @@ def test_packed_corrupt_copies_never_crash_the_reader(tmp_path):
 def test_folder_of_good_and_bad_c3d_files(tmp_path):
     truncated = tmp_path / "cut.c3d"
     truncated.write_bytes(GOOD[0].read_bytes()[:200_000])
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "t.duckdb") as con:
         report = mocapdb.ingest(con, [FOREIGN, GOOD[0], tmp_path])
         assert sorted(p.split("/")[-1] for p, _, _ in report.ingested) == ["85_02.c3d", "ezc3d_Qualisys.c3d"]
         failed = dict(report.failed)
@@ -130,27 +129,24 @@ def test_folder_of_good_and_bad_c3d_files(tmp_path):
         # every source rate gives 30 Hz features (READERS.md §1): Qualisys, 340 frames at 200 Hz = 1.7 s
         assert rows == [("85_02", "c3d", 120.0, 30.0, 810, 203),
                         ("ezc3d_Qualisys", "c3d", 200.0, 30.0, 340, math.ceil(340 / 200 * 30))]
-    finally:
-        con.close()
 
 
 def test_cli_ingest_reports_each_refusal_in_one_line(tmp_path):
-    db = ["--db", str(tmp_path / "cli.duckdb")]
-    r = CliRunner().invoke(main, [*db, "ingest", str(FOREIGN), "--silent"])
-    assert r.exit_code == 1 and "Traceback" not in r.output   # some files failed (one went in)
+    db = tmp_path / "cli.duckdb"
+    r = run(db, "ingest", FOREIGN, "--silent", code=1)
+    assert "Traceback" not in r.output   # some files failed (one went in)
     assert "1 ingested, 0 skipped, 4 failed" in r.output
     lines = [ln for ln in r.output.splitlines() if ln.startswith("failed")]
     assert len(lines) == 4
     assert f"failed  {FOREIGN / 'ezc3d_Optotrak.c3d'}: no full-body marker set: cannot place root" in r.output
-    r = CliRunner().invoke(main, [*db, "ingest", str(FOREIGN / "ezc3d_BTS.c3d"), "--silent"])
-    assert r.exit_code == 1 and "0 ingested, 0 skipped, 1 failed" in r.output and "Traceback" not in r.output
+    r = run(db, "ingest", FOREIGN / "ezc3d_BTS.c3d", "--silent", code=1)
+    assert "0 ingested, 0 skipped, 1 failed" in r.output and "Traceback" not in r.output
 
 
 def test_marker_map_is_applied_and_stored_on_ingest(tmp_path):
     mapping = tmp_path / "knees.toml"
     mapping.write_text('lknee = "L_FLE"\nrknee = "R_FLE"\n', encoding="utf-8")
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "t.duckdb") as con:
         report = mocapdb.ingest(con, [FOREIGN / "ezc3d_Qualisys.c3d", GOOD[0]], marker_map=mapping)
         assert len(report.ingested) == 1   # the map applies to every C3D file: 85_02 has no L_FLE
         (path, reason), = report.failed
@@ -162,8 +158,6 @@ def test_marker_map_is_applied_and_stored_on_ingest(tmp_path):
                              "'ezc3d_Qualisys' ORDER BY frame").fetchnumpy()["bits"]
         expected = motion_features(read_motion(FOREIGN / "ezc3d_Qualisys.c3d", marker_map=mapping))
         np.testing.assert_array_equal(stored, expected)
-    finally:
-        con.close()
 
 
 # ----------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins, build_ind
 from mocapdb.annotation import ClassModel
 from mocapdb.learning.class_definitions import (WARP, KeyframeDefinition, attach_keyframes, compile_definition,
                                                 mirror_definition, parse_class_definitions, parse_definitions,
-                                                read_class_definitions, read_definitions, reverse_definition)
+                                                read_class_definitions, reverse_definition)
 from mocapdb.learning.recipe import PAPER_LABELS
 from mocapdb.templates import QuantizedTemplate
 
@@ -221,6 +221,7 @@ def test_errors_name_file_and_line(text, line, match):
     assert e.value.line == line
 
 
+@pytest.mark.shared
 def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir):
     db = tmp_path / "a.duckdb"
     runner = CliRunner()
@@ -247,18 +248,15 @@ def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir
                                 "root_high_vel, root_high_ang_vel, foot_left_high_vel?")
 
 
-def test_train_with_definitions_adds_the_designed_classes(tmp_path, data_dir):
-    import mocapdb
+@pytest.mark.shared
+def test_train_with_definitions_adds_the_designed_classes(tmp_path, data_dir, open_db):
     from mocapdb.api import train
 
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
-        m = train(con, model="m", folder=data_dir / "hdm05_cut", definitions=[SHIPPED / "turn.toml"])
-        assert {"turnAround", "turnWalking"} <= set(m.class_names) and "turn" in m.labels and len(m.classes) == 13
-        stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'm' AND class LIKE 'turn%'")
-        assert stored.fetchall() == [("class definition",)] * 2
-    finally:
-        con.close()
+    con = open_db(tmp_path / "t.duckdb")
+    m = train(con, model="m", folder=data_dir / "hdm05_cut", definitions=[SHIPPED / "turn.toml"])
+    assert {"turnAround", "turnWalking"} <= set(m.class_names) and "turn" in m.labels and len(m.classes) == 13
+    stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'm' AND class LIKE 'turn%'")
+    assert stored.fetchall() == [("class definition",)] * 2
 
 
 def test_a_definition_keyframe_query_is_valid(tmp_path):
@@ -376,8 +374,7 @@ def test_define_class_attaches_keyframes_to_a_model_s_classes(tmp_path):
     from mocapdb.api import define_class
     from mocapdb.errors import ParameterError
 
-    con = mocapdb.connect(tmp_path / "k.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "k.duckdb") as con:
         m = define_class(con, [SHIPPED / "kick.toml"], model="toolbox")
         kick = m.classes[m.class_names.index("kickLFront1Reps")]
         q = kick.keyframe_query
@@ -387,5 +384,3 @@ def test_define_class_attaches_keyframes_to_a_model_s_classes(tmp_path):
         assert stored == [("keyframe definition",)]
         with pytest.raises(ParameterError, match="name classes \\['kickLFront1Reps'\\] that model 'empty'"):
             define_class(con, [SHIPPED / "kick.toml", SHIPPED / "turn.toml"], model="empty")
-    finally:
-        con.close()

@@ -1,7 +1,9 @@
 """The command line: real files in, exact messages and exit codes out."""
 import csv
+import functools
 import io
 import json
+import lzma
 import re
 import shutil
 
@@ -14,62 +16,60 @@ import mocapdb
 from mocapdb.cli import main
 from mocapdb.learning.recipe import PAPER_LABELS
 
-from conftest import DATA, REPO, amc_frame_count, write_truth_86_09
+from conftest import DATA, REPO, SAMPLE_86_09, SAMPLE_86_ASF, amc_frame_count, eval_scores, run, write_truth_86_09
 
 
 @pytest.fixture
-def run(tmp_path):
+def cli(tmp_path):
+    """``cli(*args)``: a command on a fresh database of this test; the test checks the exit status."""
     db = tmp_path / "cli.duckdb"
     mocapdb.connect(db).close()  # commands that only read refuse a missing file (test_a_mistyped_db_…)
-    runner = CliRunner()
-
-    def invoke(*args):
-        return runner.invoke(main, ["--db", str(db), *map(str, args)], catch_exceptions=False)
-
-    return invoke
+    return functools.partial(run, db, code=None)
 
 
-def test_ingest_and_query(run):
-    r = run("ingest", DATA / "cmu" / "86", DATA / "hdm05_cut" / "hopBothLegs1hops", "--silent")
+@pytest.mark.shared
+def test_ingest_and_query(cli):
+    r = cli("ingest", DATA / "cmu" / "86", DATA / "hdm05_cut" / "hopBothLegs1hops", "--silent")
     assert r.exit_code == 0, r.output
     assert "34 ingested, 0 skipped, 0 failed" in r.output
-    r = run("sql", "SELECT name, n_frames FROM motions WHERE name = '86_09'", "--format", "csv")
+    r = cli("sql", "SELECT name, n_frames FROM motions WHERE name = '86_09'", "--format", "csv")
     assert list(csv.reader(io.StringIO(r.output))) == [["name", "n_frames"], ["86_09", "1199"]]
-    r = run("sql", "SELECT count(*) AS n FROM features", "--format", "json")
+    r = cli("sql", "SELECT count(*) AS n FROM features", "--format", "json")
     hops = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("*.amc"))
     assert json.loads(r.output) == [{"n": 1199 + sum(-(-amc_frame_count(p) // 4) for p in hops)}]
-    r = run("sql", "SELECT name FROM motions ORDER BY name LIMIT 2")
+    r = cli("sql", "SELECT name FROM motions ORDER BY name LIMIT 2")
     assert r.output.splitlines()[0].strip() == "name" and "HDM_bd_hopBothLegs1hops_001_120" in r.output
     # again: nothing new
-    r = run("ingest", DATA / "cmu" / "86", "--silent")
+    r = cli("ingest", DATA / "cmu" / "86", "--silent")
     assert "0 ingested, 1 skipped, 0 failed" in r.output
 
 
-def test_failed_file_reports_file_and_line_and_exits_nonzero(run, tmp_path):
+def test_failed_file_reports_file_and_line_and_exits_nonzero(cli, tmp_path):
     bad = tmp_path / "86_09.amc"
-    lines = (DATA / "cmu" / "86" / "86_09.amc").read_bytes().splitlines(keepends=True)
+    lines = lzma.decompress(SAMPLE_86_09.read_bytes()).splitlines(keepends=True)
     bad.write_bytes(b"".join(lines[:1000]) + b"lfemur abc 1 2\r\n" + b"".join(lines[1001:2000]))
-    shutil.copy(DATA / "cmu" / "86" / "86.asf", tmp_path)
-    r = run("ingest", bad, "--silent")
+    shutil.copy(SAMPLE_86_ASF, tmp_path)
+    r = cli("ingest", bad, "--silent")
     assert r.exit_code == 1
     assert f"{bad}:1001" in r.output
     assert "0 ingested, 0 skipped, 1 failed" in r.output
-    assert run("sql", "SELECT count(*) FROM motions", "--format", "csv").output.splitlines()[1] == "0"
+    assert cli("sql", "SELECT count(*) FROM motions", "--format", "csv").output.splitlines()[1] == "0"
 
 
-def test_sql_error_is_a_clean_message(run):
-    r = run("sql", "SELECT * FROM no_such_table")
+def test_sql_error_is_a_clean_message(cli):
+    r = cli("sql", "SELECT * FROM no_such_table")
     assert r.exit_code == 1 and r.output.startswith("Error: ") and "no_such_table" in r.output
 
 
-def test_delete_by_name(run):
-    run("ingest", DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps", "--silent")
-    r = run("delete", "HDM_bd_rotateArmsBothBackward1Reps_001_120", "HDM_bd_rotateArmsBothBackward1Reps_002_120")
+@pytest.mark.shared
+def test_delete_by_name(cli):
+    cli("ingest", DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps", "--silent")
+    r = cli("delete", "HDM_bd_rotateArmsBothBackward1Reps_001_120", "HDM_bd_rotateArmsBothBackward1Reps_002_120")
     assert r.exit_code == 0 and "2 motion(s) deleted" in r.output
     assert "deleted motion 1 HDM_bd_rotateArmsBothBackward1Reps_001_120 (amc, " in r.output
-    assert run("sql", "SELECT count(*) FROM motions", "--format", "csv").output.splitlines()[1] == "11"
+    assert cli("sql", "SELECT count(*) FROM motions", "--format", "csv").output.splitlines()[1] == "11"
     # what is gone is not an error: a delete re-run after it committed (killed before it could say so)
-    r = run("delete", "no_such_motion", "1")
+    r = cli("delete", "no_such_motion", "1")
     assert r.exit_code == 0 and "no motion 'no_such_motion' (nothing to delete)" in r.output
     assert "no motion '1' (nothing to delete)" in r.output and "0 motion(s) deleted" in r.output
 
@@ -122,17 +122,18 @@ def _class_folder(tmp_path, classes):
     return root
 
 
-def test_train_then_annotate(run, tmp_path):
+@pytest.mark.shared
+def test_train_then_annotate(cli, tmp_path):
     root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps"])
-    r = run("train", "--model", "two", "--folder", root, "--silent")
+    r = cli("train", "--model", "two", "--folder", root, "--silent")
     assert r.exit_code == 0, r.output
     assert "kickLFront1Reps" in r.output and "-> kick" in r.output and "-> exercise" in r.output
     assert "model 'two': 2 classes, 2 labels" in r.output
-    r = run("train", "--model", "two", "--folder", root, "--silent")
+    r = cli("train", "--model", "two", "--folder", root, "--silent")
     assert r.exit_code == 1 and "already exists" in r.output
-    run("ingest", DATA / "cmu" / "86", DATA / "hdm05_cut" / "squat1Reps" / "HDM_bd_squat1Reps_001_120.amc", "--silent")
+    cli("ingest", DATA / "cmu" / "86", DATA / "hdm05_cut" / "squat1Reps" / "HDM_bd_squat1Reps_001_120.amc", "--silent")
     out = tmp_path / "seg.csv"
-    r = run("annotate", "--model", "two", "--format", "csv", "--out", out)
+    r = cli("annotate", "--model", "two", "--format", "csv", "--out", out)
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader(out.open()))
     assert list(rows[0]) == ["document", "label", "start_frame", "end_frame", "fps", "start_s", "end_s", "cost"]
@@ -141,17 +142,17 @@ def test_train_then_annotate(run, tmp_path):
     squat = [r for r in rows if r["document"] == "HDM_bd_squat1Reps_001_120" and r["label"] == "exercise"]
     assert squat and min(float(r["cost"]) for r in squat) < 0.05
     assert sum(int(r["end_frame"]) - int(r["start_frame"]) + 1 for r in squat) >= 0.8 * 35
-    stored = run("sql", "SELECT count(*) FROM annotations WHERE model = 'two'", "--format", "csv")
+    stored = cli("sql", "SELECT count(*) FROM annotations WHERE model = 'two'", "--format", "csv")
     assert int(stored.output.splitlines()[1]) == len(rows)
-    r = run("annotate", "86_09", "--model", "two", "--tau", "0.05", "--format", "json")
+    r = cli("annotate", "86_09", "--model", "two", "--tau", "0.05", "--format", "json")
     assert all(s["cost"] <= 0.05 and s["document"] == "86_09" for s in json.loads(r.output))
 
 
-def test_annotate_unknown_model(run):
-    run("ingest", DATA / "cmu" / "86", "--silent")
-    r = run("annotate", "--model", "nope")
+def test_annotate_unknown_model(cli):
+    cli("ingest", SAMPLE_86_09, "--silent")
+    r = cli("annotate", "--model", "nope")
     assert r.exit_code == 1 and "no model 'nope'" in r.output
-    r = run("sql", "SELECT annotate(motion_id, model := 'nope') FROM motions")
+    r = cli("sql", "SELECT annotate(motion_id, model := 'nope') FROM motions")
     assert r.exit_code == 1 and r.output.startswith("Error: no model 'nope' in the database")
     assert len(r.output.strip().splitlines()) == 1
 
@@ -175,34 +176,31 @@ def test_a_locked_database_is_one_line_naming_the_process(tmp_path):
         holder.wait()
 
 
-def _scores(output):
-    line = next(ln for ln in output.splitlines() if ln.startswith("all "))
-    return [float(x) for x in line.split()[1:7]]
-
-
-def test_eval_from_database_equals_eval_of_the_written_predictions(run, tmp_path):
+@pytest.mark.shared
+def test_eval_from_database_equals_eval_of_the_written_predictions(cli, tmp_path):
     from importlib import resources
 
     truth = write_truth_86_09(tmp_path / "truth.csv")
     walk_is_move = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
-    run("ingest", DATA / "cmu" / "86", "--silent")
+    cli("ingest", DATA / "cmu" / "86", "--silent")
     pred = tmp_path / "pred.csv"
-    run("annotate", "--no-keyframes", "--format", "csv", "--out", pred)
-    from_db = run("evaluate", "--truth", truth, "--label-map", walk_is_move, "--no-keyframes")
+    cli("annotate", "--no-keyframes", "--format", "csv", "--out", pred)
+    from_db = cli("evaluate", "--truth", truth, "--label-map", walk_is_move, "--no-keyframes")
     assert from_db.exit_code == 0, from_db.output
     assert "look_around (1)" in from_db.output  # labels the model cannot produce are reported
     labels = ",".join(PAPER_LABELS)  # the default model's labels
     from_files = CliRunner().invoke(main, ["evaluate", "--truth", str(truth), "--pred", str(pred),
                                            "--label-map", str(walk_is_move), "--vocabulary", labels])
     assert from_files.exit_code == 0, from_files.output
-    p1, r1, f1, p2, r2, f2 = _scores(from_db.output)
-    assert _scores(from_files.output) == [p1, r1, f1, p2, r2, f2]
+    p1, r1, f1, p2, r2, f2 = eval_scores(from_db.output)
+    assert eval_scores(from_files.output) == [p1, r1, f1, p2, r2, f2]
     assert r1 > 0.9 and p1 < 0.5  # walking is found, and without keyframes so are false kicks
-    sweep = run("evaluate", "--truth", truth, "--label-map", walk_is_move, "--no-keyframes", "--sweep-tau", "0.05:0.15:0.05")
+    sweep = cli("evaluate", "--truth", truth, "--label-map", walk_is_move, "--no-keyframes", "--sweep-tau", "0.05:0.15:0.05")
     taus = [ln.split()[0] for ln in sweep.output.splitlines() if ln.startswith("tau=")]
     assert taus == ["tau=0.050", "tau=0.100", "tau=0.150"]
 
 
+@pytest.mark.shared
 def test_eval_counts_a_missing_segment(tmp_path):
     """Predictions = the truth on the 30 Hz grid minus its longest segment: P1 = P2 = 1 and
     R2 = (n − 1)/n exactly; R1 = the frames kept over all truth frames."""
@@ -220,97 +218,103 @@ def test_eval_counts_a_missing_segment(tmp_path):
                 w.writerow([r["document"], r["label"], r["start"] + 1, r["end"] + 1])
     r = CliRunner().invoke(main, ["evaluate", "--truth", str(truth), "--pred", str(pred)])
     assert r.exit_code == 0, r.output
-    p1, r1, f1, p2, r2, f2 = _scores(r.output)
+    p1, r1, f1, p2, r2, f2 = eval_scores(r.output)
     frames = rows["end"] - rows["start"] + 1
     assert p1 == 1.0 and p2 == 1.0
     assert r2 == round((len(rows) - 1) / len(rows), 3)
     assert r1 == round(1 - frames[longest] / frames.sum(), 3)
 
 
-def test_learn_keyframes_is_reproducible_and_searchable(run, tmp_path):
+@pytest.mark.shared
+def test_learn_keyframes_is_reproducible_and_searchable(cli, tmp_path):
     root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps", "rotateArmsBothBackward1Reps"])
-    run("train", "--model", "three", "--folder", root, "--silent")
+    cli("train", "--model", "three", "--folder", root, "--silent")
     args = ("learn-keyframes", "--model", "three", "--folder", root, "--runs", "2", "--generations", "8",
             "--jobs", "1", "--seed", "3", "--silent")
-    r = run(*args)
+    r = cli(*args)
     assert r.exit_code == 0, r.output
     assert "squat1Reps" in r.output and "precision" in r.output
     query = "SELECT class, k, mask, value, position, d_min, d_max FROM keyframes WHERE model = 'three' ORDER BY ALL"
-    first = run("sql", query, "--format", "csv").output
-    run(*args)
-    assert run("sql", query, "--format", "csv").output == first
-    stats = run("sql", "SELECT count(*) FROM ga_statistics WHERE model = 'three'", "--format", "csv").output
+    first = cli("sql", query, "--format", "csv").output
+    cli(*args)
+    assert cli("sql", query, "--format", "csv").output == first
+    stats = cli("sql", "SELECT count(*) FROM ga_statistics WHERE model = 'three'", "--format", "csv").output
     assert int(stats.splitlines()[1]) == 3 * 2 * 9  # classes x runs x (generations + 1)
-    run("ingest", root / "squat1Reps", "--silent")
-    hits = run("sql", "SELECT count(DISTINCT motion_id) FROM keyframe_search('squat1Reps', model := 'three')",
+    cli("ingest", root / "squat1Reps", "--silent")
+    hits = cli("sql", "SELECT count(DISTINCT motion_id) FROM keyframe_search('squat1Reps', model := 'three')",
                "--format", "csv").output
     assert int(hits.splitlines()[1]) >= 30  # of the 40 squat clips it was trained on
 
 
-def test_index_drop_and_rebuild(run):
-    run("ingest", DATA / "hdm05_cut" / "kickLFront1Reps", "--silent")
-    before = run("sql", "SELECT count(*) FROM mocap_index.postings", "--format", "csv").output
-    assert "keyframe index dropped" in run("drop-index").output
-    assert run("sql", "SELECT count(*) FROM mocap_index.postings").exit_code == 1
-    r = run("create-index")
+def test_index_drop_and_rebuild(cli):
+    cli("ingest", SAMPLE_86_09, "--silent")
+    before = cli("sql", "SELECT count(*) FROM mocap_index.postings", "--format", "csv").output
+    assert "keyframe index dropped" in cli("drop-index").output
+    assert cli("sql", "SELECT count(*) FROM mocap_index.postings").exit_code == 1
+    r = cli("create-index")
     assert r.exit_code == 0 and f"{before.splitlines()[1]} postings" in r.output
 
 
-def test_report_figures(run, tmp_path):
+@pytest.mark.shared
+def test_report_figures(cli, tmp_path):
     import matplotlib  # noqa: F401  (the test extra installs it)
     out = tmp_path / "fig5.png"
     # the shipped default's queries are designed, not learned: Fig. 5 needs a model the GA trained
-    r = run("report", "--figure", "ga", "--out", out)
+    r = cli("report", "--figure", "ga", "--out", out)
     assert r.exit_code == 1 and "no GA statistics" in r.output and "learn-keyframes" in r.output
     root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps"])
-    run("train", "--model", "two", "--folder", root, "--silent")
-    run("learn-keyframes", "--model", "two", "--folder", root, "--runs", "2", "--generations", "5", "--jobs", "1",
+    cli("train", "--model", "two", "--folder", root, "--silent")
+    cli("learn-keyframes", "--model", "two", "--folder", root, "--runs", "2", "--generations", "5", "--jobs", "1",
         "--silent")
-    r = run("report", "--figure", "ga", "--model", "two", "--out", out)
+    r = cli("report", "--figure", "ga", "--model", "two", "--out", out)
     assert r.exit_code == 0, r.output
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    run("ingest", DATA / "cmu" / "86", "--silent")
+    cli("ingest", DATA / "cmu" / "86", "--silent")
     out = tmp_path / "86_09.png"
-    r = run("report", "--figure", "annotation", "--motion", "86_09", "--out", out)
+    r = cli("report", "--figure", "annotation", "--motion", "86_09", "--out", out)
     assert r.exit_code == 0 and out.stat().st_size > 10_000
-    r = run("report", "--figure", "annotation", "--out", out)
+    r = cli("report", "--figure", "annotation", "--out", out)
     assert r.exit_code == 1 and "needs a motion" in r.output
 
 
-def test_train_from_a_label_csv_over_ingested_documents(run, tmp_path):
+@pytest.mark.shared
+def test_train_from_a_label_csv_over_ingested_documents(cli, tmp_path):
     """Classes cut out of ingested documents by a label CSV (native frames); the model finds them again."""
     truth = write_truth_86_09(tmp_path / "truth.csv")
-    run("ingest", DATA / "cmu" / "86", "--silent")
-    r = run("train", "--model", "cmu86", "--labels", truth, "--silent")
+    cli("ingest", DATA / "cmu" / "86", "--silent")
+    r = cli("train", "--model", "cmu86", "--labels", truth, "--silent")
     assert r.exit_code == 0, r.output
     assert "model 'cmu86': 4 classes, 4 labels" in r.output  # walk, look_around, clap, stand_and_clap
-    r = run("evaluate", "--truth", truth, "--model", "cmu86", "--no-keyframes")
-    p1, r1, f1, p2, r2, f2 = _scores(r.output)
+    r = cli("evaluate", "--truth", truth, "--model", "cmu86", "--no-keyframes")
+    p1, r1, f1, p2, r2, f2 = eval_scores(r.output)
     assert r1 > 0.8 and r2 == 1.0  # every labelled segment is found again by its own template
     bad = tmp_path / "bad.csv"
     bad.write_text("document,label,start_frame,end_frame\n86_09,walk,10,5\n")
-    r = run("train", "--model", "bad", "--labels", bad, "--silent")
+    r = cli("train", "--model", "bad", "--labels", bad, "--silent")
     assert r.exit_code == 1 and f"{bad}:2" in r.output and "before start_frame" in r.output
 
 
 def test_a_mistyped_db_is_refused_by_the_commands_that_only_read(tmp_path):
     """A --db that does not exist is an error for every command that reads an archive: no empty file appears."""
     missing = tmp_path / "mistyped.duckdb"
+    truth = tmp_path / "t.csv"
+    truth.write_text("document,label,start_frame,end_frame\n86_09,walk,1,120\n")
     for args in (["annotate"], ["view", "86_09", "--out", str(tmp_path / "p.html")], ["sql", "SELECT 1"],
-                 ["evaluate", "--truth", str(write_truth_86_09(tmp_path / "t.csv"))], ["delete", "1"],
+                 ["evaluate", "--truth", str(truth)], ["delete", "1"],
                  ["create-index"], ["drop-index"], ["export-features", str(tmp_path / "x")],
                  ["relocate", "/a", "/b"], ["report", "--figure", "ga", "--out", str(tmp_path / "f.png")]):
-        r = CliRunner().invoke(main, ["--db", str(missing), *args])
-        assert r.exit_code == 1 and "no such database file (a mistyped --db?" in r.output, (args, r.output)
+        r = run(missing, *args, code=1)
+        assert "no such database file (a mistyped --db?" in r.output, (args, r.output)
         assert not missing.exists()
 
 
+@pytest.mark.shared
 def test_ingest_exits_1_when_any_file_failed(tmp_path):
     d, _ = _broken_folder(tmp_path)
-    r = CliRunner().invoke(main, ["--db", str(tmp_path / "n.duckdb"), "ingest", str(d), "--silent"])
-    assert r.exit_code == 1 and "2 ingested, 0 skipped, 1 failed" in r.output
-    r = CliRunner().invoke(main, ["--db", str(tmp_path / "n.duckdb"), "ingest", str(d / "good"), "--silent"])
-    assert r.exit_code == 0 and "0 ingested, 2 skipped, 0 failed" in r.output
+    r = run(tmp_path / "n.duckdb", "ingest", d, "--silent", code=1)
+    assert "2 ingested, 0 skipped, 1 failed" in r.output
+    r = run(tmp_path / "n.duckdb", "ingest", d / "good", "--silent")
+    assert "0 ingested, 2 skipped, 0 failed" in r.output
 
 
 def _broken_folder(tmp_path):
@@ -323,39 +327,39 @@ def _broken_folder(tmp_path):
     return d, d / "good"
 
 
-def test_annotate_on_an_empty_database_says_ingest_first(run):
-    r = run("annotate")
+def test_annotate_on_an_empty_database_says_ingest_first(cli):
+    r = cli("annotate")
     assert r.exit_code == 1 and "holds no motions: ingest recordings first" in r.output
 
 
-def test_annotate_csv_given_back_as_truth_scores_one(run, tmp_path):
+def test_annotate_csv_given_back_as_truth_scores_one(cli, tmp_path):
     """The annotation CSV carries its frame grid (fps): as --truth it reads onto exactly its own frames
     (F1 = 1, not the 0.375 of reading 30 Hz frames as 120 Hz ones), and as --labels it trains."""
-    run("ingest", DATA / "cmu" / "86", "--silent")
+    cli("ingest", SAMPLE_86_09, "--silent")
     seg = tmp_path / "seg.csv"
-    assert run("annotate", "--format", "csv", "--out", seg).exit_code == 0
-    r = run("evaluate", "--truth", seg)
-    assert r.exit_code == 0 and _scores(r.output) == [1.0] * 6, r.output
-    r = run("evaluate", "--truth", seg, "--pred", seg)
-    assert _scores(r.output) == [1.0] * 6
-    r = run("train", "--model", "again", "--labels", seg, "--silent")
+    assert cli("annotate", "--format", "csv", "--out", seg).exit_code == 0
+    r = cli("evaluate", "--truth", seg)
+    assert r.exit_code == 0 and eval_scores(r.output) == [1.0] * 6, r.output
+    r = cli("evaluate", "--truth", seg, "--pred", seg)
+    assert eval_scores(r.output) == [1.0] * 6
+    r = cli("train", "--model", "again", "--labels", seg, "--silent")
     assert r.exit_code == 0 and "model 'again'" in r.output
-    js = json.loads(run("annotate", "--format", "json").output)
+    js = json.loads(cli("annotate", "--format", "json").output)
     assert {s["fps"] for s in js} == {30} and all(round(s["start_s"], 4) == s["start_s"] for s in js)
 
 
-def test_the_compile_messages_say_what_happens_and_how_long(run, tmp_path, monkeypatch):
+def test_the_compile_messages_say_what_happens_and_how_long(cli, tmp_path, monkeypatch):
     """First run (an empty kernel cache): the command says it compiles and, at its end, how long it took;
     a command that waits for the background warm-up says so and for how long."""
     import fcntl
     import threading
     import time
 
-    run("ingest", DATA / "cmu" / "86", "--silent")
+    cli("ingest", SAMPLE_86_09, "--silent")
     cold = tmp_path / "cold-cache"
     cold.mkdir()
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(cold))  # read by the CLI's check; the kernels are compiled already
-    r = run("annotate", "--silent")
+    r = cli("annotate", "--silent")
     assert r.output.startswith("Compiling the numba kernels: this install has no compiled cache yet (first run only)…")
     assert re.search(r"First run: \d+ s, most of it compiling; later runs skip that\.", r.output)
     (cold / "kernel.nbi").write_bytes(b"")  # the cache is warm, but a warm-up still compiles
@@ -363,7 +367,7 @@ def test_the_compile_messages_say_what_happens_and_how_long(run, tmp_path, monke
     with open(lock, "a") as fh:
         fcntl.flock(fh, fcntl.LOCK_EX)
         threading.Thread(target=lambda: (time.sleep(1.5), fcntl.flock(fh, fcntl.LOCK_UN))).start()
-        r = run("annotate", "--silent")
+        r = cli("annotate", "--silent")
     assert "Waiting for the numba kernels compiling in the background (first run only)…" in r.output
     waited = int(re.search(r"…compiled; waited (\d+) s\.", r.output).group(1))
     assert 1 <= waited <= 3
@@ -386,11 +390,8 @@ def test_the_readme_names_only_options_the_commands_have():
         checked += 1
     assert checked >= 15
     # the --margin default: the model's, 0 (off) for the shipped models, in help and README alike
-    con = mocapdb.connect()
-    try:
+    with mocapdb.connect() as con:
         margins = dict(con.execute("SELECT model, margin FROM models WHERE shipped").fetchall())
-    finally:
-        con.close()
     assert margins == {"default": 0.0, "toolbox": 0.0}
     help_text = CliRunner().invoke(main, ["annotate", "--help"]).output
     assert "default: the model's margin, 0 for the shipped models = off" in " ".join(help_text.split())
@@ -399,11 +400,11 @@ def test_the_readme_names_only_options_the_commands_have():
     assert "a list of joints (their mean)" in joint_help and "a list of joints (their mean)" in " ".join(readme.split())
 
 
-def test_sql_takes_a_commented_query_of_several_statements_from_an_argument_stdin_or_a_file(run, tmp_path):
+def test_sql_takes_a_commented_query_of_several_statements_from_an_argument_stdin_or_a_file(cli, tmp_path):
     query = ("-- a comment first, as the README's examples start\n"
              "CREATE TABLE t AS SELECT 1 AS x; INSERT INTO t VALUES (2), (3);\n"
              "SELECT count(*) AS n FROM t; -- a comment last\n")
-    r = run("sql", query)
+    r = cli("sql", query)
     assert r.exit_code == 0, r.output
     assert r.output.split("\n\n") == ["ok, 1 row(s) changed", "ok, 2 row(s) changed", "n\n-\n3\n"]
     r = CliRunner().invoke(main, ["--db", str(tmp_path / "cli.duckdb"), "sql", "-", "--format", "csv"],
@@ -411,6 +412,6 @@ def test_sql_takes_a_commented_query_of_several_statements_from_an_argument_stdi
     assert r.output == "n\n3\n"
     f = tmp_path / "q.sql"
     f.write_text("SELECT sum(x) AS s FROM t")
-    assert run("sql", "--file", f, "--format", "json").output.strip() == '[\n {\n  "s": 6\n }\n]'
-    r = run("sql", "-- only a comment")
+    assert cli("sql", "--file", f, "--format", "json").output.strip() == '[\n {\n  "s": 6\n }\n]'
+    r = cli("sql", "-- only a comment")
     assert r.exit_code == 2 and "holds no SQL statement" in r.output

@@ -1,4 +1,5 @@
 """Storage: schema, ingest (idempotent, atomic per file), the feature view, Parquet round trip."""
+import lzma
 import math
 import re
 import shutil
@@ -12,7 +13,7 @@ from mocapdb import ingest
 from mocapdb.storage.ingest import motion_files
 from mocapdb.readers import read_motion
 
-from conftest import DATA, amc_frame_count, c3d_frame_count
+from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH, amc_frame_count, c3d_frame_count
 
 CMU_ASF = DATA / "cmu" / "02" / "02.asf"
 NO_ASF_DIRS = (DATA / "cmu" / "13", DATA / "cmu" / "14")
@@ -31,6 +32,7 @@ def archive(tmp_path_factory):
     con.close()
 
 
+@pytest.mark.shared
 def test_whole_data_ingests_with_right_frame_counts(archive):
     con, first, second = archive
     amcs = [p for p in motion_files(ARCHIVE) if p.suffix == ".amc"]
@@ -55,6 +57,7 @@ def test_whole_data_ingests_with_right_frame_counts(archive):
                        ).fetchall()[0][0] == 56733
 
 
+@pytest.mark.shared
 def test_stored_words_are_the_features_of_the_file(archive):
     con = archive[0]
     for name in ("86_09", "HDM_bd_kickLFront1Reps_001_120", "13_29", "85_02"):
@@ -64,6 +67,7 @@ def test_stored_words_are_the_features_of_the_file(archive):
         np.testing.assert_array_equal(stored, motion_features(read_motion(path, asf=asf)))
 
 
+@pytest.mark.shared
 def test_reingest_is_a_noop(archive):
     con = archive[0]
     before = con.execute("SELECT count(*), sum(motion_id), (SELECT count(*) FROM features) FROM motions").fetchall()
@@ -74,6 +78,7 @@ def test_reingest_is_a_noop(archive):
                        ).fetchall() == before
 
 
+@pytest.mark.shared
 def test_feature_flags_view_names_every_bit(archive):
     con = archive[0]
     cols = [r[0] for r in con.execute("DESCRIBE feature_flags").fetchall()]
@@ -91,6 +96,7 @@ def test_feature_flags_view_names_every_bit(archive):
     assert squat > 0.3 > walk
 
 
+@pytest.mark.shared
 def test_parquet_export_import_round_trip(archive, tmp_path):
     from mocapdb.storage.parquet import export_features, features_sql, import_features
 
@@ -104,8 +110,7 @@ def test_parquet_export_import_round_trip(archive, tmp_path):
         FULL JOIN features f USING (motion_id, frame) WHERE p.bits IS DISTINCT FROM f.bits""").fetchall()[0][0]
     assert diff == 0
     # imported into a fresh database: same motions (by sha256) and identical words
-    fresh = mocapdb.connect(tmp_path / "fresh.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "fresh.duckdb") as fresh:
         report = import_features(fresh, tmp_path / "export")
         assert len(report.imported) == n and not report.failed
         again = import_features(fresh, tmp_path / "export")  # idempotent
@@ -115,8 +120,6 @@ def test_parquet_export_import_round_trip(archive, tmp_path):
         b = fresh.execute("SELECT m.sha256, f.frame, f.bits FROM features f JOIN motions m USING (motion_id) "
                           "ORDER BY ALL").fetchall()
         assert a == b
-    finally:
-        fresh.close()
 
 
 def _broken_copies(tmp_path):
@@ -135,42 +138,39 @@ def _broken_copies(tmp_path):
     return d, good
 
 
-def test_failed_files_change_nothing_and_others_go_in(tmp_path):
+@pytest.mark.shared
+def test_failed_files_change_nothing_and_others_go_in(tmp_path, open_db):
     d, good = _broken_copies(tmp_path)
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
-        report = ingest(con, [d])
-        failed = dict(report.failed)
-        assert sorted(failed) == sorted(str(d / "kick" / f"HDM_bd_{x}_120.amc") for x in ("badbone", "truncated"))
-        assert "rshin" in failed[str(d / "kick" / "HDM_bd_badbone_120.amc")]
-        assert re.search(r"truncated_120\.amc:\d+", failed[str(d / "kick" / "HDM_bd_truncated_120.amc")])
-        names = sorted(r[0] for r in con.execute("SELECT name FROM motions").fetchall())
-        assert names == sorted(p.stem for p in good)
-        before = con.execute("SELECT count(*) FROM features").fetchall()
-        # failing alone: nothing changes
-        again = ingest(con, [d / "kick" / "HDM_bd_truncated_120.amc"])
-        assert len(again.failed) == 1 and not again.ingested
-        assert con.execute("SELECT count(*) FROM features").fetchall() == before
-    finally:
-        con.close()
+    con = open_db(tmp_path / "t.duckdb")
+    report = ingest(con, [d])
+    failed = dict(report.failed)
+    assert sorted(failed) == sorted(str(d / "kick" / f"HDM_bd_{x}_120.amc") for x in ("badbone", "truncated"))
+    assert "rshin" in failed[str(d / "kick" / "HDM_bd_badbone_120.amc")]
+    assert re.search(r"truncated_120\.amc:\d+", failed[str(d / "kick" / "HDM_bd_truncated_120.amc")])
+    names = sorted(r[0] for r in con.execute("SELECT name FROM motions").fetchall())
+    assert names == sorted(p.stem for p in good)
+    before = con.execute("SELECT count(*) FROM features").fetchall()
+    # failing alone: nothing changes
+    again = ingest(con, [d / "kick" / "HDM_bd_truncated_120.amc"])
+    assert len(again.failed) == 1 and not again.ingested
+    assert con.execute("SELECT count(*) FROM features").fetchall() == before
 
 
-def test_delete_removes_everything_of_a_motion(tmp_path):
+@pytest.mark.shared
+def test_delete_removes_everything_of_a_motion(tmp_path, open_db):
     from mocapdb.storage.ingest import delete_motions
 
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
-        ingest(con, [DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps"])
-        ids = [r[0] for r in con.execute("SELECT motion_id FROM motions ORDER BY motion_id").fetchall()]
-        assert delete_motions(con, ids[:5]) == 5
-        left = con.execute("SELECT DISTINCT motion_id FROM features ORDER BY 1").fetchall()
-        assert [r[0] for r in left] == ids[5:]
-        # deleted files can be ingested again
-        assert len(ingest(con, [DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps"]).ingested) == 5
-    finally:
-        con.close()
+    con = open_db(tmp_path / "t.duckdb")
+    ingest(con, [DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps"])
+    ids = [r[0] for r in con.execute("SELECT motion_id FROM motions ORDER BY motion_id").fetchall()]
+    assert delete_motions(con, ids[:5]) == 5
+    left = con.execute("SELECT DISTINCT motion_id FROM features ORDER BY 1").fetchall()
+    assert [r[0] for r in left] == ids[5:]
+    # deleted files can be ingested again
+    assert len(ingest(con, [DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps"]).ingested) == 5
 
 
+@pytest.mark.shared
 def test_a_take_in_two_formats_is_named_by_its_file(archive):
     """hdm05_full holds the dg excerpt as .amc and as .c3d: both are stored, the
     stem names two motions, and a label file names either by its file name."""
@@ -196,7 +196,7 @@ def test_a_second_connect_in_one_process_and_cursors_have_the_functions(tmp_path
 
     path = tmp_path / "twice.duckdb"
     first = mocapdb.connect(path)
-    ingest(first, [DATA / "cmu" / "86" / "86_09.amc"])
+    ingest(first, [SAMPLE_86_09])
     want = first.sql("SELECT annotate(1)").fetchall()
     again = mocapdb.connect(path)
     assert again.sql("SELECT annotate(1)").fetchall() == want
@@ -211,12 +211,9 @@ def test_a_second_connect_in_one_process_and_cursors_have_the_functions(tmp_path
         assert c2.sql("SELECT len(mt_distance(1, 'squat1Reps'))").fetchall() == [(1199,)]
     again.close()
     # all closed: a new instance registers afresh, read-only too
-    ro = mocapdb.connect(path, read_only=True)
-    try:
+    with mocapdb.connect(path, read_only=True) as ro:
         assert ro.sql("SELECT annotate(1)").fetchall() == want
         assert isinstance(ro.duckdb, __import__("duckdb").DuckDBPyConnection)
-    finally:
-        ro.close()
 
 
 def test_plain_duckdb_is_told_how_to_get_the_functions(tmp_path):
@@ -224,8 +221,7 @@ def test_plain_duckdb_is_told_how_to_get_the_functions(tmp_path):
 
     path = tmp_path / "plain.duckdb"
     mocapdb.connect(path).close()
-    con = duckdb.connect(str(path))
-    try:
+    with duckdb.connect(str(path)) as con:
         for q in ("SELECT annotate(1)", "SELECT mt_distance(1, 'x')", "SELECT * FROM keyframe_search('x')",
                   "SELECT * FROM keyframe_search_words([1], [1], [], [])"):
             with pytest.raises(duckdb.Error, match=r"mocapdb SQL function: open this database with "
@@ -239,10 +235,9 @@ def test_plain_duckdb_is_told_how_to_get_the_functions(tmp_path):
         macros = dict(con.execute("SELECT function_name, comment FROM duckdb_functions() "
                                   "WHERE database_name = 'plain' AND comment IS NOT NULL").fetchall())
         assert set(macros) == {"annotate", "mt_distance", "keyframe_search", "keyframe_search_words"}
-    finally:
-        con.close()
 
 
+@pytest.mark.shared
 def test_an_archive_with_names_no_ingest_gives_is_refused(archive, tmp_path):
     """import-features checks motion names: ../x, absolute paths, control characters are refused, naming them."""
     import pyarrow as pa
@@ -258,92 +253,81 @@ def test_an_archive_with_names_no_ingest_gives_is_refused(archive, tmp_path):
     names[0], names[1], names[2] = "../../ESCAPED", "/tmp/ABSOLUTE", "a\nb"
     pq.write_table(table.set_column(table.schema.get_field_index("name"), "name", pa.array(names)),
                    tmp_path / "export" / "motions.parquet")
-    fresh = mocapdb.connect(tmp_path / "fresh.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "fresh.duckdb") as fresh:
         with pytest.raises(SchemaError, match=r"3 motion name\(s\).*'\.\./\.\./ESCAPED': holds a path separator"
                                               r".*'a\\nb': holds control characters"):
             import_features(fresh, tmp_path / "export")
         assert fresh.execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
-    finally:
-        fresh.close()
 
 
-def test_delete_asks_which_when_a_name_names_several(archive, tmp_path):
+@pytest.mark.shared
+def test_delete_asks_which_when_a_name_names_several(archive, tmp_path, open_db):
     """hdm05_full holds one take as .amc and .c3d: delete NAME names both, so it needs an id or --all-named."""
     from mocapdb.errors import ParameterError
 
-    con = mocapdb.connect(tmp_path / "d.duckdb")
-    try:
-        ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.amc", DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d",
-                     DATA / "hdm05_full" / "HDM_dg.asf"])
-        with pytest.raises(ParameterError, match=r"names 2 motions: 1 \(amc, .*\); 2 \(c3d, .*all_named=True"):
-            mocapdb.delete(con, ["HDM_dg_06-03_03_120"])
-        assert con.execute("SELECT count(*) FROM motions").fetchall() == [(2,)]
-        report = mocapdb.delete(con, ["2"])
-        assert [r[:3] for r in report.deleted] == [(2, "HDM_dg_06-03_03_120", "c3d")] and report.absent == []
-        assert mocapdb.delete(con, ["2"]).absent == ["2"]  # again: nothing there, no error
-        ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d"])
-        report = mocapdb.delete(con, ["HDM_dg_06-03_03_120"], all_named=True)
-        assert sorted(r[2] for r in report.deleted) == ["amc", "c3d"]
-    finally:
-        con.close()
+    con = open_db(tmp_path / "d.duckdb")
+    ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.amc", DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d",
+                 DATA / "hdm05_full" / "HDM_dg.asf"])
+    with pytest.raises(ParameterError, match=r"names 2 motions: 1 \(amc, .*\); 2 \(c3d, .*all_named=True"):
+        mocapdb.delete(con, ["HDM_dg_06-03_03_120"])
+    assert con.execute("SELECT count(*) FROM motions").fetchall() == [(2,)]
+    report = mocapdb.delete(con, ["2"])
+    assert [r[:3] for r in report.deleted] == [(2, "HDM_dg_06-03_03_120", "c3d")] and report.absent == []
+    assert mocapdb.delete(con, ["2"]).absent == ["2"]  # again: nothing there, no error
+    ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d"])
+    report = mocapdb.delete(con, ["HDM_dg_06-03_03_120"], all_named=True)
+    assert sorted(r[2] for r in report.deleted) == ["amc", "c3d"]
 
 
-def test_replace_reads_a_stored_file_again(tmp_path):
+def test_replace_reads_a_stored_file_again(tmp_path, open_db):
     """A file re-ingested with replace=True (a corrected joint map) replaces its motion; without, it is skipped."""
     from mocapdb.api import joint_map_template
 
-    bvh = DATA / "foreign" / "bvh" / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh"
+    bvh = SAMPLE_BVH
     joint_map = tmp_path / "map.toml"
     joint_map.write_text(joint_map_template(bvh), encoding="utf-8")
-    con = mocapdb.connect(tmp_path / "r.duckdb")
-    try:
-        first = ingest(con, [bvh])
-        assert len(first.ingested) == 1, first.failed
-        old = first.ingested[0][1]
-        mocapdb.annotate(con)
-        skipped = ingest(con, [bvh], joint_map=joint_map)
-        assert skipped.skipped and "replace" in skipped.skipped[0][1]
-        again = ingest(con, [bvh], joint_map=joint_map, replace=True)
-        assert again.replaced == [(str(bvh), old)] and len(again.ingested) == 1
-        assert "joint_map" in con.execute("SELECT reader_options FROM motions").fetchall()[0][0]
-        rows = con.execute("SELECT motion_id FROM motions").fetchall()
-        assert rows == [(again.ingested[0][1],)] and rows[0][0] != old
-        assert con.execute("SELECT count(*) FROM annotations WHERE motion_id = ?", [old]).fetchall() == [(0,)]
-        n = con.execute("SELECT n_frames FROM motions").fetchall()[0][0]
-        assert con.execute("SELECT count(*), min(frame), max(frame) FROM features").fetchall() == [(n, 1, n)]
-    finally:
-        con.close()
+    con = open_db(tmp_path / "r.duckdb")
+    first = ingest(con, [bvh])
+    assert len(first.ingested) == 1, first.failed
+    old = first.ingested[0][1]
+    mocapdb.annotate(con)
+    skipped = ingest(con, [bvh], joint_map=joint_map)
+    assert skipped.skipped and "replace" in skipped.skipped[0][1]
+    again = ingest(con, [bvh], joint_map=joint_map, replace=True)
+    assert again.replaced == [(str(bvh), old)] and len(again.ingested) == 1
+    assert "joint_map" in con.execute("SELECT reader_options FROM motions").fetchall()[0][0]
+    rows = con.execute("SELECT motion_id FROM motions").fetchall()
+    assert rows == [(again.ingested[0][1],)] and rows[0][0] != old
+    assert con.execute("SELECT count(*) FROM annotations WHERE motion_id = ?", [old]).fetchall() == [(0,)]
+    n = con.execute("SELECT n_frames FROM motions").fetchall()[0][0]
+    assert con.execute("SELECT count(*), min(frame), max(frame) FROM features").fetchall() == [(n, 1, n)]
 
 
-def test_paths_are_stored_as_given_and_relocate_repoints_them(tmp_path):
+def test_paths_are_stored_as_given_and_relocate_repoints_them(tmp_path, open_db):
     """Source paths are stored absolute but not symlink-resolved; after the files move,
     relocate repoints the motions whose bytes are at the new place, and view works again."""
     real = tmp_path / "real"
     real.mkdir()
-    for name in ("86.asf", "86_09.amc"):
-        shutil.copy(DATA / "cmu" / "86" / name, real / name)
+    shutil.copy(SAMPLE_86_ASF, real / "86.asf")
+    (real / "86_09.amc").write_bytes(lzma.decompress(SAMPLE_86_09.read_bytes()))
     link = tmp_path / "link"
     link.symlink_to(real, target_is_directory=True)
-    con = mocapdb.connect(tmp_path / "m.duckdb")
-    try:
-        ingest(con, [link / "86_09.amc"])
-        src, skel = con.execute("SELECT source_path, skeleton_path FROM motions").fetchall()[0]
-        assert (src, skel) == (str(link / "86_09.amc"), str(link / "86.asf"))
-        moved = tmp_path / "moved"
-        real.rename(moved)
-        with pytest.raises(mocapdb.SchemaError, match=r"is gone.*mocapdb relocate"):
-            mocapdb.view(con, "86_09", out=tmp_path / "p.html")
-        wrong = tmp_path / "wrong"
-        wrong.mkdir()
-        (wrong / "86_09.amc").write_bytes(b"not the take")
-        shutil.copy(moved / "86.asf", wrong / "86.asf")
-        done, refused = mocapdb.api.relocate(con, link, wrong)
-        assert done == [] and refused and "other bytes" in refused[0][2]
-        done, refused = mocapdb.api.relocate(con, str(link) + "/", moved)
-        assert refused == [] and done == [(1, str(link / "86_09.amc"), str(moved / "86_09.amc"))]
-        assert con.execute("SELECT skeleton_path FROM motions").fetchall() == [(str(moved / "86.asf"),)]
+    con = open_db(tmp_path / "m.duckdb")
+    ingest(con, [link / "86_09.amc"])
+    src, skel = con.execute("SELECT source_path, skeleton_path FROM motions").fetchall()[0]
+    assert (src, skel) == (str(link / "86_09.amc"), str(link / "86.asf"))
+    moved = tmp_path / "moved"
+    real.rename(moved)
+    with pytest.raises(mocapdb.SchemaError, match=r"is gone.*mocapdb relocate"):
         mocapdb.view(con, "86_09", out=tmp_path / "p.html")
-        assert (tmp_path / "p.html").stat().st_size > 10_000
-    finally:
-        con.close()
+    wrong = tmp_path / "wrong"
+    wrong.mkdir()
+    (wrong / "86_09.amc").write_bytes(b"not the take")
+    shutil.copy(moved / "86.asf", wrong / "86.asf")
+    done, refused = mocapdb.api.relocate(con, link, wrong)
+    assert done == [] and refused and "other bytes" in refused[0][2]
+    done, refused = mocapdb.api.relocate(con, str(link) + "/", moved)
+    assert refused == [] and done == [(1, str(link / "86_09.amc"), str(moved / "86_09.amc"))]
+    assert con.execute("SELECT skeleton_path FROM motions").fetchall() == [(str(moved / "86.asf"),)]
+    mocapdb.view(con, "86_09", out=tmp_path / "p.html")
+    assert (tmp_path / "p.html").stat().st_size > 10_000

@@ -16,11 +16,8 @@ FIGURES = REPO / "benchmarks" / "eval_quality.json"
 
 @pytest.fixture(scope="module")
 def shipped():
-    con = mocapdb.connect()
-    try:
+    with mocapdb.connect() as con:
         return load_model(con, "default"), load_model(con, "toolbox")
-    finally:
-        con.close()
 
 
 def test_the_default_model_knows_the_paper_s_15_labels(shipped):
@@ -39,6 +36,7 @@ def test_the_default_model_knows_the_paper_s_15_labels(shipped):
     assert all(c.keyframe_query is not None for c in model.classes)       # every class preselected (issue 20)
 
 
+@pytest.mark.shared
 def test_the_shipped_templates_are_the_recipe_s(shipped, data_dir):
     """benchmarks/train_default_model.py's templates, rebuilt here (learning is deterministic)."""
     model, _ = shipped
@@ -89,6 +87,7 @@ def development_clips(data_dir):
     return recipe_clips(development_data(data_dir).clips(), default_recipe())
 
 
+@pytest.mark.shared
 def test_every_learned_class_s_keyframes_hold_in_its_own_clips(shipped, development_clips):
     """The designed keyframes of the learned classes (mocapdb/shipped_models/classes/*.toml) hold in every training
     clip of their class, of every actor and subject, mirror images included (one jumping-jack repetition,
@@ -114,6 +113,7 @@ def test_every_learned_class_s_keyframes_hold_in_its_own_clips(shipped, developm
     assert cells / (sum(len(c.quantized.expand()) for c in model.classes) * bounds[-1]) < 0.15
 
 
+@pytest.mark.shared
 def test_a_walker_who_turns_round_gets_turn_and_one_who_bends_does_not(shipped, data_dir):
     """Turns while walking (issue 19): CMU 86_09's first walk, straightened, turns round by 180° over 2 s
     in bursts (the pelvis turning fast at each step, as other labs' walkers turn) and gets turn over its
@@ -169,6 +169,7 @@ def test_the_kicks_are_preselected_by_their_designed_keyframe(shipped):
     assert kick["r2"] == 1.0 and kick["f1"] > figures["per_label"]["loao"]["reference"]["kick"]["f1"]
 
 
+@pytest.mark.shared
 def test_won_frames_drop_segments_their_label_barely_won(shipped, data_dir):
     """The won-frames filter on the shipped model and real CMU documents: the segments kept are
     exactly those of the unfiltered annotation whose label is the frame's best on at least a third
@@ -211,11 +212,11 @@ def test_a_30_fps_bvh_is_annotated_as_its_120_hz_source(shipped, tmp_path):
     from mocapdb.readers.asf import read_asf
     from mocapdb.readers.bvh_write import write_bvh
 
-    from conftest import DATA
+    from conftest import SAMPLE_86_09, SAMPLE_86_ASF
 
     model, _ = shipped
-    skeleton = read_asf(DATA / "cmu" / "86" / "86.asf")
-    source = read_amc(DATA / "cmu" / "86" / "86_09.amc", skeleton)
+    skeleton = read_asf(SAMPLE_86_ASF)
+    source = read_amc(SAMPLE_86_09, skeleton)
     for layout in ("asf", "cmu"):
         got = []
         for step in (1, 4):

@@ -14,6 +14,8 @@ from mocapdb.learning.class_templates import clip_files
 
 from conftest import DATA, amc_frame_count
 
+pytestmark = pytest.mark.shared
+
 CUT = DATA / "hdm05_cut"
 
 

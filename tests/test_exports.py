@@ -11,7 +11,7 @@ from mocapdb.annotation import EAF_FPS_PROPERTY, read_eaf, read_labels
 from mocapdb.cli import main
 from mocapdb.errors import ParseError
 
-from conftest import DATA, truth_86_09_rows, write_truth_86_09
+from conftest import DATA, eval_scores, run, truth_86_09_rows, write_truth_86_09
 
 CMU86_MAP = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
 AMC_86_09 = DATA / "cmu" / "86" / "86_09.amc"
@@ -25,17 +25,6 @@ def db(tmp_path_factory):
     mocapdb.ingest(con, [AMC_86_09, *HOPS])
     con.close()
     return path
-
-
-def run(db_path, *args):
-    r = CliRunner().invoke(main, ["--db", str(db_path), *map(str, args)], catch_exceptions=False)
-    assert r.exit_code == 0, r.output
-    return r
-
-
-def _scores(output):
-    line = next(ln for ln in output.splitlines() if ln.startswith("all "))
-    return [float(x) for x in line.split()[1:7]]
 
 
 def _eaf(path, tiers, *, media=None, fps=None):
@@ -56,6 +45,7 @@ def _eaf(path, tiers, *, media=None, fps=None):
     return path
 
 
+@pytest.mark.shared
 def test_annotate_eaf_then_evaluate_against_the_same_annotation_is_perfect(db, tmp_path):
     """The export/import path: annotate → .eaf → evaluate against the same segments gives F = 1.
     (Not a quality score: it checks that the ELAN file carries exactly the segments.)"""
@@ -67,22 +57,20 @@ def test_annotate_eaf_then_evaluate_against_the_same_annotation_is_perfect(db, t
     # from the file alone (its frame rate comes from the file's header property)
     r = CliRunner().invoke(main, ["evaluate", "--truth", str(eaf), "--pred", str(pred)])
     assert r.exit_code == 0, r.output
-    assert _scores(r.output) == [1.0] * 6
+    assert eval_scores(r.output) == [1.0] * 6
     # from the database (re-annotated; the frame rate comes from motions.source_fps)
-    assert _scores(run(db, "evaluate", "--truth", eaf).output) == [1.0] * 6
+    assert eval_scores(run(db, "evaluate", "--truth", eaf).output) == [1.0] * 6
     # a different τ gives a different annotation: the round trip is not self-scoring everything to 1
-    assert _scores(run(db, "evaluate", "--truth", eaf, "--tau", "0.05").output) != [1.0] * 6
+    assert eval_scores(run(db, "evaluate", "--truth", eaf, "--tau", "0.05").output) != [1.0] * 6
 
 
+@pytest.mark.shared
 def test_eaf_file_layout(db, tmp_path):
     """ELAN's conventions: one tier per label, ms times, the recording as linked media."""
     import pympi
 
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         table = mocapdb.annotate(con, ["86_09"], store=False)
-    finally:
-        con.close()
     out = tmp_path / "86_09.eaf"
     run(db, "annotate", "86_09", "--format", "eaf", "--out", out)
     eaf = pympi.Elan.Eaf(str(out))
@@ -96,24 +84,22 @@ def test_eaf_file_layout(db, tmp_path):
     assert dict(eaf.properties)[EAF_FPS_PROPERTY] == "120.0"
 
 
+@pytest.mark.shared
 def test_eaf_of_several_motions_is_a_directory_of_files(db, tmp_path):
     run(db, "annotate", "--format", "eaf", "--out", tmp_path / "eaf")
     assert sorted(p.name for p in (tmp_path / "eaf").iterdir()) == sorted(
         ["86_09.eaf", *(p.stem + ".eaf" for p in HOPS)])
-    r = CliRunner().invoke(main, ["--db", str(db), "annotate", "--format", "eaf", "--out", str(tmp_path / "x.eaf")])
-    assert r.exit_code == 1 and "give a directory" in r.output
-    r = CliRunner().invoke(main, ["--db", str(db), "annotate", "--format", "parquet"])
+    assert "give a directory" in run(db, "annotate", "--format", "eaf", "--out", tmp_path / "x.eaf", code=1).output
+    r = run(db, "annotate", "--format", "parquet", code=None)
     assert r.exit_code != 0 and "give --out" in r.output
 
 
+@pytest.mark.shared
 def test_parquet_export_holds_the_segments(db, tmp_path):
     out = tmp_path / "segments.parquet"
     r = run(db, "annotate", "--format", "parquet", "--out", out)
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         table = mocapdb.annotate(con, store=False)
-    finally:
-        con.close()
     back = pq.read_table(out)
     assert back.equals(table) and f"{table.num_rows} segment(s) written" in r.output
 
@@ -140,6 +126,7 @@ def test_a_hand_written_eaf_maps_its_times_to_the_right_frames(tmp_path):
         read_labels(bad, fps=120.0)
 
 
+@pytest.mark.shared
 def test_an_eaf_of_the_truth_reads_as_the_csv_and_trains_the_same_model(db, tmp_path):
     """An ELAN copy of the 86_09 ground truth (made with pympi) gives the CSV's rows, and
     train --labels / evaluate --truth accept it in place of the CSV."""
@@ -153,15 +140,12 @@ def test_an_eaf_of_the_truth_reads_as_the_csv_and_trains_the_same_model(db, tmp_
     assert sorted(map(tuple, a.tolist())) == sorted(map(tuple, b.tolist()))
     run(db, "train", "--model", "from_csv", "--labels", truth_csv, "--silent")
     run(db, "train", "--model", "from_eaf", "--labels", truth_eaf, "--silent")
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         t = {m: con.execute("SELECT class, col, mask, value, weight FROM templates WHERE model = ? "
                             "ORDER BY class, col", [m]).fetchall() for m in ("from_csv", "from_eaf")}
-    finally:
-        con.close()
     assert t["from_csv"] and t["from_csv"] == t["from_eaf"]
-    by_csv = _scores(run(db, "evaluate", "--truth", truth_csv, "--label-map", CMU86_MAP).output)
-    by_eaf = _scores(run(db, "evaluate", "--truth", truth_eaf, "--label-map", CMU86_MAP).output)
+    by_csv = eval_scores(run(db, "evaluate", "--truth", truth_csv, "--label-map", CMU86_MAP).output)
+    by_eaf = eval_scores(run(db, "evaluate", "--truth", truth_eaf, "--label-map", CMU86_MAP).output)
     assert by_csv == by_eaf and not np.allclose(by_csv, 1.0)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import naive_features as naive
-from conftest import DATA, ORACLE
+from conftest import DATA, ORACLE, SAMPLE_86_ASF, shared_cases
 from mocapdb import features as F
 from mocapdb.errors import ParameterError
 from mocapdb.readers.joints import JOINT_INDEX, MIRROR_JOINTS
@@ -99,7 +99,8 @@ def assert_oracle(fast120, stem, label=""):
 # --------------------------------------------------------------------------
 # 1. oracle agreement
 
-@pytest.mark.parametrize("stem", POSITION_STEMS)
+@pytest.mark.shared
+@pytest.mark.parametrize("stem", shared_cases(POSITION_STEMS))
 def test_oracle_positions(stem):
     """Toolbox positions → features equal the toolbox features (120 and 30 Hz)."""
     pos = oracle_positions(stem)
@@ -109,7 +110,8 @@ def test_oracle_positions(stem):
     assert_oracle(F.relational_features(pos, None, 120.0), stem, " (hip axis)")
 
 
-@pytest.mark.parametrize("stem", sorted(MANIFEST))
+@pytest.mark.shared
+@pytest.mark.parametrize("stem", shared_cases(sorted(MANIFEST)))
 def test_oracle_reader(stem):
     """Every oracle document read by mocapdb.readers: all 40 features, 120 and 30 Hz."""
     row = MANIFEST[stem]
@@ -122,6 +124,7 @@ def test_oracle_reader(stem):
     assert np.array_equal(words, F.pack_words(oracle_features(stem, 30)))
 
 
+@pytest.mark.shared
 def test_rare_features_are_exercised():
     """The oracle set turns every feature on somewhere (f09 in one clip only)."""
     on = np.zeros(40, bool)
@@ -151,6 +154,7 @@ def _random_rotations(rng, n):
     return Ry @ Rx
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("stem", ["HDM_bd_throwBasketball_001_120",
                                   "HDM_bd_hopBothLegs1hops_001_120", "02_01"])
 def test_fast_matches_naive_real(stem):
@@ -161,6 +165,7 @@ def test_fast_matches_naive_real(stem):
     assert np.array_equal(fast, ref), agreement_table(fast, ref)
 
 
+@pytest.mark.shared
 def test_fast_matches_naive_random():
     """Seeded random motions: lengths below/above every window, several rates."""
     rng = np.random.default_rng(20090801)
@@ -232,7 +237,8 @@ def _symmetric_limbs(joints):
     return p
 
 
-@pytest.mark.parametrize("stem", POSITION_STEMS)
+@pytest.mark.shared
+@pytest.mark.parametrize("stem", shared_cases(POSITION_STEMS))
 def test_mirror_symmetry(stem):
     """Mirroring the motion permutes the features by MIRROR_FEATURES.
 
@@ -291,18 +297,21 @@ def _asf_bones(path):
     return bones
 
 
-@pytest.mark.parametrize("asf", ["hdm05_cut/HDM_bd.asf", "cmu/02/02.asf", "cmu/86/86.asf"])
+@pytest.mark.parametrize("asf", [
+    pytest.param(DATA / "hdm05_cut/HDM_bd.asf", marks=pytest.mark.shared, id="hdm05_cut/HDM_bd.asf"),
+    pytest.param(DATA / "cmu/02/02.asf", marks=pytest.mark.shared, id="cmu/02/02.asf"),
+    pytest.param(SAMPLE_86_ASF, id="cmu/86/86.asf")])
 def test_rest_pose(asf, tmp_path):
     """All AMC values 0 → exactly {3, 4, 9, 19, 27, 28, 38} (FEATURES.md §7)."""
     lines = [":FULLY-SPECIFIED", ":DEGREES"]
     for frame in range(1, 41):
         lines.append(str(frame))
         lines.append("root 0 0 0 0 0 0")
-        lines += [" ".join([name] + ["0"] * len(dof)) for name, dof in _asf_bones(DATA / asf)
+        lines += [" ".join([name] + ["0"] * len(dof)) for name, dof in _asf_bones(asf)
                   if dof]
     amc = tmp_path / "rest.amc"
     amc.write_text("\n".join(lines) + "\n")
-    motion = read_motion(amc, asf=DATA / asf)
+    motion = read_motion(amc, asf=asf)
     assert np.ptp(motion.joints, axis=0).max() == 0.0
     feats = F.relational_features(motion.joints, motion.root_rotation, motion.fps)
     on = {k + 1 for k in np.flatnonzero(feats.any(axis=0))}
@@ -326,6 +335,7 @@ def _t_pose(pose):
     return p
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("stem", ["HDM_bd_squat1Reps_001_120", "02_01", "86_09"])
 def test_t_pose(stem):
     """T-pose: #27, #28 (upper arms abducted) and #9 (hands apart) on; arms straight."""
@@ -335,7 +345,8 @@ def test_t_pose(stem):
     assert not feats[:, [6, 7]].any()  # elbows not bent
 
 
-@pytest.mark.parametrize("stem", POSITION_STEMS)
+@pytest.mark.shared
+@pytest.mark.parametrize("stem", shared_cases(POSITION_STEMS))
 def test_static_pose(stem):
     """Frame 0 repeated: velocity features 0, the others constant = frame 0 of the take."""
     pos = oracle_positions(stem)
@@ -350,7 +361,8 @@ def test_static_pose(stem):
     assert np.array_equal(feats[0, other], moving[0, other])
 
 
-@pytest.mark.parametrize("stem", POSITION_STEMS)
+@pytest.mark.shared
+@pytest.mark.parametrize("stem", shared_cases(POSITION_STEMS))
 def test_unit_independence(stem):
     """Scaling every position (any length unit) changes no feature."""
     pos = oracle_positions(stem)
@@ -360,6 +372,7 @@ def test_unit_independence(stem):
         assert np.array_equal(F.relational_features(pos * scale, rot, 120.0), ref), scale
 
 
+@pytest.mark.shared
 def test_degenerate_lengths():
     """n = 1 → all zero (the toolbox errors, §7); n = 0 → empty; n = 2 works."""
     pos = oracle_positions("HDM_bd_squat1Reps_001_120")
@@ -371,6 +384,7 @@ def test_degenerate_lengths():
     assert np.array_equal(two, naive.relational_features(pos[:2], None, 120.0))
 
 
+@pytest.mark.shared
 def test_parameter_errors():
     pos = oracle_positions("HDM_bd_squat1Reps_001_120")[:10]
     with pytest.raises(ParameterError, match=r"joints must have shape \(n_frames, 24, 3\)"):
@@ -395,6 +409,7 @@ def test_parameter_errors():
         F.hysteresis(np.zeros((5, 2), bool), np.zeros((5, 3), bool))
 
 
+@pytest.mark.shared
 def test_alternative_root_thresholds():
     """#40 with (100, 110) deg/s is on in a subset of the (50, 100) frames."""
     pos = oracle_positions("86_09")
@@ -448,6 +463,7 @@ def test_pack_bit_order():
     assert F.pack_words(np.ones((1, 64), bool))[0] == np.uint64(2**64 - 1)
 
 
+@pytest.mark.shared
 def test_pack_unpack_roundtrip():
     rng = np.random.default_rng(1)
     for n in (0, 1, 7, 1000):
@@ -474,6 +490,7 @@ def test_downsample():
     assert F.downsample(w, factor=1).tolist() == w.tolist()
 
 
+@pytest.mark.shared
 def test_feature_runs():
     rng = np.random.default_rng(2)
     for n in (0, 1, 2, 50, 2000):
@@ -503,6 +520,7 @@ def test_mirror_words():
     assert single.tolist() == [1 << 35]
 
 
+@pytest.mark.shared
 def test_motion_features_pipeline():
     stem = "HDM_bd_kickLFront1Reps_001_120"
     motion = Motion(oracle_positions(stem), amc_root_rotation(stem), 120.0, name=stem)

@@ -8,7 +8,9 @@ from click.testing import CliRunner
 import mocapdb
 from mocapdb.cli import main
 
-from conftest import DATA, write_truth_86_09, write_truth_86_09_eaf
+from conftest import DATA, run, write_truth_86_09, write_truth_86_09_eaf
+
+pytestmark = pytest.mark.shared
 
 CMU86_MAP = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
 
@@ -57,8 +59,8 @@ def test_template_real_and_quantized(db, tmp_path):
     img = drawn(out)
     red = (img[..., 0] > 0.7) & (img[..., 1] < 0.3) & (img[..., 2] < 0.3)  # wildcards of the quantized MT
     assert red.sum() > 1000
-    r = CliRunner().invoke(main, ["--db", str(path), "report", "--figure", "template", "--out", str(out)])
-    assert r.exit_code == 1 and "needs a class" in r.output and "squat1Reps" in r.output
+    r = run(path, "report", "--figure", "template", "--out", out, code=1)
+    assert "needs a class" in r.output and "squat1Reps" in r.output
 
 
 def test_tau_sweep(db, tmp_path):
@@ -70,8 +72,8 @@ def test_tau_sweep(db, tmp_path):
     img = drawn(out)
     green = (img[..., 1] > 0.4) & (img[..., 0] < 0.2) & (img[..., 2] < 0.2)  # the F-measure curves
     assert green.sum() > 100
-    r = CliRunner().invoke(main, ["--db", str(path), "report", "--figure", "tau", "--out", str(out)])
-    assert r.exit_code == 1 and "needs ground truth" in r.output
+    r = run(path, "report", "--figure", "tau", "--out", out, code=1)
+    assert "needs ground truth" in r.output
 
 
 @pytest.mark.parametrize("figure", ["timeline", "annotation"])
@@ -92,8 +94,7 @@ def test_ga_curve(db, tmp_path):
     from mocapdb.api import learn_keyframes, train
 
     path, _ = db
-    con = mocapdb.connect(path)
-    try:
+    with mocapdb.connect(path) as con:
         folder = tmp_path / "cut"                   # two real classes, symlinked (never copied)
         folder.mkdir()
         for f in [*(DATA / "hdm05_cut").glob("HDM_*.asf"), DATA / "hdm05_cut" / "squat1Reps",
@@ -101,8 +102,6 @@ def test_ga_curve(db, tmp_path):
             (folder / f.name).symlink_to(f, target_is_directory=f.is_dir())
         train(con, model="ga", folder=folder)
         learn_keyframes(con, model="ga", folder=folder, runs=2, generations=5, jobs=1)
-    finally:
-        con.close()
     out = tmp_path / "fig5.png"
     assert report(path, "--figure", "ga", "--model", "ga", "--out", out).exit_code == 0
     drawn(out)

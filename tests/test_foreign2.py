@@ -7,16 +7,13 @@ import json
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-import mocapdb
-from mocapdb.cli import main
 from mocapdb.readers import read_asf, read_amc, asf_forward_kinematics, node_positions
 from mocapdb.readers.asf_humanoid import asf_humanoid_joints
 from mocapdb.features import downsample, relational_features
 from mocapdb.storage.motions import source_motion
 
-from conftest import DATA
+from conftest import DATA, run
 
 pytestmark = pytest.mark.shared
 
@@ -55,8 +52,7 @@ FOREIGN = {
 @pytest.fixture(scope="module")
 def ingested(tmp_path_factory):
     db = tmp_path_factory.mktemp("foreign2") / "f.duckdb"
-    r = CliRunner().invoke(main, ["--db", str(db), "ingest", str(DATA / "foreign"), str(DATA / "foreign2"),
-                                  "--silent"])
+    r = run(db, "ingest", DATA / "foreign", DATA / "foreign2", "--silent", code=None)
     return db, r
 
 
@@ -89,21 +85,18 @@ def test_every_file_gets_its_outcome_and_its_notes(ingested):
         assert (not failed) if outcome == "ingested" else failed[0].startswith(f"failed  {path}: {outcome}"), name
 
 
-def test_notes_are_stored_with_the_motion_and_the_source_rereads(ingested):
+def test_notes_are_stored_with_the_motion_and_the_source_rereads(ingested, open_db):
     """The notes live in motions.reader_options under "notes" (with "source_frames"), which the re-read
     path passes over: the viewer's source_motion gives the stored motion's frames again."""
     db, _ = ingested
-    con = mocapdb.connect(db, read_only=True)
-    try:
-        rows = dict(con.execute("SELECT name, reader_options FROM motions").fetchall())
-        cortex = json.loads(rows["cortex_dotted_trial1"])
-        assert cortex["source_frames"] == [844, 1286] and cortex["notes"][0].startswith("kept frames 844–1286")
-        assert rows["mixamo_freebvh"] is None   # nothing to say, nothing stored
-        for name in ("cortex_dotted_trial1", "kinect_clap_nan", "test_mass_kg"):
-            mid, n = con.execute("SELECT motion_id, n_source_frames FROM motions WHERE name = ?", [name]).fetchall()[0]
-            assert source_motion(con, mid).n_frames == n
-    finally:
-        con.close()
+    con = open_db(db, read_only=True)
+    rows = dict(con.execute("SELECT name, reader_options FROM motions").fetchall())
+    cortex = json.loads(rows["cortex_dotted_trial1"])
+    assert cortex["source_frames"] == [844, 1286] and cortex["notes"][0].startswith("kept frames 844–1286")
+    assert rows["mixamo_freebvh"] is None   # nothing to say, nothing stored
+    for name in ("cortex_dotted_trial1", "kinect_clap_nan", "test_mass_kg"):
+        mid, n = con.execute("SELECT motion_id, n_source_frames FROM motions WHERE name = ?", [name]).fetchall()[0]
+        assert source_motion(con, mid).n_frames == n
 
 
 def test_a_cmu_skeleton_through_the_humanoid_mapper_agrees_with_its_bone_names():

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import mocapdb
-from conftest import DATA
+from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH
 from mocapdb.errors import ParseError
 from mocapdb.features import FEATURE_RATE, motion_features, unpack_words
 from mocapdb.readers import (JOINT_INDEX, Motion, bvh_joint_map, joint_map_template, load_mapping, parse_bvh,
@@ -27,9 +27,9 @@ HUMANOIDS = {  # file: (source rate, frames after a dropped rest frame)
     "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh": (120.0, 1064),
 }
 NON_HUMANOID = "fairmotion_sinusoidal.bvh"
-AMC_86 = DATA / "cmu/86/86_09.amc"
 
 
+@pytest.mark.shared
 def test_the_folder_holds_what_the_tests_expect():
     assert sorted(p.name for p in FOREIGN.glob("*.bvh")) == sorted([*HUMANOIDS, NON_HUMANOID])
 
@@ -42,6 +42,7 @@ def foreign_db(tmp_path_factory):
     con.close()
 
 
+@pytest.mark.shared
 def test_every_humanoid_ingests_with_no_mapping_file(foreign_db):
     con, report = foreign_db
     assert sorted(p.split("/")[-1] for p, *_ in report.ingested) == sorted(HUMANOIDS)
@@ -54,6 +55,7 @@ def test_every_humanoid_ingests_with_no_mapping_file(foreign_db):
         assert fps == FEATURE_RATE and n30 == math.floor((frames - 1) * 30 / rate + 1e-9) + 1, name
 
 
+@pytest.mark.shared
 def test_the_non_humanoid_is_refused_naming_its_joints(foreign_db):
     _, report = foreign_db
     (path, reason), = report.failed
@@ -63,6 +65,7 @@ def test_the_non_humanoid_is_refused_naming_its_joints(foreign_db):
     assert "could not place: root, lhip" in reason and "mocapdb joint-map-template" in reason
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("name,expect", [
     ("mixamo_freebvh.bvh", {"root": "mixamorig:Hips", "lknee": "mixamorig:LeftLeg", "rwrist": "mixamorig:RightHand",
                             "neck": "mixamorig:Neck", "head": "mixamorig:Head", "lshoulder": "mixamorig:LeftArm"}),
@@ -79,6 +82,7 @@ def test_names_place_the_joints(name, expect):
         assert mapping[joint] == where, (joint, mapping[joint])
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("name", sorted(HUMANOIDS))
 def test_left_is_left_and_features_are_defined(name):
     """Left/right are not swapped: in the rest pose the left hip is on the side of
@@ -104,7 +108,7 @@ def test_left_is_left_and_features_are_defined(name):
 def test_the_pymo_walk_walks_forward():
     """The walking take (a figure eight) moves the root along the facing direction
     of the hips (left × up) frame by frame: a mirrored mapping walks backwards."""
-    m = read_bvh(FOREIGN / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh")
+    m = read_bvh(SAMPLE_BVH)  # foreign/bvh/pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh, shipped with mocapdb
     step = m.joints[30:, 0] - m.joints[:-30, 0]  # quarter-second displacements
     step[:, 1] = 0
     hips = m.joints[:-30, JOINT_INDEX["lhip"]] - m.joints[:-30, JOINT_INDEX["rhip"]]
@@ -119,8 +123,8 @@ def test_the_pymo_walk_walks_forward():
 
 @pytest.fixture(scope="module")
 def amc_120():
-    s = read_asf(DATA / "cmu/86/86.asf")
-    a = read_amc(AMC_86, s)
+    s = read_asf(SAMPLE_86_ASF)  # cmu/86, shipped with mocapdb
+    a = read_amc(SAMPLE_86_09, s)
     from dataclasses import replace
     return s, replace(a, values=a.values[:2400])
 
@@ -146,6 +150,7 @@ def test_a_decimated_bvh_agrees_with_the_120hz_reading(amc_120, tmp_path, step, 
     assert (got[:k] == ref[:k]).mean() >= 0.995
 
 
+@pytest.mark.shared
 def test_dialects_parse(tmp_path):
     """One-line End Sites, ``Frame Time:0.0083`` without a space (and 120.48 Hz
     snapped to 120), CR-only line ends, and tabs everywhere."""
@@ -162,6 +167,7 @@ def test_dialects_parse(tmp_path):
     np.testing.assert_array_equal(read_bvh(cr).joints, m.joints)
 
 
+@pytest.mark.shared
 def test_position_channels_of_a_joint_replace_its_offset(tmp_path):
     """bvhio/MotionBuilder/Blender read a non-root joint's position channels as its
     offset: the elbow of a file with LeftLowArm position channels equal to the
@@ -247,7 +253,8 @@ def test_a_rig_lying_at_rest_with_its_root_axis_along_the_spine(amc_120, tmp_pat
     assert (wrong == ref).mean() < (f40 == ref).mean()
 
 
-def test_a_mixed_folder_stores_every_good_file(tmp_path):
+@pytest.mark.shared
+def test_a_mixed_folder_stores_every_good_file(tmp_path, open_db):
     """Good AMC takes, a truncated one, the zero-length-bone BVH, an unsupported
     file and two identical broken copies: each good file stored, each bad one
     failed with its reason, the unsupported one listed."""
@@ -262,23 +269,21 @@ def test_a_mixed_folder_stores_every_good_file(tmp_path):
     (folder / "copy_b.bvh").write_bytes(b"HIERARCHY\nROOT Hips\n{\n")
     shutil.copy(FOREIGN / "fairmotion_pfnn_hierarchy.bvh", folder / "pfnn.bvh")
     (folder / "notes.txt").write_text("session notes")
-    con = mocapdb.connect(tmp_path / "m.duckdb")
-    try:
-        report = mocapdb.ingest(con, [folder])
-        assert sorted(p.split("/")[-1] for p, *_ in report.ingested) == ["02_01.amc", "02_02.amc", "pfnn.bvh"]
-        failed = dict(report.failed)
-        assert sorted(p.split("/")[-1] for p in failed) == ["02_03.amc", "copy_a.bvh", "copy_b.bvh"]
-        assert "02_03.amc:" in failed[str(folder / "02_03.amc")]
-        assert "same bytes as" in failed[str(folder / "copy_b.bvh")] and "which failed" in failed[str(folder / "copy_b.bvh")]
-        unsupported = dict(report.unsupported)
-        assert sorted(p.split("/")[-1] for p in unsupported) == ["02.asf", "notes.txt"]
-        assert "unsupported file type '.txt'" in unsupported[str(folder / "notes.txt")]
-        assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == 3
-        assert report.summary() == "3 ingested, 0 skipped, 3 failed, 2 not motion files"
-    finally:
-        con.close()
+    con = open_db(tmp_path / "m.duckdb")
+    report = mocapdb.ingest(con, [folder])
+    assert sorted(p.split("/")[-1] for p, *_ in report.ingested) == ["02_01.amc", "02_02.amc", "pfnn.bvh"]
+    failed = dict(report.failed)
+    assert sorted(p.split("/")[-1] for p in failed) == ["02_03.amc", "copy_a.bvh", "copy_b.bvh"]
+    assert "02_03.amc:" in failed[str(folder / "02_03.amc")]
+    assert "same bytes as" in failed[str(folder / "copy_b.bvh")] and "which failed" in failed[str(folder / "copy_b.bvh")]
+    unsupported = dict(report.unsupported)
+    assert sorted(p.split("/")[-1] for p in unsupported) == ["02.asf", "notes.txt"]
+    assert "unsupported file type '.txt'" in unsupported[str(folder / "notes.txt")]
+    assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == 3
+    assert report.summary() == "3 ingested, 0 skipped, 3 failed, 2 not motion files"
 
 
+@pytest.mark.shared
 def test_a_joint_map_file_and_its_template(tmp_path):
     """The template of a file is a valid joint map; edited, it reads the file."""
     src = FOREIGN / "mixamo_freebvh.bvh"
@@ -297,6 +302,7 @@ def test_a_joint_map_file_and_its_template(tmp_path):
     assert "# the file's joints: base, child1, child2, child3" in t and '# root = ""' in t
 
 
+@pytest.mark.shared
 def test_deep_hierarchies_and_huge_frame_counts_are_refused_clearly(tmp_path):
     deep = "HIERARCHY\nROOT r\n{\nOFFSET 0 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n"
     deep += "JOINT j\n{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n" * 300 + "}\n" * 301

@@ -21,6 +21,8 @@ from mocapdb.errors import MocapdbError
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 
+pytestmark = pytest.mark.shared
+
 AMC = DATA / "hdm05_cut/kickLFront1Reps/HDM_bd_kickLFront1Reps_001_120.amc"
 ASF = DATA / "hdm05_cut/HDM_bd.asf"
 N_CASES = 2400
@@ -85,7 +87,7 @@ def test_only_mocapdb_errors_leave_the_readers(sources, tmp_path):
     assert accepted > 50 and refused > N_CASES // 2, (accepted, refused)
 
 
-def test_ingest_of_mutated_files_never_raises_and_reports_every_file(sources, tmp_path):
+def test_ingest_of_mutated_files_never_raises_and_reports_every_file(sources, tmp_path, open_db):
     rng = np.random.default_rng(7)
     folder = tmp_path / "archive"
     folder.mkdir()
@@ -98,24 +100,21 @@ def test_ingest_of_mutated_files_never_raises_and_reports_every_file(sources, tm
         name = f"HDM_bd_m{k:03d}.{kind}"
         (folder / name).write_bytes(mutate(data, rng) if k % 4 else data)  # every 4th file intact
         names.append(name)
-    con = mocapdb.connect(tmp_path / "f.duckdb")
-    try:
-        report = mocapdb.ingest(con, [folder])
-        seen = ([p for p, *_ in report.ingested] + [p for p, _ in report.skipped] + [p for p, _ in report.failed])
-        assert sorted(seen) == sorted(str(folder / n) for n in names)
-        assert [p for p, _ in report.unsupported] == [str(folder / "HDM_bd.asf")]
-        assert report.ingested and report.failed
-        stored = con.execute("SELECT count(*), sum(n_frames) FROM motions").fetchall()[0]
-        assert stored[0] == len(report.ingested)
-        assert stored[1] == con.execute("SELECT count(*) FROM features").fetchall()[0][0]
-        # identical intact copies are stored once; identical broken ones fail alike
-        for path, reason in report.failed:
-            assert path in reason or "same bytes as" in reason
-    finally:
-        con.close()
+    con = open_db(tmp_path / "f.duckdb")
+    report = mocapdb.ingest(con, [folder])
+    seen = ([p for p, *_ in report.ingested] + [p for p, _ in report.skipped] + [p for p, _ in report.failed])
+    assert sorted(seen) == sorted(str(folder / n) for n in names)
+    assert [p for p, _ in report.unsupported] == [str(folder / "HDM_bd.asf")]
+    assert report.ingested and report.failed
+    stored = con.execute("SELECT count(*), sum(n_frames) FROM motions").fetchall()[0]
+    assert stored[0] == len(report.ingested)
+    assert stored[1] == con.execute("SELECT count(*) FROM features").fetchall()[0][0]
+    # identical intact copies are stored once; identical broken ones fail alike
+    for path, reason in report.failed:
+        assert path in reason or "same bytes as" in reason
 
 
-def test_packed_and_hostile_files_never_escape(sources, tmp_path):
+def test_packed_and_hostile_files_never_escape(sources, tmp_path, open_db):
     """Mutated files packed as .gz, .bz2, .xz or zip members (the packing damaged in a quarter of the
     cases): reading any of them raises only a MocapdbError naming it, and an ingest of the folder —
     with a FIFO and a control character in a file name beside them — reports every file."""
@@ -142,15 +141,12 @@ def test_packed_and_hostile_files_never_escape(sources, tmp_path):
     assert not escaped, escaped[:5]
     assert accepted > 20 and refused > 20, (accepted, refused)
     os.mkfifo(folder / "pipe.bvh")
-    con = mocapdb.connect(tmp_path / "p.duckdb")
-    try:
-        report = mocapdb.ingest(con, [folder], asf=ASF)
-        seen = {p for p, *_ in report.ingested} | {p for p, _ in report.skipped} | {p for p, _ in report.failed}
-        # a zip archive too damaged to list its members is reported as unreadable, in their stead
-        damaged = {p for p, why in report.unreadable if why.startswith("unreadable archive")}
-        assert seen | {str(p) for p in paths if str(p).split(".zip/")[0] + ".zip" in damaged} \
-            == {str(p) for p in paths}
-        assert (str(folder / "pipe.bvh"), "a FIFO (named pipe), not a regular file") in report.unsupported
-        assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == len(report.ingested)
-    finally:
-        con.close()
+    con = open_db(tmp_path / "p.duckdb")
+    report = mocapdb.ingest(con, [folder], asf=ASF)
+    seen = {p for p, *_ in report.ingested} | {p for p, _ in report.skipped} | {p for p, _ in report.failed}
+    # a zip archive too damaged to list its members is reported as unreadable, in their stead
+    damaged = {p for p, why in report.unreadable if why.startswith("unreadable archive")}
+    assert seen | {str(p) for p in paths if str(p).split(".zip/")[0] + ".zip" in damaged} \
+        == {str(p) for p in paths}
+    assert (str(folder / "pipe.bvh"), "a FIFO (named pipe), not a regular file") in report.unsupported
+    assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == len(report.ingested)

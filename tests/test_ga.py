@@ -36,7 +36,7 @@ def train(clips):
     return ga.training_index(words), labels, templates
 
 
-def run(train, cls, *, seed, **params):
+def evolve(train, cls, *, seed, **params):
     index, labels, templates = train
     ci = CLASSES.index(cls)
     return ga.evolve_keyframes(np.flatnonzero(labels == ci), np.flatnonzero(labels != ci),
@@ -71,10 +71,11 @@ def check_valid(q, L):
 # whole runs
 
 
+@pytest.mark.shared
 def test_reproducible_from_seed(train):
-    a = run(train, "kickLFront1Reps", seed=7)
-    b = run(train, "kickLFront1Reps", seed=7)
-    c = run(train, "kickLFront1Reps", seed=8)
+    a = evolve(train, "kickLFront1Reps", seed=7)
+    b = evolve(train, "kickLFront1Reps", seed=7)
+    c = evolve(train, "kickLFront1Reps", seed=8)
     assert query_state(a.query) == query_state(b.query)
     assert stats_state(a.statistics) == stats_state(b.statistics)
     assert [query_state(q) for q in a.population] == [query_state(q) for q in b.population]
@@ -84,9 +85,10 @@ def test_reproducible_from_seed(train):
     assert stats_state(a.statistics) != stats_state(c.statistics)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("ties", ["fewest_fixed", "offspring"])
 def test_elitist_survival_and_rising_precision(train, ties):
-    r = run(train, "kickLFront1Reps", seed=3, generations=25, ties=ties)
+    r = evolve(train, "kickLFront1Reps", seed=3, generations=25, ties=ties)
     s = r.statistics
     assert s.generations == 25
     assert len(s.mean_precision) == 26
@@ -100,11 +102,12 @@ def test_elitist_survival_and_rising_precision(train, ties):
     assert (np.diff(r.population_fitness) <= 0).all()
 
 
+@pytest.mark.shared
 def test_population_is_valid_and_scores_equal_brute_force(train, clips):
     """Every individual is a valid query; its P/R/Fit equal a per-clip search."""
     index, labels, templates = train
     cls = "hopBothLegs1hops"
-    r = run(train, cls, seed=11)
+    r = evolve(train, cls, seed=11)
     words = [w for c in CLASSES for w in clips[c]]
     L = len(templates[cls])
     one_clip = [build_index([w]) for w in words]  # the toolbox's per-set layout
@@ -122,6 +125,7 @@ def test_population_is_valid_and_scores_equal_brute_force(train, clips):
         assert f == pytest.approx(F, abs=1e-12)
 
 
+@pytest.mark.shared
 def test_clips_instead_of_index(clips, train):
     """Clip lists (T+, T-) build their own index and template: same run."""
     cls = "sneak2StepsLStart"
@@ -138,6 +142,7 @@ def test_clips_instead_of_index(clips, train):
     assert stats_state(a.statistics) == stats_state(c.statistics)
 
 
+@pytest.mark.shared
 def test_learn_queries_progress_seeds_and_jobs(clips):
     calls = []
     params = {"population_size": 8, "generations": 3}
@@ -160,6 +165,7 @@ def test_learn_queries_progress_seeds_and_jobs(clips):
     assert ga.average_statistics(res.values()).generations == 3
 
 
+@pytest.mark.shared
 def test_learn_query_runs_are_independent_children(train):
     index, labels, templates = train
     pos, neg = np.flatnonzero(labels == 0), np.flatnonzero(labels != 0)
@@ -172,6 +178,7 @@ def test_learn_query_runs_are_independent_children(train):
     assert stats_state(lq.runs[0].statistics) != stats_state(r1.statistics)
 
 
+@pytest.mark.shared
 def test_parameter_errors(train, clips):
     index, labels, templates = train
     t = templates[CLASSES[0]]
@@ -269,6 +276,7 @@ def keyframes(q):
     return list(zip(q.positions.tolist(), q.mask.tolist(), q.value.tolist()))
 
 
+@pytest.mark.shared
 def test_random_query_comes_from_the_strict_template(quantized):
     strict, _ = quantized
     L = len(strict)
@@ -298,6 +306,7 @@ def test_gap_bounds_formula():
     assert lo[1] == hi[1] == 0  # same column: distance 0
 
 
+@pytest.mark.shared
 def test_recombine_merges_parent_keyframes(quantized):
     strict, _ = quantized
     L = len(strict)
@@ -319,6 +328,7 @@ def test_recombine_merges_parent_keyframes(quantized):
         assert set(keyframes(ga.recombine(a, a, random_state=s))) <= set(keyframes(a))
 
 
+@pytest.mark.shared
 def test_mutations_keep_invariants_and_do_one_thing(quantized):
     strict, loose = quantized
     L = len(strict)
@@ -379,6 +389,7 @@ def test_mutations_keep_invariants_and_do_one_thing(quantized):
     assert seen == set(ga.MUTATIONS)
 
 
+@pytest.mark.shared
 def test_mutation_errors_and_single_keyframe(quantized):
     strict, loose = quantized
     q = KeyframeQuery([strict.mask[3]], [strict.value[3]], [3], [], [], len(strict))
@@ -429,14 +440,15 @@ def test_consensus_pick_hand_made():
 # Fig. 5
 
 
+@pytest.mark.shared
 def test_average_statistics_and_plot(train, tmp_path):
-    a = run(train, "sneak2StepsLStart", seed=1)
-    b = run(train, "hopBothLegs1hops", seed=2)
+    a = evolve(train, "sneak2StepsLStart", seed=1)
+    b = evolve(train, "hopBothLegs1hops", seed=2)
     st = ga.average_statistics([a, b.statistics])
     assert st.mean_precision.tolist() == pytest.approx(
         ((a.statistics.mean_precision + b.statistics.mean_precision) / 2).tolist())
     with pytest.raises(ParameterError, match="generations"):
-        ga.average_statistics([a, run(train, "sneak2StepsLStart", seed=1, generations=3)])
+        ga.average_statistics([a, evolve(train, "sneak2StepsLStart", seed=1, generations=3)])
     import matplotlib  # noqa: F401  (the test extra installs it)
     from mocapdb.evaluation.figures import plot_ga_statistics
 

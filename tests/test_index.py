@@ -41,6 +41,7 @@ def random_docs(rng, n_docs, max_len, *, n_poses=6, empty=True):
 # ---- the toolbox's index over 77 documents --------------------------------
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("part", list(TOOLBOX_NAMES))
 def test_segments_equal_oracle(oracle_index, oracle_dir, part):
     expected = int_table(oracle_dir / "keyframes" / "index" / f"{TOOLBOX_NAMES[part]}_segments.csv",
@@ -52,6 +53,7 @@ def test_segments_equal_oracle(oracle_index, oracle_dir, part):
     np.testing.assert_array_equal(got, expected)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("part", list(TOOLBOX_NAMES))
 def test_posting_lists_equal_oracle(oracle_index, oracle_dir, part):
     lists = int_table(oracle_dir / "keyframes" / "index" / f"{TOOLBOX_NAMES[part]}_lists.csv",
@@ -69,6 +71,7 @@ def test_posting_lists_equal_oracle(oracle_index, oracle_dir, part):
     assert oracle_index.posting_list(part, absent)[0].size == 0
 
 
+@pytest.mark.shared
 def test_document_table_equals_oracle(oracle_index, oracle_docs):
     rows = oracle_docs[0]
     np.testing.assert_array_equal(oracle_index.doc_lengths, [int(r["n_frames_30"]) for r in rows])
@@ -78,6 +81,7 @@ def test_document_table_equals_oracle(oracle_index, oracle_docs):
                                       [int(r[f"n_segments_{name}"]) for r in rows])
 
 
+@pytest.mark.shared
 def test_segments_accessor(oracle_index, oracle_docs):
     words = oracle_docs[1][75]  # 86_09, the longest document
     for part in INDEX_PARTS:
@@ -225,6 +229,7 @@ def test_fuzzy_postings_equal_wildcard_enumeration(seed):
             assert list(zip(iv.doc.tolist(), iv.start.tolist(), iv.end.tolist())) == expected_iv
 
 
+@pytest.mark.shared
 def test_fuzzy_rejects_words_outside_the_part(oracle_index):
     with pytest.raises(ParameterError, match="local"):
         fuzzy_postings(oracle_index, "lower", 1 << 12, 0)
@@ -232,6 +237,7 @@ def test_fuzzy_rejects_words_outside_the_part(oracle_index):
         fuzzy_intervals(oracle_index, "upper", 0b01, 0b11)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("part", INDEX_PARTS)
 def test_union_strategies_on_oracle_documents(oracle_docs, oracle_index, part):
     """Heap merge and bitset sweep give the naive union on real data."""

@@ -19,17 +19,15 @@ import zipfile
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import mocapdb
 import mocapdb.readers.bvh as bvh_module
-from mocapdb.cli import main
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 from mocapdb.readers.sources import sha256
 from mocapdb.storage.motions import source_motion
 
-from conftest import DATA
+from conftest import DATA, run
 
 pytestmark = pytest.mark.shared
 
@@ -59,8 +57,7 @@ def words_of(con, name):
 
 
 def test_a_zip_archive_is_read_in_place_and_re_ingest_is_a_no_op(archive, tmp_path):
-    con = mocapdb.connect(tmp_path / "z.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "z.duckdb") as con:
         report = mocapdb.ingest(con, [archive])
         assert sorted(p for p, *_ in report.ingested) == [str(archive / "other/walk.bvh"),
                                                           str(archive / "subjects/02/02_01.amc"),
@@ -85,14 +82,12 @@ def test_a_zip_archive_is_read_in_place_and_re_ingest_is_a_no_op(archive, tmp_pa
         inner = mocapdb.ingest(con, [archive / "subjects" / "02"])
         assert sorted(p for p, _ in inner.skipped) == [str(archive / "subjects/02/02_01.amc"),
                                                        str(archive / "subjects/02/02_02.amc")]
-    finally:
-        con.close()
-    db = ["--db", str(tmp_path / "cli.duckdb")]
-    r = CliRunner().invoke(main, [*db, "ingest", str(archive / "subjects" / "02"), "--silent"])
-    assert r.exit_code == 0 and "2 ingested, 0 skipped, 0 failed, 1 not motion files" in r.output
-    r = CliRunner().invoke(main, [*db, "ingest", str(archive / "subjects" / "03"), "--silent"])
-    assert r.exit_code == 1 and r.output.strip() == (f"Error: paths: '{archive / 'subjects' / '03'}' does not "
-                                                     f"exist (no such member in {archive})")
+    db = tmp_path / "cli.duckdb"
+    r = run(db, "ingest", archive / "subjects" / "02", "--silent")
+    assert "2 ingested, 0 skipped, 0 failed, 1 not motion files" in r.output
+    r = run(db, "ingest", archive / "subjects" / "03", "--silent", code=1)
+    assert r.output.strip() == (f"Error: paths: '{archive / 'subjects' / '03'}' does not "
+                                f"exist (no such member in {archive})")
 
 
 @pytest.mark.parametrize("suffix, module", [(".gz", gzip), (".bz2", bz2), (".xz", lzma)])
@@ -102,8 +97,7 @@ def test_compressed_files_read_as_their_content(tmp_path, suffix, module):
     for src in (WALK, DG, KICK):
         (folder / (src.name + suffix)).write_bytes(module.compress(src.read_bytes()))
     shutil.copy(DATA / "hdm05_cut" / "HDM_bd.asf", folder)
-    con = mocapdb.connect(tmp_path / "c.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "c.duckdb") as con:
         report = mocapdb.ingest(con, [folder])
         assert len(report.ingested) == 3 and not report.failed
         for src in (WALK, DG, KICK):
@@ -112,16 +106,11 @@ def test_compressed_files_read_as_their_content(tmp_path, suffix, module):
         sha = dict(con.execute("SELECT name, sha256 FROM motions").fetchall())
         assert sha[WALK.stem] == sha256(WALK)   # the recording's bytes, whatever the packing
         assert mocapdb.ingest(con, [WALK]).skipped
-    finally:
-        con.close()
     broken = tmp_path / "cut.bvh.gz"
     broken.write_bytes(gzip.compress(WALK.read_bytes())[:5000])
-    con = mocapdb.connect(tmp_path / "b.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "b.duckdb") as con:
         (path, reason), = mocapdb.ingest(con, [broken]).failed
         assert path == str(broken) and reason.startswith(f"{broken}: cannot read it (corrupt compressed data")
-    finally:
-        con.close()
 
 
 def test_fifos_and_sockets_are_named_as_such(tmp_path):
@@ -132,14 +121,13 @@ def test_fifos_and_sockets_are_named_as_such(tmp_path):
     sock = socket.socket(socket.AF_UNIX)
     sock.bind(str(folder / "sock.bvh"))
     try:
-        db = ["--db", str(tmp_path / "f.duckdb")]
-        r = CliRunner().invoke(main, [*db, "ingest", str(folder), "--silent"])
-        assert r.exit_code == 0
+        db = tmp_path / "f.duckdb"
+        r = run(db, "ingest", folder, "--silent")
         assert f"not a motion file {folder / 'pipe.bvh'}: a FIFO (named pipe), not a regular file" in r.output
         assert f"not a motion file {folder / 'sock.bvh'}: a socket, not a regular file" in r.output
         assert "1 ingested, 0 skipped, 0 failed, 2 not motion files" in r.output
-        r = CliRunner().invoke(main, [*db, "ingest", str(folder / "pipe.bvh"), "--silent"])
-        assert r.exit_code == 1 and "does not exist" not in r.output
+        r = run(db, "ingest", folder / "pipe.bvh", "--silent", code=1)
+        assert "does not exist" not in r.output
         assert f"failed  {folder / 'pipe.bvh'}: a FIFO (named pipe), not a motion file" in r.output
     finally:
         sock.close()
@@ -156,23 +144,20 @@ def test_an_unreadable_folder_gets_a_line(tmp_path, monkeypatch):
             raise PermissionError(13, "Permission denied", str(path))
         return real(path)
     monkeypatch.setattr(os, "scandir", scandir)
-    r = CliRunner().invoke(main, ["--db", str(tmp_path / "u.duckdb"), "ingest", str(folder), "--silent"])
+    r = run(tmp_path / "u.duckdb", "ingest", folder, "--silent", code=None)
     assert f"unreadable {folder / 'locked'}: unreadable folder (Permission denied)" in r.output
     assert "1 ingested, 0 skipped, 0 failed, 1 unreadable" in r.output
 
 
-def test_an_unreadable_skeleton_is_reported_under_its_own_name(tmp_path):
+def test_an_unreadable_skeleton_is_reported_under_its_own_name(tmp_path, open_db):
     take = tmp_path / "02_01.amc"
     shutil.copy(CMU / "02_01.amc", take)
     skeleton = tmp_path / "not_a_file.asf"
     skeleton.mkdir()   # a folder where the skeleton should be: unreadable, even for root
-    con = mocapdb.connect(tmp_path / "s.duckdb")
-    try:
-        (path, reason), = mocapdb.ingest(con, [take], asf=skeleton).failed
-        assert path == str(take)
-        assert reason.startswith(f"{skeleton}: cannot read this skeleton of {take} (")
-    finally:
-        con.close()
+    con = open_db(tmp_path / "s.duckdb")
+    (path, reason), = mocapdb.ingest(con, [take], asf=skeleton).failed
+    assert path == str(take)
+    assert reason.startswith(f"{skeleton}: cannot read this skeleton of {take} (")
 
 
 def test_control_characters_never_reach_the_terminal_raw(tmp_path):
@@ -183,7 +168,7 @@ def test_control_characters_never_reach_the_terminal_raw(tmp_path):
     for name in ("evil\x1b[2Jname.bvh", "bell\x07.amc", "x.c3d", "hier.bvh"):
         (folder / name).write_bytes(junk)
     (folder / "hier.bvh").write_bytes(b"HIERARCHY\nROOT \x1b]0;owned\x07\n{\nOFFSET 0 0 0\n}\n")
-    r = CliRunner().invoke(main, ["--db", str(tmp_path / "c.duckdb"), "ingest", str(folder), "--silent"])
+    r = run(tmp_path / "c.duckdb", "ingest", folder, "--silent", code=None)
     assert "4 failed" in r.output
     assert not any(ch in r.output for ch in "\x1b\x07\x00\x01\x08"), r.output
     assert "\\x1b" in r.output

@@ -14,6 +14,8 @@ from conftest import DATA
 from naive_dtw import naive_hits, naive_segments
 from naive_keyframes import naive_keyframe_search
 
+pytestmark = pytest.mark.shared
+
 FILES = [DATA / "cmu" / "86" / "86_09.amc", DATA / "cmu" / "02" / "02_01.amc", DATA / "cmu" / "02" / "02_04.amc",
          *sorted((DATA / "hdm05_cut" / "squat1Reps").glob("HDM_bd_*.amc"))[:3],
          *sorted((DATA / "hdm05_cut" / "kickLFront1Reps").glob("HDM_dg_*.amc"))[:3],

@@ -68,6 +68,7 @@ def rows(segments, one_based=True):
 # ---- the oracle queries ---------------------------------------------------------
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("name", QUERIES)
 def test_gap_bounds_and_margins_equal_oracle(oracle_dir, query_table, name):
     q = toolbox_query(oracle_dir, name)
@@ -80,6 +81,7 @@ def test_gap_bounds_and_margins_equal_oracle(oracle_dir, query_table, name):
     assert q.template_length == int(query_table[name]["templateLength"])
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("name", QUERIES)
 def test_fuzzy_words_and_union_lists_equal_oracle(oracle_dir, oracle_index, name):
     q = toolbox_query(oracle_dir, name)
@@ -100,6 +102,7 @@ def test_fuzzy_words_and_union_lists_equal_oracle(oracle_dir, oracle_index, name
                                       expected)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("layout", ["sets", "full"])
 @pytest.mark.parametrize("name", QUERIES)
 def test_keyframe_intervals_equal_oracle(oracle_dir, oracle_index, name, layout):
@@ -113,6 +116,7 @@ def test_keyframe_intervals_equal_oracle(oracle_dir, oracle_index, name, layout)
                                       expected[expected[:, 0] == k + 1, 1:])
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("layout", ["sets", "full"])
 @pytest.mark.parametrize("setting", SETTINGS)
 @pytest.mark.parametrize("name", QUERIES)
@@ -136,6 +140,7 @@ def test_search_equals_oracle(oracle_dir, oracle_index, query_table, name, setti
     assert len(segs) == int(timing[name, setting]["n_segments"])
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("name", QUERIES)
 def test_brute_force_equals_search_on_oracle_documents(oracle_dir, oracle_words, oracle_index,
                                                        query_table, name):
@@ -148,6 +153,7 @@ def test_brute_force_equals_search_on_oracle_documents(oracle_dir, oracle_words,
         assert [tuple(r) for r in rows(got, False).tolist()] == expected
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("testset", ["testset1", "testset3"])
 def test_extra_testsets(oracle_dir, testset):
     """The hand-made cases in the comments of keyframeSearch.m, as 3-bit documents."""
@@ -304,6 +310,7 @@ def test_empty_documents_and_no_match():
     assert not keyframe_hit_documents(index, [none]).any()
 
 
+@pytest.mark.shared
 def test_single_keyframe_hits_are_its_intervals(oracle_dir, oracle_index):
     q = toolbox_query(oracle_dir, "rotateArmsBothBackward1Reps")
     one = KeyframeQuery(q.mask[:1], q.value[:1], q.positions[:1], [], [], q.template_length,
@@ -419,6 +426,7 @@ def test_document_filter_changes_nothing_random():
     assert removed > 500  # the filter did remove documents
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("name", QUERIES)
 def test_document_filter_changes_nothing_on_oracle_documents(oracle_dir, oracle_index,
                                                              query_table, name):
@@ -519,6 +527,7 @@ def test_toolbox_vectors():
     assert padded.to_vectors()[0, 26:].tolist() == [1] * 13 + [0.5]
 
 
+@pytest.mark.shared
 def test_search_parameter_errors(oracle_index, oracle_dir):
     q = toolbox_query(oracle_dir, "squat1Reps")
     with pytest.raises(ParameterError, match="extend_left"):
@@ -544,6 +553,7 @@ def _templates(oracle_dir):
         yield d.name, np.loadtxt(d / "template_quantized_0.05.csv", delimiter=",", ndmin=2)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("feature_set", [None, "upper", "lower", "mix"])
 def test_chooser_equals_toolbox_rule(oracle_dir, feature_set):
     for name, dense in _templates(oracle_dir):  # (40, L) of 0 / 1 / 0.5

@@ -15,7 +15,7 @@ from mocapdb.annotation.labels import (
     to_feature_grid, to_native_grid, write_class_labels, write_labels)
 from mocapdb.readers import read_motion
 
-from conftest import DATA
+from conftest import DATA, SAMPLE_86_09, run
 
 SEGMENTS_86 = DATA / "labels" / "cmu86_segmentation" / "cmu86_09_segments.csv"
 
@@ -32,6 +32,7 @@ def _rows_86():
                 for r in csv.DictReader(fh)]
 
 
+@pytest.mark.shared
 def test_native_to_30hz_on_the_86_09_segments(tmp_path):
     rows = _rows_86()
     path = tmp_path / "gt.csv"
@@ -128,6 +129,7 @@ def test_missing_file_is_a_parse_error(tmp_path):
         read_labels(tmp_path / "nope.csv")
 
 
+@pytest.mark.shared
 def test_shipped_hdm05_mapping_is_the_data_readme_table():
     table = {}
     for line in (DATA / "README.md").read_text().splitlines():
@@ -143,6 +145,7 @@ def test_shipped_hdm05_mapping_is_the_data_readme_table():
         "move", "sitLieDown", "jump", "kick", "rotateArms", "throwR", "grabDepR", "exercise")
 
 
+@pytest.mark.shared
 def test_shipped_cmu_mappings_name_real_actions():
     actions = {line.split("\t")[1].strip() for line in
                (DATA / "labels" / "cmu_mocap6" / "action_names.txt").read_text().splitlines()
@@ -251,16 +254,13 @@ def test_label_errors_speak_in_the_files_own_frames(tmp_path):
 def test_train_labels_beyond_a_document_name_the_file_line_and_native_frames(tmp_path):
     import mocapdb
 
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
-        mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
+    with mocapdb.connect(tmp_path / "t.duckdb") as con:
+        mocapdb.ingest(con, [SAMPLE_86_09])
         path = tmp_path / "labels.csv"
         path.write_text("document,label,start_frame,end_frame\n86_09,walk,1,880\n86_09,clap,4000,4800\n")
         with pytest.raises(ParseError, match=r"labels\.csv:3: end_frame 4800 is beyond the last frame of document "
                                              r"'86_09' \(4794 frames at the native rate\)"):
             mocapdb.train(con, model="m", labels=path)
-    finally:
-        con.close()
 
 
 def test_labels_of_any_length_annotate(tmp_path):
@@ -275,9 +275,8 @@ def test_labels_of_any_length_annotate(tmp_path):
                             for k, (label, features) in enumerate([
                                 (long_a, "knee_left_bent = 0\nknee_right_bent = 0"),
                                 (long_b, "knee_left_bent = 0")], 1)))
-    con = mocapdb.connect(tmp_path / "l.duckdb")
-    try:
-        mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
+    with mocapdb.connect(tmp_path / "l.duckdb") as con:
+        mocapdb.ingest(con, [SAMPLE_86_09])
         mocapdb.api.define_class(con, [toml], model="long")
         table = mocapdb.annotate(con, model="long")
         assert table.num_rows and set(table.column("label").to_pylist()) <= {long_a, long_b}
@@ -285,8 +284,6 @@ def test_labels_of_any_length_annotate(tmp_path):
         sql = con.sql("SELECT DISTINCT s.label FROM motions m, LATERAL (SELECT unnest(annotate(m.motion_id, "
                       "model := 'long'), recursive := true)) s").fetchall()
         assert {r[0] for r in sql} == set(table.column("label").to_pylist())
-    finally:
-        con.close()
 
 
 def test_an_elan_annotation_with_a_bad_time_slot_is_an_error(tmp_path):
@@ -329,6 +326,7 @@ def test_a_huge_name_is_not_echoed_whole():
     assert len(clip_message("y " * 100_000)) < 4100
 
 
+@pytest.mark.shared
 def test_convert_labels_reads_the_published_label_files_as_the_development_evaluation_does(tmp_path):
     """The CMU segment table and the mocap6 per-frame labels, converted, are the truth the
     development evaluation reads (mocapdb.evaluation.documents), frame for frame."""
@@ -349,12 +347,11 @@ def test_convert_labels_reads_the_published_label_files_as_the_development_evalu
     con.close()
     lab = DATA / "labels" / "cmu_mocap6"
     out = tmp_path / "13_29.csv"
-    r = CliRunner().invoke(main, ["--db", str(db), "convert-labels", str(lab / "13_29.txt"), "--frames-per-label",
-                                  "12", "--names", str(lab / "action_names.txt"), "--out", str(out)])
-    assert r.exit_code == 0, r.output
+    run(db, "convert-labels", lab / "13_29.txt", "--frames-per-label", "12", "--names", lab / "action_names.txt",
+        "--out", out)
     want = mocap6_documents(DATA, trials=("13_29",), class_labels={}).truth_native
     assert [tuple(x) for x in read_labels(out)] == [tuple(x) for x in want]
     assert read_labels(out)["end"].max() == 4592  # the last block of 12 ends at the take's last frame
     # the converted file is ground truth as it is
-    r = CliRunner().invoke(main, ["--db", str(db), "evaluate", "--truth", str(out)])
-    assert r.exit_code == 0 and "all " in r.output, r.output
+    r = run(db, "evaluate", "--truth", out)
+    assert "all " in r.output, r.output

@@ -8,17 +8,15 @@ every motion. Time and memory per take length are in benchmarks/RESULTS.md
 """
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import mocapdb
 from mocapdb import api
-from mocapdb.cli import main
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 from mocapdb.errors import PartialAnnotationError
 from mocapdb.storage.ingest import store_words
 
-from conftest import DATA
+from conftest import DATA, run
 
 pytestmark = pytest.mark.shared
 
@@ -44,8 +42,7 @@ def db(tmp_path_factory):
 
 @pytest.mark.parametrize("model", ["default", "toolbox"])
 def test_an_hour_long_repetitive_take_annotates_with_the_others(db, model):
-    con = mocapdb.connect(db)
-    try:
+    with mocapdb.connect(db) as con:
         table = api.annotate(con, model=model)
         per_motion = dict(con.execute("SELECT m.name, count(a.label) FROM motions m LEFT JOIN annotations a "
                                       "ON a.motion_id = m.motion_id AND a.model = $model GROUP BY m.name",
@@ -54,8 +51,6 @@ def test_an_hour_long_repetitive_take_annotates_with_the_others(db, model):
         sql = con.execute("SELECT m.name, s.label, s.start_frame, s.end_frame FROM motions m, "
                           "LATERAL (SELECT unnest(annotate(m.motion_id, model := $model), recursive := true)) s "
                           "ORDER BY ALL", {"model": model}).fetchall()
-    finally:
-        con.close()
     assert all(per_motion[c.stem] > 0 for c in CLIPS)
     assert sorted(zip(*(table.column(c).to_pylist() for c in ("document", "label", "start_frame", "end_frame")))) \
         == sql
@@ -71,11 +66,8 @@ def test_the_toolbox_limit_only_when_asked_and_named_by_what_exists():
     from mocapdb.errors import ParameterError
     from mocapdb.storage.model_store import load_model
 
-    con = mocapdb.connect()
-    try:
+    with mocapdb.connect() as con:
         model = load_model(con, "toolbox")
-    finally:
-        con.close()
     walk = looped_walk(10)
     with pytest.raises(ParameterError, match=r"match_num_max=2000 hits reached.*doc_lengths\[0\].*match_num_max=None"):
         annotate(walk, model, match_num_max=MATCH_NUM_MAX)
@@ -83,19 +75,15 @@ def test_the_toolbox_limit_only_when_asked_and_named_by_what_exists():
 
 
 def test_the_cli_annotates_a_long_take(db):
-    r = CliRunner().invoke(main, ["--db", str(db), "annotate", "walk_60min", "--model", "toolbox", "--format", "csv"])
-    assert r.exit_code == 0, r.output
+    r = run(db, "annotate", "walk_60min", "--model", "toolbox", "--format", "csv")
     assert "walk_60min,move," in r.output and "match_num_max" not in r.output
 
 
 def _damage(path, name):
     """A motion whose features lost rows (as an import of a partial archive by an older mocapdb left them)."""
-    con = mocapdb.connect(path)
-    try:
+    with mocapdb.connect(path) as con:
         con.execute("DELETE FROM features WHERE motion_id = (SELECT motion_id FROM motions WHERE name = $n) "
                     "AND frame > 20", {"n": name})
-    finally:
-        con.close()
 
 
 def test_one_bad_motion_never_empties_a_batch(tmp_path):
@@ -105,8 +93,7 @@ def test_one_bad_motion_never_empties_a_batch(tmp_path):
     con.close()
     victim = CLIPS[1].stem
     _damage(path, victim)
-    con = mocapdb.connect(path)
-    try:
+    with mocapdb.connect(path) as con:
         with pytest.raises(PartialAnnotationError, match=rf"1 of 4 motions not annotated.*{victim}.*20 feature rows") \
                 as e:
             api.annotate(con)
@@ -114,21 +101,15 @@ def test_one_bad_motion_never_empties_a_batch(tmp_path):
                                   "GROUP BY m.name").fetchall())
         with pytest.raises(Exception, match=f"{victim}.*ingest or import it again to repair it"):
             con.execute("SELECT annotate(motion_id) FROM motions").fetchall()
-    finally:
-        con.close()
     assert [f[1] for f in e.value.failed] == [victim]
     assert set(stored) == {c.stem for c in CLIPS} - {victim}
     assert e.value.table.num_rows == sum(stored.values())
     # the CLI prints the others, names the bad one and exits 1
-    r = CliRunner().invoke(main, ["--db", str(path), "annotate", "--format", "csv"])
-    assert r.exit_code == 1
+    r = run(path, "annotate", "--format", "csv", code=1)
     assert all(f"{c.stem},kick," in r.output for c in CLIPS if c.stem != victim)
     assert f"{victim}" in r.output.splitlines()[-1] and "Error:" in r.output
     # ingesting the file again repairs it, and then everything annotates
-    con = mocapdb.connect(path)
-    try:
+    with mocapdb.connect(path) as con:
         report = mocapdb.ingest(con, [CLIPS[1]])
         assert [p for p, _ in report.repaired] == [str(CLIPS[1])] and len(report.ingested) == 1
         assert api.annotate(con).num_rows == sum(stored.values()) + 1
-    finally:
-        con.close()

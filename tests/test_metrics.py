@@ -93,6 +93,7 @@ def test_vocabulary_drops_and_reports_unproducible_truth():
     assert by["move"].r2 == 0.5 and by["kick"].p1 == 0.0 and by["jump"].f1 == 0.0
 
 
+@pytest.mark.shared
 def test_annotation_segments_are_accepted_directly():
     model = oracle_model()
     w = words("86_09")
@@ -128,6 +129,7 @@ def five_docs():
     return np.concatenate(ws), np.array([len(w) for w in ws])
 
 
+@pytest.mark.shared
 def test_sweep_equals_annotate_per_tau(five_docs):
     w, lens = five_docs
     model = oracle_model()
@@ -139,6 +141,7 @@ def test_sweep_equals_annotate_per_tau(five_docs):
     assert len(segs[0]) < len(segs[-1])
 
 
+@pytest.mark.shared
 def test_sweep_with_preselection_equals_annotate(five_docs):
     w, lens = five_docs
     model = oracle_model()
@@ -152,6 +155,7 @@ def test_sweep_with_preselection_equals_annotate(five_docs):
             s, annotate(w, model, doc_lengths=lens, preselection=pre, tau=t).segments)
 
 
+@pytest.mark.shared
 def test_sweep_tau_scores(five_docs):
     w, lens = five_docs
     model = oracle_model()

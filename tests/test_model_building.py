@@ -30,6 +30,7 @@ def cut_clips(data_dir):
     return clips_from_folders(data_dir / "hdm05_cut")
 
 
+@pytest.mark.shared
 def test_mirrored_templates_equal_templates_learned_on_mirrored_clips(cut_clips):
     for cls, clips in cut_clips.items():
         words = [w for _, w in clips]
@@ -49,6 +50,7 @@ def test_mirrored_templates_equal_templates_learned_on_mirrored_clips(cut_clips)
         np.testing.assert_array_equal(q.value, qm.value, err_msg=cls)
 
 
+@pytest.mark.shared
 def test_a_mirrored_query_finds_the_mirrored_clips(cut_clips):
     kicks = [w for _, w in cut_clips["kickLFront1Reps"]]
     others = [w for c, cl in cut_clips.items() if c != "kickLFront1Reps" for _, w in cl]
@@ -74,6 +76,7 @@ def test_reversal_turns_directions_and_keeps_poses():
     assert val[1, F["knee_left_bent"]] and fixed[1].sum() == 40 - len(DIRECTION_FEATURES)
 
 
+@pytest.mark.shared
 def test_a_reversed_class_is_its_template_backwards(cut_clips):
     t = learn_template([w for _, w in cut_clips["lieDownFloor"]])
     model = build_model({"lieDownFloor": [Clip(n, w) for n, w in cut_clips["lieDownFloor"]]},
@@ -97,6 +100,7 @@ def test_onsets_and_matching_runs():
     assert matching_runs(w, 0b11, 0b11, min_frames=2) == [(1, 2)]
 
 
+@pytest.mark.shared
 def test_stretches_are_cut_into_repetitions(data_dir):
     docs = mocap6_documents(data_dir, class_labels={})
     off = np.concatenate(([0], np.cumsum(docs.doc_lengths)))
@@ -111,6 +115,7 @@ def test_stretches_are_cut_into_repetitions(data_dir):
         cut_repetitions([np.zeros(40, np.uint64)])
 
 
+@pytest.mark.shared
 def test_cmu_stretches_and_poses(data_dir):
     words, rows, groups = cmu_stretches(data_dir)
     assert set(rows["label"]) >= {"cmuWalk2Steps", "cmuJog2Steps", "cmuJumpingJack1Reps", "cmuArmCircle1Reps"}
@@ -124,6 +129,7 @@ def test_cmu_stretches_and_poses(data_dir):
     assert set(poses) <= set(POSE_CLASSES)
 
 
+@pytest.mark.shared
 def test_generalising_keeps_the_training_fitness(cut_clips):
     names = list(cut_clips)
     words = [w for c in names for _, w in cut_clips[c]]
@@ -159,16 +165,14 @@ def test_segment_filters():
         apply_margin(cd, -1)
 
 
+@pytest.mark.shared
 def test_the_toolbox_model_ignores_the_filters(cut_clips, data_dir):
     """A model without min_frames and margin annotates the same with the filters on or off."""
     from mocapdb.api import connect
     from mocapdb.storage.model_store import load_model
 
-    con = connect()
-    try:
+    with connect() as con:
         toolbox = load_model(con, "toolbox")
-    finally:
-        con.close()
     assert label_min_frames(toolbox).tolist() == [0] * len(toolbox.labels) and toolbox.margin == 0
     docs = mocap6_documents(data_dir, trials=("13_30",))
     on = annotate(docs.words, toolbox, doc_lengths=docs.doc_lengths).segments
@@ -185,6 +189,7 @@ def test_the_toolbox_model_ignores_the_filters(cut_clips, data_dir):
                                                               for x in short["label"]])).all()
 
 
+@pytest.mark.shared
 def test_taus_per_class(cut_clips):
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in v] for c, v in cut_clips.items()
              if c in ("squat1Reps", "hopBothLegs1hops", "kickLFront1Reps")}
@@ -200,6 +205,7 @@ def test_taus_per_class(cut_clips):
         learn_taus({c: [dataclasses.replace(x, group="one") for x in v] for c, v in clips.items()}, recipe)
 
 
+@pytest.mark.shared
 def test_mirror_class_mirrors_everything(cut_clips):
     model = build_model({"kickLFront1Reps": [Clip(n, w) for n, w in cut_clips["kickLFront1Reps"]]},
                         Recipe(labels={"kickLFront1Reps": "kick"}), name="k")
@@ -211,6 +217,7 @@ def test_mirror_class_mirrors_everything(cut_clips):
                                   c.template.real[:, F["foot_left_raised_rel_y_body_min"]])
 
 
+@pytest.mark.shared
 def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
     """Step 4 of learn_taus: a class that moves claims at most max_still_rate of the
     held-out actors' still poses; without the cap the sneak template (slow steps)
@@ -239,6 +246,7 @@ def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
     assert is_static(build_model({}, Recipe(labels={}, definitions=tuple(tpose)), name="t").classes[0])
 
 
+@pytest.mark.shared
 def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
     """The shipped kick keyframe (mocapdb/shipped_models/classes/kick.toml: the raised leg stretched) holds in
     every kick clip of every actor and in no clip of walking, jogging, sneaking, hopping, squats,
@@ -270,6 +278,7 @@ def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
                                   for x in cmu[c]), c
 
 
+@pytest.mark.shared
 def test_clip_costs_through_the_preselection_equal_annotation_with_keyframes(cut_clips):
     """clip_costs(preselect=…): Δ of a class with a query only where its keyframes let annotation
     match it — the same minima as annotate() with the keyframe preselection, clip by clip."""
@@ -313,6 +322,7 @@ def _held(model, clips, cls):
     return held
 
 
+@pytest.mark.shared
 def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     """The shipped throw keyframes (mocapdb/shipped_models/classes/throw.toml: the ball held up, then the arms
     down) hold in every throwBasketball clip of every actor. The ball held up also holds in some hops,
@@ -350,6 +360,7 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     assert specific_queries(model, clips, max_rate=0.0)["kickLFront1Reps"] == (0.0, True)
 
 
+@pytest.mark.shared
 def test_the_lie_down_keyframes_hold_in_every_lie_down_and_its_reverse_starts_lying(cut_clips):
     """mocapdb/shipped_models/classes/lie_down.toml: down on bent knees, then lying (the spine horizontal) holds
     in every lieDownFloor clip; lying ends the template (no widening after the chain); the reversed class

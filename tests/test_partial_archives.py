@@ -18,16 +18,14 @@ import time
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from click.testing import CliRunner
 
 import mocapdb
 from mocapdb import api
-from mocapdb.cli import main
 from mocapdb.errors import ParameterError
 from mocapdb.storage.ingest import store_words
 from mocapdb.storage.parquet import export_features, features_sql, import_features
 
-from conftest import DATA, REPO
+from conftest import DATA, REPO, run
 
 pytestmark = pytest.mark.shared
 
@@ -66,7 +64,7 @@ def check_invariants(con):
                            "(SELECT motion_id FROM motions)").fetchall() == [(0,)], table
 
 
-def test_missing_feature_folders_are_refused_by_name_and_the_repair_goes_in(source, tmp_path):
+def test_missing_feature_folders_are_refused_by_name_and_the_repair_goes_in(source, tmp_path, open_db):
     _, export = source
     partial = tmp_path / "partial"
     shutil.copytree(export, partial)
@@ -78,38 +76,31 @@ def test_missing_feature_folders_are_refused_by_name_and_the_repair_goes_in(sour
              pq.read_table(export / "motions.parquet", columns=["motion_id", "name"]).to_pylist()}
     gone_names = {names[int(f.name.split("=")[1])] for f in gone}
     db = tmp_path / "db.duckdb"
-    r = CliRunner().invoke(main, ["--db", str(db), "import-features", str(partial)])
-    assert r.exit_code == 1, r.output
+    r = run(db, "import-features", partial, code=1)
     assert "99 motion(s) imported, 0 already present, 133 refused" in r.output
     assert all(f"({n}) has 0 feature rows for its" in r.output for n in gone_names)
-    con = mocapdb.connect(db)
-    try:
-        check_invariants(con)
-        assert {n for (n,) in con.execute("SELECT name FROM motions").fetchall()} == set(names.values()) - gone_names
-        report = import_features(con, export)  # the whole export: the refused motions go in now
-        assert len(report.imported) == 133 and len(report.skipped) == 99 and not report.failed
-        check_invariants(con)
-        assert con.execute("SELECT count(*) FROM motions").fetchall() == [(232,)]
-    finally:
-        con.close()
+    con = open_db(db)
+    check_invariants(con)
+    assert {n for (n,) in con.execute("SELECT name FROM motions").fetchall()} == set(names.values()) - gone_names
+    report = import_features(con, export)  # the whole export: the refused motions go in now
+    assert len(report.imported) == 133 and len(report.skipped) == 99 and not report.failed
+    check_invariants(con)
+    assert con.execute("SELECT count(*) FROM motions").fetchall() == [(232,)]
 
 
-def test_partly_imported_motions_of_an_older_mocapdb_are_repaired(source, db_copy):
+def test_partly_imported_motions_of_an_older_mocapdb_are_repaired(source, db_copy, open_db):
     """A database holding motions without all their features (what importing a partial archive left
     before): importing the archive again, or ingesting the files again, replaces them."""
     export = source[1]
-    con = mocapdb.connect(db_copy)
-    try:
-        con.execute("DELETE FROM features WHERE motion_id IN (3, 4) AND frame > 10")
-        con.execute("DELETE FROM features WHERE motion_id = 5")
-        report = import_features(con, export)
-        assert len(report.repaired) == 3 and len(report.imported) == 3 and len(report.skipped) == 229
-        assert "has 10 feature rows" in report.repaired[0][1]
-        check_invariants(con)
-        assert con.execute("SELECT count(*) FROM motions").fetchall() == [(232,)]
-        assert con.execute("SELECT count(*) FROM (SELECT unnest(annotate(motion_id)) FROM motions)").fetchall()[0][0]
-    finally:
-        con.close()
+    con = open_db(db_copy)
+    con.execute("DELETE FROM features WHERE motion_id IN (3, 4) AND frame > 10")
+    con.execute("DELETE FROM features WHERE motion_id = 5")
+    report = import_features(con, export)
+    assert len(report.repaired) == 3 and len(report.imported) == 3 and len(report.skipped) == 229
+    assert "has 10 feature rows" in report.repaired[0][1]
+    check_invariants(con)
+    assert con.execute("SELECT count(*) FROM motions").fetchall() == [(232,)]
+    assert con.execute("SELECT count(*) FROM (SELECT unnest(annotate(motion_id)) FROM motions)").fetchall()[0][0]
 
 
 def test_a_killed_export_is_refused_never_imported_in_part(source, tmp_path):
@@ -131,8 +122,7 @@ def test_a_killed_export_is_refused_never_imported_in_part(source, tmp_path):
         finally:
             p.send_signal(signal.SIGKILL)
             p.wait()
-        fresh = mocapdb.connect(tmp_path / f"import{trial}.duckdb")
-        try:
+        with mocapdb.connect(tmp_path / f"import{trial}.duckdb") as fresh:
             if (out / "motions.parquet").exists():
                 report = import_features(fresh, out)
                 assert len(report.imported) == 232 and not report.failed
@@ -143,8 +133,6 @@ def test_a_killed_export_is_refused_never_imported_in_part(source, tmp_path):
                 assert fresh.execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
                 outcomes.append("refused")
             check_invariants(fresh)
-        finally:
-            fresh.close()
         if "refused" in outcomes and trial >= 2:
             break
     assert "refused" in outcomes, outcomes  # a kill did land inside an export
@@ -166,15 +154,12 @@ def test_a_killed_import_leaves_whole_motions_and_importing_again_finishes(sourc
         finally:
             p.send_signal(signal.SIGKILL)
             p.wait()
-        con = mocapdb.connect(db)
-        try:
+        with mocapdb.connect(db) as con:
             check_invariants(con)
             before = con.execute("SELECT count(*) FROM motions").fetchall()[0][0]
             report = import_features(con, export)
             assert len(report.imported) == 232 - before and len(report.skipped) == before and not report.failed
             check_invariants(con)
-        finally:
-            con.close()
 
 
 def test_a_truncated_part_names_its_cause_and_costs_only_its_motion(source, tmp_path):
@@ -184,14 +169,13 @@ def test_a_truncated_part_names_its_cause_and_costs_only_its_motion(source, tmp_
     victim = sorted((broken / "features").glob("motion_id=7/*.parquet"))[0]
     victim.write_bytes(victim.read_bytes()[:100])
     db = tmp_path / "db.duckdb"
-    r = CliRunner().invoke(main, ["--db", str(db), "import-features", str(broken)])
-    assert r.exit_code == 1
+    r = run(db, "import-features", broken, code=1)
     assert "No magic bytes found" in r.output and str(victim) in r.output
     assert "TransactionContext" not in r.output and "transaction is aborted" not in r.output
     assert "231 motion(s) imported, 0 already present, 1 refused" in r.output
 
 
-def test_a_failed_write_reports_its_own_error_not_the_aborted_transaction(source, tmp_path):
+def test_a_failed_write_reports_its_own_error_not_the_aborted_transaction(source, tmp_path, open_db):
     """registered() inside a transaction that the failure aborted: the real cause comes out, and the
     database and the connection are as before."""
     import duckdb
@@ -201,37 +185,31 @@ def test_a_failed_write_reports_its_own_error_not_the_aborted_transaction(source
     _, export = source
     truncated = tmp_path / "part.parquet"
     truncated.write_bytes(sorted((export / "features").glob("motion_id=1/*.parquet"))[0].read_bytes()[:100])
-    con = mocapdb.connect(tmp_path / "w.duckdb")
-    try:
-        with pytest.raises(duckdb.Error, match="No magic bytes found") as e:
-            with transaction(con):
-                with registered(con, mocap_new_rows=pa.table({"a": [1]})):
-                    con.execute("INSERT INTO features SELECT 1, frame, bits FROM read_parquet($f)", {"f": str(truncated)})
-        assert "aborted" not in str(e.value)
-        # a write path of the library: a motion without a name breaks a NOT NULL constraint
-        words = pa.array([1, 2, 3], pa.uint64()).to_numpy()
-        with pytest.raises(duckdb.Error, match="NOT NULL constraint failed: motions.*name") as e:
-            store_words(con, {None: words})
-        assert "aborted" not in str(e.value)
-        assert con.execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
-        store_words(con, {"a": words})  # the connection is usable again
-        assert con.execute("SELECT count(*) FROM features").fetchall() == [(3,)]
-    finally:
-        con.close()
+    con = open_db(tmp_path / "w.duckdb")
+    with pytest.raises(duckdb.Error, match="No magic bytes found") as e:
+        with transaction(con):
+            with registered(con, mocap_new_rows=pa.table({"a": [1]})):
+                con.execute("INSERT INTO features SELECT 1, frame, bits FROM read_parquet($f)", {"f": str(truncated)})
+    assert "aborted" not in str(e.value)
+    # a write path of the library: a motion without a name breaks a NOT NULL constraint
+    words = pa.array([1, 2, 3], pa.uint64()).to_numpy()
+    with pytest.raises(duckdb.Error, match="NOT NULL constraint failed: motions.*name") as e:
+        store_words(con, {None: words})
+    assert "aborted" not in str(e.value)
+    assert con.execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
+    store_words(con, {"a": words})  # the connection is usable again
+    assert con.execute("SELECT count(*) FROM features").fetchall() == [(3,)]
 
 
-def test_export_overwrite_leaves_no_stale_partition(db_copy, tmp_path):
+def test_export_overwrite_leaves_no_stale_partition(db_copy, tmp_path, open_db):
     out = tmp_path / "export"
-    con = mocapdb.connect(db_copy)
-    try:
-        assert export_features(con, out) == 232
-        (out / "notes.txt").write_text("mine")
-        api.delete(con, list(range(1, 101)))
-        assert export_features(con, out, overwrite=True) == 132
-        ids = {int(f.name.split("=")[1]) for f in (out / "features").iterdir()}
-        in_place = con.execute(f"SELECT count(DISTINCT motion_id), count(*) FROM ({features_sql(out)})").fetchall()
-        assert ids == {i for (i,) in con.execute("SELECT motion_id FROM motions").fetchall()}
-        assert in_place == con.execute("SELECT count(DISTINCT motion_id), count(*) FROM features").fetchall()
-        assert (out / "notes.txt").read_text() == "mine"  # nothing else in the folder is touched
-    finally:
-        con.close()
+    con = open_db(db_copy)
+    assert export_features(con, out) == 232
+    (out / "notes.txt").write_text("mine")
+    api.delete(con, list(range(1, 101)))
+    assert export_features(con, out, overwrite=True) == 132
+    ids = {int(f.name.split("=")[1]) for f in (out / "features").iterdir()}
+    in_place = con.execute(f"SELECT count(DISTINCT motion_id), count(*) FROM ({features_sql(out)})").fetchall()
+    assert ids == {i for (i,) in con.execute("SELECT motion_id FROM motions").fetchall()}
+    assert in_place == con.execute("SELECT count(DISTINCT motion_id), count(*) FROM features").fetchall()
+    assert (out / "notes.txt").read_text() == "mine"  # nothing else in the folder is touched

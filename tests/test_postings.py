@@ -14,28 +14,26 @@ from conftest import DATA
 POSTINGS = f"SELECT motion_id, feature_set, seg, word, start_frame, n_frames FROM {INDEX_SCHEMA}.postings ORDER BY ALL"
 
 
-def test_index_follows_ingests_and_deletes(tmp_path):
+@pytest.mark.shared
+def test_index_follows_ingests_and_deletes(tmp_path, open_db):
     """After any sequence of ingests and deletes the index equals one rebuilt from features."""
     rng = np.random.default_rng(7)
     folders = sorted(p for p in (DATA / "hdm05_cut").iterdir() if p.is_dir())
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
-        assert index_exists(con)
-        for step in range(6):
-            ingest(con, [folders[step * 2 % len(folders)], folders[(step * 2 + 1) % len(folders)]])
-            ids = [r[0] for r in con.execute("SELECT motion_id FROM motions").fetchall()]
-            delete_motions(con, rng.choice(ids, size=len(ids) // 4, replace=False).tolist())
-            maintained = con.execute(POSTINGS).fetchall()
-            create_index(con)
-            assert con.execute(POSTINGS).fetchall() == maintained, f"step {step}"
-        assert len(maintained) > 1000
-    finally:
-        con.close()
+    con = open_db(tmp_path / "t.duckdb")
+    assert index_exists(con)
+    for step in range(6):
+        ingest(con, [folders[step * 2 % len(folders)], folders[(step * 2 + 1) % len(folders)]])
+        ids = [r[0] for r in con.execute("SELECT motion_id FROM motions").fetchall()]
+        delete_motions(con, rng.choice(ids, size=len(ids) // 4, replace=False).tolist())
+        maintained = con.execute(POSTINGS).fetchall()
+        create_index(con)
+        assert con.execute(POSTINGS).fetchall() == maintained, f"step {step}"
+    assert len(maintained) > 1000
 
 
+@pytest.mark.shared
 def test_stored_index_equals_build_index_of_the_features(tmp_path):
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "t.duckdb") as con:
         ingest(con, [DATA / "hdm05_cut" / "squat1Reps", DATA / "cmu" / "86"])
         index, ids = load_index(con)
         words = [con.execute("SELECT bits FROM features WHERE motion_id = ? ORDER BY frame", [i]).fetchnumpy()["bits"]
@@ -56,13 +54,11 @@ def test_stored_index_equals_build_index_of_the_features(tmp_path):
                                   GROUP BY 1 ORDER BY 1""").fetchall()
         total = con.execute("SELECT count(*) FROM features").fetchall()[0][0]
         assert covered == [(s, total) for s in ("full", "lower", "mix", "upper")]
-    finally:
-        con.close()
 
 
+@pytest.mark.shared
 def test_drop_and_create(tmp_path):
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "t.duckdb") as con:
         ingest(con, [DATA / "hdm05_cut" / "rotateArmsBothBackward1Reps"])
         before = con.execute(POSTINGS).fetchall()
         drop_index(con)
@@ -73,26 +69,19 @@ def test_drop_and_create(tmp_path):
         after = con.execute(POSTINGS).fetchall()
         assert n == len(after) > len(before)
         assert set(before) <= set(after)
-    finally:
-        con.close()
     # reopening keeps the owner's choice
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "t.duckdb") as con:
         assert index_exists(con)
-    finally:
-        con.close()
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("parts", [("full",), ("upper", "lower", "mix")])
-def test_load_index_parts(tmp_path, parts):
-    con = mocapdb.connect(tmp_path / "t.duckdb")
-    try:
-        ingest(con, [DATA / "hdm05_cut" / "kickLFront1Reps"])
-        index, ids = load_index(con, parts=parts)
-        assert index.parts == parts and len(ids) == 24
-        assert index.n_frames == con.execute("SELECT count(*) FROM features").fetchall()[0][0]
-    finally:
-        con.close()
+def test_load_index_parts(tmp_path, parts, open_db):
+    con = open_db(tmp_path / "t.duckdb")
+    ingest(con, [DATA / "hdm05_cut" / "kickLFront1Reps"])
+    index, ids = load_index(con, parts=parts)
+    assert index.parts == parts and len(ids) == 24
+    assert index.n_frames == con.execute("SELECT count(*) FROM features").fetchall()[0][0]
 
 
 @pytest.mark.parametrize("ids", [[1, 2, 3, 7, 9], [0, 5, 3_000_000_000]])  # dense, sparse

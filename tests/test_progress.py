@@ -14,6 +14,8 @@ from mocapdb.storage import annotations as stored
 
 from conftest import DATA
 
+pytestmark = pytest.mark.shared
+
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:6]
 
 
@@ -28,15 +30,12 @@ def db(tmp_path_factory):
 
 @pytest.mark.parametrize("keyframes", [None, False])
 def test_annotation_in_pieces_equals_one_piece(db, monkeypatch, keyframes):
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         whole = mocapdb.annotate(con, keyframes=keyframes, store=False)
         monkeypatch.setattr(stored, "PROGRESS_FRAMES", 40)  # 86_09 alone, then the clips one or two at a time
         calls = []
         pieces = mocapdb.annotate(con, keyframes=keyframes, store=False,
                                   progress=lambda done, total: calls.append((done, total)))
-    finally:
-        con.close()
     assert pieces.equals(whole) and whole.num_rows > 0
     assert calls[0] == (0, 7) and calls[-1] == (7, 7) and len(calls) >= 4
     assert [c[0] for c in calls] == sorted(c[0] for c in calls)

@@ -26,7 +26,7 @@ from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.storage.model_store import load_model
 from mocapdb.storage.parquet import table_schemas
 
-from conftest import DATA, REPO
+from conftest import DATA, REPO, SAMPLE_86_09, run
 
 #: Ray Data's own DataContext warns about its deprecated fields whenever it copies itself
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context")
@@ -106,6 +106,7 @@ def _archive_rows(con, out, prefix, dataset):
     return _rows(con, dataset, {k: f"{prefix}_{k}" for k in DB_TABLES})
 
 
+@pytest.mark.shared
 def test_the_archive_equals_ingest_and_annotate(single, archive):
     out, report = archive
     n = single.execute("SELECT count(*) FROM motions").fetchall()[0][0]
@@ -120,6 +121,7 @@ def test_the_archive_equals_ingest_and_annotate(single, archive):
     assert report.segments == segs[0] > 200 and segs[1] > 5
 
 
+@pytest.mark.shared
 def test_motion_ids_follow_the_file_list_and_parts_their_buckets(archive):
     out, report = archive
     files = expand_sources(SOURCES)
@@ -139,23 +141,21 @@ def test_motion_ids_follow_the_file_list_and_parts_their_buckets(archive):
     assert not [p for p in out.rglob("*") if p.name.startswith(".")]  # no temporary files left
 
 
-def test_every_format_and_every_failure_as_ingest(local_ray, tmp_path):
+@pytest.mark.shared
+def test_every_format_and_every_failure_as_ingest(local_ray, tmp_path, open_db):
     """Foreign recordings (BVH of other tools, an AMC of another lab): the same motions and
     rows as ingest + annotate, and the files ingest refuses are the errors, with its reasons."""
     sources = [DATA / "foreign"]
-    con = mocapdb.connect()
-    try:
-        report = mocapdb.ingest(con, sources)
-        mocapdb.annotate(con)
-        out = tmp_path / "archive"
-        ray_report = ray_annotate(sources, out)
-        assert len(ray_report.ingested) == len(report.ingested) > 0
-        for dataset in DB_TABLES:
-            assert _archive_rows(con, out, "f", dataset) == _rows(con, dataset, DB_TABLES), dataset
-        errors = pq.read_table(out / "errors").to_pylist()
-        assert sorted((e["file"], e["reason"]) for e in errors) == sorted(report.failed) == sorted(ray_report.failed)
-    finally:
-        con.close()
+    con = open_db()
+    report = mocapdb.ingest(con, sources)
+    mocapdb.annotate(con)
+    out = tmp_path / "archive"
+    ray_report = ray_annotate(sources, out)
+    assert len(ray_report.ingested) == len(report.ingested) > 0
+    for dataset in DB_TABLES:
+        assert _archive_rows(con, out, "f", dataset) == _rows(con, dataset, DB_TABLES), dataset
+    errors = pq.read_table(out / "errors").to_pylist()
+    assert sorted((e["file"], e["reason"]) for e in errors) == sorted(report.failed) == sorted(ray_report.failed)
 
 
 def _broken_folder(tmp_path):
@@ -172,6 +172,7 @@ def _broken_folder(tmp_path):
     return d, good
 
 
+@pytest.mark.shared
 def test_broken_files_become_rows_of_errors_and_the_rest_goes_on(local_ray, tmp_path):
     d, good = _broken_folder(tmp_path)
     out = tmp_path / "archive"
@@ -185,14 +186,11 @@ def test_broken_files_become_rows_of_errors_and_the_rest_goes_on(local_ray, tmp_
     assert names == sorted(p.stem for p in good)
     assert report.skipped == [(str(d / "kick" / "HDM_bd_zcopy_120.amc"),
                                f"same bytes as {d / 'kick' / good[1].name} of this run")]
-    con = duckdb.connect()
-    try:
+    with duckdb.connect() as con:
         _views(con, out, "a")
         ids = con.execute("SELECT DISTINCT motion_id FROM a_features ORDER BY 1").fetchall()
         assert ids == con.execute("SELECT motion_id FROM a_motions ORDER BY 1").fetchall()
         assert len(ids) == 3
-    finally:
-        con.close()
     # the same through the CLI: one line per failed file, the summary, exit 0 (some files went in)
     r = CliRunner().invoke(main, ["ray-annotate", str(d), "--out", str(out), "--overwrite", "--batch-files", "2"])
     assert r.exit_code == 0, r.output
@@ -217,6 +215,7 @@ def _dies_once(victim: str, marker: Path):
     return DiesOnce
 
 
+@pytest.mark.shared
 def test_a_worker_killed_mid_run_changes_nothing(local_ray, archive, single, tmp_path):
     out, clean = archive
     files = expand_sources(SOURCES)
@@ -235,10 +234,10 @@ def test_a_worker_killed_mid_run_changes_nothing(local_ray, archive, single, tmp
         sorted(p.relative_to(out) for p in out.rglob("*") if p.is_file())
 
 
+@pytest.mark.shared
 def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, tmp_path):
     out, report = archive
-    con = api.connect(tmp_path / "imported.duckdb")
-    try:
+    with api.connect(tmp_path / "imported.duckdb") as con:
         assert len(api.import_features(con, out).imported) == len(report.ingested)
         by_file = ("SELECT m.source_path, s.label, s.start_frame, s.end_frame, s.cost FROM motions m, "
                    "LATERAL (SELECT unnest(annotate(m.motion_id), recursive := true)) s")
@@ -251,19 +250,17 @@ def test_the_archive_imports_into_a_database_that_answers_sql(archive, single, t
                  "JOIN motions m USING (motion_id)")
             assert sorted(con.execute(q).fetchall()) == sorted(single.execute(q).fetchall()), c
         assert api.import_features(con, out).imported == {}  # the same motions again: nothing new
-    finally:
-        con.close()
 
 
+@pytest.mark.shared
 def test_the_archive_is_queryable_in_place(archive, single, tmp_path):
     """`mocapdb attach DIR`: motions, features, annotations and the index are views of the archive's
     Parquet; the SQL functions answer as in a database that holds the same motions (issue 20 item 3)."""
     out, report = archive
     db = tmp_path / "views.duckdb"
-    r = CliRunner().invoke(main, ["--db", str(db), "attach", str(out)])
-    assert r.exit_code == 0 and f"{len(report.ingested)} motion(s)" in r.output, r.output
-    con = api.connect(db)
-    try:
+    r = run(db, "attach", out)
+    assert f"{len(report.ingested)} motion(s)" in r.output, r.output
+    with api.connect(db) as con:
         assert con.execute("SELECT table_type FROM information_schema.tables WHERE table_name = 'features'"
                            ).fetchall() == [("VIEW",)]
         for dataset in DB_TABLES:
@@ -286,15 +283,14 @@ def test_the_archive_is_queryable_in_place(archive, single, tmp_path):
             api.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
         with pytest.raises(SchemaError, match="attached to the archive"):
             api.annotate(con)
-    finally:
-        con.close()
-    r = CliRunner().invoke(main, ["--db", str(db), "annotate", "--no-store", "--format", "csv"])
-    assert r.exit_code == 0 and len(r.output.splitlines()) == report.segments + 1
+    r = run(db, "annotate", "--no-store", "--format", "csv")
+    assert len(r.output.splitlines()) == report.segments + 1
     # a database with motions of its own is not attached
     with pytest.raises(ParameterError, match="holds .* rows of its own"):
         api.attach(single, out)
 
 
+@pytest.mark.shared
 def test_a_killed_ray_annotate_is_refused_until_run_again(local_ray, tmp_path):
     """SIGKILL of a running `mocapdb ray-annotate` (its whole process group, Ray included): the batches
     written so far have no manifest beside them, so import, attach and a new run without --overwrite
@@ -314,8 +310,7 @@ def test_a_killed_ray_annotate_is_refused_until_run_again(local_ray, tmp_path):
     assert p.returncode == -signal.SIGKILL  # killed while running
     written = len(list((out / "motions").glob("part-*.parquet")))
     assert 0 < written < 58 and not (out / "manifest.json").exists()
-    con = api.connect(tmp_path / "db.duckdb")
-    try:
+    with api.connect(tmp_path / "db.duckdb") as con:
         with pytest.raises(ParameterError, match="unfinished ray-annotate archive .* run ray-annotate again"):
             api.import_features(con, out)
         with pytest.raises(ParameterError, match="unfinished ray-annotate archive"):
@@ -326,10 +321,9 @@ def test_a_killed_ray_annotate_is_refused_until_run_again(local_ray, tmp_path):
         report = ray_annotate([DATA / "hdm05_cut"], out, batch_files=4, overwrite=True)
         assert len(report.ingested) == 232 and (out / "manifest.json").exists()
         assert len(api.import_features(con, out).imported) == 232
-    finally:
-        con.close()
 
 
+@pytest.mark.shared
 def test_a_cluster_with_token_authentication(tmp_path):
     """`ray-annotate --address` on a cluster started with `ray start` and RAY_AUTH_MODE=token (Ray ≥ 2.52):
     the client needs the same mode and the token (here RAY_AUTH_TOKEN_PATH); without them one clear line."""
@@ -356,6 +350,7 @@ def test_a_cluster_with_token_authentication(tmp_path):
         assert p.stdout.startswith("9 motions") and (tmp_path / "b" / "manifest.json").exists()
 
 
+@pytest.mark.shared
 def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, tmp_path):
     """`mocapdb --db DB ray-annotate --model NAME --tau … --no-keyframes`: the model comes from the
     database; the segments equal `annotate` with the same options in that database."""
@@ -366,28 +361,22 @@ def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, 
     for c in ("squat1Reps", "kickLFront1Reps"):
         (root / c).symlink_to(DATA / "hdm05_cut" / c, target_is_directory=True)
     db = tmp_path / "trained.duckdb"
-    con = api.connect(db)
-    try:
+    with api.connect(db) as con:
         api.train(con, model="two", folder=root)
         api.ingest(con, [DATA / "cmu" / "02", root])
         want = api.annotate(con, model="two", tau=0.2, keyframes=False, store=True)
         single = _rows(con, "annotations", DB_TABLES)
-    finally:
-        con.close()
     out = tmp_path / "archive"
-    r = CliRunner().invoke(main, ["--db", str(db), "ray-annotate", str(DATA / "cmu" / "02"), str(root), "--out",
-                                  str(out), "--model", "two", "--tau", "0.2", "--no-keyframes"])
-    assert r.exit_code == 0, r.output
+    r = run(db, "ray-annotate", DATA / "cmu" / "02", root, "--out", out, "--model", "two", "--tau", "0.2",
+            "--no-keyframes")
     assert f"{want.num_rows} segments written to {out}" in r.output
-    con = duckdb.connect()
-    try:
+    with duckdb.connect() as con:
         _views(con, out, "t")
         assert _rows(con, "annotations", {k: f"t_{k}" for k in DB_TABLES}) == single
         assert con.execute("SELECT DISTINCT model, tau, keyframes FROM t_annotations").fetchall() == [("two", 0.2, False)]
-    finally:
-        con.close()
 
 
+@pytest.mark.shared
 def test_the_readme_example_queries_the_parquet_in_place(archive, tmp_path, monkeypatch):
     """The README section's Python block, run where `archive` is the archive."""
     out, report = archive
@@ -405,6 +394,7 @@ def test_the_readme_example_queries_the_parquet_in_place(archive, tmp_path, monk
     assert sum(n for _, n, _ in rows) == report.segments and all(s > 0 for _, _, s in rows)
 
 
+@pytest.mark.shared
 def test_sources_expand_like_ingest_and_globs(tmp_path):
     cmu = DATA / "cmu" / "02"
     assert expand_sources([cmu]) == expand_sources([f"{cmu}/*.amc"]) == sorted(cmu.glob("*.amc"))
@@ -416,6 +406,7 @@ def test_sources_expand_like_ingest_and_globs(tmp_path):
         expand_sources([tmp_path / "nowhere"])
 
 
+@pytest.mark.shared
 def test_parameters_are_checked_before_any_work(tmp_path):
     with pytest.raises(SchemaError, match="no model 'nope'"):
         ray_annotate(SOURCES, tmp_path / "a", model="nope")
@@ -435,7 +426,7 @@ def test_without_ray_one_clear_error(monkeypatch, tmp_path):
     monkeypatch.setitem(sys.modules, "ray", None)  # what `import ray` sees without the extra
     with pytest.raises(MissingExtraError, match=re.escape("pip install 'mocapdb[ray]'")):
         require_ray()
-    r = CliRunner().invoke(main, ["ray-annotate", str(DATA / "cmu" / "02"), "--out", str(tmp_path / "a")])
+    r = CliRunner().invoke(main, ["ray-annotate", str(SAMPLE_86_09), "--out", str(tmp_path / "a")])
     assert r.exit_code == 1
     assert r.output == "Error: ray_annotate needs Ray, which is not installed: pip install 'mocapdb[ray]'\n"
 

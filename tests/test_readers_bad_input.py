@@ -56,6 +56,7 @@ def raises(path, line, msg, frame=None):
 # ----------------------------------------------------------------------------
 # AMC
 
+@pytest.mark.shared
 def test_truncated_amc_last_frame_incomplete(folder):
     lines = lines_of(AMC)
     lines = lines[:-12]                 # drop the last 12 bone lines
@@ -67,6 +68,7 @@ def test_truncated_amc_last_frame_incomplete(folder):
         read_motion(p)
 
 
+@pytest.mark.shared
 def test_truncated_amc_mid_line(folder):
     data = AMC.read_bytes()
     cut = data[:data.rstrip().rfind(b" ")]     # last value of the last line cut off
@@ -80,6 +82,7 @@ def test_truncated_amc_mid_line(folder):
         read_motion(p)
 
 
+@pytest.mark.shared
 def test_amc_bone_not_in_the_asf(folder):
     lines = lines_of(AMC)
     k = nth_line(lines, b"lthumb", 5)
@@ -90,6 +93,7 @@ def test_amc_bone_not_in_the_asf(folder):
         read_motion(p)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("change,expected", [
     (lambda v: v + [b"1.5"], r"expected 3 values \(DOFs: rx ry rz\), found 4"),
     (lambda v: v[:2], r"expected 3 values \(DOFs: rx ry rz\), found 2"),
@@ -104,6 +108,7 @@ def test_amc_wrong_number_of_values(folder, change, expected):
         read_motion(p)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("token,expected", [
     (b"abc", r"expected a number, found 'abc'"),
     (b"1.2.3", r"expected a number, found '1\.2\.3'"),
@@ -122,6 +127,7 @@ def test_amc_non_numeric_and_non_finite_values(folder, token, expected):
         read_motion(p)
 
 
+@pytest.mark.shared
 def test_amc_zero_frames(folder):
     lines = lines_of(AMC)
     header = lines[:nth_line(lines, b"1")]
@@ -130,6 +136,7 @@ def test_amc_zero_frames(folder):
         read_motion(p)
 
 
+@pytest.mark.shared
 def test_amc_frame_numbers_out_of_sequence(folder):
     lines = lines_of(AMC)
     k = next(i for i, ln in enumerate(lines) if ln.strip() == b"9")
@@ -139,6 +146,7 @@ def test_amc_frame_numbers_out_of_sequence(folder):
         read_motion(p)
 
 
+@pytest.mark.shared
 def test_amc_bone_twice_in_a_frame(folder):
     lines = lines_of(AMC)
     k = nth_line(lines, b"head", 3)
@@ -148,6 +156,7 @@ def test_amc_bone_twice_in_a_frame(folder):
         read_motion(p)
 
 
+@pytest.mark.shared
 def test_amc_bone_line_before_the_first_frame(folder):
     lines = lines_of(AMC)
     k = nth_line(lines, b":DEGREES")
@@ -160,6 +169,7 @@ def test_amc_bone_line_before_the_first_frame(folder):
 # ----------------------------------------------------------------------------
 # ASF
 
+@pytest.mark.shared
 @pytest.mark.parametrize("old,new,expected", [
     (b"angle deg", b"angle grad", r"units angle: expected 'deg' or 'rad', found 'grad'"),
     # a named or unknown unit reads (other writers' dialects: test_asf_amc); a missing one does not
@@ -187,6 +197,7 @@ def test_asf_bad_units_tokens_and_numbers(tmp_path, old, new, expected):
         read_asf(p)
 
 
+@pytest.mark.shared
 def test_asf_bone_missing_from_the_hierarchy(tmp_path):
     lines = lines_of(ASF)
     k = next(i for i, ln in enumerate(lines) if ln.strip() == b"lhand lfingers")
@@ -198,6 +209,7 @@ def test_asf_bone_missing_from_the_hierarchy(tmp_path):
         read_asf(p)
 
 
+@pytest.mark.shared
 def test_amc_read_with_a_skeleton_lacking_its_bones(tmp_path):
     # an HDM05 take with a skeleton whose thumb bones were renamed
     data = ASF.read_bytes().replace(b"lthumb", b"lthumb1")
@@ -226,6 +238,7 @@ def motion_line(lines, frame):
     return lines.index(b"MOTION") + 2 + frame  # 0-based index of a frame's line (1-based frame)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("edit,found", [(lambda t: t + [b"1.5"], 97),
                                         (lambda t: t[:-3], 93)])
 def test_bvh_motion_line_with_wrong_channel_count(tmp_path, bvh_lines, edit, found):
@@ -237,6 +250,7 @@ def test_bvh_motion_line_with_wrong_channel_count(tmp_path, bvh_lines, edit, fou
         read_bvh(p)
 
 
+@pytest.mark.shared
 def test_bvh_unknown_channel_name(tmp_path, bvh_lines):
     lines = list(bvh_lines)
     k = next(i for i, ln in enumerate(lines) if b"JOINT lfemur" in ln) + 3
@@ -248,6 +262,7 @@ def test_bvh_unknown_channel_name(tmp_path, bvh_lines):
         read_bvh(p)
 
 
+@pytest.mark.shared
 def test_bvh_channel_count_disagrees_with_names(tmp_path, bvh_lines):
     lines = list(bvh_lines)
     k = next(i for i, ln in enumerate(lines) if b"CHANNELS 3" in ln)
@@ -257,6 +272,7 @@ def test_bvh_channel_count_disagrees_with_names(tmp_path, bvh_lines):
         read_bvh(p)
 
 
+@pytest.mark.shared
 def test_bvh_non_numeric_motion_values(tmp_path, bvh_lines):
     """A token that is no number is an error; NaN, inf and their C-runtime spellings are lost tracking
     (tests/test_bvh_tracking.py), read as a gap."""
@@ -276,6 +292,7 @@ def test_bvh_non_numeric_motion_values(tmp_path, bvh_lines):
             "lost tracking (NaN, infinite or absurd values) interpolated in 1 frames"), tok
 
 
+@pytest.mark.shared
 def test_bvh_truncated_and_overlong(tmp_path, bvh_lines):
     lines = list(bvh_lines)
     frames_line = lines.index(b"MOTION") + 1
@@ -290,6 +307,7 @@ def test_bvh_truncated_and_overlong(tmp_path, bvh_lines):
         read_bvh(p)
 
 
+@pytest.mark.shared
 def test_bvh_bad_offset(tmp_path, bvh_lines):
     lines = list(bvh_lines)
     k = next(i for i, ln in enumerate(lines) if ln.strip().startswith(b"OFFSET"))
@@ -302,6 +320,7 @@ def test_bvh_bad_offset(tmp_path, bvh_lines):
 # ----------------------------------------------------------------------------
 # dispatch and skeleton conventions
 
+@pytest.mark.shared
 def test_find_skeleton_conventions(tmp_path):
     assert find_skeleton(DATA / "cmu/02/02_01.amc") == DATA / "cmu/02/02.asf"
     assert find_skeleton(AMC) == ASF
@@ -316,6 +335,7 @@ def test_find_skeleton_conventions(tmp_path):
     assert find_skeleton(tmp_path / "07_01.amc") == tmp_path / "07_01.asf"
 
 
+@pytest.mark.shared
 def test_amc_without_a_skeleton_says_how_to_pass_one():
     p = DATA / "cmu/13/13_29.amc"
     with pytest.raises(ParseError, match=re.escape(f"{p}: no ASF skeleton found") +

@@ -21,6 +21,7 @@ def _assert_delta(got, ref):
     assert np.abs(got[fin] - ref[fin]).max(initial=0.0) <= 1e-9
 
 
+@pytest.mark.shared
 def test_squat_delta_on_86_09_reproduces_toolbox():
     ref = csv_matrix(SQUAT / "delta_86_09.csv").ravel()
     got = mt_distance(words("86_09"), quantized_template(SQUAT))
@@ -29,6 +30,7 @@ def test_squat_delta_on_86_09_reproduces_toolbox():
     assert np.isinf(got[:21]).all() and np.isfinite(got[21:]).all()
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("doc", DOCS)
 def test_all_classes_delta_reproduces_toolbox(doc):
     header, ref = csv_table(ANNOTATION / doc / "delta_fine.csv")
@@ -81,6 +83,7 @@ def test_kernel_matches_naive_on_random_data(rule, steps):
         np.testing.assert_array_equal(s, sn)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("rule", ["toolbox", "textbook"])
 def test_kernel_matches_naive_on_real_data(rule):
     w = words("02_04")
@@ -92,6 +95,7 @@ def test_kernel_matches_naive_on_real_data(rule):
         np.testing.assert_array_equal(s, sn)
 
 
+@pytest.mark.shared
 def test_cost_table_matches_naive_cost():
     q = quantized_template(TEMPLATES / "kickLFront1Reps")
     w = words("02_01")
@@ -104,6 +108,7 @@ def test_cost_table_matches_naive_cost():
 
 # --- chunking, threads, documents -------------------------------------------
 
+@pytest.mark.shared
 def test_chunked_and_parallel_equal_serial():
     w = np.concatenate([words(d) for d in DOCS])
     qs = [quantized_template(TEMPLATES / c)
@@ -121,6 +126,7 @@ def test_chunked_and_parallel_equal_serial():
         numba.set_num_threads(old)
 
 
+@pytest.mark.shared
 def test_documents_are_independent():
     ws = [words(d) for d in DOCS]
     qs = [quantized_template(TEMPLATES / c) for c in ("sneak2StepsLStart", "hopBothLegs1hops")]
@@ -134,6 +140,7 @@ def test_documents_are_independent():
         pos += len(x)
 
 
+@pytest.mark.shared
 def test_slices_equal_separate_documents():
     w = words("86_09")
     q = quantized_template(TEMPLATES / "grabHighR")
@@ -147,6 +154,7 @@ def test_slices_equal_separate_documents():
 
 # --- the two rules ----------------------------------------------------------
 
+@pytest.mark.shared
 def test_textbook_is_never_above_toolbox_and_equal_for_equal_weights():
     w = words("86_09")
     q = quantized_template(SQUAT)
@@ -159,6 +167,7 @@ def test_textbook_is_never_above_toolbox_and_equal_for_equal_weights():
                                   mt_distance(w, q, steps=eq, rule="textbook"))
 
 
+@pytest.mark.shared
 def test_textbook_rule_equals_librosa():
     import librosa
     sigma = np.array([[1, 1], [1, 2], [2, 1]])
@@ -185,6 +194,7 @@ def features_of(w):
     return unpack_words(w)
 
 
+@pytest.mark.shared
 def test_dense_and_packed_kernels_agree():
     q = quantized_template(TEMPLATES / "jogLeftCircle4StepsRstart")
     w = words("02_06")
@@ -198,6 +208,7 @@ def test_dense_and_packed_kernels_agree():
 
 # --- validation -------------------------------------------------------------
 
+@pytest.mark.shared
 def test_bad_input_raises_parameter_errors():
     q = quantized_template(SQUAT)
     w = words("02_01")

@@ -5,14 +5,12 @@ import json
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import mocapdb
-from mocapdb.cli import main
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.storage.postings import drop_index
 
-from conftest import DATA
+from conftest import DATA, run
 
 pytestmark = pytest.mark.shared
 
@@ -38,12 +36,6 @@ def con(db):
     c = mocapdb.connect(db)
     yield c
     c.close()
-
-
-def run(db, *args, code=0):
-    r = CliRunner().invoke(main, ["--db", str(db), *map(str, args)])
-    assert r.exit_code == code, r.output
-    return r
 
 
 def _rows(table):

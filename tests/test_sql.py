@@ -13,6 +13,8 @@ from mocapdb.storage.model_store import load_model, save_model
 from conftest import DATA, ORACLE
 from template_oracle import DOCS, oracle_model, quantized_template
 
+pytestmark = pytest.mark.shared
+
 ANNOT = ORACLE / "annotation"
 
 

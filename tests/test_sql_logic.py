@@ -9,7 +9,9 @@ The format follows DuckDB's own test files (test/sql/**/*.test):
     One row per line, values separated by tabs (or runs of 2+ spaces), NULL
     as ``NULL``, doubles compared to 1e-6; ``rowsort`` sorts both sides.
 ``ingest <path>`` (mocapdb)
-    ``mocapdb.ingest`` of files or folders under ../shared/data.
+    ``mocapdb.ingest`` of files or folders under ../shared/data, or of the recordings
+    shipped with mocapdb (``sample/<file>``: a file that ingests only those runs in a
+    bare clone too; the others are marked ``shared``).
 ``reopen [read_only]`` (mocapdb)
     Close the connection and open the same file again through ``mocapdb.connect``.
 
@@ -22,9 +24,14 @@ import pytest
 
 import mocapdb
 
-from conftest import DATA
+from conftest import DATA, SAMPLE, SAMPLE_86_09
 
 TESTS = sorted((Path(__file__).parent / "sql").glob("*.test"))
+
+
+def source(arg):
+    """The file or folder an ``ingest`` argument names: ``sample/…`` is shipped with mocapdb."""
+    return SAMPLE / arg.removeprefix("sample/") if arg.startswith("sample/") else DATA / arg
 
 
 def records(path):
@@ -86,7 +93,7 @@ class Runner:
             self.con.close()
 
     def do_ingest(self, no, args, body):
-        report = mocapdb.ingest(self.con, [DATA / a for a in args])
+        report = mocapdb.ingest(self.con, [source(a) for a in args])
         assert not report.failed, f"{self.where(no)}: ingest failed: {report.failed}"
 
     def do_reopen(self, no, args, body):
@@ -127,12 +134,17 @@ def test_the_sql_test_files_exist():
     assert len(TESTS) >= 4
 
 
-@pytest.mark.parametrize("path", TESTS, ids=lambda p: p.stem)
+def _needs_shared(path):
+    return any(not a.startswith("sample/") for _, head, _ in records(path) if head[0] == "ingest" for a in head[1:])
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, id=p.stem, marks=[pytest.mark.shared] if _needs_shared(p) else [])
+                                  for p in TESTS])
 def test_sql_file(path, tmp_path):
     Runner(path, tmp_path / "test.duckdb").run()
 
 
-def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path):
+def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path, open_db):
     """Each ```sql block of the README, statement by statement, on a new database with one motion."""
     from conftest import REPO
 
@@ -140,10 +152,7 @@ def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path):
     blocks = re.findall(r"```sql\n(.*?)```", readme, flags=re.S)
     statements = [s.strip() for b in blocks for s in re.sub(r"(?m)^--.*$", "", b).split(";") if s.strip()]
     assert len(statements) >= 3
-    con = mocapdb.connect(tmp_path / "fresh.duckdb")
-    try:
-        mocapdb.ingest(con, [DATA / "cmu" / "86" / "86_09.amc"])
-        for sql in statements:
-            con.execute(sql).fetchall()
-    finally:
-        con.close()
+    con = open_db(tmp_path / "fresh.duckdb")
+    mocapdb.ingest(con, [SAMPLE_86_09])
+    for sql in statements:
+        con.execute(sql).fetchall()

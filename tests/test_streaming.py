@@ -70,8 +70,7 @@ def _longest(con):
 
 
 def test_sql_functions_read_a_batch_of_motions_at_a_time(db, monkeypatch):
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         whole = {k: con.execute(q).fetchall() for k, q in QUERIES.items()}
         total = con.execute("SELECT sum(n_frames) FROM motions").fetchall()[0][0]
         # small batches: their index pieces are other keys of the cache, so everything is read again
@@ -80,8 +79,6 @@ def test_sql_functions_read_a_batch_of_motions_at_a_time(db, monkeypatch):
         for k, q in QUERIES.items():
             assert con.execute(q).fetchall() == whole[k], k
         limit = max(BATCH, _longest(con))
-    finally:
-        con.close()
     assert total > 10 * BATCH
     assert len(spy.words) > 10 and max(spy.words) <= limit
     assert len(spy.index) > 10 and max(spy.index) <= limit
@@ -124,16 +121,13 @@ def test_the_api_annotates_and_stores_a_batch_at_a_time(db, tmp_path, monkeypatc
 
     copy = tmp_path / "copy.duckdb"
     shutil.copy(db, copy)
-    con = mocapdb.connect(copy)
-    try:
+    with mocapdb.connect(copy) as con:
         whole = api.annotate(con, store=False)
         connection_cache(con).batch_frames = BATCH
         spy = Spy(monkeypatch)
         pieces = api.annotate(con)
         stored = con.execute("SELECT count(*) FROM annotations WHERE model = 'default'").fetchall()[0][0]
         limit = max(BATCH, _longest(con))
-    finally:
-        con.close()
     assert pieces.equals(whole) and stored == whole.num_rows > 0
     assert len(spy.words) > 5 and max(spy.words) <= limit
 
@@ -141,16 +135,12 @@ def test_the_api_annotates_and_stores_a_batch_at_a_time(db, tmp_path, monkeypatc
 def test_import_reads_and_stores_a_batch_at_a_time(db, tmp_path, monkeypatch):
     from mocapdb.storage.parquet import export_features, import_features
 
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         export_features(con, tmp_path / "export")
         expected = con.execute("SELECT m.sha256, f.frame, f.bits FROM features f JOIN motions m USING (motion_id) "
                                "ORDER BY ALL").fetchall()
         n = con.execute("SELECT count(*) FROM motions").fetchall()[0][0]
-    finally:
-        con.close()
-    fresh = mocapdb.connect(tmp_path / "fresh.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "fresh.duckdb") as fresh:
         reads = []
         real = motions_module.check_frames
 
@@ -166,15 +156,10 @@ def test_import_reads_and_stores_a_batch_at_a_time(db, tmp_path, monkeypatch):
         limit = max(BATCH, _longest(fresh))
         # the postings were built batch by batch too: the same keyframe search as the source
         hits = fresh.execute("SELECT count(*) FROM keyframe_search('kickLFront1Reps')").fetchall()
-    finally:
-        fresh.close()
     assert got == expected
     assert len(reads) > 5 and max(reads) <= limit
-    con = mocapdb.connect(db, read_only=True)
-    try:
+    with mocapdb.connect(db, read_only=True) as con:
         assert hits == con.execute("SELECT count(*) FROM keyframe_search('kickLFront1Reps')").fetchall()
-    finally:
-        con.close()
 
 
 def test_duckdb_runs_within_a_memory_limit(tmp_path, monkeypatch):
@@ -183,22 +168,13 @@ def test_duckdb_runs_within_a_memory_limit(tmp_path, monkeypatch):
         return con.execute("SELECT current_setting('memory_limit')").fetchall()[0][0]
 
     monkeypatch.delenv("MOCAPDB_MEMORY_LIMIT", raising=False)
-    con = mocapdb.connect(tmp_path / "a.duckdb")
-    try:
+    with mocapdb.connect(tmp_path / "a.duckdb") as con:
         default = limit(con)
-    finally:
-        con.close()
     assert default == "488.2 MiB" and DEFAULT_MEMORY_LIMIT == "512MB"
-    con = mocapdb.connect(tmp_path / "a.duckdb", memory_limit="2GB")
-    try:
+    with mocapdb.connect(tmp_path / "a.duckdb", memory_limit="2GB") as con:
         assert limit(con) == "1.8 GiB"
-    finally:
-        con.close()
     monkeypatch.setenv("MOCAPDB_MEMORY_LIMIT", "300MB")
-    con = mocapdb.connect(tmp_path / "a.duckdb", read_only=True)
-    try:
+    with mocapdb.connect(tmp_path / "a.duckdb", read_only=True) as con:
         assert limit(con) == "286.1 MiB"
-    finally:
-        con.close()
     with pytest.raises(mocapdb.SchemaError, match="memory_limit: 'lots' is not a memory size"):
         mocapdb.connect(tmp_path / "a.duckdb", memory_limit="lots")

@@ -39,6 +39,7 @@ def _assert_quantized(q, folder):
     np.testing.assert_array_equal(q.dense(), csv_matrix(folder / "template_quantized_0.05.csv").T)
 
 
+@pytest.mark.shared
 def test_squat_template_reproduces_toolbox():
     st = stats(SQUAT / "template_stats.txt")
     clips = [features(s) for s in st["training_files(order)"]]
@@ -49,6 +50,7 @@ def test_squat_template_reproduces_toolbox():
     _assert_quantized(mt.quantize(0.05), SQUAT)
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("cls", CLASSES)
 def test_class_templates_reproduce_toolbox(cls):
     folder = TEMPLATES / cls
@@ -57,6 +59,7 @@ def test_class_templates_reproduce_toolbox(cls):
     _assert_quantized(mt.quantize(0.05), folder)
 
 
+@pytest.mark.shared
 def test_packed_words_and_bool_clips_learn_the_same_template():
     clips = [features(s) for s in training_clips("rotateArmsBothBackward1Reps")]
     a = learn_template(clips)
@@ -150,6 +153,7 @@ def test_stop_when_error_unchanged():
     assert found, "no seeded example stopped on an unchanged error"
 
 
+@pytest.mark.shared
 def test_stop_on_threshold_and_iter_max():
     clips = [features(s) for s in training_clips("rotateArmsBothBackward1Reps")]
     mt = learn_template(clips, iter_max=2)
@@ -196,6 +200,7 @@ def test_every_reference_of_an_iteration_matches_naive():
             np.testing.assert_array_equal(costs[:, r], cn)
 
 
+@pytest.mark.shared
 def test_average_step_matches_naive_on_real_clips():
     clips = [features(s).astype(float) for s in training_clips("hopBothLegs1hops")[:5]]
     ws = [np.ones(len(c)) for c in clips]

@@ -20,6 +20,8 @@ from mocapdb.storage.model_store import load_model
 from mocapdb.learning.toolbox_queries import has_toolbox_query, read_toolbox_query, toolbox_keyframe_queries
 from naive_keyframes import int_table, load_feat30_words, load_toolbox_query, read_rows
 
+pytestmark = pytest.mark.shared
+
 HAND_MADE = ["squat1Reps", "kickLFront1Reps", "hopBothLegs1hops", "rotateArmsBothBackward1Reps",
              "elbowToKnee1RepsLelbowStart"]
 
@@ -32,11 +34,8 @@ def queries_dir(oracle_dir):
 @pytest.fixture(scope="module")
 def default_model():
     """The toolbox's 11 templates (the shipped model ``toolbox``), which the toolbox's queries belong to."""
-    con = mocapdb.connect()
-    try:
+    with mocapdb.connect() as con:
         return load_model(con, "toolbox")
-    finally:
-        con.close()
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,8 @@ from template_oracle import (
 
 from conftest import DATA
 
+pytestmark = pytest.mark.shared
+
 CUT = DATA / "hdm05_cut"
 
 

@@ -8,15 +8,13 @@ from importlib import resources
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import mocapdb
 from mocapdb.annotation import read_truth
-from mocapdb.cli import main
 from mocapdb.viewer import encode_delta, encode_poses, motion_poses, motion_view
 
 from browser import Elements, console_errors, dump_dom, screenshot
-from conftest import DATA, REPO, write_truth_86_09_eaf
+from conftest import DATA, REPO, run, write_truth_86_09_eaf
 
 CMU86_MAP = resources.files("mocapdb.shipped_models").joinpath("cmu86_labels.csv")
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:2]
@@ -32,12 +30,6 @@ def db(tmp_path_factory):
     return path, write_truth_86_09_eaf(root / "86_09_truth.eaf")
 
 
-def run(db_path, *args):
-    r = CliRunner().invoke(main, ["--db", str(db_path), *map(str, args)], catch_exceptions=False)
-    assert r.exit_code == 0, r.output
-    return r
-
-
 @pytest.fixture(scope="module")
 def page(db, tmp_path_factory):
     """The 86_09 page with the ELAN ground truth, and the DOM Chromium made of it with ?selftest."""
@@ -48,15 +40,13 @@ def page(db, tmp_path_factory):
     return out, Elements(dom), log
 
 
+@pytest.mark.shared
 def test_every_segment_is_an_element_with_its_label(db, page):
     path, eaf = db
     out, dom, log = page
-    con = mocapdb.connect(path, read_only=True)
-    try:
+    with mocapdb.connect(path, read_only=True) as con:
         table = mocapdb.annotate(con, ["86_09"], store=False)
         n_frames = con.execute("SELECT n_frames FROM motions WHERE name = '86_09'").fetchone()[0]
-    finally:
-        con.close()
     want = sorted(zip(["annotation"] * table.num_rows, table.column("label").to_pylist(),
                       table.column("start_frame").to_pylist(), table.column("end_frame").to_pylist()))
     truth = read_truth(eaf, label_map=str(CMU86_MAP), fps=120.0)
@@ -75,6 +65,7 @@ def test_every_segment_is_an_element_with_its_label(db, page):
     assert all(len(c) == 1 for c in colours.values()) and len({min(c) for c in colours.values()}) == len(colours)
 
 
+@pytest.mark.shared
 def test_the_page_runs_without_javascript_errors(page):
     out, dom, log = page
     body = next(e for e in dom.elements if e[0] == "body")
@@ -83,6 +74,7 @@ def test_the_page_runs_without_javascript_errors(page):
     assert dom.by_id("errors")[2].strip() == ""
 
 
+@pytest.mark.shared
 def test_a_javascript_error_fails_the_check(page, tmp_path):
     """The harness sees a broken page (so the checks above can fail)."""
     out, _, _ = page
@@ -94,6 +86,7 @@ def test_a_javascript_error_fails_the_check(page, tmp_path):
     assert "data-ready" not in dump_dom(broken)[0].split("<body", 1)[1].split(">", 1)[0]
 
 
+@pytest.mark.shared
 def test_clicking_a_segment_seeks_there(page):
     out, dom, log = page
     test = dom.by_id("selftest")
@@ -101,6 +94,7 @@ def test_clicking_a_segment_seeks_there(page):
     assert int(test[1]["data-segments"]) == len(dom.by_class("seg"))
 
 
+@pytest.mark.shared
 def test_dragging_along_the_timeline_offers_a_similar_command(page):
     """The self test drags from 20 % to 40 % of the first track: frames selected, the command shown."""
     out, dom, log = page
@@ -113,6 +107,7 @@ def test_dragging_along_the_timeline_offers_a_similar_command(page):
     assert "hidden" not in box[1] and (box[1]["data-first"], box[1]["data-last"]) == (str(first), str(last))
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("fragment, opened, selected", [("#frame=100-160", "100", ("100", "160")),
                                                        ("#frame=250", "250", None)])
 def test_a_frame_fragment_opens_the_page_there(page, fragment, opened, selected):
@@ -133,16 +128,14 @@ def test_a_frame_fragment_opens_the_page_there(page, fragment, opened, selected)
                                                  f"--end-frame {selected[1]}"
 
 
+@pytest.mark.shared
 def test_the_decoded_poses_are_the_source_joints(db, page):
     """The page's own decoder (JavaScript) gives back the re-read joints within the quantization step."""
     path, _ = db
     out, dom, log = page
-    con = mocapdb.connect(path, read_only=True)
-    try:
+    with mocapdb.connect(path, read_only=True) as con:
         mid = con.execute("SELECT motion_id FROM motions WHERE name = '86_09'").fetchone()[0]
         joints = motion_poses(con, mid)
-    finally:
-        con.close()
     unit = encode_poses(joints)["unit"]
     probes = json.loads(dom.by_id("selftest")[1]["data-poses"])
     assert len(probes) == 12
@@ -151,6 +144,7 @@ def test_the_decoded_poses_are_the_source_joints(db, page):
         np.testing.assert_allclose(xyz, joints[t, j], atol=1.01 * unit + 1e-4 * np.abs(joints[t, j]).max())
 
 
+@pytest.mark.shared
 def test_the_screenshot_is_not_blank(page, tmp_path):
     out, _, _ = page
     png = tmp_path / "viewer.png"
@@ -169,6 +163,7 @@ def test_the_screenshot_is_not_blank(page, tmp_path):
         shutil.copyfile(png, REPO / "docs" / "viewer.png")
 
 
+@pytest.mark.shared
 def test_the_page_is_self_contained(page):
     out, _, _ = page
     text = out.read_text(encoding="utf-8")
@@ -176,6 +171,7 @@ def test_the_page_is_self_contained(page):
     assert not re.search(r"https?://(?!www\.w3\.org)", text.split('id="mocapdb-data"')[0])
 
 
+@pytest.mark.shared
 def test_all_writes_a_page_per_motion_and_an_index(db, tmp_path):
     path, _ = db
     r = run(path, "view", "--all", tmp_path / "pages", "--silent")
@@ -189,20 +185,19 @@ def test_all_writes_a_page_per_motion_and_an_index(db, tmp_path):
     assert console_errors(log) == [] and Elements(dom).by_id("selftest")[1]["data-status"] == "pass"
 
 
+@pytest.mark.shared
 def test_view_needs_a_motion_and_out_or_all(db):
     path, _ = db
-    r = CliRunner().invoke(main, ["--db", str(path), "view", "86_09"])
-    assert r.exit_code == 1 and r.output.startswith("Error: give a motion and out")
-    r = CliRunner().invoke(main, ["--db", str(path), "view", "no_such", "--out", "x.html"])
-    assert r.exit_code == 1 and "no motion 'no_such'" in r.output
+    assert run(path, "view", "86_09", code=1).output.startswith("Error: give a motion and out")
+    assert "no motion 'no_such'" in run(path, "view", "no_such", "--out", "x.html", code=1).output
 
 
+@pytest.mark.shared
 def test_the_distance_functions_are_those_of_sql_mt_distance(db):
     """Δ̄^τ of the page (reference mode) is made of the SQL function's Δ: every finite value is a
     value of Δ below τ, and where Δ has its smallest value below τ, Δ̄^τ has it too."""
     path, _ = db
-    con = mocapdb.connect(path, read_only=True)
-    try:
+    with mocapdb.connect(path, read_only=True) as con:
         v = motion_view(con, "86_09", keyframes=False)
         checked = 0
         for k, (cls, tau) in enumerate(zip(v.class_names, v.taus)):
@@ -220,8 +215,6 @@ def test_the_distance_functions_are_those_of_sql_mt_distance(db):
         for k, lab in enumerate(v.labels):  # per label: the minimum over the label's classes
             rows = v.class_delta[label_of == lab]
             np.testing.assert_array_equal(v.label_delta[k], rows.min(axis=0) if len(rows) else np.inf)
-    finally:
-        con.close()
     assert checked >= 2  # at least move and throwR have hits on 86_09
 
 
@@ -241,22 +234,20 @@ def test_poses_fall_back_to_int32_for_big_jumps():
     assert encode_poses(j[:2])["dtype"] == "int16" and encode_poses(j)["dtype"] == "int32"
 
 
-def test_all_lists_a_motion_whose_source_moved_without_a_page(tmp_path):
+@pytest.mark.shared
+def test_all_lists_a_motion_whose_source_moved_without_a_page(tmp_path, open_db):
     """A source file moved after ingest costs its own page only; the index says why."""
     src = tmp_path / "takes"
     src.mkdir()
     for name in ("02.asf", "02_01.amc", "02_02.amc"):
         shutil.copy(DATA / "cmu/02" / name, src / name)
-    con = mocapdb.connect(tmp_path / "moved.duckdb")
-    try:
-        assert len(mocapdb.ingest(con, [src]).ingested) == 2
-        (src / "02_02.amc").unlink()
-        written = mocapdb.view(con, all=tmp_path / "pages")
-        assert [p.name for p in written] == ["index.html", "02_01.html"]
-        index = written[0].read_text(encoding="utf-8")
-        assert 'class="unreadable"' in index and "02_02" in index and "no page:" in index
-    finally:
-        con.close()
+    con = open_db(tmp_path / "moved.duckdb")
+    assert len(mocapdb.ingest(con, [src]).ingested) == 2
+    (src / "02_02.amc").unlink()
+    written = mocapdb.view(con, all=tmp_path / "pages")
+    assert [p.name for p in written] == ["index.html", "02_01.html"]
+    index = written[0].read_text(encoding="utf-8")
+    assert 'class="unreadable"' in index and "02_02" in index and "no page:" in index
 
 
 #: motion names an imported archive or a hand-edited database may hold (issue 22 items 3, 6, 9)
@@ -270,13 +261,10 @@ def hostile_db(tmp_path_factory):
     root = tmp_path_factory.mktemp("hostile")
     clips = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:len(HOSTILE)]
     names = [n.format(tmp=root) for n in HOSTILE]
-    con = mocapdb.connect(root / "h.duckdb")
-    try:
+    with mocapdb.connect(root / "h.duckdb") as con:
         mocapdb.ingest(con, clips)
         for mid, name in enumerate(names, 1):
             con.execute("UPDATE motions SET name = ? WHERE motion_id = ?", [name, mid])
-    finally:
-        con.close()
     return root, names
 
 
@@ -284,6 +272,7 @@ def _files(root):
     return {p for p in root.rglob("*") if p.is_file()}
 
 
+@pytest.mark.shared
 def test_no_page_lands_outside_the_folder_whatever_the_names(hostile_db, tmp_path):
     """view --all with hostile names: every file inside the folder, one page per motion, and the
     index's links, resolved by the browser, open each motion's own page."""
@@ -326,14 +315,15 @@ def test_no_page_lands_outside_the_folder_whatever_the_names(hostile_db, tmp_pat
     assert _files(root.parent) - before == new
 
 
+@pytest.mark.shared
 def test_all_never_overwrites_a_file_it_did_not_write(hostile_db, tmp_path):
     root, names = hostile_db
     folder = tmp_path / "mine"
     folder.mkdir()
     (folder / "index.html").write_text("my own index", encoding="utf-8")
     (folder / "notes.txt").write_text("x", encoding="utf-8")
-    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "view", "--all", str(folder), "--silent"])
-    assert r.exit_code == 1 and "index.html" in r.output and "did not write" in r.output
+    r = run(root / "h.duckdb", "view", "--all", folder, "--silent", code=1)
+    assert "index.html" in r.output and "did not write" in r.output
     assert sorted(p.name for p in folder.iterdir()) == ["index.html", "notes.txt"]
     assert (folder / "index.html").read_text(encoding="utf-8") == "my own index"
     # a symbolic link of a page's name is not written through
@@ -342,13 +332,14 @@ def test_all_never_overwrites_a_file_it_did_not_write(hostile_db, tmp_path):
     outside = tmp_path / "outside.html"
     outside.write_text("outside", encoding="utf-8")
     (other / "index.html").symlink_to(outside)
-    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "view", "--all", str(other), "--silent"])
-    assert r.exit_code == 1 and outside.read_text(encoding="utf-8") == "outside"
+    run(root / "h.duckdb", "view", "--all", other, "--silent", code=1)
+    assert outside.read_text(encoding="utf-8") == "outside"
 
 
-def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path):
+@pytest.mark.shared
+def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path, open_db):
     root, names = hostile_db
-    written = mocapdb.view(mocapdb.connect(root / "h.duckdb", read_only=True), all=tmp_path / "p")
+    written = mocapdb.view(open_db(root / "h.duckdb", read_only=True), all=tmp_path / "p")
     by_motion = {json.loads(p.read_text(encoding="utf-8").split('id="mocapdb-data">', 1)[1]
                             .split("</script>", 1)[0])["name"]: p.name for p in written[1:]}
     assert written[0].name == "index.html"
@@ -357,13 +348,12 @@ def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path):
     assert by_motion["CON"] == "_CON.html"
 
 
+@pytest.mark.shared
 def test_annotate_eaf_files_stay_in_their_folder(hostile_db, tmp_path):
     root, names = hostile_db
     before = _files(root.parent)
     out = tmp_path / "eaf"
-    r = CliRunner().invoke(main, ["--db", str(root / "h.duckdb"), "annotate", "--format", "eaf", "--out", str(out),
-                                  "--silent"])
-    assert r.exit_code == 0, r.output
+    run(root / "h.duckdb", "annotate", "--format", "eaf", "--out", out, "--silent")
     files = sorted(out.iterdir())
     assert _files(root.parent) - before == set(files)
     assert len(files) == len(names) and all(p.parent == out and p.suffix == ".eaf" for p in files)
