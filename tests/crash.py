@@ -188,10 +188,9 @@ class CrashHarness:
             raise AssertionError(f"the command failed without being killed (exit {proc.returncode}): {err[-2000:]}")
         return True
 
-    def trial(self, command, rng, k) -> Trial:
-        """Run ``command`` on a copy of the base database, kill it at a random moment, check the database."""
-        delay = rng.uniform(0.0, WINDOWS[command])
-        d = self.root / f"{command}-{k}"
+    def _start(self, command, d):
+        """Start ``command`` on a fresh copy of the base database in folder ``d``: (process, database,
+        the path whose appearance marks the start of its writing)."""
         shutil.rmtree(d, ignore_errors=True)
         d.mkdir()
         db = d / "db.duckdb"
@@ -207,7 +206,29 @@ class CrashHarness:
                              "--batch-files", "8", cwd=d)
         else:
             raise ValueError(f"unknown command {command!r}; one of {', '.join(WINDOWS)}")
-        marker = d / "archive" if command == "ray-annotate" else d / "db.duckdb.wal"
+        return proc, db, d / "archive" if command == "ray-annotate" else d / "db.duckdb.wal"
+
+    def work_seconds(self, command) -> float:
+        """How long ``command`` writes on this machine: from the start of its writing to its exit,
+        in one run that is not killed (kills drawn within it land in its work however fast the
+        machine is; :data:`WINDOWS` are fixed bounds for the test suite)."""
+        d = self.root / f"{command}-calibrate"
+        proc, _, marker = self._start(command, d)
+        deadline = time.monotonic() + 300
+        while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.005)
+        began = time.monotonic()
+        proc.wait(timeout=600)
+        seconds = time.monotonic() - began
+        shutil.rmtree(d, ignore_errors=True)
+        return seconds
+
+    def trial(self, command, rng, k, *, window=None) -> Trial:
+        """Run ``command`` on a copy of the base database, kill it at a random moment of its first
+        ``window`` seconds of writing (default :data:`WINDOWS`), check the database."""
+        delay = rng.uniform(0.0, WINDOWS[command] if window is None else window)
+        d = self.root / f"{command}-{k}"
+        proc, db, marker = self._start(command, d)
         completed = self._run_and_kill(proc, marker, delay, d)
         if command == "ray-annotate":
             # what a user does next with the archive the killed run left: import it
@@ -220,13 +241,15 @@ class CrashHarness:
         shutil.rmtree(d, ignore_errors=True)
         return Trial(command, round(delay, 2), completed, broken)
 
-    def run(self, trials, *, seed=0, commands=tuple(WINDOWS)):
-        """``trials`` kills per command, seeded; returns the list of :class:`Trial`."""
+    def run(self, trials, *, seed=0, commands=tuple(WINDOWS), calibrate=False):
+        """``trials`` kills per command, seeded; returns the list of :class:`Trial`. ``calibrate``:
+        draw each command's kills within its :meth:`work_seconds` instead of :data:`WINDOWS`."""
         rng = random.Random(seed)
         out = []
         for command in commands:
+            window = self.work_seconds(command) if calibrate else None
             for k in range(trials):
-                out.append(self.trial(command, rng, k))
+                out.append(self.trial(command, rng, k, window=window))
         return out
 
 
