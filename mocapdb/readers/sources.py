@@ -13,6 +13,10 @@ are read in place, never unpacked to disk:
   motion's ``source_path``: :func:`read_bytes` re-reads it for the viewer, and
   an AMC inside finds its ASF among its siblings in the same archive
   (:func:`is_file`, :func:`list_dir`). A member may itself be compressed.
+  A member whose name would leave its archive — absolute (``/home/u/x.bvh``),
+  with a drive letter (``C:/x.bvh``) or with ``..`` — is never read
+  (:func:`member_problem`): joined to the archive's path it would name a
+  file of the host, not of the archive.
 
 :func:`sha256` hashes the recording's own bytes (decompressed; a member's
 bytes) while streaming, so a take stored plain, gzipped or zipped is one
@@ -28,6 +32,7 @@ import hashlib
 import io
 import lzma
 import os
+import re
 import stat
 import tempfile
 import threading
@@ -36,7 +41,8 @@ import zlib
 from pathlib import Path, PurePosixPath
 
 __all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
-           "sha256", "stream_size", "is_file", "list_dir", "identity", "bytes_file", "special_kind", "zip_members"]
+           "sha256", "stream_size", "is_file", "list_dir", "identity", "bytes_file", "special_kind", "zip_members",
+           "member_problem"]
 
 #: compression suffix → the module that opens it as a stream
 COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
@@ -113,12 +119,56 @@ def _zip(archive: Path) -> zipfile.ZipFile:
     return zf
 
 
-def zip_members(archive) -> list:
-    """Names of the regular members of a zip archive (folders left out)."""
+_DRIVE = re.compile(r"^[A-Za-z]:")
+
+
+def member_problem(name: str) -> str | None:
+    """Why a zip member's name cannot be read as a path inside its archive, or None.
+
+    An absolute name, a drive letter or a ``..`` part (``/`` or ``\\`` separated)
+    would name a file outside the archive once joined to the archive's path;
+    empty and ``.`` parts would name another member than this one.
+    """
+    if name.startswith(("/", "\\")):
+        return "its name is absolute (it would name a file outside the archive)"
+    if _DRIVE.match(name):
+        return "its name starts with a drive letter (it would name a file outside the archive)"
+    parts = re.split(r"[/\\]", name.rstrip("/"))
+    if ".." in parts:
+        return "its name holds '..' (it would name a file outside the archive)"
+    if "" in parts or "." in parts:
+        return "its name holds an empty or '.' part (it would name another member)"
+    return None
+
+
+def zip_members(archive, *, refused=None) -> list:
+    """Names of the regular members of a zip archive (folders left out) that name a file inside it.
+
+    ``refused`` receives ``(name, reason)`` for members whose names would
+    leave the archive (:func:`member_problem`); they are not returned.
+    """
     try:
-        return [i.filename for i in _zip(Path(archive)).infolist() if not i.is_dir()]
+        infos = _zip(Path(archive)).infolist()
     except zipfile.BadZipFile as exc:
         raise OSError(f"not a readable zip archive ({exc})") from None
+    out = []
+    for info in infos:
+        if info.is_dir():
+            continue
+        problem = member_problem(info.filename)
+        if problem is None:
+            out.append(info.filename)
+        elif refused is not None:
+            refused.append((info.filename, problem))
+    return out
+
+
+def _member_info(archive: Path, member: str) -> zipfile.ZipInfo:
+    """The member's entry; KeyError when absent, OSError when its name would leave the archive."""
+    problem = member_problem(member)
+    if problem is not None:
+        raise OSError(f"member {member!r} of {archive} refused: {problem}")
+    return _zip(archive).getinfo(member)
 
 
 def _raw_stream(path):
@@ -128,7 +178,7 @@ def _raw_stream(path):
     if member == "":
         raise IsADirectoryError(f"{archive} is a zip archive, not a motion file")
     try:
-        return _zip(archive).open(member)
+        return _zip(archive).open(_member_info(archive, member))
     except KeyError:
         raise FileNotFoundError(f"no member {member!r} in {archive}") from None
     except zipfile.BadZipFile as exc:
@@ -176,7 +226,7 @@ def stream_size(path) -> int | None:
         return None
     if member is None:
         return os.stat(path).st_size
-    return _zip(archive).getinfo(member).file_size
+    return _member_info(archive, member).file_size
 
 
 def read_bytes(path) -> bytes:
@@ -208,7 +258,7 @@ def is_file(path) -> bool:
     if not member:
         return False
     try:
-        info = _zip(archive).getinfo(member)
+        info = _member_info(archive, member)
     except (KeyError, OSError, zipfile.BadZipFile):
         return False
     return not info.is_dir()
@@ -242,7 +292,7 @@ def identity(path) -> tuple:
     st = os.stat(archive)
     if member is None:
         return (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
-    info = _zip(archive).getinfo(member)
+    info = _member_info(archive, member)
     return (str(archive.resolve()), member, st.st_size, st.st_mtime_ns, info.CRC)
 
 

@@ -110,14 +110,21 @@ def _walk(folder: Path, files: list, unsupported, unreadable):
             files.append(q)
 
 
-def _archive_files(archive: Path, unreadable) -> list:
-    """The members of a zip archive as paths through it (hidden ones left out)."""
+def _archive_files(archive: Path, unreadable, refused=None) -> list:
+    """The members of a zip archive as paths through it (hidden ones left out); ``refused`` receives
+    the members whose names would leave the archive (never joined to its path: an absolute name
+    would replace it)."""
+    bad = []
     try:
-        names = zip_members(archive)
+        names = zip_members(archive, refused=bad)
     except OSError as exc:
         if unreadable is not None:
             unreadable.append((str(archive), f"unreadable archive ({exc})"))
         return []
+    if refused is not None:
+        for name, problem in bad:
+            where = f"{archive}/{name}"   # text only, for the report
+            refused.append((where, f"{where}: refused: {problem}; a member must name a file inside its archive"))
     return [archive / name for name in sorted(names)
             if not any(_hidden(part) for part in name.split("/"))]
 
@@ -132,7 +139,7 @@ def _classify(q: Path, out: list, unsupported):
                             + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
 
 
-def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
+def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> list[Path]:
     """Expand files, folders (recursively) and zip archives into motion files, in sorted order.
 
     Parameters
@@ -148,6 +155,10 @@ def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
         what is wrong.
     unreadable : list, optional, keyword-only
         Receives ``(path, reason)`` for folders and archives that cannot be read.
+    refused : list, optional, keyword-only
+        Receives ``(path, reason)`` for zip members whose names would leave
+        their archive (absolute, a drive letter, ``..``;
+        :func:`mocapdb.readers.sources.member_problem`): never read.
 
     Raises
     ------
@@ -159,21 +170,21 @@ def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
         archive, member = split_archive(p)
         if member is not None and member != "" and not is_file(p):
             # a folder inside an archive
-            members = [q for q in _archive_files(archive, unreadable)
+            members = [q for q in _archive_files(archive, unreadable, refused)
                        if str(q).startswith(str(p).rstrip("/") + "/")]
             if not members:
                 raise ParameterError(f"paths: {str(p)!r} does not exist (no such member in {archive})")
             for q in members:
                 _classify(q, out, unsupported)
         elif member == "":
-            for q in _archive_files(archive, unreadable):
+            for q in _archive_files(archive, unreadable, refused):
                 _classify(q, out, unsupported)
         elif p.is_dir():
             found = []
             _walk(p, found, unsupported, unreadable)
             for q in found:
                 if q.suffix.lower() in ARCHIVES:
-                    for m in _archive_files(q, unreadable):
+                    for m in _archive_files(q, unreadable, refused):
                         _classify(m, out, unsupported)
                 else:
                     _classify(q, out, unsupported)
@@ -453,7 +464,8 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     confined to its file.
     """
     report = IngestReport()
-    files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable)
+    files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable,
+                         refused=report.failed)
     tick = _ticker(progress, len(files))
     maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules)
     stored = _stored_keys(con)
