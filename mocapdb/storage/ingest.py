@@ -21,8 +21,8 @@ from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
 from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion,
                              skeleton_note)
-from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, sha256,
-                                     special_kind, split_archive, zip_members)
+from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, decompression_cap, is_file, motion_stem,
+                                     motion_suffix, parse_size, sha256, special_kind, split_archive, zip_members)
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
@@ -420,7 +420,7 @@ BATCH_FRAMES = 1_000_000
 
 
 def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, progress=None,
-                 workers: int = 2, replace: bool = False) -> IngestReport:
+                 workers: int = 2, replace: bool = False, max_decompressed=None) -> IngestReport:
     """Read recordings, compute their features and store them.
 
     Parameters
@@ -464,6 +464,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     confined to its file.
     """
     report = IngestReport()
+    cap = None if max_decompressed is None else parse_size(max_decompressed)
     files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable,
                          refused=report.failed)
     tick = _ticker(progress, len(files))
@@ -475,7 +476,8 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     duplicates = []   # (path, key): decided once the first file is read
     for path in files:
         try:
-            prep = prepare_file(path, asf=asf, maps=maps)
+            with decompression_cap(cap):   # a bomb stops here, while it is hashed
+                prep = prepare_file(path, asf=asf, maps=maps)
         except MocapdbError as exc:
             report.failed.append((str(path), str(exc)))
             tick(path)
@@ -530,8 +532,12 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             p.motion = p.words = None  # free memory early on big archives
         batch.clear()
 
+    def compute(prep):
+        with decompression_cap(cap):   # the cap is per thread
+            return compute_motion(prep)
+
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        for prep in pool.map(compute_motion, todo):
+        for prep in pool.map(compute, todo):
             if prep.error is not None:
                 report.failed.append((str(prep.path), prep.error))
                 tick(prep.path)
