@@ -24,7 +24,7 @@ from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 
 __all__ = ["FEATURE_RATE", "TOOLBOX_RATE", "RATE_METHODS", "feature_frame_count", "feature_grid",
-           "grid_source_frames", "resample_joints", "check_fps"]
+           "grid_source_frames", "resample_joints", "resampled_count", "check_fps"]
 
 #: rate of the feature words (Hz)
 FEATURE_RATE = 30.0
@@ -80,19 +80,21 @@ def grid_source_frames(n_frames: int, fps: float) -> np.ndarray:
 
 
 @jit
-def _hermite_kernel(src, fps_in, fps_out, out):  # pragma: no cover - compiled
+def _hermite_kernel(src, fps_in, fps_out, out, first):  # pragma: no cover - compiled
     """Cubic Hermite (Catmull–Rom tangents) resampling of each column of
-    ``src`` (n, m) at times j/fps_out into ``out`` (n_out, m). Tangents are
-    central differences (one-sided at the ends), so a linear trajectory stays
-    exact and velocities stay continuous."""
+    ``src`` (n, m) at times j/fps_out, j = first … first + n_out − 1, into
+    ``out`` (n_out, m) (a block of a long take's output: the same values as
+    the whole's rows). Tangents are central differences (one-sided at the
+    ends), so a linear trajectory stays exact and velocities stay continuous."""
     n = src.shape[0]
     m = src.shape[1]
-    for j in range(out.shape[0]):
+    for jj in range(out.shape[0]):
+        j = first + jj
         x = j * fps_in / fps_out
         i = int(math.floor(x + 1e-9))
         if i >= n - 1:
             for c in range(m):
-                out[j, c] = src[n - 1, c]
+                out[jj, c] = src[n - 1, c]
             continue
         u = x - i
         if u < 0.0:
@@ -114,10 +116,15 @@ def _hermite_kernel(src, fps_in, fps_out, out):  # pragma: no cover - compiled
                 m1 = 0.5 * (src[i + 2, c] - p0)
             else:
                 m1 = p1 - p0
-            out[j, c] = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
+            out[jj, c] = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
 
 
-def resample_joints(joints, root_rotation, fps, *, target: float = TOOLBOX_RATE):
+def resampled_count(n_frames: int, fps: float, target: float = TOOLBOX_RATE) -> int:
+    """Frames of a take of ``n_frames`` at ``fps`` resampled to ``target`` Hz (:func:`resample_joints`)."""
+    return int(math.floor((n_frames - 1) * target / fps + _EPS)) + 1 if n_frames > 0 else 0
+
+
+def resample_joints(joints, root_rotation, fps, *, target: float = TOOLBOX_RATE, frames=None):
     """Resample joint trajectories (and the root rotation) to ``target`` Hz.
 
     Parameters
@@ -128,6 +135,9 @@ def resample_joints(joints, root_rotation, fps, *, target: float = TOOLBOX_RATE)
         Source rate (Hz).
     target : float, keyword-only
         Output rate (default 120 Hz, the toolbox's).
+    frames : (int, int), optional, keyword-only
+        Only the output frames ``a … b − 1`` (a block of a long take), the same
+        values as those rows of the whole output.
 
     Returns
     -------
@@ -143,14 +153,15 @@ def resample_joints(joints, root_rotation, fps, *, target: float = TOOLBOX_RATE)
     n = j.shape[0]
     if n == 0:
         return j.copy(), None if root_rotation is None else np.asarray(root_rotation, np.float64).copy()
-    n_out = int(math.floor((n - 1) * target / fps + _EPS)) + 1
+    first, stop = (0, resampled_count(n, fps, target)) if frames is None else map(int, frames)
+    n_out = stop - first
     out = np.empty((n_out, j.shape[1] * j.shape[2]))
-    _hermite_kernel(j.reshape(n, -1), fps, target, out)
+    _hermite_kernel(j.reshape(n, -1), fps, target, out, first)
     rot = None
     if root_rotation is not None:
         r = np.ascontiguousarray(root_rotation, dtype=np.float64).reshape(n, 9)
         r_out = np.empty((n_out, 9))
-        _hermite_kernel(r, fps, target, r_out)
+        _hermite_kernel(r, fps, target, r_out, first)
         u, _, vt = np.linalg.svd(r_out.reshape(n_out, 3, 3))
         rot = u @ vt
     return out.reshape(n_out, *j.shape[1:]), rot

@@ -23,7 +23,7 @@ import numpy as np
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, feature_frame_count,
-                                    grid_source_frames, resample_joints)
+                                    grid_source_frames, resample_joints, resampled_count)
 from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
 from mocapdb.readers import JOINT_INDEX
 
@@ -472,17 +472,20 @@ def _yaw_rate_kernel(axis_x, axis_z, fps, out):  # pragma: no cover - compiled
 
 
 @jit
-def _hysteresis_kernel(f1, f2, out):  # pragma: no cover - compiled
-    """§5 state machine per column: on when f2 holds, off when f1 fails."""
+def _hysteresis_kernel(f1, f2, out, states):  # pragma: no cover - compiled
+    """§5 state machine per column: on when f2 holds, off when f1 fails. ``states`` (k,) bool is
+    each column's state before the first row (False at a take's start), and after the last row on
+    return: a long take's blocks run one after another."""
     n, k = f1.shape
     for j in range(k):
-        state = False
+        state = states[j]
         for t in range(n):
             if state:
                 state = f1[t, j]
             else:
                 state = f2[t, j]
             out[t, j] = state
+        states[j] = state
 
 
 # ---------------------------------------------------------------------------
@@ -526,7 +529,7 @@ def hysteresis(lenient, strict):
         raise ParameterError(
             f"lenient and strict must have the same shape, got {f1.shape} and {f2.shape}")
     out = np.empty(f1.shape, dtype=np.bool_)
-    _hysteresis_kernel(f1, f2, out)
+    _hysteresis_kernel(f1, f2, out, np.zeros(f1.shape[1], dtype=np.bool_))
     return out[:, 0] if one_d else out
 
 
@@ -615,33 +618,57 @@ def relational_features(joints, root_rotation, fps, *,
     out = np.zeros((n, N_FEATURES), dtype=np.bool_)
     if n < 2:
         return out
+    f1, f2 = feature_tests(j, None if root_rotation is None else r, fps, body_units(j),
+                           root_ang_vel_thresholds=ang_thr)
+    _hysteresis_kernel(f1, f2, out, np.zeros(N_FEATURES, dtype=np.bool_))
+    return out
 
+
+def body_units(joints) -> np.ndarray:
+    """The body-scale units of FEATURES.md §3 from frame 0 of ``joints`` ((n, 24, 3) float64, n ≥ 1):
+    (hum_R, hum_L, chest length, shoulder width, hip width, body length), (6,) float64."""
     units = np.empty(6)
-    _body_units_kernel(j, units)
+    _body_units_kernel(joints, units)
+    return units
+
+
+def feature_tests(joints, root_rotation, fps, units, *, root_ang_vel_thresholds=(50.0, 100.0)):
+    """The lenient and strict test of every feature per frame, before the hysteresis (FEATURES.md §4, §6).
+
+    ``joints`` (n ≥ 2, 24, 3) float64 contiguous and ``root_rotation`` ((n, 3, 3) or None) as in
+    :func:`relational_features`, checked; ``units`` from :func:`body_units` of the take's frame 0.
+    Row t depends on frames t − 30 … t + 31 at most (the velocity windows, the yaw rate's next
+    frame) and on the take's ends, so a block of a long take computed with that much context on each
+    side gives the whole take's rows.
+
+    Returns
+    -------
+    f1, f2 : ndarray, shape (n, 40), bool
+        The lenient and the strict test.
+    """
+    n = joints.shape[0]
     windows = np.array([smoothing_window(ms, fps) for ms in _VEL_MS], dtype=np.int64)
     vel = np.empty((len(_VELOCITY_TRAJECTORIES), n, 3))
-    _smoothed_velocity_kernel(j, _VEL_Q, _VEL_P, windows, vel)
+    _smoothed_velocity_kernel(joints, _VEL_Q, _VEL_P, windows, vel)
 
     thr = _THRESHOLDS.copy()
-    thr[39] = ang_thr
+    thr[39] = root_ang_vel_thresholds
     f1 = np.empty((n, N_FEATURES), dtype=np.bool_)
     f2 = np.empty((n, N_FEATURES), dtype=np.bool_)
-    _upper_kernel(j, vel, units, thr, fps, f1, f2)
-    _lower_kernel(j, vel, units, thr, fps, f1, f2)
-    _mix_kernel(j, vel, units, thr, fps, f1, f2)
+    _upper_kernel(joints, vel, units, thr, fps, f1, f2)
+    _lower_kernel(joints, vel, units, thr, fps, f1, f2)
+    _mix_kernel(joints, vel, units, thr, fps, f1, f2)
 
     if root_rotation is not None:
-        axis = np.asarray(r[:, :, 0], dtype=np.float64)  # R·(1, 0, 0)
+        axis = np.asarray(root_rotation[:, :, 0], dtype=np.float64)  # R·(1, 0, 0)
     else:
-        axis = j[:, _LHIP] - j[:, _RHIP]
+        axis = joints[:, _LHIP] - joints[:, _RHIP]
     rate = np.empty(n)
     _yaw_rate_kernel(np.ascontiguousarray(axis[:, 0]), np.ascontiguousarray(axis[:, 2]),
                      fps, rate)
     f1[:, 39] = rate >= thr[39, 0]
     f2[:, 39] = rate >= thr[39, 1]
-
-    _hysteresis_kernel(f1, f2, out)
-    return out
+    return f1, f2
 
 
 def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_method: str = "resample"):
@@ -672,14 +699,18 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
         raise ParameterError(f"rate_method={rate_method!r}: expected one of {RATE_METHODS}")
     fps = float(motion.fps)
     joints, rot = motion.joints, motion.root_rotation
-    if fps != TOOLBOX_RATE and rate_method == "resample":
-        joints, rot = resample_joints(joints, rot, fps)
-        fps = TOOLBOX_RATE
-    feats = relational_features(joints, rot, fps, root_ang_vel_thresholds=root_ang_vel_thresholds)
-    if fps == TOOLBOX_RATE:
-        words = pack_words(downsample(feats))
+    toolbox_path = fps == TOOLBOX_RATE or rate_method == "resample"
+    if toolbox_path and resampled_count(motion.n_frames, fps) > BLOCK_FRAMES:
+        words = _words_by_block(motion, root_ang_vel_thresholds)   # a long take: bounded memory
     else:
-        words = pack_words(feats[grid_source_frames(len(feats), fps)])
+        if fps != TOOLBOX_RATE and rate_method == "resample":
+            joints, rot = resample_joints(joints, rot, fps)
+            fps = TOOLBOX_RATE
+        feats = relational_features(joints, rot, fps, root_ang_vel_thresholds=root_ang_vel_thresholds)
+        if fps == TOOLBOX_RATE:
+            words = pack_words(downsample(feats))
+        else:
+            words = pack_words(feats[grid_source_frames(len(feats), fps)])
     # a resampled take can end a hair before the source's last grid time
     want = feature_frame_count(motion.n_frames, motion.fps)
     if len(words) < want:
@@ -687,7 +718,47 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
     return words[:want]
 
 
+#: a take longer than this (120 Hz frames, resampled) has its features computed a block of this many
+#: frames at a time (a multiple of 4: blocks start on the 30 Hz grid): 9 minutes of features, not 9
+#: hours, in memory
+BLOCK_FRAMES = 1 << 16
+#: frames of context on each side of a block (:func:`feature_tests`: 30 frames and the next one)
+_CONTEXT = 64
+
+
+def _words_by_block(motion, root_ang_vel_thresholds) -> np.ndarray:
+    """:func:`motion_features` (the 120 Hz path) of a long take, a block of frames at a time: the same
+    words as the whole take's, bit for bit — each block's tests see the frames their windows read
+    (:func:`feature_tests`), the units come from frame 0 and the hysteresis runs on from block to block."""
+    fps = float(motion.fps)
+    j = np.ascontiguousarray(motion.joints, dtype=np.float64)
+    rot = motion.root_rotation
+    if j.ndim != 3 or j.shape[1:] != (24, 3):
+        raise ParameterError(f"joints must have shape (n_frames, 24, 3) in JOINT_NAMES order, got {j.shape}")
+    ang_thr = _check_threshold_pair(root_ang_vel_thresholds)
+    n = resampled_count(len(j), fps)
+
+    def frames(a, b):   # the 120 Hz joints and rotation of frames a … b − 1
+        if fps == TOOLBOX_RATE:
+            return j[a:b], None if rot is None else rot[a:b]
+        return resample_joints(j, rot, fps, frames=(a, b))
+
+    units = body_units(frames(0, 1)[0])
+    states = np.zeros(N_FEATURES, dtype=np.bool_)
+    words = np.empty((n + 3) // 4, dtype=np.uint64)
+    step = max(4, BLOCK_FRAMES // 4 * 4)
+    for a in range(0, n, step):
+        b = min(n, a + step)
+        lo, hi = max(0, a - _CONTEXT), min(n, b + _CONTEXT)
+        jw, rw = frames(lo, hi)
+        f1, f2 = feature_tests(np.ascontiguousarray(jw), rw, TOOLBOX_RATE, units, root_ang_vel_thresholds=ang_thr)
+        feats = np.empty((b - a, N_FEATURES), dtype=np.bool_)
+        _hysteresis_kernel(f1[a - lo:b - lo], f2[a - lo:b - lo], feats, states)
+        words[a // 4:(b + 3) // 4] = pack_words(feats[::4])
+    return words
+
+
 __all__ = [
     "FEATURE_THRESHOLDS", "SMOOTHING_MS", "ROOT_ANG_VEL_THRESHOLDS_ALT", "relational_features",
-    "hysteresis", "smoothing_window", "motion_features",
+    "hysteresis", "smoothing_window", "motion_features", "body_units", "feature_tests", "BLOCK_FRAMES",
 ]

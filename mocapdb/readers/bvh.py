@@ -61,7 +61,7 @@ from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, 
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
-from mocapdb.readers.sources import motion_stem, open_stream, read_bytes, stream_size
+from mocapdb.readers.sources import max_decompressed, motion_stem, open_stream, read_bytes, stream_size
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
@@ -226,6 +226,68 @@ def _read_head(fh, path):
                 return head, False
 
 
+class _MotionLines:
+    """A BVH stream after its header: the hierarchy, ``n_frames``, ``frame_time``; iterating gives the
+    channel values a block of lines at a time ((rows, n_channels) float64 each), never the whole text.
+
+    The header is read whole; each block of motion lines (4 MiB of text) is parsed by the numba
+    scanner. A line beyond the announced ``Frames:`` count, or fewer lines, is a ParseError.
+    """
+
+    def __init__(self, fh, path, size):
+        self.fh = fh
+        self.path = path = str(path)
+        head, self.eof = _read_head(fh, path)
+        if head.startswith(b"\xef\xbb\xbf"):
+            head = head[3:]
+            size = None if size is None else size - 3
+        if b"\n" not in head and b"\r" in head:
+            head = (head + (b"" if self.eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
+            self.eof = True
+        m = _MOTION.search(head)
+        if m is None:
+            if not head.lstrip().upper().startswith(b"HIERARCHY"):
+                raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
+            raise ParseError(path, line_of(head, len(head)), "no 'MOTION' section (truncated file?)")
+        self.hierarchy = _cached_hierarchy(head, m.start(), path)
+        self.n_frames, self.frame_time, self.frames_line, start = _parse_motion_header(head, m.end(), path)
+        self.rest = head[start:]
+        self.line_base = head.count(b"\n", 0, start)
+        #: bytes of motion lines still to come when the stream's size is known, else None
+        self.size_left = None if size is None else size - start
+
+    def max_rows(self, n_bytes) -> int:
+        """The most motion lines ``n_bytes`` of text can hold, at most the announced count."""
+        return rows_bound(n_bytes, self.n_frames, self.hierarchy.n_channels)
+
+    def __iter__(self):
+        n_cols = self.hierarchy.n_channels
+        rest, eof, row = self.rest, self.eof, 0
+        self.rest = None
+        while True:
+            if not eof:
+                more = self.fh.read(_READ_BLOCK)
+                eof = not more
+                rest += more
+            if eof:
+                block, rest = rest, b""
+            else:
+                cut = rest.rfind(b"\n") + 1
+                block, rest = rest[:cut], rest[cut:]
+            values = np.empty((min(self.n_frames - row, self.max_rows(len(block))), n_cols))
+            got = parse_rows_into(block, 0, values, self.path, n_rows=self.n_frames, what="channel values",
+                                  first_frame=row + 1, allow_nonfinite=True, line_base=self.line_base)
+            self.line_base += block.count(b"\n")
+            row += got
+            if got:
+                yield values[:got]
+            if eof:
+                break
+        if row != self.n_frames:
+            raise ParseError(self.path, self.frames_line, f"'Frames: {self.n_frames}' but only "
+                             f"{row} motion lines follow (truncated file?)")
+
+
 def parse_bvh_stream(fh, *, path="<bvh>", size=None) -> BvhData:
     """Parse a BVH file from a binary stream, block by block, into hierarchy and channel values.
 
@@ -238,51 +300,19 @@ def parse_bvh_stream(fh, *, path="<bvh>", size=None) -> BvhData:
     ParseError
         Malformed hierarchy or motion (file, line and what was expected).
     """
-    path = str(path)
-    head, eof = _read_head(fh, path)
-    if head.startswith(b"\xef\xbb\xbf"):
-        head = head[3:]
-        size = None if size is None else size - 3
-    if b"\n" not in head and b"\r" in head:
-        head = (head + (b"" if eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
-        eof = True
-    m = _MOTION.search(head)
-    if m is None:
-        if not head.lstrip().upper().startswith(b"HIERARCHY"):
-            raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
-        raise ParseError(path, line_of(head, len(head)), "no 'MOTION' section (truncated file?)")
-    hierarchy = _cached_hierarchy(head, m.start(), path)
-    n_frames, frame_time, frames_line, start = _parse_motion_header(head, m.end(), path)
-    n_cols = hierarchy.n_channels
-    rest = head[start:]
-    line_base = head.count(b"\n", 0, start)
-    values = np.empty((rows_bound(size - start if size is not None else len(rest), n_frames, n_cols), n_cols))
+    lines = _MotionLines(fh, path, size)
+    n_cols = lines.hierarchy.n_channels
+    values = np.empty((lines.max_rows(lines.size_left if lines.size_left is not None else len(lines.rest)), n_cols))
     row = 0
-    while True:
-        if not eof:
-            more = fh.read(_READ_BLOCK)
-            eof = not more
-            rest += more
-        if eof:
-            block, rest = rest, b""
-        else:
-            cut = rest.rfind(b"\n") + 1
-            block, rest = rest[:cut], rest[cut:]
-        need = row + rows_bound(len(block), n_frames, n_cols)
-        if need > values.shape[0] and values.shape[0] < n_frames:
+    for block in lines:
+        if row + len(block) > values.shape[0]:
             # a stream of unknown size: grow geometrically, never past the announced count
-            grown = np.empty((min(n_frames, max(need, 2 * values.shape[0])), n_cols))
+            grown = np.empty((min(lines.n_frames, max(row + len(block), 2 * values.shape[0])), n_cols))
             grown[:row] = values[:row]
             values = grown
-        row += parse_rows_into(block, 0, values[row:], path, n_rows=n_frames, what="channel values",
-                               first_frame=row + 1, allow_nonfinite=True, line_base=line_base)
-        line_base += block.count(b"\n")
-        if eof:
-            break
-    if row != n_frames:
-        raise ParseError(path, frames_line, f"'Frames: {n_frames}' but only "
-                         f"{row} motion lines follow (truncated file?)")
-    return BvhData(hierarchy, values[:row], frame_time, path)
+        values[row:row + len(block)] = block
+        row += len(block)
+    return BvhData(lines.hierarchy, values[:row], lines.frame_time, lines.path)
 
 
 class _LazyLine:
@@ -701,9 +731,50 @@ def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
     FEATURES.md §2.3b; READERS.md §2.
     """
     path = Path(path)
+    if joint_map is not None and not isinstance(joint_map, dict):
+        raise ParameterError(f"joint_map must be a dict (see mocapdb.readers.load_mapping), got {joint_map!r}")
+    with open_stream(path) as fh:
+        motion = _streamed_motion(fh, path, stream_size(path), joint_map, skip_rest_frame)
+    if motion is not None:
+        return motion
+    # lost tracking: mending looks at the whole take's channels (gaps, the longest part kept)
     with open_stream(path) as fh:
         data = parse_bvh_stream(fh, path=path, size=stream_size(path))
     return bvh_to_motion(data, joint_map=joint_map, skip_rest_frame=skip_rest_frame, name=motion_stem(path))
+
+
+def _streamed_motion(fh, path, size, joint_map, skip_rest_frame) -> Motion | None:
+    """:func:`read_bvh` of a take without lost tracking, its channel values a block of lines at a time
+    (parsed, through forward kinematics, dropped): memory holds the 24 joints and the pelvis rotation,
+    not the channels. None as soon as a block has lost samples (mending needs the whole take)."""
+    lines = _MotionLines(fh, path, size)
+    hier = lines.hierarchy
+    joints = rot = plan_ = None
+    row = 0
+    for block in lines:
+        if lost_samples(block, hier) is not None:
+            return None
+        if plan_ is None:
+            plan_ = plan(hier, joint_map, lines.path, lambda: _judged_frame(hier, block, None, 0, lines))
+            # the most frames the stream can hold: only the frames written are ever touched
+            rows = lines.max_rows(lines.size_left if lines.size_left is not None else max_decompressed())
+            joints, rot = np.empty((rows, len(JOINT_NAMES), 3)), np.empty((rows, 3, 3))
+        _joints_and_rotation(BvhData(hier, block, lines.frame_time, lines.path), *plan_,
+                             out=(joints[row:row + len(block)], rot[row:row + len(block)]))
+        row += len(block)
+    return _motion(joints[:row], rot[:row], plan_[0], hier, lines.frame_time, lines.path, joint_map,
+                   skip_rest_frame, motion_stem(path), 0, row, [])
+
+
+def _judged_frame(hier, values, bad, pose_at, data):
+    """The FK points (origins, then End Sites) of frame ``pose_at``, lost samples zeroed: the frame
+    a rig lying on its side in its rest pose is judged by."""
+    frame = values[pose_at:pose_at + 1]
+    if bad is not None:
+        frame = np.where(bad[pose_at:pose_at + 1], 0.0, frame)
+    o, e, _ = bvh_node_positions(BvhData(hier, frame, data.frame_time, data.path))
+    with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
+    return np.concatenate([o[0], e[0, with_end]])
 
 
 def _placed(how):
@@ -715,12 +786,12 @@ def _placed(how):
 _FK_POINTS = 1 << 18
 
 
-def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed):
-    """The 24 canonical joints (n, 24, 3) and the pelvis rotation (n, 3, 3), forward kinematics in
-    blocks of frames: memory holds the take's channels and joints, never every joint's path."""
+def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed, *, out=None):
+    """The 24 canonical joints (n, 24, 3) and the pelvis rotation (n, 3, 3) (into ``out``, a pair of
+    such arrays, when given), forward kinematics in blocks of frames: memory holds the take's channels
+    and joints, never every joint's path."""
     n = data.values.shape[0]
-    joints = np.empty((n, len(JOINT_NAMES), 3))
-    rot = np.empty((n, 3, 3))
+    joints, rot = out if out is not None else (np.empty((n, len(JOINT_NAMES), 3)), np.empty((n, 3, 3)))
     step = max(256, _FK_POINTS // max(len(data.hierarchy.joints), 1))
     for a in range(0, n, step):
         block = BvhData(data.hierarchy, data.values[a:a + step], data.frame_time, data.path)
@@ -738,16 +809,8 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
     values = data.values
     bad = lost_samples(values, hier)
     pose_at = pose_frame(values, bad)
-
-    def judged_frame():
-        frame = values[pose_at:pose_at + 1]
-        if bad is not None:
-            frame = np.where(bad[pose_at:pose_at + 1], 0.0, frame)
-        o, e, _ = bvh_node_positions(BvhData(hier, frame, data.frame_time, data.path))
-        with_end = [k for k, j in enumerate(hier.joints) if j.end_site is not None]
-        return np.concatenate([o[0], e[0, with_end]])
-
-    jm, point, weight, end_of, needed = plan(hier, joint_map, data.path, judged_frame)
+    jm, point, weight, end_of, needed = plan(hier, joint_map, data.path,
+                                             lambda: _judged_frame(hier, values, bad, pose_at, data))
     notes = []
     start, stop = 0, values.shape[0]
     if bad is not None:
@@ -755,31 +818,41 @@ def bvh_to_motion(data: BvhData, *, joint_map=None, skip_rest_frame=None, name="
         start, stop = mend(values, bad, hier, needed, data.fps, data.path, notes)
         data = replace(data, values=values[start:stop])
     joints, rot = _joints_and_rotation(data, jm, point, weight, end_of, needed)
+    return _motion(joints, rot, jm, hier, data.frame_time, data.path, joint_map, skip_rest_frame, name, start,
+                   stop, notes)
+
+
+def _motion(joints, rot, jm, hier, frame_time, path, joint_map, skip_rest_frame, name, start, stop, notes):
+    """The Motion of a take's joints and pelvis rotation (frames ``start`` … ``stop`` − 1 of the file):
+    turned Y up, the rest frame dropped, checked finite and, when mapped, human."""
+    fps = fps_from_frame_time(frame_time)
     up = jm.up if jm.up is not None else (Z_UP_TO_Y_UP if _z_up(joints) else None)
-    if up is not None:  # a Z-up file: positions and the pelvis rotation turned to Y up
-        joints = np.ascontiguousarray(joints @ up.T)
-        rot = up @ rot
+    if up is not None:  # a Z-up file: positions and the pelvis rotation turned to Y up, a block at a time
+        step = _FK_POINTS // len(JOINT_NAMES)
+        for a in range(0, len(joints), step):
+            joints[a:a + step] = joints[a:a + step] @ up.T
+            rot[a:a + step] = up @ rot[a:a + step]
     # feature #40 may read the pelvis rotation only where its x axis is the hip axis
     # (ASF convention) in the take itself: R^T (lhip - rhip) along +x
     hips = joints[:, JOINT_INDEX["lhip"]] - joints[:, JOINT_INDEX["rhip"]]
     asf_axes = hip_axis_is_x(np.einsum("fji,fj->i", rot, hips) / max(len(hips), 1))
     kind = ("joint_map" if joint_map else
             "asf" if all(w[1] == "ASF bone names" for w in jm.how.values()) else "humanoid")
-    meta = {"bvh_family": kind, "frame_time": data.frame_time,
+    meta = {"bvh_family": kind, "frame_time": frame_time,
             "mapping": {j: _placed(jm.how.get(j, (None, ""))) for j in JOINT_NAMES}}
     skip = start == 0 and (_rest_frame(joints) if skip_rest_frame is None else bool(skip_rest_frame))
     if skip and joints.shape[0] > 1:
         joints, rot = joints[1:], rot[1:]
         meta["rest_frame_skipped"] = True
         start += 1
-    check_finite_motion(joints, data.path)
+    check_finite_motion(joints, path)
     if kind == "humanoid":
         # the mapper finds legs, arms and a head; whether they make a human is the body's to say
         rest = jm.weights @ hier.tree().rest
         problem = humanoid_problem(joints, rest @ up.T if up is not None else rest)
         if problem:
-            raise ParseError(data.path, None, f"not a human skeleton: {problem}")
+            raise ParseError(path, None, f"not a human skeleton: {problem}")
     meta["frames"] = (start + 1, stop)
     meta["notes"] = notes
     return Motion(joints=np.ascontiguousarray(joints), root_rotation=rot if asf_axes else None,
-                  fps=data.fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)
+                  fps=fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)
