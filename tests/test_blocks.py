@@ -18,10 +18,13 @@ import pytest
 
 import mocapdb.features.relational as relational
 import mocapdb.readers.bvh as bvh_module
+import mocapdb.readers.c3d as c3d_module
+import mocapdb.readers.c3dfile as c3dfile
+from mocapdb.errors import ParseError
 from mocapdb.features import motion_features
-from mocapdb.readers import Motion, euler_angles, read_motion
+from mocapdb.readers import Motion, euler_angles, read_c3d, read_motion
 from mocapdb.readers.kinematics import euler_matrix
-from mocapdb.readers.sources import motion_stem, open_stream, stream_size
+from mocapdb.readers.sources import bytes_file, motion_stem, open_stream, stream_size
 
 from conftest import SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH, SAMPLE_C3D
 
@@ -129,3 +132,62 @@ def test_a_bvh_is_read_a_block_of_lines_at_a_time_as_if_whole(tmp_path, monkeypa
     joints = motion.joints.nbytes + 9 * 8 * motion.n_frames
     assert values > joints / 2
     assert peak < joints + values / 4, (peak, joints, values)
+
+
+def dense_c3d(path, extra: int, frames: int, *, unnamed=False):
+    """The shipped HDM05 C3D cut to ``frames`` frames, with ``extra`` markers more (copies of its 44, each
+    moved a few cm, named X0000 …): a dense marker set (``unnamed``: its own 44 renamed too)."""
+    import ezc3d
+
+    with bytes_file(lzma.decompress(SAMPLE_C3D.read_bytes()), "mm.c3d") as name:
+        src = ezc3d.c3d(str(name))
+    pts = src["data"]["points"][:, :, :frames]
+    labels = list(src["parameters"]["POINT"]["LABELS"]["value"])
+    rng = np.random.default_rng(27)
+    copies = rng.integers(0, pts.shape[1], extra)
+    moved = pts[:, copies].copy()
+    moved[:3] += rng.normal(0, 30, (3, extra, 1))
+    out = ezc3d.c3d()
+    out["parameters"]["POINT"]["RATE"]["value"] = [120]
+    out["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    out["parameters"]["POINT"]["LABELS"]["value"] = ([f"Y{k:04d}" for k in range(len(labels))] if unnamed else labels) \
+        + [f"X{k:04d}" for k in range(extra)]
+    out["data"]["points"] = np.concatenate([pts, moved], axis=1)
+    out.write(str(path))
+    return path
+
+
+def test_a_dense_c3d_is_read_a_block_of_frames_at_a_time_holding_the_usable_markers(tmp_path, monkeypatch):
+    """ezc3d holds ~200 bytes a point (a 5,000-marker take of 4,000 frames: 4 GB). A large take goes to
+    it a block of frames at a time, and only the markers a rule or the map can use stay: the same
+    joints, notes and refusals as reading every point of the whole file."""
+    path = dense_c3d(tmp_path / "dense.c3d", 300, 600)
+    all_points = c3dfile.read_c3d_points(path)
+    assert len(all_points.labels) == 344
+    real = c3dfile.read_c3d_points
+    monkeypatch.setattr(c3d_module, "read_c3d_points", lambda p, keep=None: real(p))   # every point, whole
+    whole = {rules: read_c3d(path, marker_rules=rules) for rules in ("toolbox", "anatomical")}
+    tracemalloc.start()
+    read_c3d(path)
+    whole_peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    monkeypatch.undo()
+    monkeypatch.setattr(c3dfile, "BLOCK_POINTS", 5000)   # blocks of 14 frames
+    blocks = c3dfile.read_c3d_points(path)
+    for field in ("xyz", "valid"):
+        np.testing.assert_array_equal(getattr(blocks, field), getattr(all_points, field))
+    assert blocks.labels == all_points.labels and blocks.meta == all_points.meta
+    for rules, motion in whole.items():
+        got = read_c3d(path, marker_rules=rules)
+        np.testing.assert_array_equal(got.joints, motion.joints)
+        assert got.meta == motion.meta and got.skeleton == motion.skeleton
+    # a marker map's names are held too; a refusal still lists every marker of the file
+    mapped = read_c3d(path, marker_map={"lknee": "X0007"})
+    assert mapped.skeleton == "c3d:marker_map"
+    with pytest.raises(ParseError, match=r"cannot place root, .* from the markers Y0000, .*\(344 in all\)"):
+        read_c3d(dense_c3d(tmp_path / "unnamed.c3d", 300, 100, unnamed=True))
+    tracemalloc.start()
+    read_c3d(path)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < whole_peak / 4, (peak, whole_peak)

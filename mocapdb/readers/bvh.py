@@ -227,16 +227,13 @@ def _read_head(fh, path):
 
 
 class _MotionLines:
-    """A BVH stream after its header: the hierarchy, ``n_frames``, ``frame_time``; iterating gives the
-    channel values a block of lines at a time ((rows, n_channels) float64 each), never the whole text.
-
-    The header is read whole; each block of motion lines (4 MiB of text) is parsed by the numba
-    scanner. A line beyond the announced ``Frames:`` count, or fewer lines, is a ParseError.
-    """
+    """A BVH stream after its header (read whole): the hierarchy, ``n_frames``, ``frame_time``; iterating
+    gives the channel values of a 4 MiB block of motion lines at a time ((rows, n_channels) float64), never
+    the whole text. More or fewer lines than ``Frames:`` announces is a ParseError."""
 
     def __init__(self, fh, path, size):
-        self.fh = fh
-        self.path = path = str(path)
+        self.fh, self.path = fh, str(path)
+        path = self.path
         head, self.eof = _read_head(fh, path)
         if head.startswith(b"\xef\xbb\xbf"):
             head = head[3:]
@@ -289,11 +286,9 @@ class _MotionLines:
 
 
 def parse_bvh_stream(fh, *, path="<bvh>", size=None) -> BvhData:
-    """Parse a BVH file from a binary stream, block by block, into hierarchy and channel values.
-
-    The header is read whole; the motion lines 4 MiB at a time into the
-    values array (sized by the stream's ``size`` when known, else grown), so
-    memory holds the channel values, not the text as well.
+    """Parse a BVH file from a binary stream, block by block (:class:`_MotionLines`), into hierarchy and
+    channel values (sized by the stream's ``size`` when known, else grown): memory holds the values,
+    not the text as well.
 
     Raises
     ------
@@ -744,9 +739,8 @@ def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
 
 
 def _streamed_motion(fh, path, size, joint_map, skip_rest_frame) -> Motion | None:
-    """:func:`read_bvh` of a take without lost tracking, its channel values a block of lines at a time
-    (parsed, through forward kinematics, dropped): memory holds the 24 joints and the pelvis rotation,
-    not the channels. None as soon as a block has lost samples (mending needs the whole take)."""
+    """:func:`read_bvh` of a take without lost tracking, its channels a block of lines at a time (parsed,
+    through FK, dropped): memory holds the joints and the pelvis rotation. None at lost samples."""
     lines = _MotionLines(fh, path, size)
     hier = lines.hierarchy
     joints = rot = plan_ = None
@@ -767,8 +761,7 @@ def _streamed_motion(fh, path, size, joint_map, skip_rest_frame) -> Motion | Non
 
 
 def _judged_frame(hier, values, bad, pose_at, data):
-    """The FK points (origins, then End Sites) of frame ``pose_at``, lost samples zeroed: the frame
-    a rig lying on its side in its rest pose is judged by."""
+    """The FK points (origins, End Sites) of frame ``pose_at``, lost samples zeroed (a rig lying on its side)."""
     frame = values[pose_at:pose_at + 1]
     if bad is not None:
         frame = np.where(bad[pose_at:pose_at + 1], 0.0, frame)
@@ -787,9 +780,8 @@ _FK_POINTS = 1 << 18
 
 
 def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed, *, out=None):
-    """The 24 canonical joints (n, 24, 3) and the pelvis rotation (n, 3, 3) (into ``out``, a pair of
-    such arrays, when given), forward kinematics in blocks of frames: memory holds the take's channels
-    and joints, never every joint's path."""
+    """The 24 canonical joints (n, 24, 3) and pelvis rotation (n, 3, 3) (into the pair ``out`` when given),
+    FK in blocks of frames: memory never holds every joint's path."""
     n = data.values.shape[0]
     joints, rot = out if out is not None else (np.empty((n, len(JOINT_NAMES), 3)), np.empty((n, 3, 3)))
     step = max(256, _FK_POINTS // max(len(data.hierarchy.joints), 1))

@@ -49,7 +49,7 @@ import numpy as np
 from mocapdb.errors import ParameterError, ParseError
 from mocapdb.readers.c3d_names import SEGMENT_OF
 from mocapdb.readers.c3d_rules import (MAPPED, MARKER_RULES, PELVIS_QUAD, REQUIRED, TOOLBOX, MarkerIndex,
-                                       candidate_rules, mapped_rule)
+                                       candidate_rules, mapped_rule, usable_points)
 from mocapdb.readers.c3dfile import printable, read_c3d_points
 from mocapdb.readers.gaps import (MAX_GAP_S, fill_short, frames_text, long_gaps, longest_part, max_gap_frames,
                                   rigid_fill)
@@ -183,7 +183,7 @@ def _find(index: MarkerIndex, rule):
     return list(zip(rule.markers, points)) + extra
 
 
-def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="toolbox") -> dict:
+def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="toolbox", *, file_labels=()) -> dict:
     """The rule and markers of every joint, in an order where a joint follows the joints it derives from.
 
     Per joint, the first rule (in :func:`~mocapdb.readers.c3d_rules.candidate_rules`
@@ -199,7 +199,7 @@ def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="
     Raises
     ------
     ParseError
-        A joint no rule can place (names every such joint and the file's markers).
+        A joint no rule can place (names every such joint and the file's markers, ``file_labels``).
     """
     gappy_cache = {}
 
@@ -216,7 +216,7 @@ def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="
             if absent:
                 raise ParseError(path, None, f"marker_map: {joint} = {marker_map[joint]!r}, but the file has no "
                                  f"usable marker {', '.join(map(repr, absent))} (its markers: "
-                                 f"{_describe(index.labels)})")
+                                 f"{_describe(file_labels)})")
             candidates[joint] = [rule]
         else:
             candidates[joint] = candidate_rules(joint, marker_rules)
@@ -265,7 +265,7 @@ def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="
         what = (f"{len(required)} of the {len(REQUIRED)} joints a marker set must place: pelvis, hips, knees, "
                 "ankles, toes, shoulders, elbows and wrists") if required else f"{len(unplaced)} of the 24 joints"
         raise ParseError(path, None, f"no full-body marker set: cannot place {', '.join(required or unplaced)} "
-                         f"({what}) from the markers {_describe(index.labels)}; name them in a marker map "
+                         f"({what}) from the markers {_describe(file_labels)}; name them in a marker map "
                          "(marker_map= / --marker-map FILE, see the README)")
     return chosen
 
@@ -365,8 +365,9 @@ def read_c3d(path, *, marker_map=None, bone_fit: bool = True, marker_rules: str 
         the take (names marker and frames), unsupported ``POINT:UNITS``.
     """
     path = Path(path)
-    pts = read_c3d_points(path)
-    if not pts.labels:
+    # only the points a rule or the map can use are held (a dense marker set has thousands)
+    pts = read_c3d_points(path, keep=lambda labels: usable_points(labels, marker_map))
+    if not pts.meta["file_labels"]:
         raise ParseError(path, None, "no 3D points (force plates or analog channels only): cannot place "
                          "any of the 24 canonical joints")
     if pts.units not in UNITS_MM:
@@ -388,7 +389,7 @@ def read_c3d(path, *, marker_map=None, bone_fit: bool = True, marker_rules: str 
     _rebuild(index, xyz, valid, max_gap, pts.rate, notes, n_real)
     if marker_rules not in MARKER_RULES:
         raise ParameterError(f"marker_rules must be one of {', '.join(MARKER_RULES)}, got {marker_rules!r}")
-    chosen = _select(path, index, valid, max_gap, marker_map, marker_rules)
+    chosen = _select(path, index, valid, max_gap, marker_map, marker_rules, file_labels=pts.meta["file_labels"])
 
     needed = sorted({i for _, found in chosen.values() for _, i in found})
     unrecoverable = np.zeros(n, dtype=bool)

@@ -59,7 +59,8 @@ from mocapdb.readers.c3d_names import TOOLBOX_ALIASES, landmark_of, marker_key
 from mocapdb.readers.joints import JOINT_NAMES
 
 __all__ = ["Rule", "marker_key", "TOOLBOX_ALIASES", "TOOLBOX_MARKERS", "MarkerIndex", "candidate_rules",
-           "mapped_rule", "TOOLBOX", "ROLES", "DERIVED", "MAPPED", "REQUIRED", "PELVIS_QUAD", "MARKER_RULES"]
+           "mapped_rule", "TOOLBOX", "ROLES", "DERIVED", "MAPPED", "REQUIRED", "PELVIS_QUAD", "MARKER_RULES",
+           "usable_points"]
 
 TOOLBOX, ROLES, DERIVED, MAPPED = "toolbox", "roles", "derived", "marker_map"
 
@@ -503,6 +504,23 @@ def candidate_rules(joint: str, marker_rules: str = "toolbox") -> list:
     if marker_rules == "anatomical":
         return _ROLES[joint] + _DERIVED[joint]
     return _TOOLBOX[joint] + _ROLES[joint] + _FALLBACK[joint] + _DERIVED[joint]
+
+
+#: the exact keys of the markers the toolbox's rules name
+_TOOLBOX_KEYS = frozenset(marker_key(n) for rules in (*_TOOLBOX.values(), *_FALLBACK.values()) for rule in rules
+                          if rule.source == TOOLBOX for n in (*rule.markers, *rule.any_of))
+
+
+def usable_points(labels, marker_map=None) -> list:
+    """The indices of the points any rule or ``marker_map`` can use: a toolbox marker name, an anatomical
+    landmark (:func:`~mocapdb.readers.c3d_names.landmark_of`) or a name the map gives, exact or up to
+    separators. :class:`MarkerIndex` finds nothing else, so a reader need not hold the others (the
+    other 4,950 markers of a dense set)."""
+    names = [n for v in (marker_map or {}).values() for n in ([v] if isinstance(v, str) else v)]
+    exact = _TOOLBOX_KEYS | {marker_key(n) for n in names}
+    compact = {_compact(n) for n in names}
+    return [i for i, label in enumerate(labels) if marker_key(label) in exact or landmark_of(label) is not None
+            or (compact and _compact(label) in compact)]
 
 
 def mapped_rule(joint: str, names) -> Rule:

@@ -34,9 +34,9 @@ import numpy as np
 
 from mocapdb.errors import ParseError
 from mocapdb.readers.motion import check_rate, snap_rate
-from mocapdb.readers.sources import bytes_file, plain_file, read_bytes
+from mocapdb.readers.sources import bytes_file, open_stream, plain_file, read_bytes, stream_size
 
-__all__ = ["C3dPoints", "read_c3d_points", "check_layout", "printable"]
+__all__ = ["C3dPoints", "read_c3d_points", "check_layout", "printable", "BLOCK_POINTS"]
 
 _BLOCK = 512
 #: processor type byte of the parameter section → struct byte order
@@ -278,7 +278,8 @@ def check_layout(buf: bytes, file_size: int, *, path="<c3d>") -> dict:
     word = 4 if is_float else 2
     return {"params": params, "frames": int(frames), "frame_bytes": 4 * word * points + word * analogs * sub,
             "point_bytes": 4 * word * points, "data_bytes": file_size - data_at, "data_start": data_start,
-            "proc": proc, "analog_problem": analog_problem, "header_rate": _float(buf[20:24], proc)}
+            "proc": proc, "analog_problem": analog_problem, "header_rate": _float(buf[20:24], proc),
+            "is_float": is_float}
 
 
 def _read_head(path: Path) -> tuple[bytes, int, bytes | None]:
@@ -367,16 +368,31 @@ def _strings(value) -> list:
     return [str(v) for v in value]
 
 
-def read_c3d_points(path) -> C3dPoints:
-    """Every 3D point of a C3D file, with labels, rate, units and gaps.
+#: points ezc3d reads at a time: a take of more (frames × points) is read a block of frames at a time
+#: (ezc3d holds about 200 bytes a point: a 5,000-marker take of 4,000 frames took 4 GB read whole)
+BLOCK_POINTS = 1 << 18
+
+
+def read_c3d_points(path, *, keep=None) -> C3dPoints:
+    """The 3D points of a C3D file, with labels, rate, units and gaps.
+
+    A take of more than :data:`BLOCK_POINTS` points (frames × points) is read
+    a block of frames at a time: each block goes to ezc3d as a file of its
+    own (the header's and ``POINT:FRAMES``'s frame count that block's), and
+    only the points ``keep`` names stay.
 
     Parameters
     ----------
     path : str or Path
+    keep : callable, optional, keyword-only
+        ``keep(labels)`` → the indices (ascending) of the points to hold, given
+        every point's label; default all.
 
     Returns
     -------
     C3dPoints
+        ``labels`` those of the points held; ``meta["file_labels"]`` every
+        point's.
 
     Raises
     ------
@@ -389,23 +405,58 @@ def read_c3d_points(path) -> C3dPoints:
     """
     path = Path(path)
     try:
+        size = stream_size(path)
+        if size is None:   # a compressed file: its size is known once it has been decompressed
+            with open_stream(path) as fh:
+                size = sum(map(len, iter(lambda: fh.read(1 << 20), b"")))
+        with open_stream(path) as fh:
+            head = _head(fh)
+            layout = check_layout(head, size, path=path)
+            if _in_blocks(layout):
+                return _read_blocks(fh, head, layout, path, keep)
         head, size, data = _read_head(path)
     except FileNotFoundError:
         raise
     except OSError as exc:   # unreadable, or damaged compressed data / archive
         raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
-    layout = check_layout(head, size, path=path)
     notes = []
     if layout["analog_problem"]:
         data = without_analogs(data if data is not None else path.read_bytes(), layout, path)
         notes.append(f"analog channels not read: {layout['analog_problem']} (the points do not need them)")
         layout = {**layout, "frame_bytes": layout["point_bytes"], "data_bytes": len(data) - _BLOCK
                   * (layout["data_start"] - 1)}
+    with bytes_file(data, path.name) if data is not None else contextlib.nullcontext(path) as name:
+        point, xyz, residuals, labels, first_frame = _ezc3d(name, path)
+    n_frames = xyz.shape[2] if xyz.ndim == 3 else 0
+    if xyz.ndim != 3 or xyz.shape[0] < 3 or xyz.shape[1] == 0:  # no 3D points (e.g. force plates only)
+        xyz, residuals, labels = np.zeros((4, 0, n_frames)), np.zeros((1, 0, n_frames)), []
+    n_points = xyz.shape[1]
+    if n_points and n_frames == 0:
+        raise ParseError(path, None, "no frames: the file holds points but zero frames of data")
+    _frames_held(layout, n_frames, path, notes)
+    labels = labels[:n_points] + [f"?{i + 1}" for i in range(len(labels), n_points)]
+    cols = np.arange(n_points) if keep is None else np.asarray(keep(labels), dtype=np.int64)
+    res = residuals.reshape(n_points, n_frames).T if residuals.size == n_points * n_frames \
+        else np.zeros((n_frames, n_points))
+    pts, valid = _points(xyz, res, cols)
+    return _c3d_points(point, layout, path, notes, labels, cols, pts, valid, first_frame)
+
+
+def _head(fh) -> bytes:
+    """The header and the parameter section (the parameter block pointer plus 255 blocks at most) of a stream."""
+    head = fh.read(_BLOCK)
+    if len(head) == _BLOCK:
+        head += fh.read(_BLOCK * (max(head[0], 1) - 1 + 255))
+    return head
+
+
+def _ezc3d(name, path):
+    """ezc3d's reading of a C3D file: the POINT parameters, points (4, n, frames), residuals, labels and
+    the first frame's number; any failure a ParseError."""
     import ezc3d  # imported here: only C3D reading needs the C++ library
 
     try:
-        with bytes_file(data, path.name) if data is not None else contextlib.nullcontext(path) as name:
-            c3d = ezc3d.c3d(str(name))
+        c3d = ezc3d.c3d(str(name))
         params = c3d["parameters"]
         xyz = np.asarray(c3d["data"]["points"], dtype=np.float64)
         residuals = np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64)
@@ -416,8 +467,109 @@ def read_c3d_points(path) -> C3dPoints:
     except Exception as exc:  # ezc3d raises RuntimeError, OSError, IndexError, ... on broken files
         raise ParseError(path, None, f"ezc3d cannot read it: {type(exc).__name__}: "
                          f"{printable(' '.join(str(exc).split()), 200) or 'no detail'}") from None
-    point = params["POINT"] if "POINT" in params else {}
+    return params["POINT"] if "POINT" in params else {}, xyz, residuals, labels, first_frame
 
+
+def _points(xyz, res, cols):
+    """Points ``cols`` of ezc3d's (4, points, frames) array as (frames, cols, 3), NaN where missing, and
+    the valid mask: missing is NaN, a negative residual or exactly (0, 0, 0)."""
+    pts = np.ascontiguousarray(xyz[:3, cols].transpose(2, 1, 0))          # (frames, points, 3)
+    valid = ~(np.isnan(pts).any(axis=2) | (res[:, cols] < 0) | (pts == 0.0).all(axis=2))
+    pts[~valid] = np.nan
+    return pts, valid
+
+
+def _frames_held(layout, n_frames, path, notes):
+    """A ParseError when the data end inside a frame; a note when they end on a frame boundary early."""
+    declared, frame_bytes = layout["frames"], layout["frame_bytes"]
+    if n_frames < declared and frame_bytes:
+        # ezc3d stops at the end of the file: a file that ends inside a frame was cut
+        # short; one that ends on a frame boundary was cropped by a tool that left the
+        # counts (ezc3d's own Optotrak sample): read what it holds, and say so
+        error = _truncation(layout, n_frames, path)
+        if error is not None:
+            raise error
+        notes.append(f"the file declares {declared} frames but holds {n_frames}; read those")
+
+
+def _in_blocks(layout) -> bool:
+    """Whether a file is read a block of frames at a time: more than :data:`BLOCK_POINTS` points whose
+    frame count can be rewritten (the header and an integer or non-DEC float ``POINT:FRAMES``)."""
+    word = 4 if layout["is_float"] else 2
+    points = layout["point_bytes"] // (4 * word)
+    if not points or not layout["frame_bytes"] or layout["frames"] * points <= BLOCK_POINTS:
+        return False
+    v = layout["params"].get(("POINT", "FRAMES"))
+    return v is None or v[0] in (1, 2) or (v[0] == 4 and layout["proc"] != 85)
+
+
+def _block_head(head: bytes, layout: dict, frames: int) -> bytes:
+    """The header and parameter section for a file of ``frames`` frames (the header's last frame and
+    ``POINT:FRAMES``), analog channels taken out when their metadata is broken (:func:`without_analogs`)."""
+    order = _PROCESSORS[layout["proc"]]
+    out = bytearray(head)
+    first = struct.unpack(order + "H", out[6:8])[0]
+    out[8:10] = struct.pack(order + "H", max(first, 1) + frames - 1)
+    v = layout["params"].get(("POINT", "FRAMES"))
+    if v is not None:
+        typ, _, _, at = v
+        out[at:at + _TYPE_SIZE[typ]] = struct.pack(order + {1: "b", 2: "H", 4: "f"}[typ], frames)
+    if layout["analog_problem"]:
+        out[4:6] = struct.pack(order + "H", 0)      # header: analog samples per 3D frame
+        typ, _, _, at = layout["params"][("ANALOG", "USED")]
+        out[at:at + _TYPE_SIZE[typ]] = bytes(_TYPE_SIZE[typ])
+    return bytes(out)
+
+
+def _read_blocks(fh, head, layout, path, keep) -> C3dPoints:
+    """:func:`read_c3d_points` of a large take: ezc3d reads one block of frames at a time, of which only
+    the points ``keep`` names stay."""
+    data_at = _BLOCK * (layout["data_start"] - 1)
+    frame_bytes, point_bytes = layout["frame_bytes"], layout["point_bytes"]
+    word = 4 if layout["is_float"] else 2
+    n_points = point_bytes // (4 * word)
+    notes = []
+    if layout["analog_problem"]:
+        notes.append(f"analog channels not read: {layout['analog_problem']} (the points do not need them)")
+    n_frames = min(layout["frames"], layout["data_bytes"] // frame_bytes)
+    if n_frames == 0:
+        raise ParseError(path, None, "no frames: the file holds points but zero frames of data")
+    _frames_held(layout, n_frames, path, notes)
+    v = layout["params"].get(("POINT", "FRAMES"))
+    limit = {1: 127, 2: 32767}.get(v[0] if v is not None else 2, 1 << 30)
+    first = struct.unpack(_PROCESSORS[layout["proc"]] + "H", head[6:8])[0]
+    step = max(1, min(BLOCK_POINTS // n_points, limit, 65536 - max(first, 1)))
+    if len(head) < data_at:   # the parameter section ends before the data start: read up to it
+        head += fh.read(data_at - len(head))
+    head, pending = head[:data_at], head[data_at:]
+    pts = valid = cols = None
+    for a in range(0, n_frames, step):
+        k = min(step, n_frames - a)
+        need = k * frame_bytes
+        block = pending[:need]
+        if len(block) < need:
+            block += fh.read(need - len(block))
+        pending = pending[need:]
+        if layout["analog_problem"]:
+            block = np.frombuffer(block, dtype=np.uint8).reshape(k, frame_bytes)[:, :point_bytes].tobytes()
+        with bytes_file(_block_head(head, layout, k) + block, path.name) as name:
+            point, xyz, residuals, labels, first_frame = _ezc3d(name, path)
+        if xyz.ndim != 3 or xyz.shape[1:] != (n_points, k):
+            raise ParseError(path, None, f"ezc3d read {xyz.shape} points for frames {a + 1}–{a + k} of "
+                             f"{n_points} points")
+        if pts is None:
+            labels = labels[:n_points] + [f"?{i + 1}" for i in range(len(labels), n_points)]
+            cols = np.arange(n_points) if keep is None else np.asarray(keep(labels), dtype=np.int64)
+            pts, valid = np.empty((n_frames, len(cols), 3)), np.empty((n_frames, len(cols)), dtype=bool)
+            file_labels, point0, first0 = labels, point, first_frame
+        res = residuals.reshape(n_points, k).T if residuals.size == n_points * k else np.zeros((k, n_points))
+        pts[a:a + k], valid[a:a + k] = _points(xyz, res, cols)
+    return _c3d_points(point0, layout, path, notes, file_labels, cols, pts, valid, first0)
+
+
+def _c3d_points(point, layout, path, notes, labels, cols, pts, valid, first_frame) -> C3dPoints:
+    """The C3dPoints of points ``cols`` of a file: its rate, units, scale and screen axes from its POINT
+    parameters (ezc3d's), checked."""
     def param(name):
         return point[name]["value"] if name in point else None
 
@@ -436,29 +588,7 @@ def read_c3d_points(path) -> C3dPoints:
         raise ParseError(path, None, f"POINT:UNITS mixes {sorted(set(units))}; expected one unit")
     scale = number("SCALE", -1.0)
     screen = tuple((_strings(param(k)) or [""])[0].strip().upper() for k in ("X_SCREEN", "Y_SCREEN"))
-
-    n_frames = xyz.shape[2] if xyz.ndim == 3 else 0
-    if xyz.ndim != 3 or xyz.shape[0] < 3 or xyz.shape[1] == 0:  # no 3D points (e.g. force plates only)
-        xyz, residuals, labels = np.zeros((4, 0, n_frames)), np.zeros((1, 0, n_frames)), []
-    n_points = xyz.shape[1]
-    if n_points and n_frames == 0:
-        raise ParseError(path, None, "no frames: the file holds points but zero frames of data")
-    declared, frame_bytes = layout["frames"], layout["frame_bytes"]
-    meta = {"declared_frames": declared, "notes": notes}
-    if n_frames < declared and frame_bytes:
-        # ezc3d stops at the end of the file: a file that ends inside a frame was cut
-        # short; one that ends on a frame boundary was cropped by a tool that left the
-        # counts (ezc3d's own Optotrak sample): read what it holds, and say so
-        error = _truncation(layout, n_frames, path)
-        if error is not None:
-            raise error
-        notes.append(f"the file declares {declared} frames but holds {n_frames}; read those")
-    labels = labels[:n_points] + [f"?{i + 1}" for i in range(len(labels), n_points)]
-    pts = np.ascontiguousarray(xyz[:3].transpose(2, 1, 0))          # (frames, points, 3)
-    res = residuals.reshape(n_points, n_frames).T if residuals.size == n_points * n_frames \
-        else np.zeros((n_frames, n_points))
-    valid = ~(np.isnan(pts).any(axis=2) | (res < 0) | (pts == 0.0).all(axis=2))
-    pts[~valid] = np.nan
-    return C3dPoints(xyz=pts, valid=valid, labels=tuple(labels), rate=rate,
+    meta = {"declared_frames": layout["frames"], "notes": notes, "file_labels": tuple(labels)}
+    return C3dPoints(xyz=pts, valid=valid, labels=tuple(labels[i] for i in cols), rate=rate,
                      units=units[0] if units else "mm", scale=scale, screen=screen,
                      first_frame=first_frame, meta=meta)

@@ -191,7 +191,10 @@ def _zip(archive: Path) -> zipfile.ZipFile:
             for old in cache.values():
                 old.close()
             cache.clear()
-        zf = cache[key] = zipfile.ZipFile(archive)
+        try:
+            zf = cache[key] = zipfile.ZipFile(archive)
+        except zipfile.BadZipFile as exc:   # as a damaged file: an OSError
+            raise OSError(f"not a readable zip archive ({exc})") from None
     return zf
 
 
