@@ -9,6 +9,12 @@ Run: ``python benchmarks/bench_read_memory.py [--mb 250] [--siblings 100000]``. 
 (b) the streamed SHA-256 of the BVH: peak RSS above baseline;
 (c) reading a BVH of ``--siblings`` sibling joints (refused: not a humanoid), time;
     previously 222 s for 100,000.
+
+``--bombs [--repo DIR]`` instead: the ingest (the CLI, a fresh process) of compression bombs beside the
+shipped sample (issue 27 item 2) — a ~2 MB ``.bvh.gz`` that expands to 2 GiB and one to 1 GiB (the
+walk's header, then lines of zeros: valid frames), a zip member of 2 GiB and an ``.xz`` of 2 GiB —
+wall seconds, peak RSS, and what the summary says; ``--repo`` runs another checkout's CLI (the
+figures before a change), ``--timeout`` stops a run.
 """
 import argparse
 import gzip
@@ -95,11 +101,88 @@ def star(n: int) -> bytes:
     return ("\n".join(rows) + "\n").encode()
 
 
+def cli_run(bench_scale, args, timeout) -> dict:
+    """``mocapdb ARGS`` in a fresh process as bench_scale.run_cli, but a failed ingest is a result too and
+    a run past ``timeout`` seconds is killed (its peak RSS polled until then)."""
+    with tempfile.NamedTemporaryFile(suffix=".rss") as rss:
+        env = dict(os.environ, PYTHONPATH=str(bench_scale.REPO), BENCH_RSS_FILE=rss.name)
+        t = time.perf_counter()
+        p = subprocess.Popen([sys.executable, "-P", "-c", bench_scale.CLI_CHILD, *map(str, args)], env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        polled = 0
+        while p.poll() is None and time.perf_counter() - t < timeout:
+            try:
+                status = Path(f"/proc/{p.pid}/status").read_text()
+                polled = max(polled, int(status.split("VmHWM:")[1].split()[0]))
+            except (OSError, IndexError, ValueError):
+                pass
+            time.sleep(0.5)
+        killed = p.poll() is None
+        if killed:
+            p.kill()
+        out, err = p.communicate()
+        dt = time.perf_counter() - t
+        kb = int(Path(rss.name).read_text() or 0) or polled
+    return {"s": dt, "gb": kb / 2**20, "stdout": out, "stderr": err, "killed": killed}
+
+
+def bombs(a):
+    """--bombs: each bomb ingested with the sample, in a fresh process."""
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    sys.path.insert(0, str(REPO / "tests"))
+    import bench_scale
+    from bench_annotate import machine_header
+    from fuzzing import bomb, zip_bomb
+
+    if a.repo is not None:
+        bench_scale.REPO = a.repo.resolve()
+    machine_header(f"bench_read_memory --bombs: compression bombs beside the sample, checkout {bench_scale.REPO}")
+    walk = (DATA / "foreign" / "bvh" / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh").read_bytes()
+    head, _, body = walk.partition(b"MOTION")
+    zeros = b" ".join([b"0"] * len(body.split(b"\n")[3].split())) + b"\n"
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        sample = REPO / "mocapdb" / "sample"
+        bench_scale.run_cli(["--db", tmp / "warm.duckdb", "ingest", "--silent", "--sample"])   # compile once
+        cases = []
+        for gib in (2, 1):
+            path = tmp / f"walk_{gib}gib.bvh.gz"
+            frames = (gib << 30) // len(zeros)
+            path.write_bytes(bomb("gz", gib << 30, head=head + b"MOTION\nFrames: %d\nFrame Time: 0.0083333\n" % frames,
+                                  line=zeros))
+            cases.append((f"{path.stat().st_size / 1e6:.1f} MB .bvh.gz → {gib} GiB of frames", path))
+        cases.append(("zip member → 2 GiB", zip_bomb(tmp / "bomb.zip", "takes/bomb.bvh", 2 << 30) / "takes/bomb.bvh"))
+        xz = tmp / "bomb.c3d.xz"
+        xz.write_bytes(bomb("xz", 2 << 30))
+        cases.append((f"{xz.stat().st_size / 1e6:.1f} MB .c3d.xz → 2 GiB", xz))
+        rows = []
+        for what, path in [("none (the sample alone)", None), *cases]:
+            db = tmp / "b.duckdb"
+            for f in tmp.glob("b.duckdb*"):
+                f.unlink()
+            args = ["--db", db, "ingest", *([path] if path else []), *sorted(sample.glob("*.xz"))]
+            r = cli_run(bench_scale, args, a.timeout)
+            failed = [ln for ln in r["stderr"].splitlines() if ln.startswith("failed")]
+            said = ("killed after the timeout" if r["killed"] else
+                    (r["stdout"].strip().splitlines() or ["(no summary)"])[-1]
+                    + (f"; {failed[0].replace(str(tmp) + '/', '')[:110]}…" if failed else ""))
+            print(f"  {what}: {r['s']:.1f} s, peak {r['gb']:.2f} GB; {said}", flush=True)
+            rows.append((what, r, said))
+    print("\n| bomb | s | peak GB | summary |\n|---|---:|---:|---|")
+    for what, r, said in rows:
+        print(f"| {what} | {r['s']:.1f} | {r['gb']:.2f} | {said} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--mb", type=float, default=250.0)
     ap.add_argument("--siblings", type=int, default=100_000)
+    ap.add_argument("--bombs", action="store_true", help="ingest compression bombs beside the sample instead")
+    ap.add_argument("--repo", type=Path, help="with --bombs: the checkout whose CLI runs (default: this one)")
+    ap.add_argument("--timeout", type=float, default=900.0, help="with --bombs: seconds before a run is stopped")
     a = ap.parse_args()
+    if a.bombs:
+        return bombs(a)
     walk = DATA / "foreign" / "bvh" / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh"
     amc, asf = DATA / "cmu" / "86" / "86_09.amc", DATA / "cmu" / "86" / "86.asf"
     with tempfile.TemporaryDirectory() as tmp:

@@ -46,3 +46,10 @@ SELECT * FROM %index_schema%.postings LIMIT 0;
 
 -- name: empty_annotations
 SELECT * FROM annotations LIMIT 0;
+
+-- name: archive_frame_counts
+-- rows, first and last frame of each motion of a Ray archive's features parts (the per-motion check of attach)
+SELECT motion_id::BIGINT AS motion_id, count(*) AS n_rows, min(frame) AS first, max(frame) AS last
+FROM read_parquet($files, hive_partitioning = true, union_by_name = true)
+GROUP BY ALL
+ORDER BY motion_id;

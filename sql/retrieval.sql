@@ -10,7 +10,13 @@ SELECT bits FROM features WHERE motion_id = $id ORDER BY frame;
 SELECT count(*) AS n_motions, coalesce(sum(n_frames), 0) AS n_frames FROM motions;
 
 -- name: motion_lengths
-SELECT motion_id, n_frames FROM motions ORDER BY motion_id;
+-- every motion's frames, and whether its feature rows are its frames 1…n (one without them is not ranked)
+SELECT m.motion_id, m.n_frames, m.name,
+       coalesce(f.n = m.n_frames AND f.lo = 1 AND f.hi = m.n_frames, m.n_frames = 0) AS complete
+FROM motions m
+LEFT JOIN (SELECT motion_id, count(*) AS n, min(frame) AS lo, max(frame) AS hi FROM features GROUP BY motion_id) f
+    USING (motion_id)
+ORDER BY m.motion_id;
 
 -- name: sample_words
 -- the archive sample: each motion's frames whose (1-based) number is a multiple of $step

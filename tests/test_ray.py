@@ -2,6 +2,7 @@
 module fails, it does not skip): the Parquet archive equals ingest + annotate on
 the same files, broken files become rows of `errors`, a worker killed mid-run
 changes nothing, and the archive is usable from SQL."""
+import json
 import os
 import re
 import shutil
@@ -12,6 +13,8 @@ import time
 from pathlib import Path
 
 import duckdb
+import pyarrow as pa
+import pyarrow.compute  # noqa: F401 - pa.compute
 import pyarrow.parquet as pq
 import pytest
 import ray  # noqa: F401  (the extra must be installed: an ImportError here fails the module)
@@ -288,6 +291,92 @@ def test_the_archive_is_queryable_in_place(archive, single, tmp_path):
     # a database with motions of its own is not attached
     with pytest.raises(ParameterError, match="holds .* rows of its own"):
         api.attach(single, out)
+
+
+def _tampered(out, tmp_path, name):
+    """A copy of the archive to tamper with, its parts by dataset."""
+    copy = tmp_path / name
+    shutil.copytree(out, copy)
+    parts = {ds: sorted(p for p in (copy / ds).rglob("*.parquet")) for ds in DATASETS}
+    return copy, parts
+
+
+def _refusals(archive, db):
+    """What attach and import-features say of an archive (each must refuse), through the CLI."""
+    said = []
+    for args in (["attach", archive], ["import-features", archive]):
+        r = run(db, *args, code=1)
+        assert len(r.output.strip().splitlines()) == 1 and "internal error" not in r.output, r.output
+        said.append(r.output.strip())
+    return said
+
+
+@pytest.mark.shared
+def test_a_tampered_archive_is_refused_naming_what_is_missing_or_extra(archive, tmp_path):
+    """Issue 27 item 4: every part is checked against the manifest (which lists them with their rows)."""
+    out, report = archive
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert sum(n for rel, n in manifest["parts"].items() if rel.startswith("annotations/")) == report.segments
+    db = tmp_path / "t.duckdb"
+    # motions/ emptied: was "internal error (ArrowInvalid …)"
+    a, parts = _tampered(out, tmp_path, "no_motions")
+    for f in parts["motions"]:
+        f.unlink()
+    for said in _refusals(a, db):
+        assert "does not match its manifest.json: motions/part-" in said and ") is missing" in said, said
+    # an annotations part deleted, or copied: answers silently changed, import exited 0
+    a, parts = _tampered(out, tmp_path, "deleted")
+    gone = parts["annotations"][0]
+    gone.unlink()
+    for said in _refusals(a, db):
+        assert f"{gone.relative_to(a).as_posix()} (" in said and "rows) is missing" in said, said
+    a, parts = _tampered(out, tmp_path, "copied")
+    twin = parts["annotations"][0].with_name("part-copy.parquet")
+    shutil.copy(parts["annotations"][0], twin)
+    for said in _refusals(a, db):
+        assert f"{twin.relative_to(a).as_posix()} is not one of its parts" in said, said
+    # a part rewritten with fewer rows, under its own name
+    a, parts = _tampered(out, tmp_path, "rewritten")
+    t = pq.read_table(parts["features"][0])
+    pq.write_table(t.slice(0, t.num_rows - 5), parts["features"][0])
+    for said in _refusals(a, db):
+        assert f"holds {t.num_rows - 5} rows, manifest.json says {t.num_rows}" in said, said
+    # an archive of an older mocapdb (no parts in its manifest): its totals, and each motion's frames
+    a, parts = _tampered(out, tmp_path, "older")
+    old = {k: v for k, v in manifest.items() if k != "parts"}
+    (a / "manifest.json").write_text(json.dumps(old))
+    parts["annotations"][0].unlink()
+    for said in _refusals(a, db):
+        assert "annotations/ holds" in said and f"manifest.json says {report.segments}" in said, said
+    a, parts = _tampered(out, tmp_path, "older_moved")
+    (a / "manifest.json").write_text(json.dumps(old))
+    t = pq.read_table(parts["features"][0]).sort_by("motion_id")
+    first = t.column("motion_id")[0].as_py()
+    mine = pa.compute.equal(t.column("motion_id"), first)
+    moved = t.filter(mine).set_column(t.schema.get_field_index("motion_id"), "motion_id",
+                                      pa.array([first + 1] * int(pa.compute.sum(mine).as_py()), pa.int32()))
+    pq.write_table(pa.concat_tables([t.filter(pa.compute.invert(mine)), moved.cast(t.schema)]), parts["features"][0])
+    r = run(db, "attach", a, code=1)
+    assert f"motion {first} (" in r.output and "has 0 feature rows" in r.output, r.output
+    assert not db.exists() or api.connect(db).execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
+
+
+@pytest.mark.shared
+def test_similar_ranks_no_motion_without_its_feature_rows(archive, tmp_path):
+    """A features part deleted after attach: its motions keep their index runs, but are no answer."""
+    out, _ = archive
+    a, parts = _tampered(out, tmp_path, "after")
+    db = tmp_path / "v.duckdb"
+    run(db, "attach", a)
+    with api.connect(db) as con:
+        ids = set(pq.read_table(parts["features"][-1]).column("motion_id").to_pylist())
+        query = con.execute("SELECT name FROM motions WHERE motion_id NOT IN (SELECT unnest($ids)) AND n_frames > 60 "
+                            "ORDER BY motion_id LIMIT 1", {"ids": sorted(ids)}).fetchall()[0][0]
+        before = set(api.similar(con, query, start_frame=1, end_frame=40, limit=200).column("motion_id").to_pylist())
+        assert before & ids
+        parts["features"][-1].unlink()
+        after = set(api.similar(con, query, start_frame=1, end_frame=40, limit=200).column("motion_id").to_pylist())
+        assert after and not after & ids
 
 
 @pytest.mark.shared

@@ -37,7 +37,7 @@ from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
 from mocapdb.storage.ingest import MOTION_SUFFIXES, IngestReport, motion_files, reader_maps
 from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
-from mocapdb.storage.parquet import table_schemas, write_manifest
+from mocapdb.storage.parquet import archive_parts, table_schemas, write_manifest
 from mocapdb.storage.schema import open_database
 
 log = logging.getLogger("mocapdb")
@@ -299,7 +299,9 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
                          "keyframes": keyframes, "files": len(files), "motions": len(report.ingested),
                          "failed": len(report.failed), "skipped": len(report.skipped),
                          "source_frames": report.source_frames, "segments": report.segments,
-                         "batch_files": batch_files, "bucket_motions": bucket_motions})
+                         "batch_files": batch_files, "bucket_motions": bucket_motions,
+                         # every part and its rows: attach and import check the archive against them
+                         "parts": archive_parts(out)})
     log.info("ray_annotate: %s", report.summary())
     return report
 

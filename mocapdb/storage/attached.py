@@ -20,7 +20,7 @@ import re
 from pathlib import Path
 
 from mocapdb.errors import ParameterError
-from mocapdb.storage.parquet import MANIFEST, Archive
+from mocapdb.storage.parquet import MANIFEST, Archive, check_frames_per_motion
 from mocapdb.storage.schema import attached_archive, require_own_tables
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import transaction
@@ -52,11 +52,14 @@ def attach(con, directory) -> int:
     Raises
     ------
     ParameterError
-        Not a finished ``ray_annotate`` archive, a path DuckDB would read as a
-        glob pattern, or a database that holds motions of its own.
+        Not a finished ``ray_annotate`` archive, one whose parts differ from its
+        manifest or do not hold each motion's frames 1 … n (named, in one line),
+        a path DuckDB would read as a glob pattern, or a database that holds
+        motions of its own.
     """
     root = Path(directory).resolve()
-    archive = Archive.open(root)  # refuses exports and unfinished runs, naming why
+    # refuses exports, unfinished runs and parts missing, extra, changed or unreadable, naming why
+    archive = Archive.open(root, whole=True)
     if archive.kind != "ray":
         raise ParameterError(f"directory: {str(root)!r} is an export-features folder; attach reads a ray-annotate "
                              "archive (with motions/, features/, postings/, annotations/ and its manifest); load an "
@@ -64,6 +67,7 @@ def attach(con, directory) -> int:
     if _GLOB.search(str(root)):
         raise ParameterError(f"directory: {str(root)!r} holds a character DuckDB reads as a file pattern "
                              "(* ? [ ] { }); move or link the archive to a plain path")
+    check_frames_per_motion(con, archive)   # the views will read the parts as they are
     with transaction(con):
         if attached_archive(con) is None:
             own = con.execute(_sql("own_rows")).fetchall()[0][0]

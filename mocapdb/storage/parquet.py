@@ -33,6 +33,7 @@ from pathlib import Path
 import duckdb
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute  # noqa: F401 - pa.compute
 import pyarrow.parquet as pq
 
 from mocapdb.errors import ParameterError, SchemaError
@@ -183,13 +184,21 @@ class Archive:
     _parts: dict = field(default_factory=dict, repr=False)  # dataset -> its Ray parts, listed once
 
     @classmethod
-    def open(cls, directory) -> "Archive":
-        """Recognise an export or a finished Ray archive.
+    def open(cls, directory, *, whole=False) -> "Archive":
+        """Recognise an export or a finished Ray archive, and check a Ray archive against its manifest.
+
+        Every part of a Ray archive must be one its manifest lists, with the
+        rows it lists (the Parquet footers say: nothing is read); an archive of
+        an older mocapdb, whose manifest lists no parts, must hold the features
+        and annotations rows its motions and manifest count. ``whole``:
+        every part must be readable too (an import refuses only the motions of
+        an unreadable part).
 
         Raises
         ------
         ParameterError
-            Neither layout, or an export or Ray run that did not finish (named).
+            Neither layout, an export or Ray run that did not finish (named), or
+            a part missing, extra or changed (the first three named, in one line).
         """
         d = Path(directory)
         if (d / "motions").is_dir():
@@ -199,10 +208,21 @@ class Archive:
                     f"directory: {str(d)!r} is an unfinished ray-annotate archive (no {MANIFEST}, which the run "
                     "writes last): the run was stopped before the end, and the motions of its unfinished "
                     "batches are missing; run ray-annotate again (--overwrite)")
+            found = archive_parts(d)
+            problems = _part_problems(manifest, found)
+            if whole:
+                problems += [f"{rel}: not a readable Parquet file" for rel, rows in found.items() if rows < 0]
+            _refuse(d, problems)
             motions = _read_motions(d / "motions")
             if manifest.get("motions") != motions.num_rows:
                 raise ParameterError(f"directory: {str(d)!r} holds {motions.num_rows} motions, but its {MANIFEST} "
                                      f"lists {manifest.get('motions')}: parts of motions/ are missing or foreign")
+            if "parts" not in manifest:   # an archive of an older mocapdb: its totals
+                rows = {ds: sum(n for rel, n in found.items() if rel.startswith(f"{ds}/") and n > 0) for ds in DATASETS}
+                want = {"features": int(pa.compute.sum(motions.column("n_frames")).as_py() or 0),
+                        "annotations": manifest.get("segments")}
+                _refuse(d, [f"{ds}/ holds {rows[ds]} rows, {MANIFEST} says {n}" for ds, n in want.items()
+                            if n is not None and rows[ds] != n])
             return cls(d, "ray", motions)
         if (d / EXPORT_MOTIONS).is_file():
             return cls(d, "export", _read_motions(d / EXPORT_MOTIONS))
@@ -234,12 +254,77 @@ class Archive:
         return self._parts[dataset]
 
 
+#: the datasets of a Ray archive: the tables and the files that failed
+DATASETS = (*ARCHIVE_TABLES, "errors")
+
+
+def archive_parts(directory) -> dict:
+    """``{relative path: rows}`` of every Parquet part of a Ray archive's datasets (rows from the file's
+    footer, -1 for a file that is no readable Parquet); temporary files (a leading dot) left out."""
+    d = Path(directory)
+    out = {}
+    for dataset in DATASETS:
+        for f in sorted((d / dataset).rglob("*.parquet")) if (d / dataset).is_dir() else ():
+            if not f.name.startswith("."):
+                try:
+                    rows = pq.read_metadata(f).num_rows
+                except (OSError, pa.ArrowException):
+                    rows = -1
+                out[f.relative_to(d).as_posix()] = rows
+    return out
+
+
+def _part_problems(manifest: dict, found: dict) -> list:
+    """What differs between the parts a manifest lists and those ``found`` (:func:`archive_parts`)."""
+    listed = manifest.get("parts")
+    if listed is None:
+        return []
+    out = [f"{rel} ({rows} rows) is missing" for rel, rows in listed.items() if rel not in found]
+    out += [f"{rel} holds {found[rel]} rows, {MANIFEST} says {rows}" for rel, rows in listed.items()
+            if found.get(rel, -1) >= 0 and found[rel] != rows]
+    return out + [f"{rel} is not one of its parts (a copy, or a part of another run)" for rel in found
+                  if rel not in listed]
+
+
+def _refuse(d: Path, problems: list) -> None:
+    """One line naming an archive's first problems."""
+    if problems:
+        more = f"; {len(problems) - 3} more" if len(problems) > 3 else ""
+        raise ParameterError(f"directory: {str(d)!r} does not match its {MANIFEST}: " + "; ".join(problems[:3])
+                             + more + "; run ray-annotate again (--overwrite) or restore the archive")
+
+
 def _read_motions(path: Path) -> pa.Table:
     try:
         table = pq.read_table(path, partitioning=None) if path.is_dir() else pq.read_table(path)
     except (OSError, pa.ArrowException) as exc:
         raise SchemaError(f"{path}: cannot read the archive's motions ({exc})") from None
+    missing = [c for c in ("motion_id", "name", "n_frames", "sha256") if c not in table.column_names]
+    if missing:   # no part at all reads as a table without columns
+        raise SchemaError(f"{path}: no motions table in it (columns {', '.join(missing)} missing)")
     return table.sort_by("motion_id")
+
+
+def check_frames_per_motion(con, archive: "Archive") -> None:
+    """A Ray archive's features parts must hold each motion's frames 1 … n_frames, once each (attach's check:
+    the views read the parts in place; an import checks a batch at a time as it reads it).
+
+    Raises
+    ------
+    ParameterError
+        Naming the first motions whose rows are missing, partial or doubled, in one line.
+    """
+    files = [str(archive.root / rel) for rel in archive_parts(archive.root) if rel.startswith("features/")]
+    counts = con.execute(_sql("archive_frame_counts"), {"files": files}).fetchnumpy() if files else {}
+    got = {int(m): (int(n), int(a), int(b)) for m, n, a, b in zip(*(counts.get(c, ()) for c in
+                                                                    ("motion_id", "n_rows", "first", "last")))}
+    problems = []
+    for mid, name, n in zip(*(archive.motions.column(c).to_pylist() for c in ("motion_id", "name", "n_frames"))):
+        rows, first, last = got.pop(int(mid), (0, 1, 0))
+        if (rows, first, last) != (n, 1, n) and n:
+            problems.append(incomplete_reason(mid, name, rows, n, what="motion", remedy="features missing or doubled"))
+    problems += [f"features of motion {mid}, which motions/ does not list" for mid in sorted(got)]
+    _refuse(archive.root, problems)
 
 
 def _read_rows(con, name, files, lo, hi):
@@ -398,4 +483,5 @@ def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, repor
 
 
 __all__ = ["export_features", "import_features", "features_sql", "table_schemas", "ARCHIVE_TABLES", "ImportReport",
-           "Archive", "MANIFEST", "EXPORT_MOTIONS", "write_manifest", "read_manifest"]
+           "Archive", "MANIFEST", "EXPORT_MOTIONS", "write_manifest", "read_manifest", "archive_parts",
+           "check_frames_per_motion", "DATASETS"]

@@ -16,6 +16,7 @@ archive frames at once.
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import numpy as np
 import pyarrow as pa
@@ -29,6 +30,8 @@ from mocapdb.storage.motions import frame_batches
 from mocapdb.storage.postings import index_version
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered
+
+log = logging.getLogger("mocapdb")
 
 #: columns of a result row (frames 1-based inclusive at 30 Hz, seconds from the motion's start)
 RESULT_COLUMNS = ("document", "motion_id", "start_frame", "end_frame", "start_s", "end_s", "cost")
@@ -151,9 +154,7 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
     """
     version = cache.version(version)
     with cache.cursor() as cur:
-        meta = cur.execute(_sql("motion_lengths")).fetchnumpy()
-        ids = np.asarray(meta["motion_id"], np.int64)
-        lengths = np.asarray(meta["n_frames"], np.int64)
+        ids, lengths = _whole_motions(cur)
         n_frames = int(lengths.sum())
         if n_frames == 0:
             raise SchemaError("the archive is empty: ingest motions first")
@@ -198,11 +199,23 @@ def _search_features(con, stretches, *, limit, features, tau, batch_frames):
     if sample.size == 0:
         raise SchemaError("the archive is too small to search: ingest motions first")
     query = plan_query([s[3] for s in stretches], sample, features=features, tau=tau, keyframes=False)
-    meta = con.execute(_sql("motion_lengths")).fetchnumpy()
-    motion = np.asarray(meta["motion_id"], np.int64)
-    return search_segments(_sql_fetch(con), motion, np.zeros(motion.size, np.int64),
-                           np.asarray(meta["n_frames"], np.int64), query, limit=limit,
+    motion, lengths = _whole_motions(con)
+    return search_segments(_sql_fetch(con), motion, np.zeros(motion.size, np.int64), lengths, query, limit=limit,
                            exclude=[(s[0], s[1], s[2]) for s in stretches], batch_frames=batch_frames)
+
+
+def _whole_motions(con):
+    """Ids and lengths of the motions whose feature rows are their frames 1 … n, ascending: a motion without
+    them (a part of an attached archive deleted, an older partial import) is never ranked — its index runs
+    could be ranked, but not its features shown — and is logged."""
+    meta = con.execute(_sql("motion_lengths")).fetchnumpy()
+    complete = np.asarray(meta["complete"], bool)
+    if not complete.all():
+        bad = [f"{m} ({n})" for m, n in zip(np.asarray(meta["motion_id"])[~complete],
+                                             np.asarray(meta["name"], dtype=object)[~complete])]
+        log.warning("similar: %d motion(s) without their feature rows are not ranked: %s%s", len(bad),
+                    ", ".join(bad[:5]), " …" if len(bad) > 5 else "")
+    return (np.asarray(meta["motion_id"], np.int64)[complete], np.asarray(meta["n_frames"], np.int64)[complete])
 
 
 def similar_stretches(con, stretches, *, limit=10, features="all", tau=None, keyframes=None,
