@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 import mocapdb
-from mocapdb.annotation import EAF_FPS_PROPERTY, read_eaf, read_labels
+from mocapdb.annotation import EAF_FPS_PROPERTY, eaf_document, read_eaf, read_labels
 from mocapdb.cli import main
 from mocapdb.errors import ParseError
 
@@ -159,3 +159,26 @@ def test_eaf_times_land_on_the_same_30hz_frames_at_any_source_rate(tmp_path, fps
     assert [(str(r["label"]), int(r["start"]), int(r["end"])) for r in rows] == [("walk", 0, 29), ("clap", 60, 104)]
     # the database's rate wins over the file's
     assert read_truth(path, fps={"take": 2 * fps})["end"].tolist() == [29, 104]
+
+
+def test_elan_round_trip_for_compressed_sources_and_names_that_need_escaping(tmp_path):
+    """Issue 27 item 5: `evaluate --truth X.eaf` after `annotate --format eaf` found no document for a
+    name the media URL escapes ("documents ['walk%2001'] are not in the database") nor for a compressed
+    source, the shipped sample included (86_09.amc.xz → '86_09.amc')."""
+    import lzma
+    import shutil
+
+    from conftest import SAMPLE_86_09, SAMPLE_BVH
+
+    folder = tmp_path / "takes"
+    folder.mkdir()
+    shutil.copy(SAMPLE_86_09, folder)
+    (folder / "walk 01 ünï.bvh").write_bytes(lzma.decompress(SAMPLE_BVH.read_bytes()))
+    shutil.copy(SAMPLE_86_09.parent / "86.asf", folder)
+    db, out = tmp_path / "e.duckdb", tmp_path / "eaf"
+    run(db, "ingest", folder, "--silent")
+    run(db, "annotate", "--format", "eaf", "--out", out, "--silent")
+    files = sorted(out.glob("*.eaf"))
+    assert [eaf_document(f) for f in files] == ["86_09", "walk 01 ünï"] and all(read_eaf(f) for f in files)
+    for f in files:
+        assert eval_scores(run(db, "evaluate", "--truth", f).output) == [1.0] * 6, f.name

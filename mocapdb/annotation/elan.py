@@ -19,8 +19,10 @@ Read files (:func:`read_eaf`), the tier → label rule:
   as are annotations whose time slots have no time (ELAN's unaligned slots;
   logged). An annotation that refers to a time slot the file does not
   define is an error naming it;
-* the **document** is the stem of the first linked media file, else the
-  stem of the ``.eaf`` file itself (motion names are file stems);
+* the **document** is the stem of the first linked media file (its URL
+  %-decoded; format and compression suffixes dropped, ``walk%2001.bvh.gz`` →
+  ``walk 01``), else the stem of the ``.eaf`` file itself (motion names are
+  file stems);
 * times → native frames at the document's rate ``fps`` (the database's
   ``motions.source_fps`` when the caller knows it, else the file's
   ``mocapdb:source_fps`` property): native frame k (1-based) spans
@@ -33,11 +35,13 @@ from __future__ import annotations
 import logging
 import os
 from pathlib import Path
+from urllib.parse import unquote, urlsplit
 
 import numpy as np
 import pympi  # pympi-ling, a runtime dependency (3 ms to import)
 
 from mocapdb.errors import ParameterError, ParseError
+from mocapdb.readers.sources import motion_stem
 
 log = logging.getLogger("mocapdb")
 
@@ -66,7 +70,9 @@ def _document(eaf, path):
     for media in eaf.media_descriptors:
         url = media.get("MEDIA_URL") or media.get("RELATIVE_MEDIA_URL")
         if url:
-            stem = Path(url.split("://", 1)[-1].rstrip("/")).stem
+            # a URL: its path %-decoded (a space, unicode); a motion name is the stem without the format
+            # and compression suffixes (walk 01.bvh.gz -> walk 01), as ingest names it
+            stem = motion_stem(unquote(urlsplit(url).path if "://" in url else url).rstrip("/"))
             if stem:
                 return stem
     return Path(path).stem
