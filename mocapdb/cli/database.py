@@ -71,7 +71,7 @@ def joint_map_template(path):
     others are left for you, with the file's own joints listed.
     """
 
-    click.echo(api.template(path), nl=False)
+    click.echo(api.joint_map_template(path), nl=False)
 
 
 @command()
