@@ -355,3 +355,35 @@ def test_convert_labels_reads_the_published_label_files_as_the_development_evalu
     # the converted file is ground truth as it is
     r = run(db, "evaluate", "--truth", out)
     assert "all " in r.output, r.output
+
+
+def test_evaluate_reads_a_truth_at_the_source_rate_the_database_knows(tmp_path):
+    """Issue 27 item 7: `evaluate --pred P.csv --truth T.csv --db D` read a truth without an fps column
+    at 120 Hz even when the database knew the document (a 30 fps studio take scored F1 0.309 instead of
+    0.785). The shipped walk at 30 fps (every 4th frame): its own annotation as truth on native frames
+    scores 1 only at 30 fps."""
+    import csv
+    import lzma
+
+    from conftest import SAMPLE_BVH, eval_scores
+
+    head, _, body = lzma.decompress(SAMPLE_BVH.read_bytes()).partition(b"MOTION")
+    frames = [ln for ln in body.split(b"\n")[3:] if ln.strip()][::4]
+    take = tmp_path / "walk30.bvh"
+    take.write_bytes(head + b"MOTION\nFrames: %d\nFrame Time: 0.0333333\n" % len(frames) + b"\n".join(frames) + b"\n")
+    db, pred, truth = tmp_path / "r.duckdb", tmp_path / "pred.csv", tmp_path / "truth.csv"
+    run(db, "ingest", take, "--silent")
+    run(db, "annotate", "--format", "csv", "--out", pred, "--silent")
+    with open(pred, newline="") as src, open(truth, "w", newline="") as dst:
+        w = csv.writer(dst)
+        w.writerow(["document", "label", "start_frame", "end_frame"])   # no fps column
+        rows = list(csv.DictReader(src))
+        for r in rows:   # at 30 fps, 30 Hz frame k is native frame k
+            w.writerow([r["document"], r["label"], r["start_frame"], r["end_frame"]])
+    assert rows
+    assert eval_scores(run(db, "evaluate", "--pred", pred, "--truth", truth).output) == [1.0] * 6
+    from click.testing import CliRunner
+
+    from mocapdb.cli import main
+    alone = CliRunner().invoke(main, ["evaluate", "--pred", str(pred), "--truth", str(truth)])
+    assert alone.exit_code == 0 and eval_scores(alone.output)[2] < 0.9   # no database: 120 Hz, as before

@@ -15,7 +15,7 @@ from mocapdb.storage.annotations import (EXPORT_FORMATS, annotate_documents, ann
                                         export_segments, store_annotations)
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
-from mocapdb.storage.motions import documents_by_name, motion_ids
+from mocapdb.storage.motions import documents_by_name, motion_ids, source_rates
 from mocapdb.storage.schema import require_own_tables
 from mocapdb.storage.sqltext import statement
 
@@ -112,7 +112,9 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
     Parameters
     ----------
     con : duckdb.DuckDBPyConnection or None
-        Needed unless ``pred`` is given.
+        Needed unless ``pred`` is given; with ``pred``, the source rate of each
+        truth document it knows places the truth's native frames (else 120 Hz,
+        or an ELAN file's own rate).
     truth : str or Path
         ``document,label,start_frame,end_frame`` (native frames, 1-based) or
         an ELAN ``.eaf`` file; documents are motion names in the database.
@@ -145,7 +147,9 @@ def evaluate(con, truth, *, pred=None, model=DEFAULT_MODEL, tau=None, keyframes=
     if pred is not None:
         if taus is not None:
             raise ParameterError("a tau sweep re-annotates: use it with a database, not with pred")
-        return _scores(read_truth(truth, label_map=label_map), read_segments(pred), vocabulary, by_label)
+        # a document the database knows is read at its source rate, not the 120 Hz default
+        fps = None if con is None else source_rates(con, label_documents(truth)) or None
+        return _scores(read_truth(truth, label_map=label_map, fps=fps), read_segments(pred), vocabulary, by_label)
     if con is None:
         raise ParameterError("give pred (an annotation CSV), or a database to annotate the truth's documents")
     cache = connection_cache(con)

@@ -291,10 +291,23 @@ def documents_by_name(con, names) -> Documents:
     SchemaError
         A name matches no motion, or several (name the file instead).
     """
+    ids, missing, dup = _resolve_names(con, names)
+    if missing:
+        raise SchemaError(f"documents {missing} are not in the database; ingest them first "
+                          "(document = motion name, the file stem, or the file name)")
+    if dup:
+        raise SchemaError(f"documents {dup} name several motions (e.g. the same take as .amc and .c3d); "
+                          "name the file instead (86_09.amc), or delete duplicates")
+    docs = motion_documents(con, sorted(set(ids.values())))
+    given = {mid: n for n, mid in ids.items()}
+    return replace(docs, names=[given[int(m)] for m in docs.motion_ids])
+
+
+def _resolve_names(con, names):
+    """``({name: motion id}, missing, ambiguous)``: each name as :func:`documents_by_name` resolves it."""
     count = dict(con.execute(_sql("name_counts")).fetchall())
-    wanted = sorted(set(names))
     ids, missing, dup = {}, [], []
-    for n in wanted:
+    for n in sorted(set(names)):
         if count.get(n, 0) == 1:
             ids[n] = con.execute(_sql("by_name"), {"name": n}).fetchall()[0][0]
             continue
@@ -305,15 +318,16 @@ def documents_by_name(con, names) -> Documents:
             dup.append(n)
         else:
             missing.append(n)
-    if missing:
-        raise SchemaError(f"documents {missing} are not in the database; ingest them first "
-                          "(document = motion name, the file stem, or the file name)")
-    if dup:
-        raise SchemaError(f"documents {dup} name several motions (e.g. the same take as .amc and .c3d); "
-                          "name the file instead (86_09.amc), or delete duplicates")
-    docs = motion_documents(con, sorted(set(ids.values())))
-    given = {mid: n for n, mid in ids.items()}
-    return replace(docs, names=[given[int(m)] for m in docs.motion_ids])
+    return ids, missing, dup
+
+
+def source_rates(con, names) -> dict:
+    """Name → source frame rate (``motions.source_fps``) of the ``names`` that name one motion (as
+    :func:`documents_by_name` resolves them); names of no motion, or of several, are left out."""
+    ids = _resolve_names(con, names)[0]
+    meta = motion_rows(con, sorted(set(ids.values())))
+    rate = dict(zip(np.asarray(meta["motion_id"]).tolist(), np.asarray(meta["source_fps"]).tolist()))
+    return {n: float(rate[mid]) for n, mid in ids.items() if mid in rate}
 
 
 def source_motion(con, motion_id):
@@ -460,4 +474,4 @@ def relocate_sources(con, old_prefix, new_prefix):
 
 __all__ = ["Documents", "motion_ids", "motion_documents", "documents_by_name", "source_motion", "motions_to_delete",
            "relocate_sources", "iter_documents", "motion_rows", "frame_batches", "read_words", "check_frames",
-           "incomplete_reason", "incomplete_motions", "BATCH_FRAMES"]
+           "incomplete_reason", "incomplete_motions", "BATCH_FRAMES", "source_rates"]
