@@ -27,7 +27,7 @@ from mocapdb.features import N_FEATURES
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery, annot_margins
 from mocapdb.storage.annotations import annotate_motions
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.motions import iter_documents
+from mocapdb.storage.motions import iter_documents, one_motion
 from mocapdb.storage.retrieval import query_stretch, search_archive
 from mocapdb.storage.sqltext import sql_text
 from mocapdb.templates import mt_distance
@@ -52,6 +52,9 @@ SEGMENT_TYPE = _sql_struct(SEGMENT_ARROW)
 #: one hit of ``keyframe_search`` (frames 1-based at 30 Hz)
 _HIT_ARROW = pa.struct([("motion_id", pa.int32()), ("start_frame", pa.int32()), ("end_frame", pa.int32())])
 HIT_TYPE = _sql_struct(_HIT_ARROW)
+#: the SQL types ``similar_to`` reads as a motion id (any other but text is refused, not cast)
+_INTEGER_TYPES = {"TINYINT", "SMALLINT", "INTEGER", "BIGINT", "HUGEINT", "UTINYINT", "USMALLINT", "UINTEGER",
+                  "UBIGINT", "UHUGEINT"}
 #: one result of ``similar_to`` (ranked; frames 1-based at 30 Hz)
 _SIMILAR_ARROW = pa.struct([("rank", pa.int32()), ("motion_id", pa.int32()), ("start_frame", pa.int32()),
                             ("end_frame", pa.int32()), ("cost", pa.float64())])
@@ -208,22 +211,28 @@ def make_udfs(cache):
             per_row.append(_search(cache, query, left, right, version))
         return _hits_array(per_row)
 
-    def similar_udf(motion, first, last, k, index_version):
-        """``mocap_similar(motion, first, last, k, version)`` → LIST(result) per row (sql/macros.sql).
+    def similar_udf(motion, motion_type, first, last, k, index_version):
+        """``mocap_similar(motion, typeof(motion), first, last, k, version)`` → LIST(result) per row
+        (sql/macros.sql).
 
-        The query stretch is read here and the archive searched a batch of
-        motions at a time (:func:`~mocapdb.storage.retrieval.search_archive`),
-        for the same reason the other UDFs read their own words.
+        The motion comes as text with its SQL type: an integer is an id, text a
+        name (one motion's), anything else an error — a cast would have read
+        '86_09' as 8609 and 3.7 as 4. The query stretch is read here and the
+        archive searched a batch of motions at a time
+        (:func:`~mocapdb.storage.retrieval.search_archive`), for the same reason
+        the other UDFs read their own words.
         """
         per_row = []
-        for m, a, b, limit, version in zip(*[_column(x).to_pylist() for x in
-                                             (motion, first, last, k, index_version)]):
+        for m, t, a, b, limit, version in zip(*[_column(x).to_pylist() for x in
+                                                (motion, motion_type, first, last, k, index_version)]):
             if limit is None or limit < 1:
                 raise ParameterError(f"similar_to: k must be a positive integer, got {limit}")
             if m is None:
                 raise SchemaError("similar_to: no motion with id NULL (see: SELECT motion_id, name FROM motions)")
+            if t not in _INTEGER_TYPES and t != "VARCHAR":
+                raise ParameterError(f"similar_to: motion must be a motion id (an integer) or a name, got {m} ({t})")
             with cache.cursor() as cur:
-                stretch = query_stretch(cur, m, a, b)
+                stretch = query_stretch(cur, int(m) if t in _INTEGER_TYPES else one_motion(cur, m), a, b)
             hits = search_archive(cache, [stretch], limit=int(limit), version=version)
             per_row.append(pa.StructArray.from_arrays(
                 [pa.array(np.arange(1, hits.size + 1), pa.int32()), pa.array(hits["doc"], pa.int32()),
@@ -326,7 +335,8 @@ def register(con, *, cache=None):
                          duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
                         duckdb.list_type(HIT_TYPE), **common)
     con.create_function("mocap_similar", similar_udf,
-                        [T.INTEGER, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT], duckdb.list_type(SIMILAR_TYPE),
+                        [T.VARCHAR, T.VARCHAR, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT],
+                        duckdb.list_type(SIMILAR_TYPE),
                         **common)
     register_macros(con)
     return udfs

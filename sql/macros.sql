@@ -64,12 +64,15 @@ CREATE OR REPLACE TEMP MACRO mocap_similar_rows(motion, first_frame, last_frame,
 SELECT mocap_m.name AS document, mocap_r.motion_id, mocap_r.start_frame, mocap_r.end_frame,
        (mocap_r.start_frame - 1) / mocap_m.fps AS start_s, mocap_r.end_frame / mocap_m.fps AS end_s, mocap_r.cost
 FROM (SELECT unnest(mocap_similar(
-          motion::INTEGER, first_frame::INTEGER, last_frame::INTEGER, k::INTEGER,
+          -- the motion as given and its type: an integer is an id, text a name ('86_09'::INTEGER is 8609,
+          -- 3.7::INTEGER is 4: never cast)
+          motion::VARCHAR, typeof(motion), first_frame::INTEGER, last_frame::INTEGER, k::INTEGER,
           (SELECT mocap_s.version FROM %index_schema%.state mocap_s)), recursive := true)) mocap_r
 JOIN motions mocap_m ON mocap_m.motion_id = mocap_r.motion_id
 ORDER BY mocap_r.rank;
 
--- similar_to(motion_id [, start_frame, end_frame] [, k := 10]): the user-facing overloads
+-- similar_to(motion [, start_frame, end_frame] [, k := 10]): the user-facing overloads; motion is an id or a
+-- name, a NULL range the whole motion
 CREATE OR REPLACE TEMP MACRO similar_to(motion, k := 10) AS TABLE (
     SELECT * FROM mocap_similar_rows(motion, NULL, NULL, k)),
   (motion, first_frame, last_frame, k := 10) AS TABLE (

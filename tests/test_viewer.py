@@ -186,10 +186,20 @@ def test_all_writes_a_page_per_motion_and_an_index(db, tmp_path):
 
 
 @pytest.mark.shared
-def test_view_needs_a_motion_and_out_or_all(db):
+def test_view_needs_a_motion_or_all(db, tmp_path, monkeypatch):
     path, _ = db
-    assert run(path, "view", "86_09", code=1).output.startswith("Error: give a motion and out")
+    assert run(path, "view", code=1).output.startswith("Error: give a motion")
     assert "no motion 'no_such'" in run(path, "view", "no_such", "--out", "x.html", code=1).output
+    monkeypatch.chdir(tmp_path)   # without --out: <motion name>.html here
+    assert run(path, "view", "86_09").output.strip() == "written 86_09.html" and (tmp_path / "86_09.html").is_file()
+
+
+@pytest.mark.shared
+def test_the_header_gives_the_models_tau_once(page):
+    """Issue 27 item 8: the header listed every class's τ ("τ 0.1/0.11/0.13/…"), read as tick labels."""
+    out, dom, log = page
+    meta = dom.by_id("meta")[2]
+    assert re.search(r"model default, τ 0\.\d+–0\.\d+ \(per class\), keyframes", meta), meta
 
 
 @pytest.mark.shared

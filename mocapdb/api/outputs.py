@@ -9,7 +9,8 @@ from mocapdb.api.annotating import evaluate
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
-from mocapdb.storage.motions import motion_ids
+from mocapdb.storage.motions import motion_rows, one_motion
+from mocapdb.storage.names import safe_stem
 from mocapdb.storage.sqltext import statement
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
 from mocapdb.storage.retrieval import query_stretch, similar_stretches
@@ -107,9 +108,9 @@ def view(con, motion=None, *, out=None, all=None, model=DEFAULT_MODEL, tau=None,
     ----------
     con : duckdb.DuckDBPyConnection
     motion : int or str, optional
-        The motion (id or name) of one page, written to ``out``.
+        The motion (id or name; a name must name one motion) of one page, written to ``out``.
     out : str or Path, optional, keyword-only
-        The page of ``motion``.
+        The page of ``motion`` (default: ``<motion name>.html`` in the working folder).
     all : str or Path, optional, keyword-only
         Instead: a folder receiving one page per motion and ``index.html``.
     model : str, keyword-only
@@ -132,22 +133,17 @@ def view(con, motion=None, *, out=None, all=None, model=DEFAULT_MODEL, tau=None,
         if motion is not None or out is not None:
             raise ParameterError("give either a motion and out (--out FILE), or all (--all DIR)")
         return write_pages(con, all, progress=progress, **options)
-    if motion is None or out is None:
-        raise ParameterError("give a motion and out (--out FILE), or all (--all DIR) for every motion")
-    write_motion_page(con, motion, out, **options)
+    if motion is None:
+        raise ParameterError("give a motion (and out, --out FILE), or all (--all DIR) for every motion")
+    mid = one_motion(con, motion)   # a name of two motions is refused, not one of them drawn
+    if out is None:   # <motion name>.html in the working folder, as view --all names pages
+        out = Path(safe_stem(str(motion_rows(con, [mid])["name"][0])) + ".html")
+    write_motion_page(con, mid, out, **options)
     return [Path(out)]
 
 
 #: output formats of :func:`similar` that write files (tables, CSV and JSON are printed by the CLI)
 SIMILAR_FORMATS = ("html",)
-
-
-def _one_motion(con, motion):
-    """The id of a motion given by id or name; a name must name one motion."""
-    ids = motion_ids(con, [motion])
-    if len(ids) > 1:
-        raise ParameterError(f"{motion!r} names {len(ids)} motions (ids {', '.join(map(str, ids))}); give the id")
-    return ids[0]
 
 
 def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=None, examples=None, limit=10,
@@ -210,14 +206,14 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
     if (format is None) != (out is None) or (format is not None and format not in SIMILAR_FORMATS):
         raise ParameterError(f"format and out go together, format one of {', '.join(SIMILAR_FORMATS)}; "
                              f"got format={format!r}, out={out!r}")
-    stretches = [query_stretch(con, _one_motion(con, motion), start_frame, end_frame, start=start, end=end)]
+    stretches = [query_stretch(con, one_motion(con, motion), start_frame, end_frame, start=start, end=end)]
     for k, ex in enumerate(examples or ()):
         if isinstance(ex, (int, np.integer, str)):
             ex = (ex, None, None)
         if not isinstance(ex, (tuple, list)) or len(ex) != 3:
             raise ParameterError(f"examples[{k}] must be a motion (id or name) or (motion, start_frame, end_frame), "
                                  f"got {ex!r}")
-        stretches.append(query_stretch(con, _one_motion(con, ex[0]), ex[1], ex[2]))
+        stretches.append(query_stretch(con, one_motion(con, ex[0]), ex[1], ex[2]))
     table = similar_stretches(con, stretches, limit=limit, features=features, tau=tau, keyframes=keyframes)
     if out is not None:
         write_results_pages(con, table, [s[:3] for s in stretches], out, model=model, progress=progress)

@@ -64,6 +64,8 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
             rows = [(*r[:4], f, *r[4:]) for r, f in zip(rows, rates)]
             cols = cols[:4] + ["fps"] + cols[4:]
         write_rows(rows, cols, fmt, out)
+        if out is not None:   # as the file formats say it
+            click.echo(f"{len(rows)} segment(s) written to {out}")
     if failure is not None:
         for _, _, reason in failure.failed:
             click.echo(f"failed  {reason}", err=True)

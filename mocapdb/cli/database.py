@@ -275,5 +275,15 @@ def attach(ctx, directory):
       mocapdb --db archive_views.duckdb sql "SELECT count(*) FROM keyframe_search('kickLFront1Reps')"
     """
 
-    n = api.attach(open_db(ctx, create=True), directory)
+    db = Path(ctx.obj["db"]) if ctx.obj.get("db") else None
+    new = db is not None and not db.exists()
+    con = open_db(ctx, create=True)
+    try:
+        n = api.attach(con, directory)
+    except Exception:
+        if new:   # a refused archive leaves no empty database behind
+            con.close()
+            for f in (db, db.with_name(db.name + ".wal")):
+                f.unlink(missing_ok=True)
+        raise
     click.echo(f"{n} motion(s) of {directory} attached to {ctx.obj['db']}")

@@ -51,7 +51,8 @@ def report(ctx, figure, out, model, motion, class_name, truth, label_map, tau, k
 
 @command()
 @click.argument("motion", required=False)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), help="The HTML page of MOTION.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="The HTML page of MOTION (default: <motion name>.html here).")
 @click.option("--all", "all", type=click.Path(file_okay=False, path_type=Path),
               help="Instead: write one page per motion and index.html into this directory.")
 @model_option()

@@ -204,11 +204,13 @@ def plot_delta(class_delta, class_names, taus, *, fps=30.0, segments=None, class
     ax.set_yticks(range(n_cls))
     ax.set_yticklabels(list(class_names), fontsize=7)
     bar = fig.colorbar(im, ax=axes[:, 0].tolist(), pad=0.01, fraction=0.04)
-    for t in np.unique(taus):
+    levels = np.unique(taus)
+    for t in levels:
         bar.ax.axhline(t, color="black", linewidth=1.2)
-    bar.set_ticks(sorted({0.0, *np.unique(taus).tolist()}))
-    bar.set_ticklabels(["0"] + [f"τ={t:g}" for t in np.unique(taus)])
-    bar.set_label("Δ̄^τ (white: above τ)")
+    # the bar's own ticks read as Δ̄ values; the black lines are the τ (one per class): "τ=" on every
+    # tick read as though each value were a τ
+    bar.set_label(f"Δ̄^τ (line: τ = {levels[0]:g}; white: above it)" if len(levels) == 1 else
+                  f"Δ̄^τ (lines: the classes' τ, {levels[0]:g}–{levels[-1]:g}; white: above a class's τ)")
     if has_blocks:
         bx = axes[1, 0]
         lab = list(dict.fromkeys(class_labels)) if class_labels is not None else []

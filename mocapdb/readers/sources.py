@@ -224,21 +224,28 @@ def zip_members(archive, *, refused=None) -> list:
     """Names of the regular members of a zip archive (folders left out) that name a file inside it.
 
     ``refused`` receives ``(name, reason)`` for members whose names would
-    leave the archive (:func:`member_problem`); they are not returned.
+    leave the archive (:func:`member_problem`), and for each earlier copy of a
+    name the archive holds twice (a path names one member: zipfile reads the
+    last); they are not returned.
     """
     try:
         infos = _zip(Path(archive)).infolist()
     except zipfile.BadZipFile as exc:
         raise OSError(f"not a readable zip archive ({exc})") from None
-    out = []
+    copies = {}
     for info in infos:
-        if info.is_dir():
-            continue
-        problem = member_problem(info.filename)
+        if not info.is_dir():
+            copies[info.filename] = copies.get(info.filename, 0) + 1
+    out = []
+    for name, n in copies.items():
+        problem = member_problem(name)
         if problem is None:
-            out.append(info.filename)
+            out.append(name)
         elif refused is not None:
-            refused.append((info.filename, problem))
+            refused.append((name, problem))
+        if n > 1 and refused is not None and problem is None:
+            refused += [(name, f"the archive holds {n} members of this name; only the last is read (a path "
+                               "names one member)")] * (n - 1)
     return out
 
 

@@ -13,14 +13,14 @@ from mocapdb.retrieval.queries import FEATURE_CHOICES, clip_template, examples_t
 from mocapdb.retrieval.weights import chance_cost, feature_frequencies, information_weights
 from mocapdb.retrieval.keyframes import KEYFRAME_LEVELS, query_keyframes
 from mocapdb.retrieval.hits import HIT_DTYPE, best_hits, select_hits
-from mocapdb.retrieval.search import (BATCH_FRAMES, CELL_BUDGET, RESULT_DTYPE, SAMPLE_FRAMES, TAU_FACTOR,
-                                      RetrievalQuery, archive_sample, plan_query, preselect, rank_cells, rank_slices,
-                                      sample_step, search_documents, search_segments, template_query)
+from mocapdb.retrieval.search import (BATCH_FRAMES, CELL_BUDGET, MIN_QUERY_S, RESULT_DTYPE, SAMPLE_FRAMES,
+                                      TAU_FACTOR, RetrievalQuery, archive_sample, plan_query, preselect, rank_cells,
+                                      rank_slices, sample_step, search_documents, search_segments, template_query)
 
 __all__ = [
     "FEATURE_CHOICES", "clip_template", "examples_template", "feature_mask", "mirror_template", "chance_cost",
     "feature_frequencies", "information_weights", "KEYFRAME_LEVELS", "query_keyframes", "HIT_DTYPE", "best_hits",
-    "select_hits", "BATCH_FRAMES", "CELL_BUDGET", "RESULT_DTYPE", "SAMPLE_FRAMES", "TAU_FACTOR", "RetrievalQuery",
-    "archive_sample", "plan_query", "preselect", "rank_cells", "rank_slices", "sample_step", "search_documents", "search_segments",
-    "template_query",
+    "select_hits", "BATCH_FRAMES", "CELL_BUDGET", "MIN_QUERY_S", "RESULT_DTYPE", "SAMPLE_FRAMES", "TAU_FACTOR",
+    "RetrievalQuery", "archive_sample", "plan_query", "preselect", "rank_cells", "rank_slices", "sample_step",
+    "search_documents", "search_segments", "template_query",
 ]

@@ -46,6 +46,9 @@ from mocapdb.templates import QuantizedTemplate, mt_distance_slices
 
 #: τ as a fraction of the template's chance level (module docstring)
 TAU_FACTOR = 0.75
+#: the shortest query stretch (s): a shorter one is a few words that recur everywhere, and every "match"
+#: is as short and as cheap as it (a 2-frame query returned 2-frame matches)
+MIN_QUERY_S = 0.5
 #: frames of the archive sample that weighs features and chooses keyframes
 SAMPLE_FRAMES = 16384
 #: archive frames ranked at a time: bounds a query's memory (about 40 bytes per frame)
@@ -375,6 +378,6 @@ def search_documents(words, doc_lengths, query: RetrievalQuery, *, limit, index=
     return search_segments(fetch, doc, start, stop, query, limit=limit, exclude=exclude, batch_frames=batch_frames)
 
 
-__all__ = ["RetrievalQuery", "RESULT_DTYPE", "TAU_FACTOR", "SAMPLE_FRAMES", "sample_step", "archive_sample",
+__all__ = ["RetrievalQuery", "RESULT_DTYPE", "TAU_FACTOR", "MIN_QUERY_S", "SAMPLE_FRAMES", "sample_step", "archive_sample",
            "plan_query", "template_query", "preselect", "rank_slices", "search_segments", "search_documents",
            "BATCH_FRAMES", "CELL_BUDGET", "COARSE_FACTOR", "COARSE_MIN_COLUMNS", "COARSE_COLUMNS", "FRAME_CELLS", "coarse_step", "rank_cells"]

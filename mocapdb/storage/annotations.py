@@ -17,6 +17,7 @@ import pyarrow as pa
 
 from mocapdb.annotation import SEGMENT_DTYPE, annotate, annotate_sweep, uses_keyframes, write_eaf
 from mocapdb.errors import MocapdbError, ParameterError
+from mocapdb.features import FEATURE_RATE
 from mocapdb.storage.cache import UNKNOWN
 from mocapdb.storage.names import file_in, file_stems
 from mocapdb.storage.motions import BATCH_FRAMES, iter_documents
@@ -181,7 +182,8 @@ EXPORT_FORMATS = ("parquet", "eaf")
 
 
 def export_segments(con, table, out, *, format, motion_ids):
-    """Write annotation segments as Parquet (one file) or ELAN (one ``.eaf`` per motion).
+    """Write annotation segments as Parquet (one file, with an ``fps`` column after ``end_frame``: the 30 Hz
+    grid of the frames) or ELAN (one ``.eaf`` per motion).
 
     Parameters
     ----------
@@ -209,7 +211,9 @@ def export_segments(con, table, out, *, format, motion_ids):
         raise ParameterError(f"format must be one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
     out = Path(out)
     if format == "parquet":
-        pq.write_table(table, out)
+        # the frame grid of start_frame/end_frame, as the CSV and JSON outputs carry it (label files read it)
+        at = table.schema.get_field_index("end_frame") + 1
+        pq.write_table(table.add_column(at, "fps", pa.array(np.full(table.num_rows, FEATURE_RATE))), out)
         return [out]
     sources = motion_sources(con, motion_ids)
     single = len(sources) == 1 and out.suffix.lower() == ".eaf"

@@ -110,21 +110,26 @@ def _walk(folder: Path, files: list, unsupported, unreadable):
             files.append(q)
 
 
-def _archive_files(archive: Path, unreadable, refused=None) -> list:
+def _archive_files(archive: Path, unreadable, refused=None, *, named=False) -> list:
     """The members of a zip archive as paths through it (hidden ones left out); ``refused`` receives
     the members whose names would leave the archive (never joined to its path: an absolute name
-    would replace it)."""
+    would replace it) and earlier copies of a name, and an unreadable archive that was ``named``
+    (an argument, not an entry of a folder)."""
     bad = []
     try:
         names = zip_members(archive, refused=bad)
     except OSError as exc:
-        if unreadable is not None:
+        if named and refused is not None:
+            refused.append((str(archive), f"{archive}: unreadable archive ({exc})"))
+        elif unreadable is not None:
             unreadable.append((str(archive), f"unreadable archive ({exc})"))
         return []
     if refused is not None:
         for name, problem in bad:
             where = f"{archive}/{name}"   # text only, for the report
-            refused.append((where, f"{where}: refused: {problem}; a member must name a file inside its archive"))
+            why = problem if problem.startswith("the archive holds") else \
+                f"{problem}; a member must name a file inside its archive"
+            refused.append((where, f"{where}: refused: {why}"))
     return [archive / name for name in sorted(names)
             if not any(_hidden(part) for part in name.split("/"))]
 
@@ -158,7 +163,9 @@ def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> l
     refused : list, optional, keyword-only
         Receives ``(path, reason)`` for zip members whose names would leave
         their archive (absolute, a drive letter, ``..``;
-        :func:`mocapdb.readers.sources.member_problem`): never read.
+        :func:`mocapdb.readers.sources.member_problem`): never read; for each
+        earlier copy of a member named twice (its path reads the last); and
+        for an archive named in ``paths`` that cannot be read.
 
     Raises
     ------
@@ -177,7 +184,7 @@ def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> l
             for q in members:
                 _classify(q, out, unsupported)
         elif member == "":
-            for q in _archive_files(archive, unreadable, refused):
+            for q in _archive_files(archive, unreadable, refused, named=True):
                 _classify(q, out, unsupported)
         elif p.is_dir():
             found = []

@@ -39,6 +39,22 @@ def motion_ids(con, motions) -> list[int]:
     return out
 
 
+def one_motion(con, motion) -> int:
+    """The id of one motion given by id or name; a name must name one motion (view, similar, similar_to).
+
+    Raises
+    ------
+    SchemaError
+        No such motion.
+    ParameterError
+        A name that names several motions (the same take as AMC and C3D).
+    """
+    ids = motion_ids(con, [motion])
+    if len(ids) > 1:
+        raise ParameterError(f"{motion!r} names {len(ids)} motions (ids {', '.join(map(str, ids))}); give the id")
+    return ids[0]
+
+
 @dataclass(frozen=True, eq=False)
 class Documents:
     """Motions as concatenated documents, in motion-id order.
@@ -474,4 +490,4 @@ def relocate_sources(con, old_prefix, new_prefix):
 
 __all__ = ["Documents", "motion_ids", "motion_documents", "documents_by_name", "source_motion", "motions_to_delete",
            "relocate_sources", "iter_documents", "motion_rows", "frame_batches", "read_words", "check_frames",
-           "incomplete_reason", "incomplete_motions", "BATCH_FRAMES", "source_rates"]
+           "incomplete_reason", "incomplete_motions", "BATCH_FRAMES", "source_rates", "one_motion"]

@@ -22,8 +22,8 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.retrieval import (BATCH_FRAMES, CELL_BUDGET, best_hits, plan_query, preselect, query_keyframes,
-                               rank_cells, sample_step, search_segments)
+from mocapdb.retrieval import (BATCH_FRAMES, CELL_BUDGET, MIN_QUERY_S, best_hits, plan_query, preselect,
+                               query_keyframes, rank_cells, sample_step, search_segments)
 from mocapdb.retrieval.archive import index_words
 from mocapdb.storage.cache import NO_INDEX, UNKNOWN, connection_cache
 from mocapdb.storage.motions import frame_batches
@@ -54,13 +54,18 @@ def query_stretch(con, motion_id, start_frame=None, end_frame=None, *, start=Non
     SchemaError
         No such motion.
     ParameterError
-        As :func:`check_range`.
+        As :func:`check_range`, or a stretch shorter than :data:`mocapdb.retrieval.MIN_QUERY_S`.
     """
     rows = con.execute(_sql("motion_meta"), {"ids": [int(motion_id)]}).fetchall()
     if not rows:
         raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
     _, name, fps, n = rows[0]
     first, last = check_range(f"motion {motion_id} ({name!r})", n, fps, start_frame, end_frame, start=start, end=end)
+    if (last - first + 1) / fps < MIN_QUERY_S - 1e-9:
+        raise ParameterError(f"the query stretch {first + 1}–{last + 1} of motion {motion_id} ({name!r}) is "
+                             f"{last - first + 1} frame(s), {(last - first + 1) / fps:.2f} s; a query needs at least "
+                             f"{MIN_QUERY_S:g} s ({int(np.ceil(MIN_QUERY_S * fps - 1e-9))} frames at {fps:g} Hz): "
+                             "a shorter one is a few words found everywhere, and every match would be as short")
     words = np.asarray(con.execute(_sql("motion_words"), {"id": int(motion_id)}).fetchnumpy()["bits"], np.uint64)
     return int(motion_id), first, last, words[first:last + 1]
 

@@ -179,6 +179,12 @@
     if (player.playing) requestAnimationFrame(tick);
   }
 
+  // the model's τ in the header: one value, or the range of the classes' (a list of every class's τ
+  // read as a row of tick labels)
+  function tauText(taus) {
+    return taus.length === 1 ? `τ ${taus[0]}` : `τ ${taus[0]}–${taus[taus.length - 1]} (per class)`;
+  }
+
   // -- timeline: lanes of segments, the Δ̄ heat map, an axis, the playhead ------------------------
   function el(tag, cls, text) {
     const e = document.createElement(tag);
@@ -465,7 +471,7 @@
     cam.dist = defaultDist = bodySize * 2.6;
     const secs = N / FPS;
     $("meta").textContent = `${D.n} frames at ${FPS} Hz (${secs.toFixed(1)} s; source ${D.sourceFps} Hz: ${D.source}) · ` +
-      `model ${D.model}, τ ${D.tau.join("/")}, keyframes ${D.keyframes ? "on" : "off"} · ${D.segments.length} segments`;
+      `model ${D.model}, ${tauText(D.tau)}, keyframes ${D.keyframes ? "on" : "off"} · ${D.segments.length} segments`;
     if (D.index) {
       const a = el("a", null, "← all motions");
       a.href = D.index;
