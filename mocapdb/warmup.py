@@ -26,7 +26,9 @@ It sits below :mod:`mocapdb.api` and makes the calls the API functions make.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
+import pickle
 import subprocess
 import sys
 import time
@@ -134,13 +136,74 @@ def _cache_root() -> Path:
     return Path(cache) if cache else _PACKAGE
 
 
+def _cache_dirs():
+    """``(source folder, its numba cache folder)`` of each folder of the package: ``__pycache__`` beside
+    the modules, or numba's folder for it under ``NUMBA_CACHE_DIR`` (``<name>_<sha1 of its path>``)."""
+    user = os.environ.get("NUMBA_CACHE_DIR")
+    for d in sorted({p.parent for p in _PACKAGE.rglob("*.py")}):
+        yield d, (Path(user) / f"{d.name}_{hashlib.sha1(str(d).encode()).hexdigest()}" if user else d / "__pycache__")
+
+
+def _source_stamp(py_file: Path):
+    """The stamp numba gives a module's source (numba 0.68: its bytes' SHA-256; before: its mtime and size)."""
+    from numba.core import caching
+
+    locator = object.__new__(caching.InTreeCacheLocator)   # the one method needs only the file
+    locator._py_file = str(py_file)
+    return locator.get_source_stamp()
+
+
+def _index_fresh(index: Path, stamp, version: str) -> bool:
+    """Whether numba would use a cache index: written by this numba version, for the source as it is."""
+    try:
+        with open(index, "rb") as fh:
+            if pickle.load(fh) != version:
+                return False
+            return pickle.loads(fh.read())[0] == stamp
+    except Exception:  # noqa: BLE001 - an index numba could not read either
+        return False
+
+
 def cache_is_cold() -> bool:
-    """True when numba has cached no kernel of this package yet (a first run)."""
+    """True when a command would compile kernels first: numba holds no usable cached kernel of this package.
+
+    That is: no cache index at all (a first run), or a module whose every
+    index is stale — written by another numba version, or for other source
+    bytes. numba before 0.68 stamps a source by its modification time, which
+    pip does not keep, so there an installed wheel's cache is stale; an index
+    of a kernel since moved or removed (a leftover beside fresh ones) does not
+    count.
+    """
     if os.environ.get("NUMBA_DISABLE_JIT") == "1":
         return False
-    root = _cache_root()
-    pattern = "**/*.nbi" if os.environ.get("NUMBA_CACHE_DIR") else "*/__pycache__/*.nbi"
-    return not any(root.glob(pattern))
+    import numba
+
+    found = False
+    for source, cache in _cache_dirs():
+        by_module = {}
+        for index in cache.glob("*.nbi") if cache.is_dir() else ():
+            by_module.setdefault(index.name.split(".", 1)[0], []).append(index)
+        for stem, indexes in by_module.items():
+            py = source / f"{stem}.py"
+            if not py.is_file():
+                continue   # a module gone: numba never reads its leftovers
+            found = True
+            try:
+                stamp = _source_stamp(py)
+            except Exception:  # noqa: BLE001 - a numba whose stamps this cannot compute: only versions count
+                stamp = None
+            if not any(_index_fresh(i, stamp, numba.__version__) if stamp is not None else
+                       _index_version(i) == numba.__version__ for i in indexes):
+                return True
+    return not found
+
+
+def _index_version(index: Path):
+    try:
+        with open(index, "rb") as fh:
+            return pickle.load(fh)
+    except Exception:  # noqa: BLE001 - unreadable: no version
+        return None
 
 
 #: the parts a background compile runs, one process each (two cores)

@@ -88,3 +88,50 @@ def test_the_installed_package_carries_the_compiled_kernels():
     r = subprocess.run([sys.executable, "-P", "-c", code], env=env, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr
     assert "data saved to" not in r.stdout, "the main job's calls compiled kernels the build did not cache"
+
+
+def test_a_stale_cache_is_cold_and_the_first_command_says_it_compiles(tmp_path, monkeypatch):
+    """Issue 27 item 9: any cache index counted as a warm cache, but numba uses one only if this numba
+    version wrote it for the source as it is (numba before 0.68 stamps a source by its mtime, which pip
+    does not keep: a wheel's cache was stale there), so a first run compiled for 40 s without a word."""
+    import pickle
+
+    import numba
+
+    from conftest import run
+    from mocapdb import warmup
+
+    cache = tmp_path / "numba"
+    env = _env(cache)
+    # a real index: one kernel compiled into a cache of its own
+    code = "import numpy as np; from mocapdb.features import hysteresis; hysteresis(np.ones(3, bool), np.ones(3, bool))"
+    assert subprocess.run([sys.executable, "-P", "-c", code], env=env, timeout=300).returncode == 0
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    monkeypatch.delenv("NUMBA_DISABLE_JIT", raising=False)
+    [index] = [i for i in cache.rglob("relational._hysteresis_kernel-*.nbi")]
+    assert not warmup.cache_is_cold()
+    with open(index, "rb") as fh:
+        version, (stamp, overloads) = pickle.load(fh), pickle.loads(fh.read())
+    fresh = index.read_bytes()
+    source = Path(warmup.__file__).parent / "features" / "relational.py"
+
+    def write(version, stamp):
+        with open(index, "wb") as fh:
+            pickle.dump(version, fh)
+            fh.write(pickle.dumps((stamp, overloads)))
+
+    db = tmp_path / "q.duckdb"
+    run(db, "ingest", "--sample", "--silent")
+    st = source.stat()
+    for stale in ((version, (st.st_mtime + 1.0, st.st_size)),   # as numba < 0.68 stamps a file pip rewrote
+                  ("0.59.1", stamp)):                             # another numba's
+        write(*stale)
+        assert warmup.cache_is_cold(), stale
+        r = run(db, "sql", "SELECT count(*) AS n FROM motions", "--format", "csv")
+        assert "Compiling the numba kernels: this install has no usable compiled cache" in r.output
+        assert "n\n3\n" in r.output   # the query's own output, unchanged
+    index.write_bytes(fresh)
+    # a leftover of a kernel since moved, beside its fresh index, is no cold cache
+    (index.parent / index.name.replace("-", "-9", 1)).write_bytes(fresh.replace(pickle.dumps(version), pickle.dumps("0.1")))
+    assert not warmup.cache_is_cold()
+    assert "Compiling" not in run(db, "sql", "SELECT 1 AS one", "--format", "csv").output

@@ -85,8 +85,9 @@ def _say_when_compiling(ctx, command):
     """Say when kernels compile, and at the end how long that run took (a cold numba cache only).
 
     ``pip install .`` compiles the kernels at build time (:mod:`mocapdb.warmup`),
-    so this happens only where that cache is missing (an editable install,
-    another numba version). A first command that does not annotate (``ingest``)
+    so this happens only where that cache is missing or stale (an editable
+    install, another numba version, numba before 0.68 with a wheel's cache:
+    :func:`mocapdb.api.kernels.kernels_cold`). A first command that does not annotate (``ingest``)
     then also starts the annotation kernels compiling on the other core, and a
     command that annotates waits for them rather than compiling them again,
     and says so.
@@ -94,10 +95,9 @@ def _say_when_compiling(ctx, command):
 
     start = time.monotonic()
     if api.kernels_cold():
-        if command == "sql":  # a query need not compile anything; its output stays clean
-            return
-        click.echo("Compiling the numba kernels: this install has no compiled cache yet (first run only)…",
-                   err=True)
+        # on stderr, for every command that compiles (a query too: stdout stays the query's)
+        click.echo("Compiling the numba kernels: this install has no usable compiled cache (a first run, another "
+                   "numba, or changed sources)…", err=True)
         ctx.call_on_close(lambda: click.echo(
             f"First run: {time.monotonic() - start:.0f} s, most of it compiling; later runs skip that.", err=True))
         if command not in _ANNOTATING:
