@@ -85,7 +85,7 @@ def test_every_command_has_help_and_a_readme_entry():
 
 
 #: CLI parameters that only shape the output or the terminal, with no API counterpart
-PRESENTATION = {"silent", "fmt", "out", "read_only", "query", "sql_file"}
+PRESENTATION = {"silent", "fmt", "out", "read_only", "query", "sql_file", "table"}
 #: options spelled otherwise than their keyword: `class` is a Python keyword; a repeatable
 #: option names one of its values (--example A --example B is examples=[A, B])
 RENAMED = {"class_name": "--class", "examples": "--example"}
