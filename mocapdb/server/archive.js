@@ -61,7 +61,6 @@
 
   async function main() {
     const q = new URLSearchParams(location.search);
-    await facets();
     for (const f of FIELDS) {
       if (!q.has(f)) continue;
       const input = form.elements[f];
@@ -79,7 +78,8 @@
     form.addEventListener("submit", (e) => e.preventDefault());
     $("prev").addEventListener("click", () => { offset = Math.max(0, offset - Number(form.elements.limit.value)); load(); });
     $("next").addEventListener("click", () => { offset += Number(form.elements.limit.value); load(); });
-    await load();
+    // the rows and the filters' choices are asked for at once: the first rows wait for one answer only
+    await Promise.all([load(), facets()]);
   }
 
   main();

@@ -1,16 +1,8 @@
 // mocapdb serve, shared by its pages: JSON from /api/ (a busy database is said and asked again), elements.
+// (Errors go into #errors through the viewer's errors.js, inlined once per page before this.)
 "use strict";
 const serve = (function () {
   const $ = (id) => document.getElementById(id);
-
-  function reportError(text) {
-    const li = document.createElement("li");
-    li.textContent = text;
-    $("errors").appendChild(li);
-    document.body.dataset.errors = String($("errors").children.length);
-  }
-  window.addEventListener("error", (e) => reportError(`${e.message} (${e.filename}:${e.lineno})`));
-  window.addEventListener("unhandledrejection", (e) => reportError(`${e.reason && e.reason.message || e.reason}`));
 
   // GET a JSON answer; while another process writes the database (HTTP 503) say so and ask again
   async function api(url) {
@@ -77,5 +69,5 @@ const serve = (function () {
     return c;
   }
 
-  return { $, api, el, cell, link, duration, strip, chip, reportError };
+  return { $, api, el, cell, link, duration, strip, chip };
 })();

@@ -16,7 +16,7 @@ import re
 from importlib import resources
 
 from mocapdb.viewer import motion_poses, motion_view, render_page
-from mocapdb.viewer.encoding import json_script, page_html
+from mocapdb.viewer.encoding import error_script, json_script, page_html
 
 __all__ = ["archive_page", "stats_page", "motion_page", "message_page"]
 
@@ -33,7 +33,8 @@ def _fill(template, values):
 
 
 def _page(title, template, script, db):
-    body = _fill(_asset(template), {"DB": html.escape(str(db)), "JS": _asset("common.js") + _asset(script)})
+    body = _fill(_asset(template), {"DB": html.escape(str(db)),
+                                    "JS": error_script() + _asset("common.js") + _asset(script)})
     return page_html(html.escape(title), body, css=_asset("serve.css"))
 
 

@@ -1,6 +1,6 @@
 """A viewer page's data, encoded compactly and inlined with its HTML, CSS and JS (no network).
 
-Each page is one self-contained HTML file per motion. The page (``shell.html``, ``page.html``, ``page.css``, ``page.js`` beside this module) draws
+Each page is one self-contained HTML file per motion. The page (``shell.html``, ``page.html``, ``page.css``, ``errors.js``, ``page.js`` beside this module) draws
 the skeleton with its own perspective projection on a 2-D canvas (orbit by
 dragging, zoom by the wheel, play/pause, scrubber, speed), the annotation
 under it as a timeline (one element ``.seg[data-label]`` per segment, one
@@ -35,7 +35,7 @@ from mocapdb.errors import ParameterError
 from mocapdb.readers import JOINT_INDEX, JOINT_NAMES
 
 __all__ = ["BONES", "PALETTE", "encode_poses", "encode_delta", "label_colors", "render_page", "render_index",
-           "page_html", "json_script"]
+           "page_html", "json_script", "error_script"]
 
 #: bones between the 24 canonical joints (parent, child), drawn as lines
 BONES = tuple((JOINT_INDEX[a], JOINT_INDEX[b]) for a, b in (
@@ -139,6 +139,12 @@ def _fill(template, values):
     return _MARKER.sub(lambda m: values[m.group(1)], template)
 
 
+def error_script():
+    """The JavaScript (``errors.js``) that writes a page's uncaught errors into its ``#errors`` list;
+    every page inlines it once, before its own script."""
+    return _asset("errors.js")
+
+
 def page_html(title, body, *, css=""):
     """A whole page: ``shell.html`` (head, the stylesheet and ``css`` after it) around ``body``."""
     return _fill(_asset("shell.html"), {"TITLE": title, "CSS": _asset("page.css") + css, "BODY": body})
@@ -196,7 +202,7 @@ def render_page(view, joints, *, index_href=None, extra="", css=""):
         "index": index_href,
     }
     title = html.escape(f"{view.name} — mocapdb")
-    return page_html(title, _fill(_asset("page.html"), {"TITLE": title, "JS": _asset("page.js"),
+    return page_html(title, _fill(_asset("page.html"), {"TITLE": title, "JS": error_script() + _asset("page.js"),
                                                       "DATA": json_script(data), "EXTRA": extra}), css=css)
 
 
