@@ -13,7 +13,7 @@ import pytest
 import mocapdb
 from mocapdb.storage.browse import STRIP_BINS
 
-from conftest import SAMPLE_86_09, SAMPLE_BVH, SAMPLE_C3D, run
+from conftest import SAMPLE_86_09, SAMPLE_C3D, run
 from serving import Served, digest as _digest, sample_db, server  # noqa: F401 (fixtures)
 
 
@@ -123,6 +123,7 @@ def test_find_similar_is_mocapdb_similar(server, sample_db):
     ("/api/similar", 400, "motion must be a motion id"),
     ("/api/similar?motion=1&start_frame=5&end_frame=5000", 400, "lies outside motion 1"),
     ("/api/similar?motion=42", 404, "no motion with id 42"),
+    ("/api/similar?motion=1&limit=100000", 400, "limit must be an integer from 1 to 500"),
     ("/api/segments", 400, "label must be a label name"),
 ])
 def test_bad_requests_say_what_is_wrong(server, path, status, text):
@@ -213,10 +214,11 @@ def test_serving_never_writes(server, sample_db):
 
 
 _WRITER = """
-import sys, mocapdb
+import sys, numpy, mocapdb
+from mocapdb.storage.ingest import store_words
 con = mocapdb.connect(sys.argv[1])
-report = mocapdb.ingest(con, [sys.argv[2]])
-print(len(report.ingested), flush=True)
+words = numpy.asarray(con.execute("SELECT bits FROM features WHERE motion_id = 1 ORDER BY frame").fetchnumpy()["bits"])
+print(len(store_words(con, {"copied_words": words[:300]}, source="test")), flush=True)
 sys.stdin.read()  # hold the file (as a long ingest would) until the test closes stdin
 con.close()
 """
@@ -231,7 +233,7 @@ def test_the_server_lives_beside_a_writing_process(tmp_path):
     served = Served(db)
     try:
         assert served.json("/api/motions")[1]["total"] == 2
-        writer = subprocess.Popen([sys.executable, "-P", "-c", _WRITER, str(db), str(SAMPLE_BVH)],
+        writer = subprocess.Popen([sys.executable, "-P", "-c", _WRITER, str(db)],
                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             assert writer.stdout.readline().strip() == "1", writer.stderr.read()
@@ -247,7 +249,10 @@ def test_the_server_lives_beside_a_writing_process(tmp_path):
             writer.stdout.close()
             writer.stderr.close()
         names, page = _names(served)
-        assert page["total"] == 3 and "pymo_AV_8Walk_Meredith_HVHA_Rep1" in names
+        assert page["total"] == 3 and names[-1] == "copied_words"
+        # stored from words, it has no source file to re-read: its page says so, with its stored facts
+        status, body, _ = served.get(f"/motion/{page['rows'][-1]['motion_id']}")
+        assert status == 422 and b"no viewer for this motion" in body and b"test:copied_words" in body
     finally:
         served.stop()
 

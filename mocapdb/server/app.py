@@ -38,7 +38,7 @@ from starlette.routing import Route
 from mocapdb.errors import MocapdbError, ParameterError, SchemaError
 from mocapdb.server.archive import DatabaseLockedError
 from mocapdb.server.pages import archive_page, message_page, motion_page, stats_page
-from mocapdb.storage.browse import (STRIP_BINS, label_segments, model_labels, motion_page as browse_page,
+from mocapdb.storage.browse import (MAX_LIMIT, STRIP_BINS, label_segments, model_labels, motion_page as browse_page,
                                     motion_row, motion_segments)
 from mocapdb.storage.retrieval import query_stretch, similar_stretches
 from mocapdb.storage.stats import archive_stats
@@ -170,10 +170,12 @@ class _Handlers:
         p = request.query_params
         if p.get("motion") in (None, ""):
             raise ParameterError("motion must be a motion id (/api/similar?motion=ID&start_frame=A&end_frame=B)")
-        mid = _int(p, "motion", None)
+        mid, limit = _int(p, "motion", None), _int(p, "limit", 10)
+        if not 1 <= limit <= MAX_LIMIT:  # a page of results, as every answer here
+            raise ParameterError(f"limit must be an integer from 1 to {MAX_LIMIT}, got {limit}")
         with self.archive.reading() as con:
             stretch = query_stretch(con, mid, _int(p, "start_frame", None), _int(p, "end_frame", None))
-            table = similar_stretches(con, [stretch], limit=_int(p, "limit", 10), features=p.get("features") or "all")
+            table = similar_stretches(con, [stretch], limit=limit, features=p.get("features") or "all")
             name = motion_row(con, mid)["name"]
         return _json({"query": {"motion_id": mid, "name": name, "start_frame": stretch[1] + 1,
                                 "end_frame": stretch[2] + 1}, "rows": table.to_pylist()})
