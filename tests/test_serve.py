@@ -13,7 +13,7 @@ import pytest
 import mocapdb
 from mocapdb.storage.browse import STRIP_BINS
 
-from conftest import SAMPLE_86_09, SAMPLE_C3D, run
+from conftest import run
 from serving import Served, digest as _digest, sample_db, server  # noqa: F401 (fixtures)
 
 
@@ -224,15 +224,15 @@ con.close()
 """
 
 
-def test_the_server_lives_beside_a_writing_process(tmp_path):
+def test_the_server_lives_beside_a_writing_process(sample_db, tmp_path):
     """A second process writes: it gets in although the server answered requests before (the server
     holds nothing between requests); while it holds the file the server answers busy (503, naming
     it) and its static pages still load; once it is done the server shows what it wrote."""
     db = tmp_path / "live.duckdb"
-    run(db, "ingest", SAMPLE_86_09, SAMPLE_C3D, "--silent")
+    shutil.copy(sample_db, db)
     served = Served(db)
     try:
-        assert served.json("/api/motions")[1]["total"] == 2
+        assert served.json("/api/motions")[1]["total"] == 3
         writer = subprocess.Popen([sys.executable, "-P", "-c", _WRITER, str(db)],
                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
@@ -249,7 +249,7 @@ def test_the_server_lives_beside_a_writing_process(tmp_path):
             writer.stdout.close()
             writer.stderr.close()
         names, page = _names(served)
-        assert page["total"] == 3 and names[-1] == "copied_words"
+        assert page["total"] == 4 and names[-1] == "copied_words"
         # stored from words, it has no source file to re-read: its page says so, with its stored facts
         status, body, _ = served.get(f"/motion/{page['rows'][-1]['motion_id']}")
         assert status == 422 and b"no viewer for this motion" in body and b"test:copied_words" in body
@@ -266,11 +266,11 @@ con.close()
 """
 
 
-def test_a_writer_waits_for_a_reader_to_finish_its_request(tmp_path):
+def test_a_writer_waits_for_a_reader_to_finish_its_request(sample_db, tmp_path):
     """A writer that starts while a reader (a server's request) holds the file waits for it
     (``lock_wait``) instead of failing; without the wait it fails naming the reader."""
     db = tmp_path / "wait.duckdb"
-    run(db, "ingest", SAMPLE_86_09, "--silent")
+    shutil.copy(sample_db, db)
     reader = subprocess.Popen([sys.executable, "-c", _READER, str(db), "1.5"], stdout=subprocess.PIPE, text=True)
     try:
         assert reader.stdout.readline().strip() == "holding"
@@ -279,7 +279,7 @@ def test_a_writer_waits_for_a_reader_to_finish_its_request(tmp_path):
         t = time.monotonic()
         with mocapdb.connect(db, lock_wait=30) as con:
             waited = time.monotonic() - t
-            assert con.execute("SELECT count(*) FROM motions").fetchone()[0] == 1
+            assert con.execute("SELECT count(*) FROM motions").fetchone()[0] == 3
         assert 0.3 < waited < 30
     finally:
         reader.wait(30)

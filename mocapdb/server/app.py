@@ -133,7 +133,8 @@ class _Handlers:
         with self.archive.reading() as con:
             row = motion_row(con, mid, model=model)  # an unknown motion is a 404 before anything is read
             try:
-                page = motion_page(con, mid, model=model, all_labels=model_labels(con, model))
+                page = motion_page(con, mid, model=model, all_labels=model_labels(con, model),
+                                   n_frames=row["n_frames"])
             except (MocapdbError, OSError) as exc:
                 # a motion stored from words, or whose source moved: its facts without the viewer
                 facts = [("name", row["name"]), ("format", row["format"]), ("rate", f"{row['source_fps']:g} Hz"),

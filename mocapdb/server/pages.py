@@ -48,7 +48,7 @@ def stats_page(db) -> str:
     return _page("mocapdb archive: summary", "stats.html", "stats.js", db)
 
 
-def motion_page(con, motion_id, *, model, all_labels) -> str:
+def motion_page(con, motion_id, *, model, all_labels, n_frames) -> str:
     """The viewer page of a stored motion with the server's panel under it.
 
     Parameters
@@ -59,6 +59,8 @@ def motion_page(con, motion_id, *, model, all_labels) -> str:
         The model that annotates the motion on the page.
     all_labels : sequence of str
         Every label the panel offers (the motion's own first).
+    n_frames : int
+        The motion's stored feature frames (its source must give as many).
 
     Raises
     ------
@@ -67,8 +69,9 @@ def motion_page(con, motion_id, *, model, all_labels) -> str:
     ParseError, OSError
         Its source file cannot be read again (moved, or never a file).
     """
+    # the source first: a motion without one (moved, or stored as words) fails before it is annotated
+    joints = motion_poses(con, int(motion_id), n_frames)
     view = motion_view(con, int(motion_id), model=model)
-    joints = motion_poses(con, view.motion_id, view.n_frames)
     found = sorted({str(x) for x in view.segments["label"]}, key=list(view.labels).index)
     data = {"motion_id": view.motion_id, "name": view.name, "n": view.n_frames, "fps": view.fps, "model": model,
             "labels": found, "all_labels": list(all_labels)}
