@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import pyarrow as pa
+import pyarrow.compute as pc
 
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.sqltext import statement
@@ -54,12 +55,12 @@ class ArchiveStats:
     @property
     def motions(self) -> int:
         """Motions in the archive."""
-        return int(pa.compute.sum(self.formats.column("motions")).as_py() or 0)
+        return int(pc.sum(self.formats.column("motions")).as_py() or 0)
 
     @property
     def hours(self) -> float:
         """Hours of motion in the archive (feature frames over their rate)."""
-        return float(pa.compute.sum(self.formats.column("hours")).as_py() or 0.0)
+        return float(pc.sum(self.formats.column("hours")).as_py() or 0.0)
 
     def tables(self) -> dict:
         """The tables by name (``formats``, ``labels``, and ``refused`` when the database logs ingests)."""
@@ -82,8 +83,6 @@ def archive_stats(con, *, model=DEFAULT_MODEL) -> ArchiveStats:
     -------
     ArchiveStats
     """
-    import pyarrow.compute  # noqa: F401  (pa.compute of the properties)
-
     formats = con.sql(_sql("formats")).to_arrow_table()
     labels = con.sql(_sql("labels"), params={"model": model}).to_arrow_table()
     models = tuple(r[0] for r in con.execute(_sql("models")).fetchall())
