@@ -119,7 +119,9 @@ def test_the_summary_shows_the_hours(page, server, sample_db):
     page.goto(server.url + "stats")
     hours = _sql(sample_db, "SELECT sum(n_frames / fps) / 3600 FROM motions")[0]
     assert float(page.evaluate("document.getElementById('totals').dataset.hours")) == pytest.approx(hours)
-    assert page.evaluate("document.getElementById('totals').textContent") == f"3 motion(s), {hours:.2f} hours in all"
+    minutes, seconds = divmod(round(hours * 3600), 60)
+    assert page.evaluate("document.getElementById('totals').textContent") == \
+        f"3 motion(s), {hours:.2f} hours in all ({minutes} min {seconds:02d} s)"
     bars = page.evaluate("[...document.querySelectorAll('#labels .bar')].map(b => Number(b.dataset.hours))")
     want = _sql(sample_db, "SELECT sum(end_s - start_s) / 3600 AS h FROM annotations GROUP BY label ORDER BY h DESC")
     assert bars == pytest.approx(want)

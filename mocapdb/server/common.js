@@ -43,9 +43,9 @@ const serve = (function () {
   }
 
   function duration(s) {
-    if (s < 60) return `${s.toFixed(1)} s`;
-    const m = Math.floor(s / 60), h = Math.floor(m / 60);
-    return h ? `${h} h ${String(m % 60).padStart(2, "0")} min` : `${m} min ${String(Math.round(s % 60)).padStart(2, "0")} s`;
+    if (s < 59.95) return `${s.toFixed(1)} s`;
+    const whole = Math.round(s), m = Math.floor(whole / 60), h = Math.floor(m / 60);
+    return h ? `${h} h ${String(m % 60).padStart(2, "0")} min` : `${m} min ${String(whole % 60).padStart(2, "0")} s`;
   }
 
   // a motion's label strip: runs [label, first, last] of `bins` cells along its duration

@@ -1,7 +1,7 @@
 // mocapdb serve, the summary: hours and motions per source format and rate, annotated hours per label
 // (bars), and the files the latest ingest refused, where the database keeps an ingest log (/api/stats).
 (function () {
-  const { $, api, el, cell } = serve;
+  const { $, api, el, cell, duration } = serve;
 
   function bars(box, rows, name, colors) {
     const most = Math.max(...rows.map((r) => r.hours), 1e-12);
@@ -12,7 +12,8 @@
       if (colors && colors[r.label]) bar.style.background = colors[r.label];
       bar.dataset.hours = String(r.hours);
       bar.title = `${r.hours.toFixed(3)} h`;
-      const num = el("div", "num", `${r.hours.toFixed(2)} h · ${r.motions} motion(s)` +
+      // hours with two decimals say nothing about a small archive: the duration as it reads best
+      const num = el("div", "num", `${duration(r.hours * 3600)} · ${r.motions} motion(s)` +
                      (r.segments !== undefined ? ` · ${r.segments} segment(s)` : ""));
       box.append(label, bar, num);
     }
@@ -20,7 +21,7 @@
 
   async function main() {
     const s = await api("/api/stats");
-    $("totals").textContent = `${s.motions} motion(s), ${s.hours.toFixed(2)} hours in all`;
+    $("totals").textContent = `${s.motions} motion(s), ${s.hours.toFixed(2)} hours in all (${duration(s.hours * 3600)})`;
     $("totals").dataset.hours = String(s.hours);
     bars($("formats"), s.formats, (r) => `${r.format} · ${Number(r.source_fps).toFixed(0)} Hz`);
     $("labels-title").textContent = `Annotated hours per label (model ${s.model})`;
