@@ -3,21 +3,44 @@ archives in place, moved files, other projects' label files."""
 from __future__ import annotations
 
 import dataclasses
+import os
+import time
 from pathlib import Path
 
 from mocapdb.annotation import write_labels
 from mocapdb.annotation.foreign_labels import read_label_file
-from mocapdb.errors import SchemaError
+from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
 from mocapdb.storage import attached, parquet, postings
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
-from mocapdb.storage.schema import require_own_tables
+from mocapdb.storage.schema import DatabaseLockedError, require_own_tables
 from mocapdb.warmup import sample_files
 
 
-def connect(path=":memory:", *, read_only: bool = False, create: bool = True, memory_limit=None):
+#: seconds a read-write open waits while another process holds the file: a reader such as `mocapdb serve`
+#: holds it only while it answers a request, so a writer starting then gets in a moment later instead of
+#: failing; a writer still holding it after the wait is an error naming it (MOCAPDB_LOCK_WAIT overrides)
+LOCK_WAIT = 5.0
+LOCK_WAIT_ENV = "MOCAPDB_LOCK_WAIT"
+
+
+def _lock_wait(lock_wait, read_only):
+    if lock_wait is None:
+        if read_only:  # a reader waiting for a writer would mostly wait for minutes (an ingest): no wait
+            return 0.0
+        lock_wait = os.environ.get(LOCK_WAIT_ENV) or LOCK_WAIT
+    try:
+        wait = float(lock_wait)
+    except (TypeError, ValueError):
+        wait = -1.0
+    if not wait >= 0:
+        raise ParameterError(f"lock_wait (or ${LOCK_WAIT_ENV}) must be a number of seconds >= 0, got {lock_wait!r}")
+    return wait
+
+
+def connect(path=":memory:", *, read_only: bool = False, create: bool = True, memory_limit=None, lock_wait=None):
     """Open (or create) a mocap database with the mocapdb SQL functions registered.
 
     Parameters
@@ -38,6 +61,12 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
         or 512MB: mocapdb's own work runs a batch of motions at a time, and
         DuckDB spills to disk beyond its limit; see
         :data:`mocapdb.storage.schema.DEFAULT_MEMORY_LIMIT`).
+    lock_wait : float, optional, keyword-only
+        Seconds to wait while another process holds the file (DuckDB lets one
+        process write it, and none open it meanwhile); default
+        :data:`LOCK_WAIT` (``$MOCAPDB_LOCK_WAIT``) for a read-write open, so a
+        writer waits for a reader such as ``mocapdb serve`` to finish its
+        request, and none for a read-only open.
 
     Returns
     -------
@@ -51,7 +80,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
     Raises
     ------
     mocapdb.storage.schema.DatabaseLockedError
-        Another process is writing the file.
+        Another process still holds the file after ``lock_wait`` seconds.
     SchemaError
         ``create=False`` (or ``read_only``) and the file does not exist.
 
@@ -63,7 +92,14 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
     if not create and str(path) != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (a mistyped --db? `mocapdb ingest` or "
                           "`mocapdb import-features` create one)")
-    return connect_database(path, read_only=read_only, memory_limit=memory_limit)
+    deadline = time.monotonic() + _lock_wait(lock_wait, read_only)
+    while True:
+        try:
+            return connect_database(path, read_only=read_only, memory_limit=memory_limit)
+        except DatabaseLockedError:
+            if time.monotonic() >= deadline:
+                raise
+            time.sleep(0.05)
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
