@@ -156,6 +156,15 @@ def test_every_format_and_every_failure_as_ingest(local_ray, tmp_path, open_db):
         assert _archive_rows(con, out, "f", dataset) == _rows(con, dataset, DB_TABLES), dataset
     errors = pq.read_table(out / "errors").to_pylist()
     assert sorted((e["file"], e["reason"]) for e in errors) == sorted(report.failed) == sorted(ray_report.failed)
+    # its import logs what ingest logs: the motions under their files, with the readers' notes, and the
+    # files ray-annotate could not read (issue 26 item 4)
+    into = open_db()
+    run_id = api.import_features(into, out).run_id
+    log = "SELECT path, outcome, notes, reason FROM ingest_log WHERE run_id = ? AND outcome IN ('ingested', 'failed')"
+    ingested = sorted(r[:3] for r in con.execute(log, [report.run_id]).fetchall())
+    imported = into.execute(log, [run_id]).fetchall()
+    assert sorted(r[:3] for r in imported) == ingested and len(ingested) == len(report.ingested) + len(report.failed)
+    assert sorted(r[3] for r in imported if r[1] == "failed") == sorted(f"ray-annotate: {e['reason']}" for e in errors)
 
 
 def _broken_folder(tmp_path):

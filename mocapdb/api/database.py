@@ -67,7 +67,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
-           progress=None, replace=False) -> IngestReport:
+           progress=None, replace=False, report=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -95,6 +95,10 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     replace : bool, keyword-only
         Read files already stored (same bytes) again and replace their
         motions, e.g. after correcting ``joint_map``; default: skip them.
+    report : str or Path, optional, keyword-only
+        Write the call's rows of the ``ingest_log`` table to this file as CSV
+        (``path, member, outcome, reason, notes, motion_id, logged_at, run_id,
+        command``; NULL as an empty field), also when the call fails.
 
     Returns
     -------
@@ -102,12 +106,13 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         Ingested, skipped, failed and unsupported files, unreadable folder
         entries, and the readers' notes on what they decided per file;
         ``failed`` lists every file that was not stored, with the reason
-        (the command exits 1 when it is not empty).
+        (the command exits 1 when it is not empty). Every file's row is in
+        the table ``ingest_log`` (``run_id`` = the report's ``run_id``).
     """
     require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                        marker_rules=marker_rules, progress=progress, replace=replace)
+                        marker_rules=marker_rules, progress=progress, replace=replace, log_csv=report)
 
 
 def joint_map_template(path) -> str:
@@ -196,7 +201,9 @@ def import_features(con, directory):
     Returns
     -------
     mocapdb.storage.parquet.ImportReport
-        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions.
+        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions;
+        ``run_id`` names the call's rows of the ``ingest_log`` table (one per motion, under its
+        source file, and one per file of a ``ray_annotate`` archive's ``errors`` dataset).
     """
     require_own_tables(con, "import-features")
     return parquet.import_features(con, directory)

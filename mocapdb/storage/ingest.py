@@ -6,6 +6,7 @@ folder is a no-op.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -23,6 +24,7 @@ from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton
                              skeleton_note)
 from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, sha256,
                                      special_kind, split_archive, zip_members)
+from mocapdb.storage.ingest_log import IngestLog, write_report
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
@@ -57,6 +59,7 @@ class IngestReport:
     notes: list = field(default_factory=list)        # (path, note): what the reader decided for a stored file
     unreadable: list = field(default_factory=list)   # (path, reason): folder entries that could not be read
     source_frames: int = 0
+    run_id: int | None = None   # the run's rows in ingest_log (mocapdb.storage.ingest_log)
 
     def summary(self) -> str:
         out = (f"{len(self.ingested)} ingested"
@@ -197,6 +200,7 @@ class _Prepared:
     replaces: int | None = None  # the stored motion of the same bytes this one replaces (replace=True,
     #                              or its stored features are incomplete)
     notes: list = field(default_factory=list)   # what the reader decided (stored under reader_options "notes")
+    log_reason: str | None = None   # the ingest_log reason of a stored file: the motion it replaces
 
 
 def _fingerprint(path: Path, asf) -> _Prepared:
@@ -328,10 +332,11 @@ def motions_table(preps) -> pa.Table:
 
 
 
-def store_motions(con, preps) -> list[int]:
+def store_motions(con, preps, *, log=None) -> list[int]:
     """Insert computed motions — their ``motions`` rows, ``features`` rows and,
     when the keyframe index exists, postings — in one transaction (which first
-    deletes the stored motions they replace, ``prep.replaces``).
+    deletes the stored motions they replace, ``prep.replaces``), with their
+    ``ingest_log`` rows when ``log`` (:class:`~mocapdb.storage.ingest_log.IngestLog`) is given.
 
     Returns the new motion ids in the order of ``preps``.
     """
@@ -339,7 +344,10 @@ def store_motions(con, preps) -> list[int]:
     meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
     with transaction(con):
         remove_motions(con, [p.replaces for p in preps if p.replaces is not None])
-        return insert_motions(con, meta, [p.words for p in preps])
+        ids = insert_motions(con, meta, [p.words for p in preps])
+        if log is not None:
+            log.insert_stored([(p.path, mid, p.log_reason, p.notes) for p, mid in zip(preps, ids)])
+        return ids
 
 
 def insert_motions(con, meta: pa.Table, words: list) -> list[int]:
@@ -409,7 +417,7 @@ BATCH_FRAMES = 1_000_000
 
 
 def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, progress=None,
-                 workers: int = 2, replace: bool = False) -> IngestReport:
+                 workers: int = 2, replace: bool = False, log_csv=None) -> IngestReport:
     """Read recordings, compute their features and store them.
 
     Parameters
@@ -438,11 +446,15 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         Read files whose bytes are already stored again and replace those
         motions (a new id; their annotations go), e.g. with a corrected
         ``joint_map``. Default: skip them.
+    log_csv : str or Path, optional, keyword-only
+        Also write the run's ``ingest_log`` rows to this CSV file
+        (:func:`mocapdb.storage.ingest_log.write_report`), also when the call fails.
 
     Returns
     -------
     IngestReport
-        Ingested, skipped (already stored) and failed files with reasons.
+        Ingested, skipped (already stored) and failed files with reasons;
+        ``run_id`` names the call's rows in ``ingest_log``.
 
     Notes
     -----
@@ -450,10 +462,39 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     that computed are stored in batches, one transaction per batch
     (DESIGN.md §6: "one transaction per file or batch"); if storing a batch
     fails, its files are retried one transaction each, so a failure stays
-    confined to its file.
+    confined to its file. Every file gets its row in ``ingest_log``
+    (:mod:`mocapdb.storage.ingest_log`), a stored one in its batch's
+    transaction, the others in transactions of their own — also when the
+    call fails (a path that does not exist is logged, then raised).
     """
     report = IngestReport()
-    files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable)
+    log = IngestLog(con, "ingest")
+    report.run_id = log.run_id
+    try:
+        _ingest(con, paths, report, log, asf=asf, joint_map=joint_map, marker_map=marker_map,
+                marker_rules=marker_rules, progress=progress, workers=workers, replace=replace)
+    except BaseException:
+        with contextlib.suppress(Exception):   # the call's own error, not the log's, is what to report
+            log.add_report(report)
+            log.flush()
+            if log_csv is not None:
+                write_report(con, log.run_id, log_csv)
+        raise
+    log.add_report(report)
+    log.flush()
+    if log_csv is not None:
+        write_report(con, log.run_id, log_csv)
+    return report
+
+
+def _ingest(con, paths, report, log, *, asf, joint_map, marker_map, marker_rules, progress, workers, replace):
+    files = []
+    for p in paths:
+        try:
+            files += motion_files([p], unsupported=report.unsupported, unreadable=report.unreadable)
+        except ParameterError as exc:   # a path that is not there: logged, and the call fails
+            log.add(p, "failed", str(exc))
+            raise
     tick = _ticker(progress, len(files))
     maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules)
     stored = _stored_keys(con)
@@ -492,18 +533,21 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             prep.replaces = mid
             if mid in broken:
                 report.repaired.append((str(path), broken[mid]))
+                prep.log_reason = f"repaired motion {mid}: {broken[mid]}"
+            else:
+                prep.log_reason = f"replaces motion {mid} (replace=True: read again)"
             todo.append(prep)
 
     batch = []
 
     def flush():
         try:
-            ids = store_motions(con, batch)
+            ids = store_motions(con, batch, log=log)
         except Exception:  # noqa: BLE001 - retried file by file below
             ids = []
             for p in batch:  # one transaction each: a failure stays with its file
                 try:
-                    ids.extend(store_motions(con, [p]))
+                    ids.extend(store_motions(con, [p], log=log))
                 except Exception as exc:  # noqa: BLE001 - reported per file
                     report.failed.append((str(p.path), f"{p.path}: not stored ({exc})"))
                     ids.append(None)
@@ -517,6 +561,9 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             tick(p.path)
             p.motion = p.words = None  # free memory early on big archives
         batch.clear()
+        # the rows of the files that failed or were skipped so far, after the batch's commit
+        log.add_report(report)
+        log.flush()
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
         for prep in pool.map(compute_motion, todo):
@@ -538,7 +585,6 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         else:
             report.skipped.append((str(path), f"same bytes as {first} of this ingest"))
         tick(path)
-    return report
 
 
 #: which reader option applies to which file type
