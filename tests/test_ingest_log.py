@@ -98,9 +98,13 @@ def test_a_zip_member_is_named_by_its_archive_and_member(tmp_path, open_db):
     with zipfile.ZipFile(archive, "w") as z:
         z.writestr("walk/walk.bvh", lzma.decompress(SAMPLE_BVH.read_bytes()))
         z.writestr("walk/readme.txt", "not a take")
+        z.writestr("../beside.bvh", "never read")   # names that would leave the archive: as they are
+        z.writestr("/abs/olute.bvh", "never read")
     con = open_db()
     mocapdb.ingest(con, [archive])
-    assert [r[:3] for r in log_rows(con)] == [(str(archive), "walk/readme.txt", "not a motion file"),
+    assert [r[:3] for r in log_rows(con)] == [(str(archive), "../beside.bvh", "failed"),
+                                              (str(archive), "/abs/olute.bvh", "failed"),
+                                              (str(archive), "walk/readme.txt", "not a motion file"),
                                               (str(archive), "walk/walk.bvh", "ingested")]
     # the motion's source path runs through the archive: path / member
     assert con.execute("SELECT m.source_path = l.path || '/' || l.member FROM ingest_log l JOIN motions m "

@@ -67,7 +67,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
-           progress=None, replace=False, report=None) -> IngestReport:
+           progress=None, replace=False, max_decompressed=None, report=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -95,6 +95,10 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     replace : bool, keyword-only
         Read files already stored (same bytes) again and replace their
         motions, e.g. after correcting ``joint_map``; default: skip them.
+    max_decompressed : int or str, optional, keyword-only
+        The bytes a compressed file or zip member may decompress to (``"2GiB"``);
+        one over it fails (a compression bomb stops in seconds) and the others
+        go in. Default: ``MOCAPDB_MAX_DECOMPRESSED``, else 512 MiB.
     report : str or Path, optional, keyword-only
         Write the call's rows of the ``ingest_log`` table to this file as CSV
         (``path, member, outcome, reason, notes, motion_id, logged_at, run_id,
@@ -112,7 +116,8 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                        marker_rules=marker_rules, progress=progress, replace=replace, log_csv=report)
+                        marker_rules=marker_rules, progress=progress, replace=replace,
+                        max_decompressed=max_decompressed, log_csv=report)
 
 
 def joint_map_template(path) -> str:

@@ -24,12 +24,15 @@ from mocapdb.cli.output import write_rows, echo_report
                    "anatomical joint centres (closer to the same take's AMC).")
 @click.option("--replace", is_flag=True, help="Read files already stored (same bytes) again and replace their "
                                               "motions, e.g. with a corrected --joint-map (default: skip them).")
+@click.option("--max-decompressed", metavar="SIZE", default=None,
+              help="The bytes a compressed file or zip member may decompress to (e.g. 2GiB); a file over it "
+                   "fails, the others go in (default: MOCAPDB_MAX_DECOMPRESSED, else 512MiB).")
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
               help="Also write every file's row of the ingest_log table (outcome, reason, the reader's notes, "
                    "motion_id) to this CSV file.")
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace, report, silent):
+def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace, max_decompressed, report, silent):
     """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
 
     Files may be .gz, .bz2 or .xz compressed, and folders may be .zip archives
@@ -50,7 +53,8 @@ def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace
     con = open_db(ctx, create=True)
     with progress_bar(None, "ingest", silent) as bar:
         result = api.ingest(con, paths, sample=sample, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                            marker_rules=marker_rules, replace=replace, progress=bar_progress(bar), report=report)
+                            marker_rules=marker_rules, replace=replace, max_decompressed=max_decompressed,
+                            progress=bar_progress(bar), report=report)
     echo_report(ctx, result, log_csv=report)
 
 

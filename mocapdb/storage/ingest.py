@@ -22,8 +22,8 @@ from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
 from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion,
                              skeleton_note)
-from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, sha256,
-                                     special_kind, split_archive, zip_members)
+from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, decompression_cap, is_file, motion_stem,
+                                     motion_suffix, parse_size, sha256, special_kind, split_archive, zip_members)
 from mocapdb.storage.ingest_log import IngestLog, write_report
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
@@ -113,14 +113,21 @@ def _walk(folder: Path, files: list, unsupported, unreadable):
             files.append(q)
 
 
-def _archive_files(archive: Path, unreadable) -> list:
-    """The members of a zip archive as paths through it (hidden ones left out)."""
+def _archive_files(archive: Path, unreadable, refused=None) -> list:
+    """The members of a zip archive as paths through it (hidden ones left out); ``refused`` receives
+    the members whose names would leave the archive (never joined to its path: an absolute name
+    would replace it)."""
+    bad = []
     try:
-        names = zip_members(archive)
+        names = zip_members(archive, refused=bad)
     except OSError as exc:
         if unreadable is not None:
             unreadable.append((str(archive), f"unreadable archive ({exc})"))
         return []
+    if refused is not None:
+        for name, problem in bad:
+            where = f"{archive}/{name}"   # text only, for the report
+            refused.append((where, f"{where}: refused: {problem}; a member must name a file inside its archive"))
     return [archive / name for name in sorted(names)
             if not any(_hidden(part) for part in name.split("/"))]
 
@@ -135,7 +142,7 @@ def _classify(q: Path, out: list, unsupported):
                             + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
 
 
-def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
+def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> list[Path]:
     """Expand files, folders (recursively) and zip archives into motion files, in sorted order.
 
     Parameters
@@ -151,6 +158,10 @@ def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
         what is wrong.
     unreadable : list, optional, keyword-only
         Receives ``(path, reason)`` for folders and archives that cannot be read.
+    refused : list, optional, keyword-only
+        Receives ``(path, reason)`` for zip members whose names would leave
+        their archive (absolute, a drive letter, ``..``;
+        :func:`mocapdb.readers.sources.member_problem`): never read.
 
     Raises
     ------
@@ -162,21 +173,21 @@ def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
         archive, member = split_archive(p)
         if member is not None and member != "" and not is_file(p):
             # a folder inside an archive
-            members = [q for q in _archive_files(archive, unreadable)
+            members = [q for q in _archive_files(archive, unreadable, refused)
                        if str(q).startswith(str(p).rstrip("/") + "/")]
             if not members:
                 raise ParameterError(f"paths: {str(p)!r} does not exist (no such member in {archive})")
             for q in members:
                 _classify(q, out, unsupported)
         elif member == "":
-            for q in _archive_files(archive, unreadable):
+            for q in _archive_files(archive, unreadable, refused):
                 _classify(q, out, unsupported)
         elif p.is_dir():
             found = []
             _walk(p, found, unsupported, unreadable)
             for q in found:
                 if q.suffix.lower() in ARCHIVES:
-                    for m in _archive_files(q, unreadable):
+                    for m in _archive_files(q, unreadable, refused):
                         _classify(m, out, unsupported)
                 else:
                     _classify(q, out, unsupported)
@@ -417,7 +428,7 @@ BATCH_FRAMES = 1_000_000
 
 
 def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, progress=None,
-                 workers: int = 2, replace: bool = False, log_csv=None) -> IngestReport:
+                 workers: int = 2, replace: bool = False, max_decompressed=None, log_csv=None) -> IngestReport:
     """Read recordings, compute their features and store them.
 
     Parameters
@@ -472,7 +483,8 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     report.run_id = log.run_id
     try:
         _ingest(con, paths, report, log, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                marker_rules=marker_rules, progress=progress, workers=workers, replace=replace)
+                marker_rules=marker_rules, progress=progress, workers=workers, replace=replace,
+                max_decompressed=max_decompressed)
     except BaseException:
         with contextlib.suppress(Exception):   # the call's own error, not the log's, is what to report
             log.add_report(report)
@@ -487,11 +499,14 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     return report
 
 
-def _ingest(con, paths, report, log, *, asf, joint_map, marker_map, marker_rules, progress, workers, replace):
+def _ingest(con, paths, report, log, *, asf, joint_map, marker_map, marker_rules, progress, workers, replace,
+            max_decompressed):
+    cap = None if max_decompressed is None else parse_size(max_decompressed)
     files = []
     for p in paths:
         try:
-            files += motion_files([p], unsupported=report.unsupported, unreadable=report.unreadable)
+            files += motion_files([p], unsupported=report.unsupported, unreadable=report.unreadable,
+                                  refused=report.failed)
         except ParameterError as exc:   # a path that is not there: logged, and the call fails
             log.add(p, "failed", str(exc))
             raise
@@ -504,7 +519,8 @@ def _ingest(con, paths, report, log, *, asf, joint_map, marker_map, marker_rules
     duplicates = []   # (path, key): decided once the first file is read
     for path in files:
         try:
-            prep = prepare_file(path, asf=asf, maps=maps)
+            with decompression_cap(cap):   # a bomb stops here, while it is hashed
+                prep = prepare_file(path, asf=asf, maps=maps)
         except MocapdbError as exc:
             report.failed.append((str(path), str(exc)))
             tick(path)
@@ -565,8 +581,12 @@ def _ingest(con, paths, report, log, *, asf, joint_map, marker_map, marker_rules
         log.add_report(report)
         log.flush()
 
+    def compute(prep):
+        with decompression_cap(cap):   # the cap is per thread
+            return compute_motion(prep)
+
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        for prep in pool.map(compute_motion, todo):
+        for prep in pool.map(compute, todo):
             if prep.error is not None:
                 report.failed.append((str(prep.path), prep.error))
                 tick(prep.path)

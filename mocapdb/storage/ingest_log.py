@@ -41,8 +41,19 @@ def _sql(name):
 
 def location(path) -> tuple:
     """``(path, member)`` of a file as the log names it: the absolute path on disk (of the zip archive,
-    for a member) and the member inside the archive, or None."""
-    archive, member = split_archive(path)
+    for a member) and the member inside the archive, or None.
+
+    The member is the text after the archive's path as given, so a member refused for its name
+    (``/etc/passwd``, ``../x.bvh``: :func:`mocapdb.readers.sources.member_problem`) keeps it.
+    """
+    text = str(path)
+    archive, member = split_archive(text)
+    if member:
+        i = text.lower().find(".zip/")
+        while i >= 0 and os.path.abspath(text[:i + 4]) != os.path.abspath(archive):
+            i = text.lower().find(".zip/", i + 1)
+        if i >= 0:
+            member = text[i + 5:]
     return os.path.abspath(archive), (member or None)
 
 
