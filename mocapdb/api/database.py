@@ -8,6 +8,7 @@ from pathlib import Path
 from mocapdb.annotation import write_labels
 from mocapdb.annotation.foreign_labels import read_label_file
 from mocapdb.errors import SchemaError
+from mocapdb.readers import ReaderOptions
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
 from mocapdb.storage import attached, parquet, postings
@@ -80,25 +81,20 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     sample : bool, keyword-only
         Also ingest the real recordings shipped with mocapdb
         (:func:`mocapdb.warmup.sample_files`; README "Data and credits").
-    asf : str or Path, optional, keyword-only
-        Skeleton for every AMC file (default: found by the dataset conventions).
-    joint_map : dict, str or Path, optional, keyword-only
-        BVH files: canonical joint → the file's joint name(s) (TOML/JSON file or
-        dict), overriding the automatic mapping (README "Mapping files").
-    marker_map : dict, str or Path, optional, keyword-only
-        C3D files: canonical joint → the markers whose mean it is.
-    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
-        C3D files of the HDM05/CMU marker set: the toolbox's formulas (default,
-        the reference) or anatomical joint centres (README "C3D marker files").
+    asf, joint_map, marker_map, marker_rules, max_decompressed : optional, keyword-only
+        How files are read: the fields of one :class:`mocapdb.readers.ReaderOptions`
+        value, checked here, before any file is read — the ASF of every AMC
+        (default: found by the dataset conventions), a BVH joint map and a C3D
+        marker map (TOML/JSON file or dict; README "Mapping files", "C3D marker
+        maps"), the C3D marker rules (``"toolbox"``, the reference, or
+        ``"anatomical"``), the bytes a compressed file or zip member may
+        decompress to (``"2GiB"``; default ``MOCAPDB_MAX_DECOMPRESSED``, else
+        512 MiB). ``ray_annotate`` takes the same and reads the same.
     progress : callable, optional, keyword-only
         ``progress(n_files_done, n_files, path)`` once per file.
     replace : bool, keyword-only
         Read files already stored (same bytes) again and replace their
         motions, e.g. after correcting ``joint_map``; default: skip them.
-    max_decompressed : int or str, optional, keyword-only
-        The bytes a compressed file or zip member may decompress to (``"2GiB"``);
-        one over it fails (a compression bomb stops in seconds) and the others
-        go in. Default: ``MOCAPDB_MAX_DECOMPRESSED``, else 512 MiB.
     report : str or Path, optional, keyword-only
         Write the call's rows of the ``ingest_log`` table to this file as CSV
         (``path, member, outcome, reason, notes, motion_id, logged_at, run_id,
@@ -115,9 +111,9 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     """
     require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
-    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                        marker_rules=marker_rules, progress=progress, replace=replace,
-                        max_decompressed=max_decompressed, log_csv=report)
+    options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
+                            max_decompressed=max_decompressed)
+    return ingest_files(con, paths, options=options, progress=progress, replace=replace, log_csv=report)
 
 
 def joint_map_template(path) -> str:

@@ -19,20 +19,14 @@ from mocapdb.cli.output import write_rows, echo_report
 @click.option("--sample", is_flag=True,
               help="Also ingest the real recordings shipped with mocapdb (a CMU take, a BVH walk, an HDM05 C3D).")
 @reader_options
-@click.option("--marker-rules", type=click.Choice(("toolbox", "anatomical")), default=None,
-              help="C3D files of the HDM05/CMU marker set: the toolbox's formulas (default, the reference) or "
-                   "anatomical joint centres (closer to the same take's AMC).")
 @click.option("--replace", is_flag=True, help="Read files already stored (same bytes) again and replace their "
                                               "motions, e.g. with a corrected --joint-map (default: skip them).")
-@click.option("--max-decompressed", metavar="SIZE", default=None,
-              help="The bytes a compressed file or zip member may decompress to (e.g. 2GiB); a file over it "
-                   "fails, the others go in (default: MOCAPDB_MAX_DECOMPRESSED, else 512MiB).")
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
               help="Also write every file's row of the ingest_log table (outcome, reason, the reader's notes, "
                    "motion_id) to this CSV file.")
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace, max_decompressed, report, silent):
+def ingest(ctx, paths, sample, reader, replace, report, silent):
     """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
 
     Files may be .gz, .bz2 or .xz compressed, and folders may be .zip archives
@@ -52,9 +46,8 @@ def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace
         raise click.UsageError("give files or folders to ingest, or --sample")
     con = open_db(ctx, create=True)
     with progress_bar(None, "ingest", silent) as bar:
-        result = api.ingest(con, paths, sample=sample, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                            marker_rules=marker_rules, replace=replace, max_decompressed=max_decompressed,
-                            progress=bar_progress(bar), report=report)
+        result = api.ingest(con, paths, sample=sample, replace=replace, progress=bar_progress(bar), report=report,
+                            **reader)
     echo_report(ctx, result, log_csv=report)
 
 
