@@ -145,3 +145,22 @@ CREATE TABLE IF NOT EXISTS annotations (
 );
 -- databases from before the confidence (issue 25): NULL for the segments stored then
 ALTER TABLE annotations ADD COLUMN IF NOT EXISTS confidence DOUBLE;
+
+-- The log of every ingest and import: one row per file, archive member or folder entry an
+-- `ingest` looked at, and per motion an `import-features` read (its source file), with what became
+-- of it. Rows of files that were stored commit with their motions; the others are written in
+-- transactions of their own, so a failed ingest, which leaves the tables above as they were,
+-- still leaves its log (DESIGN.md §6). Rows stay when their motion is deleted: it is a history.
+CREATE SEQUENCE IF NOT EXISTS ingest_run_seq START 1;
+
+CREATE TABLE IF NOT EXISTS ingest_log (
+    run_id     BIGINT NOT NULL,             -- one ingest or import call (ingest_run_seq)
+    command    VARCHAR NOT NULL,            -- 'ingest' or 'import-features'
+    path       VARCHAR NOT NULL,            -- absolute path of the file (of the archive, for a member)
+    member     VARCHAR,                     -- the member inside a zip archive, else NULL
+    outcome    VARCHAR NOT NULL CHECK (outcome IN ('ingested', 'skipped', 'failed', 'not a motion file')),
+    reason     VARCHAR,                     -- why skipped, failed or not a motion; what an ingested file replaced
+    notes      VARCHAR,                     -- what the reader decided, one note a line (motions.reader_options)
+    motion_id  BIGINT,                      -- the stored motion; NULL unless ingested
+    logged_at  TIMESTAMP NOT NULL DEFAULT current_timestamp
+);

@@ -10,6 +10,7 @@ from pathlib import Path
 from mocapdb.annotation import write_labels
 from mocapdb.annotation.foreign_labels import read_label_file
 from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.readers import ReaderOptions
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
 from mocapdb.storage import attached, parquet, postings
@@ -103,7 +104,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
-           progress=None, replace=False) -> IngestReport:
+           progress=None, replace=False, max_decompressed=None, report=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -116,21 +117,24 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     sample : bool, keyword-only
         Also ingest the real recordings shipped with mocapdb
         (:func:`mocapdb.warmup.sample_files`; README "Data and credits").
-    asf : str or Path, optional, keyword-only
-        Skeleton for every AMC file (default: found by the dataset conventions).
-    joint_map : dict, str or Path, optional, keyword-only
-        BVH files: canonical joint → the file's joint name(s) (TOML/JSON file or
-        dict), overriding the automatic mapping (README "Mapping files").
-    marker_map : dict, str or Path, optional, keyword-only
-        C3D files: canonical joint → the markers whose mean it is.
-    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
-        C3D files of the HDM05/CMU marker set: the toolbox's formulas (default,
-        the reference) or anatomical joint centres (README "C3D marker files").
+    asf, joint_map, marker_map, marker_rules, max_decompressed : optional, keyword-only
+        How files are read: the fields of one :class:`mocapdb.readers.ReaderOptions`
+        value, checked here, before any file is read — the ASF of every AMC
+        (default: found by the dataset conventions), a BVH joint map and a C3D
+        marker map (TOML/JSON file or dict; README "Mapping files", "C3D marker
+        maps"), the C3D marker rules (``"toolbox"``, the reference, or
+        ``"anatomical"``), the bytes a compressed file or zip member may
+        decompress to (``"2GiB"``; default ``MOCAPDB_MAX_DECOMPRESSED``, else
+        512 MiB). ``ray_annotate`` takes the same and reads the same.
     progress : callable, optional, keyword-only
         ``progress(n_files_done, n_files, path)`` once per file.
     replace : bool, keyword-only
         Read files already stored (same bytes) again and replace their
         motions, e.g. after correcting ``joint_map``; default: skip them.
+    report : str or Path, optional, keyword-only
+        Write the call's rows of the ``ingest_log`` table to this file as CSV
+        (``path, member, outcome, reason, notes, motion_id, logged_at, run_id,
+        command``; NULL as an empty field), also when the call fails.
 
     Returns
     -------
@@ -138,12 +142,14 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         Ingested, skipped, failed and unsupported files, unreadable folder
         entries, and the readers' notes on what they decided per file;
         ``failed`` lists every file that was not stored, with the reason
-        (the command exits 1 when it is not empty).
+        (the command exits 1 when it is not empty). Every file's row is in
+        the table ``ingest_log`` (``run_id`` = the report's ``run_id``).
     """
     require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
-    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                        marker_rules=marker_rules, progress=progress, replace=replace)
+    options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
+                            max_decompressed=max_decompressed)
+    return ingest_files(con, paths, options=options, progress=progress, replace=replace, log_csv=report)
 
 
 def joint_map_template(path) -> str:
@@ -232,7 +238,9 @@ def import_features(con, directory):
     Returns
     -------
     mocapdb.storage.parquet.ImportReport
-        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions.
+        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions;
+        ``run_id`` names the call's rows of the ``ingest_log`` table (one per motion, under its
+        source file, and one per file of a ``ray_annotate`` archive's ``errors`` dataset).
     """
     require_own_tables(con, "import-features")
     return parquet.import_features(con, directory)
