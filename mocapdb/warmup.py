@@ -40,10 +40,10 @@ from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError
 from mocapdb.extension import connect as connect_database
 from mocapdb.features import motion_features
-from mocapdb.readers import read_motion
+from mocapdb.readers import motion_files, read_motion
 from mocapdb.storage.annotations import annotate_documents
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.ingest import ingest_files, motion_files
+from mocapdb.storage.ingest import ingest_files
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_documents
 
@@ -165,20 +165,19 @@ def _index_fresh(index: Path, stamp, version: str) -> bool:
 
 
 def cache_is_cold() -> bool:
-    """True when a command would compile kernels first: numba holds no usable cached kernel of this package.
+    """True when numba holds no usable cached kernel of this package: a command compiles first.
 
-    That is: no cache index at all (a first run), or a module whose every
-    index is stale — written by another numba version, or for other source
+    That is: no cache index numba would use — none at all (a first run), or
+    only stale ones, written by another numba version or for other source
     bytes. numba before 0.68 stamps a source by its modification time, which
-    pip does not keep, so there an installed wheel's cache is stale; an index
-    of a kernel since moved or removed (a leftover beside fresh ones) does not
-    count.
+    pip does not keep, so there a whole installed wheel's cache is stale; an
+    upgraded numba makes every index stale. (A source edited in a checkout
+    leaves its own kernels stale beside fresh ones: those compile as they go.)
     """
     if os.environ.get("NUMBA_DISABLE_JIT") == "1":
         return False
     import numba
 
-    found = False
     for source, cache in _cache_dirs():
         by_module = {}
         for index in cache.glob("*.nbi") if cache.is_dir() else ():
@@ -187,15 +186,14 @@ def cache_is_cold() -> bool:
             py = source / f"{stem}.py"
             if not py.is_file():
                 continue   # a module gone: numba never reads its leftovers
-            found = True
             try:
                 stamp = _source_stamp(py)
             except Exception:  # noqa: BLE001 - a numba whose stamps this cannot compute: only versions count
                 stamp = None
-            if not any(_index_fresh(i, stamp, numba.__version__) if stamp is not None else
-                       _index_version(i) == numba.__version__ for i in indexes):
-                return True
-    return not found
+            if any(_index_fresh(i, stamp, numba.__version__) if stamp is not None else
+                   _index_version(i) == numba.__version__ for i in indexes):
+                return False
+    return True
 
 
 def _index_version(index: Path):

@@ -184,7 +184,7 @@ def test_a_dense_c3d_is_read_a_block_of_frames_at_a_time_holding_the_usable_mark
     # a marker map's names are held too; a refusal still lists every marker of the file
     mapped = read_c3d(path, marker_map={"lknee": "X0007"})
     assert mapped.skeleton == "c3d:marker_map"
-    with pytest.raises(ParseError, match=r"cannot place root, .* from the markers Y0000, .*\(344 in all\)"):
+    with pytest.raises(ParseError, match=r"cannot place root, .* from the markers Y0000, .*\(12 of 344\)"):
         read_c3d(dense_c3d(tmp_path / "unnamed.c3d", 300, 100, unnamed=True))
     tracemalloc.start()
     read_c3d(path)

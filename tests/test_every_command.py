@@ -75,8 +75,27 @@ TOUR = [
     ("ray-annotate", ["ray-annotate", "{moved}", "--out", "{archive}", "--num-cpus", "1"],
      lambda r, t: json.loads((t["archive"] / "manifest.json").read_text())["motions"] == 3),
     ("attach", ["--db", "{views}", "attach", "{archive}"], lambda r, t: "3 motion(s)" in r.output),
+    ("stats", ["stats", "--table", "formats", "--format", "csv"], lambda r, t: r.output.count("\n") >= 3),
+    ("serve", None, lambda r, t: '"motions"' in r.output or "<html" in r.output.lower()),
     ("warmup", ["warmup", "ingest"], lambda r, t: r.output.startswith("compiled in ")),
 ]
+
+
+class _Served:
+    """`mocapdb serve` (it serves until stopped): started on a free port, its archive page and API asked
+    for, stopped; the result a command's (exit status, what it answered)."""
+
+    def __init__(self, db):
+        from serving import Served
+
+        served = Served(db)
+        try:
+            status, page, _ = served.get("/")
+            api_status, body, _ = served.get("/api/motions")
+        finally:
+            served.stop()
+        self.exit_code = 0 if status == api_status == 200 else 1
+        self.output = page.decode("utf-8", "replace") + body.decode("utf-8", "replace")
 
 
 def test_the_tour_names_every_command():
@@ -102,8 +121,11 @@ def test_every_command_runs_on_real_recordings(tmp_path, monkeypatch):
             _labels_from(t["pred"], t["foreign"])
         if name == "relocate":
             shutil.move(takes, t["moved"])
-        argv = [a.format(**t) for a in args]
-        target, argv = (argv[1], argv[2:]) if argv[0] == "--db" else (db, argv)
-        r = run(target, *argv, code=None)
+        if args is None:
+            r = _Served(db)
+        else:
+            argv = [a.format(**t) for a in args]
+            target, argv = (argv[1], argv[2:]) if argv[0] == "--db" else (db, argv)
+            r = run(target, *argv, code=None)
         assert r.exit_code == 0, f"{name}: {r.output}"
         assert check(r, t) is not False, f"{name}: {r.output}"

@@ -96,8 +96,8 @@ def _say_when_compiling(ctx, command):
     start = time.monotonic()
     if api.kernels_cold():
         # on stderr, for every command that compiles (a query too: stdout stays the query's)
-        click.echo("Compiling the numba kernels: this install has no usable compiled cache (a first run, another "
-                   "numba, or changed sources)…", err=True)
+        click.echo("Compiling the numba kernels: this install has no usable compiled cache (a first run, or "
+                   "another numba)…", err=True)
         ctx.call_on_close(lambda: click.echo(
             f"First run: {time.monotonic() - start:.0f} s, most of it compiling; later runs skip that.", err=True))
         if command not in _ANNOTATING:
@@ -126,5 +126,5 @@ def main(ctx, db):
     ctx.ensure_object(dict)
     ctx.obj["db"] = db
     if ctx.invoked_subcommand not in (None, "attach", "delete", "drop-index", "export-features", "joint-map-template",
-                                      "convert-labels", "relocate", "warmup"):
+                                      "convert-labels", "relocate", "warmup", "stats"):
         _say_when_compiling(ctx, ctx.invoked_subcommand)

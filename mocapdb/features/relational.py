@@ -24,6 +24,7 @@ from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, feature_frame_count,
                                     grid_source_frames, resample_joints, resampled_count)
+from mocapdb.features.heading import HEADING_THRESHOLDS, HEADING_WINDOW_S, heading_axis, heading_change
 from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
 from mocapdb.readers import JOINT_INDEX
 
@@ -671,8 +672,46 @@ def feature_tests(joints, root_rotation, fps, units, *, root_ang_vel_thresholds=
     return f1, f2
 
 
+def heading_turned(joints, root_rotation, fps, *, window_s=HEADING_WINDOW_S, thresholds=HEADING_THRESHOLDS,
+                   axis=None):
+    """Feature 41 (beyond the paper, FEATURES.md §10) per native frame: the heading turned far around the frame.
+
+    The heading change across a window centred on the frame
+    (:func:`mocapdb.features.heading.heading_change`) reaches the strict
+    threshold, and the feature stays on while it stays above the lenient one
+    (the §5 hysteresis).
+
+    Parameters
+    ----------
+    joints : (n, 24, 3) float
+    root_rotation : (n, 3, 3) float or None
+    fps : float
+    window_s : float, default 3.0
+    thresholds : (float, float), default (45, 70)
+        Lenient and strict heading change, degrees.
+    axis : (n, 3) float, optional
+        The pelvis axis per frame (:func:`mocapdb.features.heading.heading_axis`)
+        instead of ``joints`` and ``root_rotation`` (a long take's, gathered a
+        block at a time).
+
+    Returns
+    -------
+    (n,) bool
+    """
+    try:
+        lo, hi = (float(v) for v in thresholds)
+    except (TypeError, ValueError):
+        raise ParameterError(f"thresholds must be two numbers (lenient, strict) in degrees, got {thresholds!r}") from None
+    if not (math.isfinite(hi) and 0.0 < lo <= hi):
+        raise ParameterError(f"thresholds must satisfy 0 < lenient <= strict degrees, got {thresholds!r}")
+    change = heading_change(joints, root_rotation, fps, window_s=window_s, axis=axis)
+    if change.size < 2:
+        return np.zeros(change.size, dtype=bool)
+    return hysteresis(change >= lo, change >= hi)
+
+
 def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_method: str = "resample"):
-    """The whole feature pipeline of one motion: 40 features → 30 Hz → words.
+    """The whole feature pipeline of one motion: 40 features (+ feature 41) → 30 Hz → words.
 
     Parameters
     ----------
@@ -689,7 +728,9 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
     Returns
     -------
     ndarray, shape (feature_frame_count(n_frames, fps),), uint64
-        One packed word per 30 Hz frame (``ceil(n_frames/4)`` at 120 Hz).
+        One packed word per 30 Hz frame (``ceil(n_frames/4)`` at 120 Hz):
+        bits 0–39 the toolbox's 40 features, bit 40 feature 41
+        (:func:`heading_turned`).
 
     References
     ----------
@@ -707,6 +748,8 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
             joints, rot = resample_joints(joints, rot, fps)
             fps = TOOLBOX_RATE
         feats = relational_features(joints, rot, fps, root_ang_vel_thresholds=root_ang_vel_thresholds)
+        # bit 40: feature 41, the heading turned (beyond the paper; the 40 stay the toolbox's)
+        feats = np.column_stack([feats, heading_turned(joints, rot, fps)])
         if fps == TOOLBOX_RATE:
             words = pack_words(downsample(feats))
         else:
@@ -744,21 +787,30 @@ def _words_by_block(motion, root_ang_vel_thresholds) -> np.ndarray:
         return resample_joints(j, rot, fps, frames=(a, b))
 
     units = body_units(frames(0, 1)[0])
+    step = max(4, BLOCK_FRAMES // 4 * 4)
+    # feature 41 reads the heading over the whole take (unwrapped, held where unreliable): its axis,
+    # 24 bytes a frame, is gathered a block at a time first
+    axis = np.empty((n, 3))
+    for a in range(0, n, step):
+        axis[a:a + step] = heading_axis(*frames(a, min(n, a + step)))
+    turned = heading_turned(None, None, TOOLBOX_RATE, axis=axis)
+    del axis
     states = np.zeros(N_FEATURES, dtype=np.bool_)
     words = np.empty((n + 3) // 4, dtype=np.uint64)
-    step = max(4, BLOCK_FRAMES // 4 * 4)
     for a in range(0, n, step):
         b = min(n, a + step)
         lo, hi = max(0, a - _CONTEXT), min(n, b + _CONTEXT)
         jw, rw = frames(lo, hi)
         f1, f2 = feature_tests(np.ascontiguousarray(jw), rw, TOOLBOX_RATE, units, root_ang_vel_thresholds=ang_thr)
-        feats = np.empty((b - a, N_FEATURES), dtype=np.bool_)
-        _hysteresis_kernel(f1[a - lo:b - lo], f2[a - lo:b - lo], feats, states)
+        feats = np.empty((b - a, N_FEATURES + 1), dtype=np.bool_)
+        _hysteresis_kernel(f1[a - lo:b - lo], f2[a - lo:b - lo], feats[:, :N_FEATURES], states)
+        feats[:, N_FEATURES] = turned[a:b]
         words[a // 4:(b + 3) // 4] = pack_words(feats[::4])
     return words
 
 
 __all__ = [
     "FEATURE_THRESHOLDS", "SMOOTHING_MS", "ROOT_ANG_VEL_THRESHOLDS_ALT", "relational_features",
-    "hysteresis", "smoothing_window", "motion_features", "body_units", "feature_tests", "BLOCK_FRAMES",
+    "hysteresis", "smoothing_window", "motion_features", "heading_turned", "body_units", "feature_tests",
+    "BLOCK_FRAMES",
 ]

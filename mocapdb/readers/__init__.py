@@ -6,7 +6,9 @@ kinematics in :mod:`~mocapdb.readers.kinematics`), BVH
 points through ezc3d in :mod:`~mocapdb.readers.c3dfile`, marker rules in
 :mod:`~mocapdb.readers.c3d_rules`) become a :class:`Motion` (joint positions, root
 rotation, rate); :func:`read_motion` dispatches on the file type
-(:mod:`~mocapdb.readers.files`). Text is scanned by the numba kernels of
+(:mod:`~mocapdb.readers.files`), with the options of one :class:`ReaderOptions`
+value (:mod:`~mocapdb.readers.options`); :func:`motion_files` walks folders and
+zip archives for the files to read (:mod:`~mocapdb.readers.walk`). Text is scanned by the numba kernels of
 :mod:`~mocapdb.readers.textscan`.
 """
 from mocapdb.readers.joints import (JOINT_INDEX, JOINT_NAMES, MIRROR_JOINTS)
@@ -21,8 +23,10 @@ from mocapdb.readers.bvh_write import (CMU_BONE_NAMES, euler_angles, write_bvh)
 from mocapdb.readers.mapping import (load_mapping)
 from mocapdb.readers.c3dfile import (C3dPoints, read_c3d_points)
 from mocapdb.readers.c3d import (fit_bone_lengths, read_c3d)
-from mocapdb.readers.files import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton, load_skeleton, read_asf_amc,
+from mocapdb.readers.options import READER_OPTIONS, ReaderOptions
+from mocapdb.readers.files import (SUPPORTED_EXTENSIONS, find_skeleton, load_skeleton, read_asf_amc,
                                    read_motion, skeleton_candidates, skeleton_note)
+from mocapdb.readers.walk import MOTION_SUFFIXES, motion_files
 
 __all__ = [
     "JOINT_NAMES", "JOINT_INDEX", "MIRROR_JOINTS", "Motion", "Bone", "Skeleton", "read_asf", "parse_asf",
@@ -33,5 +37,6 @@ __all__ = [
     "map_humanoid", "snap_rate", "check_rate", "check_finite_motion", "COMMON_RATES", "MAX_RATE", "parse_bvh", "bvh_node_positions", "bvh_to_motion",
     "write_bvh", "euler_angles", "CMU_BONE_NAMES", "read_motion", "read_asf_amc", "find_skeleton",
     "skeleton_candidates", "skeleton_note", "load_skeleton", "SUPPORTED_EXTENSIONS", "READER_OPTIONS", "load_mapping",
-    "C3dPoints", "read_c3d_points", "read_c3d", "fit_bone_lengths",
+    "C3dPoints", "read_c3d_points", "read_c3d", "fit_bone_lengths", "ReaderOptions", "motion_files",
+    "MOTION_SUFFIXES",
 ]
