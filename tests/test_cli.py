@@ -138,7 +138,8 @@ def test_train_then_annotate(cli, tmp_path):
     r = cli("annotate", "--model", "two", "--format", "csv", "--out", out)
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader(out.open()))
-    assert list(rows[0]) == ["document", "label", "start_frame", "end_frame", "fps", "start_s", "end_s", "cost"]
+    assert list(rows[0]) == ["document", "label", "start_frame", "end_frame", "fps", "start_s", "end_s", "cost",
+                             "confidence"]
     assert {r["fps"] for r in rows} == {"30"}
     # the training clip itself is found as exercise, with a near-zero cost, over most of its frames
     squat = [r for r in rows if r["document"] == "HDM_bd_squat1Reps_001_120" and r["label"] == "exercise"]

@@ -20,17 +20,16 @@ import numba
 import numpy as np
 
 from mocapdb.annotation.chain_kernels import (_count_candidates_kernel, _extract_hits_kernel, _label_scatter_kernel,
-                                              _merge_kernel, _scatter_kernel, _segment_min_kernel, _segments_kernel,
-                                              _sort_by_key)
+                                              _merge_kernel, _scatter_kernel, _segments_kernel, _sort_by_key)
 from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.annotation.model import DEFAULT_TAU, Model
 from mocapdb.annotation.postprocess import (apply_margin, drop_short_segments, drop_unwon_segments, label_min_frames,
-                                           label_min_won)
+                                           label_min_won, segment_confidence)
 from mocapdb.features import as_words as _as_words
 from mocapdb.templates import ANNOTATION_STEPS, DEFAULT_CHUNK, mt_distance_slices
 
 __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotate", "annotate_sweep",
-           "extract_hits", "combine_by_label", "frame_labels", "form_segments", "segment_confidence"]
+           "extract_hits", "combine_by_label", "frame_labels", "form_segments"]
 
 #: the toolbox's limit of hits per class and document (annotationScript.m), where it stops with an
 #: error: a long repetitive take (a treadmill walk) has thousands of hits of one class. annotate()
@@ -39,7 +38,7 @@ __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotat
 MATCH_NUM_MAX = 2000
 
 #: ``confidence`` (0–1): how far below τ the segment's best hit lies, 1 − Δ̄^τ / τ at its
-#: best frame (:func:`segment_confidence`); 1 is a perfect match, 0 a match at τ
+#: best frame (:func:`mocapdb.annotation.postprocess.segment_confidence`); 1 is a perfect match, 0 a match at τ
 SEGMENT_DTYPE = np.dtype([("label", object), ("doc", np.int64), ("start", np.int64),
                           ("end", np.int64), ("cost", np.float64), ("confidence", np.float64)])
 #: hits: ``class_id`` indexes :attr:`Annotation.class_names` (hits are many)
@@ -271,39 +270,6 @@ def _form_segments(cdl, bounds, labels):
     out["label"] = np.asarray(labels, dtype=object)[lab[:k]] if k else []
     out["doc"], out["start"], out["end"], out["cost"] = doc[:k], st[:k], en[:k], co[:k]
     return out
-
-
-def segment_confidence(segments, label_ratio, doc_bounds, labels) -> np.ndarray:
-    """Per segment, how far its best match lies below τ: ``1 − min Δ̄^τ/τ`` over its frames, in [0, 1].
-
-    Parameters
-    ----------
-    segments : ndarray of SEGMENT_DTYPE
-        Frames within documents.
-    label_ratio : (n_labels, N) float64
-        Per label and frame the smallest Δ̄^τ / τ among its classes (+inf where
-        none matches).
-    doc_bounds : (n_docs + 1,) int
-    labels : sequence of str
-        Label order of ``label_ratio``.
-
-    Returns
-    -------
-    (n_segments,) float64
-        1 for a perfect match, 0 for one at τ (a segment that only its
-        extension reaches, with no hit inside, gets 0).
-    """
-    li = {lab: k for k, lab in enumerate(labels)}
-    if not segments.size:
-        return np.zeros(0)
-    lab = np.array([li[x] for x in segments["label"]], dtype=np.int64)
-    b = np.asarray(doc_bounds, dtype=np.int64)
-    first = b[segments["doc"]] + segments["start"]
-    last = b[segments["doc"]] + segments["end"]
-    best = np.empty(segments.size)
-    _segment_min_kernel(np.ascontiguousarray(label_ratio, dtype=np.float64), lab, first.astype(np.int64),
-                        last.astype(np.int64), best)
-    return np.clip(1.0 - best, 0.0, 1.0)
 
 
 def _concurrent_rows(model):

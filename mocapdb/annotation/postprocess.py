@@ -14,6 +14,8 @@
   better labels (a lie-down template over a deposit on the floor, a throw
   over a squat) becomes a segment as long as a real one. What it won is
   what the annotation knows of it.
+* **confidence** (:func:`segment_confidence`): not a filter — each
+  segment's ``1 − Δ̄^τ/τ`` at its best frame, so users can filter;
 * **margin** (:func:`apply_margin`): a frame where the best label's Δ̄^τ
   beats the second best by less than ``Model.margin`` is left unlabelled —
   two labels fit about equally well, so neither is trusted.
@@ -24,11 +26,11 @@ All run inside :func:`mocapdb.annotation.annotate` (``min_length``,
 """
 import numpy as np
 
-from mocapdb.annotation.chain_kernels import _margin_kernel, _won_kernel
+from mocapdb.annotation.chain_kernels import _margin_kernel, _segment_min_kernel, _won_kernel
 from mocapdb.errors import ParameterError, check_nonnegative
 
 __all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
-           "apply_margin", "WON_FRACTION"]
+           "apply_margin", "segment_confidence", "WON_FRACTION"]
 
 #: a segment's label must win (be Δarg on) this share of its ``min_frames``
 #: (development evaluation, RESULTS.md issue 11: 1/4 to 1/3 best everywhere)
@@ -90,18 +92,52 @@ def won_frames(segments, label_cd, doc_bounds, labels) -> np.ndarray:
     (n_segments,) int64
     """
     cdl = np.ascontiguousarray(label_cd, dtype=np.float64)
+    lab, first, last = _segment_rows(segments, doc_bounds, labels, cdl.shape[1])
+    out = np.zeros(segments.size, np.int64)
+    _won_kernel(cdl, lab, first, last, out)
+    return out
+
+
+def _segment_rows(segments, doc_bounds, labels, n_frames):
+    """Each segment's label row and first/last frame in per-label arrays over the concatenated documents."""
     li = {lab: k for k, lab in enumerate(labels)}
     unknown = sorted(set(segments["label"].tolist()) - set(li))
     if unknown:
-        raise ParameterError(f"segments have labels {unknown} that label_cd has no row for")
+        raise ParameterError(f"segments have labels {unknown} that the per-label rows lack")
     lab = np.array([li[x] for x in segments["label"]], dtype=np.int64)
-    first = np.asarray(doc_bounds, dtype=np.int64)[segments["doc"]] + segments["start"]
-    last = np.asarray(doc_bounds, dtype=np.int64)[segments["doc"]] + segments["end"]
-    if segments.size and (first.min() < 0 or last.max() >= cdl.shape[1] or (last < first).any()):
+    b = np.asarray(doc_bounds, dtype=np.int64)
+    first = (b[segments["doc"]] + segments["start"]).astype(np.int64)
+    last = (b[segments["doc"]] + segments["end"]).astype(np.int64)
+    if segments.size and (first.min() < 0 or last.max() >= n_frames or (last < first).any()):
         raise ParameterError("segments must lie within their documents")
-    out = np.zeros(segments.size, np.int64)
-    _won_kernel(cdl, lab, first.astype(np.int64), last.astype(np.int64), out)
-    return out
+    return lab, first, last
+
+
+def segment_confidence(segments, label_ratio, doc_bounds, labels) -> np.ndarray:
+    """Per segment, how far its best match lies below τ: ``1 − min Δ̄^τ/τ`` over its frames, in [0, 1].
+
+    Parameters
+    ----------
+    segments : ndarray of SEGMENT_DTYPE
+        Frames within documents.
+    label_ratio : (n_labels, N) float64
+        Per label and frame the smallest Δ̄^τ / τ among its classes (+inf where
+        none matches).
+    doc_bounds : (n_docs + 1,) int
+    labels : sequence of str
+        Label order of ``label_ratio``.
+
+    Returns
+    -------
+    (n_segments,) float64
+        1 for a perfect match, 0 for one at τ (a segment that only its
+        extension reaches, with no hit inside, gets 0).
+    """
+    ratio = np.ascontiguousarray(label_ratio, dtype=np.float64)
+    lab, first, last = _segment_rows(segments, doc_bounds, labels, ratio.shape[1])
+    best = np.empty(segments.size)
+    _segment_min_kernel(ratio, lab, first, last, best)
+    return np.clip(1.0 - best, 0.0, 1.0)
 
 
 def drop_unwon_segments(segments, label_cd, doc_bounds, labels, min_won):
