@@ -172,7 +172,7 @@ def _scores(truth_rows, auto_rows, vocabulary, by_label):
 
 
 def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
-                 asf=None, joint_map=None, marker_map=None, num_cpus=None, batch_files=BATCH_FILES,
+                 asf=None, joint_map=None, marker_map=None, body_model=None, num_cpus=None, batch_files=BATCH_FILES,
                  bucket_motions=BUCKET_MOTIONS, overwrite=False):
     """``ingest`` + ``annotate`` on a Ray cluster, Parquet out (needs the ``ray`` extra).
 
@@ -199,5 +199,5 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     mocapdb.distributed.RayReport
     """
     return run_on_ray(sources, out, address=address, model=model, tau=tau, keyframes=keyframes, database=database,
-                      asf=asf, joint_map=joint_map, marker_map=marker_map, num_cpus=num_cpus,
+                      asf=asf, joint_map=joint_map, marker_map=marker_map, body_model=body_model, num_cpus=num_cpus,
                       batch_files=batch_files, bucket_motions=bucket_motions, overwrite=overwrite)

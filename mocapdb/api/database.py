@@ -67,7 +67,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
-           progress=None, replace=False) -> IngestReport:
+           body_model=None, progress=None, replace=False) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -90,6 +90,11 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
         C3D files of the HDM05/CMU marker set: the toolbox's formulas (default,
         the reference) or anatomical joint centres (README "C3D marker files").
+    body_model : str or Path, optional, keyword-only
+        AMASS ``.npz`` files: the SMPL-H/SMPL-X body model file the user
+        downloaded, or a folder of them (chosen by family and gender), giving
+        each take's own rest joints; default: the generic rest skeleton
+        shipped with mocapdb (README "AMASS").
     progress : callable, optional, keyword-only
         ``progress(n_files_done, n_files, path)`` once per file.
     replace : bool, keyword-only
@@ -107,7 +112,7 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
     return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                        marker_rules=marker_rules, progress=progress, replace=replace)
+                        marker_rules=marker_rules, body_model=body_model, progress=progress, replace=replace)
 
 
 def joint_map_template(path) -> str:

@@ -125,8 +125,8 @@ def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, min
               help="Motions per motion_bucket partition of features, postings and annotations.")
 @click.option("--overwrite", is_flag=True, help="Replace an archive already in --out.")
 @click.pass_context
-def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_map, marker_map, num_cpus,
-                 batch_files, bucket_motions, overwrite):
+def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_map, marker_map, body_model,
+                 num_cpus, batch_files, bucket_motions, overwrite):
     """Ingest and annotate files, folders or glob patterns on a Ray cluster; write Parquet.
 
     Needs the ray extra (pip install 'mocapdb[ray]'). Writes the datasets
@@ -142,7 +142,7 @@ def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_m
 
     report = api.ray_annotate(sources, out, address=address, model=model, tau=tau, keyframes=keyframes,
                               database=ctx.obj.get("db"), asf=asf, joint_map=joint_map, marker_map=marker_map,
-                              num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
+                              body_model=body_model, num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
                               overwrite=overwrite)
     # the failed files are data of the archive (its errors dataset): the run failed only if nothing went in
     echo_report(ctx, report, all_must_succeed=False)

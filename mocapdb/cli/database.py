@@ -26,8 +26,8 @@ from mocapdb.cli.output import write_rows, echo_report
                                               "motions, e.g. with a corrected --joint-map (default: skip them).")
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace, silent):
-    """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
+def ingest(ctx, paths, sample, asf, joint_map, marker_map, body_model, marker_rules, replace, silent):
+    """Read ASF/AMC, BVH, C3D and AMASS .npz files (or folders, recursively) into the database.
 
     Files may be .gz, .bz2 or .xz compressed, and folders may be .zip archives
     (read in place). A broken file changes nothing and the others still go in;
@@ -46,7 +46,8 @@ def ingest(ctx, paths, sample, asf, joint_map, marker_map, marker_rules, replace
     con = open_db(ctx, create=True)
     with progress_bar(None, "ingest", silent) as bar:
         report = api.ingest(con, paths, sample=sample, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                            marker_rules=marker_rules, replace=replace, progress=bar_progress(bar))
+                            marker_rules=marker_rules, body_model=body_model, replace=replace,
+                            progress=bar_progress(bar))
     echo_report(ctx, report)
 
 

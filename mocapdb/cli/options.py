@@ -64,7 +64,12 @@ map_option = click.option("--label-map", type=click.Path(exists=True, dir_okay=F
 
 
 def reader_options(fn):
-    """``--asf``, ``--joint-map`` and ``--marker-map``: how files are read (ingest, ray-annotate)."""
+    """``--asf``, ``--joint-map``, ``--marker-map`` and ``--body-model``: how files are read (ingest,
+    ray-annotate)."""
+    fn = click.option("--body-model", type=click.Path(exists=True, path_type=Path),
+                      help="AMASS .npz files: the SMPL-H/SMPL-X body model .npz you downloaded, or a folder of "
+                           "them (chosen by family and gender, e.g. smplh/female/model.npz), giving each take's "
+                           "own rest joints (default: a generic rest skeleton shipped with mocapdb).")(fn)
     fn = click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                       help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")(fn)
     fn = click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),

@@ -35,6 +35,7 @@ import pyarrow.parquet as pq
 from mocapdb.distributed.layout import ERRORS_SCHEMA, finish_output, prepare_output, write_part
 from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
+from mocapdb.readers import companion_kind
 from mocapdb.storage.ingest import MOTION_SUFFIXES, IngestReport, motion_files, reader_maps
 from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
 from mocapdb.storage.parquet import table_schemas, write_manifest
@@ -112,7 +113,7 @@ def expand_sources(sources, *, unsupported=None) -> list[Path]:
     for s in sources:
         if not Path(s).exists() and _GLOB.search(str(s)):
             hits = [Path(h) for h in sorted(glob.glob(str(s), recursive=True))]
-            hits = [h for h in hits if h.is_dir() or h.suffix.lower() in MOTION_SUFFIXES]
+            hits = [h for h in hits if h.is_dir() or (h.suffix.lower() in MOTION_SUFFIXES and companion_kind(h) is None)]
             if not hits:
                 raise ParameterError(f"sources: the pattern {str(s)!r} matches no motion file or folder")
             paths.extend(hits)
@@ -208,7 +209,7 @@ def _check(tau, num_cpus, batch_files, bucket_motions):
 
 
 def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
-                 asf=None, joint_map=None, marker_map=None, num_cpus=None, batch_files=BATCH_FILES,
+                 asf=None, joint_map=None, marker_map=None, body_model=None, num_cpus=None, batch_files=BATCH_FILES,
                  bucket_motions=BUCKET_MOTIONS, overwrite=False, worker=MotionWorker) -> RayReport:
     """Read, compute features, index and annotate recordings on a Ray cluster; write Parquet.
 
@@ -238,7 +239,7 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
         as ``mocapdb.api.annotate``.
     database : str or Path, optional, keyword-only
         A mocap database to read the model from (opened read-only).
-    asf, joint_map, marker_map : keyword-only
+    asf, joint_map, marker_map, body_model : keyword-only
         As ``mocapdb.api.ingest``.
     num_cpus : int, optional, keyword-only
         CPUs of a local Ray (default: all cores).
@@ -269,7 +270,7 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     ray = require_ray()
     report = RayReport()
     files = expand_sources(sources, unsupported=report.unsupported)
-    maps = reader_maps(joint_map=joint_map, marker_map=marker_map)
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map, body_model=body_model)
     asf = None if asf is None else os.path.abspath(asf)  # workers have their own working directory
     the_model = _model(model, database)
     schemas = {**table_schemas(), "errors": ERRORS_SCHEMA}

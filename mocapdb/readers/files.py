@@ -1,16 +1,17 @@
 """Read any supported motion file into a :class:`~mocapdb.readers.motion.Motion`.
 
 :func:`read_motion` dispatches on the extension (``.amc`` with its ASF
-skeleton, ``.bvh``, ``.c3d``; each also compressed or inside a zip archive,
-:mod:`~mocapdb.readers.sources`); :func:`find_skeleton` implements the
+skeleton, ``.bvh``, ``.c3d``, AMASS ``.npz``; each also compressed or inside a
+zip archive, :mod:`~mocapdb.readers.sources`); :func:`find_skeleton` implements the
 dataset conventions for locating the ASF of an AMC file.
 
 References
 ----------
-DESIGN.md §1, §6; READERS.md §5, §7.
+DESIGN.md §1, §6; READERS.md §5, §7, §9.
 """
 from __future__ import annotations
 
+import fnmatch
 import re
 import threading
 from pathlib import Path
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import MocapdbError, ParameterError, ParseError
+from mocapdb.readers.amass import SHAPE_FILE_PATTERNS, read_amass
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.asf_humanoid import asf_humanoid_joints
@@ -31,12 +33,28 @@ from mocapdb.readers.sources import (COMPRESSED, identity, is_file, list_dir, mo
                                      special_kind)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
-           "load_skeleton", "SUPPORTED_EXTENSIONS", "READER_OPTIONS"]
+           "load_skeleton", "companion_kind", "SUPPORTED_EXTENSIONS", "READER_OPTIONS"]
 
-SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d")
+SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d", ".npz")
 #: the reader options stored with a motion (``motions.reader_options``) that :func:`read_motion` takes
 #: back when the source is re-read; other keys there (``notes``, ``source_frames``) only inform
-READER_OPTIONS = ("joint_map", "marker_map", "marker_rules")
+READER_OPTIONS = ("joint_map", "marker_map", "marker_rules", "body_model")
+
+
+def companion_kind(path) -> str | None:
+    """What a file that sits beside motions without being one is, or None.
+
+    An ASF skeleton (read with its AMC takes), and AMASS's body shape files
+    (``shape.npz``, ``*_stagei.npz``: betas and gender, no motion), which a
+    folder walk lists as not motion files rather than failed ones.
+    """
+    p = Path(path)
+    if motion_suffix(p) == ".asf":
+        return "an ASF skeleton (read with its AMC takes)"
+    name = Path(motion_stem(p) + motion_suffix(p)).name.lower()
+    if any(fnmatch.fnmatchcase(name, pattern) for pattern in SHAPE_FILE_PATTERNS):
+        return "an AMASS body shape file (betas and gender, no motion)"
+    return None
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
@@ -176,13 +194,14 @@ def read_asf_amc(amc_path, asf) -> Motion:
                         "frames": (1, len(joints))})
 
 
-def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules=None) -> Motion:
+def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, body_model=None) -> Motion:
     """Read a motion file (by extension) into the 24 canonical joints.
 
     Parameters
     ----------
     path : str or Path
-        ``.amc`` (Acclaim motion; needs a skeleton), ``.bvh`` or ``.c3d``.
+        ``.amc`` (Acclaim motion; needs a skeleton), ``.bvh``, ``.c3d`` or an
+        AMASS ``.npz``.
     asf : str, Path or Skeleton, optional, keyword-only
         Skeleton of an AMC file; default: :func:`find_skeleton`. Ignored for BVH.
     joint_map : dict, str or Path, optional, keyword-only
@@ -194,6 +213,11 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules
     marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
         C3D only: how the HDM05/CMU marker set is read (default ``"toolbox"``,
         the reference; :func:`~mocapdb.readers.c3d.read_c3d`).
+    body_model : str or Path, optional, keyword-only
+        AMASS ``.npz`` only: an SMPL-family body model file, or a folder of
+        them, giving the take's own rest joints
+        (:func:`~mocapdb.readers.amass.read_amass`; default: the generic rest
+        skeleton).
 
     Returns
     -------
@@ -221,7 +245,7 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules
     try:
         # hostile values overflow in FK; the result is checked for finiteness
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            return _read(path, asf, joint_map, marker_map, marker_rules or "toolbox")
+            return _read(path, asf, joint_map, marker_map, marker_rules or "toolbox", body_model)
     except MocapdbError:
         raise
     except OSError as exc:
@@ -233,7 +257,7 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules
         raise ParseError(path, None, f"unreadable ({type(exc).__name__}: {exc})") from None
 
 
-def _read(path, asf, joint_map, marker_map, marker_rules) -> Motion:
+def _read(path, asf, joint_map, marker_map, marker_rules, body_model) -> Motion:
     ext = motion_suffix(path)
     if ext == ".amc":
         if asf is None:
@@ -254,6 +278,8 @@ def _read(path, asf, joint_map, marker_map, marker_rules) -> Motion:
         return read_bvh(path, joint_map=load_mapping(joint_map, what="joint_map"))
     if ext == ".c3d":
         return read_c3d(path, marker_map=load_mapping(marker_map, what="marker_map"), marker_rules=marker_rules)
+    if ext == ".npz":
+        return read_amass(path, body_model=body_model)
     raise ParseError(path, None, f"unsupported file type {ext or path.suffix!r} (expected "
                      + " or ".join(SUPPORTED_EXTENSIONS) + ", optionally compressed: "
                      + ", ".join(COMPRESSED) + ")")

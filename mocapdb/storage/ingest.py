@@ -19,8 +19,8 @@ import pyarrow as pa
 
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
-from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, find_skeleton, load_mapping, read_motion,
-                             skeleton_note)
+from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, companion_kind, find_skeleton, load_mapping,
+                             read_motion, skeleton_note)
 from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, sha256,
                                      special_kind, split_archive, zip_members)
 from mocapdb.storage.motions import incomplete_motions
@@ -32,8 +32,6 @@ log = logging.getLogger("mocapdb")
 
 #: file extensions ingest reads as motions
 MOTION_SUFFIXES = SUPPORTED_EXTENSIONS
-#: files a motion folder holds beside its motions, and why they are not ingested
-_COMPANIONS = {".asf": "an ASF skeleton (read with its AMC takes)"}
 
 
 @dataclass
@@ -124,10 +122,10 @@ def _archive_files(archive: Path, unreadable) -> list:
 
 def _classify(q: Path, out: list, unsupported):
     ext = motion_suffix(q)
-    if ext in MOTION_SUFFIXES:
+    if ext in MOTION_SUFFIXES and companion_kind(q) is None:
         out.append(q)
     elif unsupported is not None:
-        why = _COMPANIONS.get(ext) or (f"unsupported file type {q.suffix!r}" if q.suffix else "no file extension")
+        why = companion_kind(q) or (f"unsupported file type {q.suffix!r}" if q.suffix else "no file extension")
         unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ", optionally "
                             + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
 
@@ -138,12 +136,13 @@ def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
     Parameters
     ----------
     paths : iterable of str or Path
-        Files (``.amc``, ``.bvh``, ``.c3d``, each possibly ``.gz``/``.bz2``/``.xz``
-        compressed), folders, ``.zip`` archives, or paths through an archive
+        Files (``.amc``, ``.bvh``, ``.c3d``, ``.npz``, each possibly
+        ``.gz``/``.bz2``/``.xz`` compressed), folders, ``.zip`` archives, or paths through an archive
         (``cmu.zip/subjects/02``, a folder inside it).
     unsupported : list, optional, keyword-only
         Receives ``(path, reason)`` for every file of a folder or archive that
-        is not a motion file, and every special file (FIFO, device, socket) in
+        is not a motion file (an ASF skeleton, an AMASS body shape file,
+        :func:`mocapdb.readers.companion_kind`), and every special file (FIFO, device, socket) in
         a folder. A file named explicitly is always returned: reading it says
         what is wrong.
     unreadable : list, optional, keyword-only
@@ -408,8 +407,8 @@ BATCH_FILES = 64
 BATCH_FRAMES = 1_000_000
 
 
-def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, progress=None,
-                 workers: int = 2, replace: bool = False) -> IngestReport:
+def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, body_model=None,
+                 progress=None, workers: int = 2, replace: bool = False) -> IngestReport:
     """Read recordings, compute their features and store them.
 
     Parameters
@@ -417,7 +416,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     con : duckdb.DuckDBPyConnection
         A connection with the mocapdb schema.
     paths : iterable of str or Path
-        Files (``.amc``, ``.bvh``, ``.c3d``) or folders, searched recursively.
+        Files (``.amc``, ``.bvh``, ``.c3d``, ``.npz``) or folders, searched recursively.
     asf : str or Path, optional, keyword-only
         Skeleton for every AMC file. By default each AMC's ASF is found by the
         dataset conventions (:func:`mocapdb.readers.find_skeleton`).
@@ -429,6 +428,11 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         How C3D files of the HDM05/CMU marker set are read (default: the
         toolbox's formulas, the reference; :func:`mocapdb.readers.read_c3d`).
         Stored in ``motions.reader_options``.
+    body_model : str or Path, optional, keyword-only
+        AMASS ``.npz`` files: an SMPL-family body model file, or a folder of
+        them, giving each take's own rest joints (default: the generic rest
+        skeleton; :func:`mocapdb.readers.read_amass`). Stored (absolute) in
+        ``motions.reader_options``.
     progress : callable, optional, keyword-only
         Called as ``progress(n_files_done, n_files, path)`` once per file (the
         ``progress(n_done, n_total, …)`` of every long command).
@@ -455,7 +459,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     report = IngestReport()
     files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable)
     tick = _ticker(progress, len(files))
-    maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules)
+    maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules, body_model=body_model)
     stored = _stored_keys(con)
     todo = []
     already = []      # (path, prep, key) of files whose bytes are stored: decided after the loop
@@ -542,17 +546,22 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
 
 
 #: which reader option applies to which file type
-_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d", "marker_rules": ".c3d"}
+_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d", "marker_rules": ".c3d", "body_model": ".npz"}
 
 
-def reader_maps(*, joint_map=None, marker_map=None, marker_rules=None) -> dict:
+def reader_maps(*, joint_map=None, marker_map=None, marker_rules=None, body_model=None) -> dict:
     """The reader options of an ingest, loaded and checked once (:func:`mocapdb.readers.load_mapping`)."""
     if marker_rules not in (None, "toolbox", "anatomical"):
         raise ParameterError(f"marker_rules must be 'toolbox' or 'anatomical', got {marker_rules!r}")
+    if body_model is not None and not os.path.exists(body_model):
+        raise ParameterError(f"body_model: {str(body_model)!r} does not exist (give an SMPL-H/SMPL-X model .npz "
+                             "or a folder of them)")
     return {"joint_map": load_mapping(joint_map, what="joint_map"),
             "marker_map": load_mapping(marker_map, what="marker_map"),
             # the default (the toolbox's formulas) is not stored: motions read as before keep their options
-            "marker_rules": None if marker_rules in (None, "toolbox") else marker_rules}
+            "marker_rules": None if marker_rules in (None, "toolbox") else marker_rules,
+            # absolute: the viewer re-reads the source from another working directory, as Ray workers do
+            "body_model": None if body_model is None else os.path.abspath(body_model)}
 
 
 def _reader_options(path: Path, maps: dict) -> str | None:
