@@ -1,5 +1,5 @@
 """The database and its recordings: open, ingest, delete, the keyframe index, Parquet in and out,
-archives in place, moved files, other projects' label files."""
+the canonical joints out, archives in place, moved files, other projects' label files."""
 from __future__ import annotations
 
 import dataclasses
@@ -12,6 +12,8 @@ from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
 from mocapdb.storage import attached, parquet, postings
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
+from mocapdb.storage.joint_export import JointsExport
+from mocapdb.storage.joint_export import export_joints as storage_export_joints
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
 from mocapdb.storage.schema import require_own_tables
 from mocapdb.warmup import sample_files
@@ -187,6 +189,41 @@ def export_features(con, directory, *, overwrite=False) -> int:
         The number of motions written.
     """
     return parquet.export_features(con, directory, overwrite=overwrite)
+
+
+def export_joints(con, motions, out, *, format="npz", progress=None) -> JointsExport:
+    """Write the 24 canonical joints of motions as files for other tools (fairmotion, Blender, aitviewer).
+
+    Each motion's source is re-read with the options it was ingested with
+    (as the viewer does): its joints at the recording's own rate, in metres,
+    Y up, in ``JOINT_NAMES`` order. See
+    :func:`mocapdb.storage.joint_export.export_joints` and
+    :mod:`mocapdb.readers.joints_write`.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    motions : iterable of int or str
+        Motion ids or names.
+    out : str or Path
+        The file (one motion, ``out`` ending in ``.<format>``), else a
+        directory of ``<motion name>.<format>`` files.
+    format : {"npz", "csv", "bvh"}, keyword-only
+        ``npz``: ``joints`` (frames × 24 × 3), ``fps``, ``joint_names``;
+        ``csv``: a row per frame (``frame``, ``time``, ``<joint>_x/_y/_z``);
+        ``bvh``: a skeleton of the canonical joints that mocapdb (and other
+        tools) read back.
+    progress : callable, optional, keyword-only
+        ``progress(n_done, n_motions, name)`` once per motion.
+
+    Returns
+    -------
+    mocapdb.storage.joint_export.JointsExport
+        ``written`` ``(motion_id, name, path)``; ``failed`` ``(motion_id, name,
+        reason)`` for each motion whose source could not be read (the
+        command exits 1 when it is not empty).
+    """
+    return storage_export_joints(con, motions, out, format=format, progress=progress)
 
 
 def import_features(con, directory):

@@ -25,6 +25,7 @@ from mocapdb.readers.c3d import (fit_bone_lengths, read_c3d)
 from mocapdb.readers.smpl import (RestSkeleton, generic_rest, smpl_forward_kinematics)
 from mocapdb.readers.body_model import (BodyModel, find_body_model, load_body_model)
 from mocapdb.readers.amass import (read_amass)
+from mocapdb.readers.joints_write import (JOINTS_FORMATS, metres_per_unit, write_joints)
 from mocapdb.readers.files import (READER_OPTIONS, SUPPORTED_EXTENSIONS, companion_kind, find_skeleton, load_skeleton,
                                    read_asf_amc, read_motion, skeleton_candidates, skeleton_note)
 
@@ -39,4 +40,5 @@ __all__ = [
     "skeleton_candidates", "skeleton_note", "load_skeleton", "SUPPORTED_EXTENSIONS", "READER_OPTIONS", "load_mapping",
     "C3dPoints", "read_c3d_points", "read_c3d", "fit_bone_lengths", "read_amass", "RestSkeleton", "generic_rest",
     "smpl_forward_kinematics", "BodyModel", "load_body_model", "find_body_model", "companion_kind",
+    "write_joints", "metres_per_unit", "JOINTS_FORMATS",
 ]
