@@ -23,7 +23,6 @@ Pavlakos et al. 2019 (SMPL-X).
 from __future__ import annotations
 
 import re
-import threading
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +31,7 @@ import numpy as np
 
 from mocapdb.errors import ParseError
 from mocapdb.readers.smpl import BODY_PARENTS, FAMILIES, RestSkeleton
-from mocapdb.readers.sources import identity
+from mocapdb.readers.sources import FileCache
 
 __all__ = ["BodyModel", "load_body_model", "find_body_model", "GENDERS"]
 
@@ -163,8 +162,7 @@ def _tip_vertices(template, joints, path) -> np.ndarray:
 
 # models are large (SMPL-X: ~100 MB of shape directions) and shared by every take of an ingest:
 # keep what is needed of each, by file identity
-_MODELS: dict = {}
-_MODELS_LOCK = threading.Lock()
+_MODELS = FileCache(8)
 
 
 def load_body_model(path) -> BodyModel:
@@ -178,17 +176,7 @@ def load_body_model(path) -> BodyModel:
     OSError
         The file cannot be read.
     """
-    p = Path(path)
-    key = identity(p)
-    with _MODELS_LOCK:
-        hit = _MODELS.get(key)
-    if hit is None:
-        hit = _read_model(p)
-        with _MODELS_LOCK:
-            if len(_MODELS) > 8:
-                _MODELS.clear()
-            _MODELS[key] = hit
-    return hit
+    return _MODELS.get(Path(path), _read_model)
 
 
 def find_body_model(path, family: str, gender: str | None, *, take="<take>"):

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import fnmatch
 import re
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ from mocapdb.readers.humanoid import MappingError
 from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
 from mocapdb.readers.mapping import load_mapping
 from mocapdb.readers.motion import Motion, check_finite_motion
-from mocapdb.readers.sources import (COMPRESSED, identity, is_file, list_dir, motion_stem, motion_suffix,
+from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix,
                                      special_kind)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
@@ -128,25 +127,14 @@ def skeleton_note(amc_path, asf_path) -> str | None:
 
 # Skeletons are re-read for every take of an actor during ingest; cache them by
 # file identity (path, size, mtime; an archive member's CRC). Skeleton objects are immutable.
-_ASF_CACHE: dict = {}
-_ASF_LOCK = threading.Lock()
+_ASF_CACHE = FileCache(64)
 
 
 def load_skeleton(asf) -> Skeleton:
     """A :class:`Skeleton` from a path (cached by file identity) or a Skeleton."""
     if isinstance(asf, Skeleton):
         return asf
-    p = Path(asf)
-    key = identity(p)
-    with _ASF_LOCK:
-        hit = _ASF_CACHE.get(key)
-    if hit is None:
-        hit = read_asf(p)
-        with _ASF_LOCK:
-            if len(_ASF_CACHE) > 64:
-                _ASF_CACHE.clear()
-            _ASF_CACHE[key] = hit
-    return hit
+    return _ASF_CACHE.get(Path(asf), read_asf)
 
 
 def read_asf_amc(amc_path, asf) -> Motion:
