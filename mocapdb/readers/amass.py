@@ -243,7 +243,7 @@ def read_amass(path, *, body_model=None) -> Motion:
     up = _up_axis(joints)
     turn = UP_ROTATIONS[up]
     if up != "+Z":
-        notes.append(f"the body stands along {up} (AMASS is Z up): turned to Y up")
+        notes.append(f"the body stands along {up} (AMASS: +Z): {up} read as up")
     joints = np.ascontiguousarray(joints @ turn.T)
     check_finite_motion(joints, path)
     # feature #40 may read the pelvis's rotation: its x axis runs along the hip axis at rest
