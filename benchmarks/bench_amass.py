@@ -33,14 +33,14 @@ SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 DATA = SHARED / "data"
 SAMPLE = REPO / "mocapdb" / "sample"
 
-from mocapdb.features import motion_features, unpack_words  # noqa: E402
+from mocapdb.features import N_BITS, motion_features, unpack_words  # noqa: E402
 from mocapdb.readers import read_amc, read_asf, read_motion  # noqa: E402
 from mocapdb.readers.amass_write import write_amass  # noqa: E402
 from mocapdb.readers.joints_write import write_joints  # noqa: E402
 
 
 def bits(m):
-    return unpack_words(motion_features(m))
+    return unpack_words(motion_features(m), N_BITS)
 
 
 def agreement(a, b):

@@ -1,193 +1,212 @@
-"""Annotation quality on the development evaluation: the reference mode, the previous and the new default.
+"""Annotation quality over every labelled set at once: one table, the previous default beside the new.
 
-Runs :func:`mocapdb.evaluation.development_evaluation` three times on the
-same folds and documents, every setting scored over the paper's 15 labels
-(Table 1; truth labels outside them are 'others', left unlabelled by a good
-annotation):
+Runs :func:`mocapdb.evaluation.development_evaluation` on the same folds and
+documents for three recipes, each with and without keyframes, every set
+scored over the paper's 15 labels (Table 1; truth labels outside them are
+'others', left unlabelled by a good annotation; ``turn`` is not scored on
+sets whose truth never carries it, :data:`mocapdb.evaluation.UNSCORED`):
 
 * **reference** — the toolbox's way: a template per HDM05 class (11
-  classes), τ = 0.13, no keyframes (the shipped model ``toolbox`` with
-  ``--no-keyframes``, bit-identical to the authors' toolbox);
-* **previous default** — the same 11 templates with GA keyframe queries
-  learned on each fold's clips (the default model before issue 11);
-* **new default** — :func:`mocapdb.learning.default_model.train_recipe`
-  with :func:`mocapdb.learning.recipe.default_recipe` on each fold's
-  clips: learned HDM05 and CMU-stretch classes, mirrored and reversed
-  classes, the designed classes and keyframes of ``mocapdb/shipped_models/classes``
-  (``--ga``: also robust GA keyframe queries), τ per class, minimum segment
-  length — annotated in its default mode and with each addition switched off.
+  classes), τ = 0.13, no keyframes (the shipped ``toolbox`` model);
+* **previous** — the recipe of the default shipped at ``--previous``
+  (default a7c2d94): its class and keyframe definitions, read from git, with
+  the training it had (HDM05, CMU stretches, poses; nothing of the studio);
+* **new** — :func:`mocapdb.learning.recipe.default_recipe` as shipped now,
+  trained by :func:`mocapdb.learning.default_model.train_recipe`.
 
-Folds: leave-one-actor-out on hdm05_cut (loao; its mirror image
-loao_mirrored), and CMU 86_09 / mocap6, each CMU document annotated by a
-model built without its own stretches (leave-one-document-out). The
-preselection check compares, per label, the truth segments the default
-mode's preselection removes with those the reference mode misses.
+Folds (every set held out from what annotates it): leave-one-actor-out on
+hdm05_cut (loao, its mirror image loao_mirrored), leave-one-document-out
+on the CMU documents, leave-one-style-out on the studio's clips
+(bandai2_dev, when a recipe trains on them; else the model of all data).
+The studio block gives what a user of another studio's library checks:
+locomotion frames labelled ``move`` (per content), turning clips with a
+``turn``, straight clips with one, gesture frames under a label.
 
-Usage: python benchmarks/eval_quality.py [--ga] [--runs 20] [--generations 100]
-       [--inner-runs 5] [--inner-generations 50] [--seed 0] [--jobs 2]
-       [--json benchmarks/eval_quality.json] [--quick]
+``--shipped`` also scores the shipped models themselves (the previous one
+from git, the new one from the package) on every set — the figures the
+quality guard keeps (``tests/quality_records.json``); ``--record`` raises
+those records to the new model's figures where they are better (never
+lowers them) and stamps them with its fingerprint.
+
+Usage: python benchmarks/eval_quality.py [--previous REV] [--shipped] [--record] [--json FILE] [--seed 0]
 """
 import argparse
+import dataclasses
 import json
 import os
 import platform
+import subprocess
+import tempfile
 import time
 from pathlib import Path
 
 import numba
 
-from mocapdb.evaluation import SETTINGS, development_data, development_evaluation, evaluate_by_label
-from mocapdb.learning import learn_keyframe_queries
+from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_by_label, guard,
+                                headline_figures, raised_records, read_records, write_records)
 from mocapdb.learning.default_model import train_recipe
 from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
+from mocapdb.storage.model_store import fingerprint
+
+from timing import model_at, model_dir
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 DATA = SHARED / "data"
+RECORDS = REPO / "tests" / "quality_records.json"
 
-#: paper Table 2 (Müller, Baak & Seidel 2009): P1 R1 F1 P2 R2 F2
-PAPER = {
-    ("total", "without keyframes"): (0.48, 0.78, 0.60, 0.57, 0.91, 0.70),
-    ("total", "with keyframes"): (0.69, 0.79, 0.74, 0.78, 0.88, 0.82),
-    ("CMU", "with keyframes"): (0.66, 0.74, 0.70, 0.65, 0.91, 0.76),
-}
-#: the new default's modes: the default, and each addition switched off
-NEW_MODES = {
-    "new default": {},
-    "  no keyframes": {"keyframes": False},
-    "  tau 0.13 for all": {"tau": 0.13},
-    "  no minimum length": {"min_length": False},
-    "  no won-frames rule": {"min_won": False},
-    "  margin 0.01": {"margin": 0.01},
-}
-MEASURES = ("p1", "r1", "f1", "p2", "r2", "f2")
+#: paper Table 2 (Müller, Baak & Seidel 2009): F1 / F2
+PAPER = {"total, without keyframes": (0.60, 0.70), "total, with keyframes": (0.74, 0.82),
+         "CMU, with keyframes": (0.70, 0.76)}
+MODES = {"keyframes": {}, "no keyframes": {"keyframes": False}}
 
 
-def previous_default(runs, seed, generations, jobs):
-    """The default model before issue 11: the toolbox's templates + GA queries of the fold's clips."""
-    def attach(model, clips):
-        learned = learn_keyframe_queries(clips, runs=runs, random_state=seed, n_jobs=jobs, generations=generations,
-                                         templates={c.name: c.template for c in model.classes})
-        return model.with_keyframe_queries({name: lq.query for name, lq in learned.items()})
-    return attach
+def previous_recipe(rev):
+    """The default recipe as it was at git revision ``rev``: its class and keyframe definitions."""
+    folder = Path(tempfile.mkdtemp(prefix="mocapdb-classes-"))
+    names = subprocess.run(["git", "-C", str(REPO), "ls-tree", "--name-only", f"{rev}:mocapdb/shipped_models/classes"],
+                           check=True, capture_output=True, text=True).stdout.split()
+    for name in names:
+        blob = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:mocapdb/shipped_models/classes/{name}"],
+                              check=True, capture_output=True).stdout
+        (folder / name).write_bytes(blob)
+    return dataclasses.replace(default_recipe(folder), concurrent_labels=())
 
 
-def new_default(args, report):
+def builder(recipe, seed):
     cache = {}
-    recipe = default_recipe()
 
     def build(clips, name):
-        t = time.perf_counter()
-        trained = train_recipe(clips, recipe, name=name, keyframes=args.ga, runs=args.runs,
-                               generations=args.generations,
-                               inner_runs=args.inner_runs, inner_generations=args.inner_generations, seed=args.seed,
-                               n_jobs=args.jobs, cache=cache)
-        kept = sum(1 for q in trained.queries.values() if q.query is not None)
-        report[name] = {c: src for c, src in trained.query_source.items()}
-        print(f"  built {name}: {len(trained.model.classes)} classes, {kept}/{len(trained.queries)} learned "
-              f"queries kept, {time.perf_counter() - t:.0f} s", flush=True)
-        return trained.model
+        return train_recipe(clips, recipe, name=name, seed=seed, cache=cache).model
     return build
 
 
-def _row(name, sc):
-    return f"{name:<26s}" + " ".join(f"{getattr(sc, m):5.2f}" for m in MEASURES)
+def fixed(model):
+    return lambda clips, name: model
 
 
-def _missed_by_preselection(res, setting):
-    """Per label: share of truth segments without a preselected frame of the label."""
-    by = evaluate_by_label(res.truth[setting], res.preselected[setting], labels=PAPER_LABELS)
-    return {lab: 1.0 - sc.r2 for lab, sc in by.items() if sc.truth_segments}
+def _cell(res, s, label=None):
+    if s not in res.scores:
+        return "    -    "
+    if label is None:
+        sc = res.scores[s]
+    else:
+        sc = evaluate_by_label(res.truth[s], res.auto[s], labels=[label])[label]
+        if not (sc.truth_segments or sc.auto_segments):
+            return "    .    "
+    return f"{sc.f1:.3f}/{sc.f2:.2f}"
+
+
+def print_table(columns):
+    """One table: every set, all labels then each label, F1/F2 per column."""
+    names = list(columns)
+    print(f"{'':<24s}" + "".join(f"{n:>12s}" for n in names))
+    for s in SETTINGS:
+        any_res = next(r for r in columns.values())
+        if s not in any_res.scores:
+            continue
+        docs = any_res.documents.get(s)
+        size = f" ({len(docs.names)} documents, {int(docs.doc_lengths.sum())} frames)" if docs is not None else ""
+        print(f"{s}{size}")
+        print(f"{'  all labels':<24s}" + "".join(f"{_cell(r, s):>12s}" for r in columns.values()))
+        for lab in PAPER_LABELS:
+            cells = [_cell(r, s, lab) for r in columns.values()]
+            if any(c.strip() not in (".", "-") for c in cells):
+                print(f"{'  ' + lab:<24s}" + "".join(f"{c:>12s}" for c in cells))
+
+
+def print_studio(columns):
+    print("\nbandai2 (another studio's clips, leave-one-style-out where a recipe trains on them)")
+    rows = [("locomotion frames labelled move", lambda st: f"{st.move_share:.3f}")]
+    contents = sorted({c for r in columns.values() if r.studio for c in r.studio.move_by_content})
+    rows += [(f"  {c}", lambda st, c=c: f"{st.move_by_content.get(c, 0):.3f}") for c in contents]
+    rows += [("turning clips with a turn", lambda st: f"{st.turning_with_turn}/{st.turning_clips}"),
+             ("straight clips with a turn", lambda st: f"{st.straight_with_turn}/{st.straight_clips}"),
+             ("gesture frames labelled", lambda st: f"{st.gesture_wrong:.3f}")]
+    print(f"{'':<34s}" + "".join(f"{n:>14s}" for n in columns))
+    for name, fn in rows:
+        print(f"{name:<34s}" + "".join(f"{(fn(r.studio) if r.studio else '-'):>14s}" for r in columns.values()))
+    for n, r in columns.items():
+        if r.studio and r.studio.wrong_by_label:
+            print(f"  gesture frames by label, {n}: "
+                  + ", ".join(f"{k} {v:.3f}" for k, v in r.studio.wrong_by_label.items()))
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--previous", default="a7c2d94", help="git revision of the previous default (its recipe)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--runs", type=int, default=20, help="GA runs per class (paper: 100-500)")
-    ap.add_argument("--generations", type=int, default=100)
-    ap.add_argument("--inner-runs", type=int, default=3, help="GA runs per class and held-out group")
-    ap.add_argument("--inner-generations", type=int, default=50)
-    ap.add_argument("--jobs", type=int, default=None, help="GA worker processes (default: all cores)")
-    ap.add_argument("--json", type=Path, default=REPO / "benchmarks" / "eval_quality.json",
-                    help="write the figures here (the tests read them)")
-    ap.add_argument("--quick", action="store_true", help="5 GA runs of 50 generations, 3 inner runs (a look)")
-    ap.add_argument("--ga", action="store_true",
-                    help="the new default with GA keyframe queries for its learned classes (off in the shipped one)")
+    ap.add_argument("--shipped", action="store_true", help="also score the shipped models (the guard's figures)")
+    ap.add_argument("--record", action="store_true", help="raise tests/quality_records.json to the new shipped "
+                                                          "model's figures (implies --shipped)")
+    ap.add_argument("--json", type=Path, default=REPO / "benchmarks" / "eval_quality.json")
     args = ap.parse_args()
-    if args.quick:
-        args.runs, args.generations, args.inner_runs = 5, 50, 3
+    args.shipped = args.shipped or args.record
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, numba threads "
-          f"{numba.config.NUMBA_NUM_THREADS}; data {DATA}")
-    print(f"GA: {args.runs} runs x {args.generations} generations, inner {args.inner_runs} x "
-          f"{args.inner_generations}, seed {args.seed}\n")
+          f"{numba.config.NUMBA_NUM_THREADS}; data {DATA}; previous {args.previous}\n")
     t0 = time.perf_counter()
     data = development_data(DATA)
-    common = dict(data=data, vocabulary=PAPER_LABELS, mirrored=True, seed=args.seed)
-    results, timings = {}, {}
+    # the previous recipe knew nothing of the studio's clips
+    old_data = dataclasses.replace(data, studio_clips={})
+    common = dict(vocabulary=PAPER_LABELS, mirrored=True, seed=args.seed)
+    timings, results = {}, {}
     t = time.perf_counter()
-    results["reference"] = development_evaluation(DATA, cmu_training=False, tau=0.13, **common)
+    results["reference"] = development_evaluation(DATA, data=old_data, cmu_training=False, tau=0.13,
+                                                  modes={"no keyframes": {"keyframes": False}}, **common)
     timings["reference"] = time.perf_counter() - t
-    t = time.perf_counter()
-    results["previous default"] = development_evaluation(
-        DATA, cmu_training=False, tau=0.13,
-        keyframes=previous_default(args.runs, args.seed, args.generations, args.jobs), **common)
-    timings["previous default"] = time.perf_counter() - t
-    t = time.perf_counter()
-    sources = {}
-    results.update(development_evaluation(DATA, build=new_default(args, sources), modes=NEW_MODES, **common))
-    timings["new default"] = time.perf_counter() - t
+    for name, recipe, d in (("previous", previous_recipe(args.previous), old_data), ("new", default_recipe(), data)):
+        t = time.perf_counter()
+        results[name] = development_evaluation(DATA, data=d, build=builder(recipe, args.seed), modes=MODES, **common)
+        timings[name] = time.perf_counter() - t
+    columns = {"reference": results["reference"]["no keyframes"]}
+    for name in ("previous", "new"):
+        columns[f"{name} kf"] = results[name]["keyframes"]
+        columns[f"{name} no-kf"] = results[name]["no keyframes"]
 
-    print(f"\nDevelopment evaluation over the paper's 15 labels (seed {args.seed})\n")
-    print(f"{'':<26s}   P1    R1    F1    P2    R2    F2")
-    for s in SETTINGS:
-        docs = results["reference"].documents.get(s)
-        size = f" ({len(docs.names)} documents, {int(docs.doc_lengths.sum())} frames)" if docs is not None else ""
-        print(f"{s}{size}")
-        for mode, res in results.items():
-            if s in res.scores:
-                print(_row("  " + mode, res.scores[s]))
+    print(f"Development evaluation over the paper's 15 labels, every set held out (seed {args.seed}); F1/F2\n")
+    print_table(columns)
+    print_studio({k: v for k, v in columns.items() if k != "reference"})
     print()
-    for (part, kf), v in PAPER.items():
-        print(f"{'paper ' + part + ', ' + kf:<40s}" + " ".join(f"{x:5.2f}" for x in v))
-    dropped = results["reference"].scores["all"].dropped_truth
-    print("\n'others' in the truth (dropped from scoring): " + ", ".join(f"{k} x{v}" for k, v in sorted(dropped.items())))
+    for k, (f1, f2) in PAPER.items():
+        print(f"paper {k:<34s} {f1:.2f}/{f2:.2f}")
 
-    per_label = {}
-    for s in ("loao", "loao_mirrored", "cmu"):
-        print(f"\nper label, {s}: F1 / F2 (truth segments)")
-        print(f"{'':<14s}" + "".join(f"{m[:18]:>20s}" for m in results))
-        table = {m: evaluate_by_label(r.truth[s], r.auto[s], labels=PAPER_LABELS) for m, r in results.items()}
-        per_label[s] = {m: {lab: {k: getattr(sc, k) for k in MEASURES + ("truth_segments", "auto_segments")}
-                            for lab, sc in t.items()} for m, t in table.items()}
-        for lab in PAPER_LABELS:
-            ref = table["reference"][lab]
-            if not (ref.truth_segments or any(t[lab].auto_segments for t in table.values())):
-                continue
-            print(f"{lab:<14s}" + "".join(f"{t[lab].f1:>12.2f} / {t[lab].f2:4.2f}" for t in table.values())
-                  + f"   ({ref.truth_segments})")
-
-    print("\npreselection check: truth segments the default mode's preselection removes vs those the reference "
-          "mode misses")
-    for s in ("loao", "cmu"):
-        cut = _missed_by_preselection(results["new default"], s)
-        ref = {lab: 1.0 - sc.r2 for lab, sc in evaluate_by_label(results["reference"].truth[s],
-                                                                  results["reference"].auto[s],
-                                                                  labels=PAPER_LABELS).items() if sc.truth_segments}
-        print(f"  {s}: " + ", ".join(f"{lab} {cut[lab]:.2f}/{ref.get(lab, 0):.2f}" for lab in cut))
-
-    print("\nkeyframe queries of the model built on all folds' data ('all'):")
-    for c, src in sources.get("all", {}).items():
-        print(f"  {c:32s} {src}")
+    out = {"columns": {n: {s: {"f1": sc.f1, "f2": sc.f2, "p1": sc.p1, "r1": sc.r1} for s, sc in r.scores.items()}
+                       for n, r in columns.items()},
+           "studio": {n: dataclasses.asdict(r.studio) | {"scores": None} for n, r in columns.items() if r.studio},
+           "parameters": {"previous": args.previous, "seed": args.seed}}
+    if args.shipped:
+        t = time.perf_counter()
+        shipped = {"previous shipped": model_at(args.previous),
+                   "new shipped": model_dir(REPO / "mocapdb" / "shipped_models" / "default")}
+        figures = {}
+        for name, model in shipped.items():
+            res = development_evaluation(DATA, data=data, build=fixed(model), modes=MODES, cmu_training=True,
+                                         **common)
+            figures[name] = {m: headline_figures(r) for m, r in res.items()}
+        timings["shipped"] = time.perf_counter() - t
+        print("\nthe shipped models on every set (headline figures; the quality guard's)")
+        for name, figs in figures.items():
+            for mode, sets in figs.items():
+                print(f"  {name}, {mode}: " + "; ".join(f"{s} " + " ".join(f"{k} {v:.3f}" for k, v in f.items())
+                                                       for s, f in sets.items()))
+        new = figures["new shipped"]
+        fp = fingerprint(shipped["new shipped"])
+        if RECORDS.exists():
+            rec = read_records(RECORDS)
+            fails = guard(new, rec["figures"])
+            print("\nguard against tests/quality_records.json: " + ("all figures keep their records" if not fails
+                                                                    else "; ".join(fails)))
+            if args.record:
+                write_records(RECORDS, fp, raised_records(rec["figures"], new))
+                print(f"records raised where the new model is better; fingerprint {fp[:12]}")
+        elif args.record:
+            write_records(RECORDS, fp, new)
+            print(f"records written to {RECORDS}; fingerprint {fp[:12]}")
+        out["shipped"] = figures
     total = time.perf_counter() - t0
     print("\ntimings: " + ", ".join(f"{k} {v:.0f} s" for k, v in timings.items()) + f"; total {total:.0f} s")
     if args.json:
-        out = {"settings": {m: {s: {k: getattr(sc, k) for k in MEASURES} for s, sc in r.scores.items()}
-                            for m, r in results.items()},
-               "per_label": per_label, "queries": sources.get("all", {}),
-               "parameters": {k: getattr(args, k) for k in ("seed", "runs", "generations", "inner_runs", "ga",
-                                                            "inner_generations")},
-               "seconds": total}
-        args.json.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+        args.json.write_text(json.dumps(out, indent=1, sort_keys=True, default=str) + "\n")
         print(f"figures written to {args.json}")
 
 

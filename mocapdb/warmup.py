@@ -38,10 +38,10 @@ from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError
 from mocapdb.extension import connect as connect_database
 from mocapdb.features import motion_features
-from mocapdb.readers import generic_rest, read_motion, smpl_forward_kinematics
+from mocapdb.readers import generic_rest, motion_files, read_motion, smpl_forward_kinematics
 from mocapdb.storage.annotations import annotate_documents
 from mocapdb.storage.cache import connection_cache
-from mocapdb.storage.ingest import ingest_files, motion_files
+from mocapdb.storage.ingest import ingest_files
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_documents
 

@@ -4,8 +4,9 @@
 DELETE FROM annotations WHERE model = $model AND motion_id IN (SELECT unnest($ids));
 
 -- name: insert
-INSERT INTO annotations (motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes)
-SELECT motion_id, $model, label, start_frame, end_frame, cost, start_s, end_s, $tau, $keyframes
+INSERT INTO annotations (motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes,
+                         confidence)
+SELECT motion_id, $model, label, start_frame, end_frame, cost, start_s, end_s, $tau, $keyframes, confidence
 FROM mocap_new_annotations;
 
 -- name: sources

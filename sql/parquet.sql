@@ -16,8 +16,10 @@ FROM read_parquet($files, hive_partitioning = true, union_by_name = true)
 WHERE motion_id::BIGINT BETWEEN $lo AND $hi;
 
 -- name: archive_annotations
-SELECT motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes, annotated_at
-FROM read_parquet($files, hive_partitioning = true, union_by_name = true)
+-- archives written before the confidence (issue 25) lack its column: NULL there
+SELECT motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes, annotated_at, confidence
+FROM (SELECT * FROM read_parquet($files, hive_partitioning = true, union_by_name = true)
+      UNION ALL BY NAME SELECT NULL::DOUBLE AS confidence WHERE false)
 WHERE motion_id BETWEEN $lo AND $hi;
 
 -- name: import_motions
@@ -27,9 +29,9 @@ RETURNING motion_id, sha256, skeleton_sha256;
 
 -- name: import_annotations
 INSERT INTO annotations (motion_id, model, label, start_frame, end_frame, cost, start_s, end_s, tau, keyframes,
-                         annotated_at)
+                         annotated_at, confidence)
 SELECT m.new, a.model, a.label, a.start_frame, a.end_frame, a.cost, a.start_s, a.end_s, a.tau, a.keyframes,
-       a.annotated_at
+       a.annotated_at, a.confidence
 FROM mocap_archive_annotations a JOIN mocap_id_map m ON a.motion_id = m.old
 ORDER BY m.new, a.start_frame, a.label;
 

@@ -42,7 +42,8 @@ CREATE TABLE IF NOT EXISTS models (
     fingerprint  VARCHAR NOT NULL,         -- changes whenever the model's rows change
     created_at   TIMESTAMP NOT NULL DEFAULT current_timestamp,
     shipped      BOOLEAN NOT NULL DEFAULT false,  -- installed from the package (kept up to date)
-    margin       DOUBLE NOT NULL DEFAULT 0  -- frames whose best label wins by less stay unlabelled
+    margin       DOUBLE NOT NULL DEFAULT 0,  -- frames whose best label wins by less stay unlabelled
+    concurrent_labels VARCHAR[]            -- labels annotated beside the others (turn beside move)
 );
 -- databases from before `shipped`: the packaged default model was loaded on
 -- first use and said so in its source
@@ -51,6 +52,8 @@ UPDATE models SET shipped = true
 WHERE NOT shipped AND model = 'default' AND source LIKE '%keyframe queries: GA from folder%hdm05_cut';
 -- databases from before the segment filters (issue 11): no margin, no minimum length
 ALTER TABLE models ADD COLUMN IF NOT EXISTS margin DOUBLE DEFAULT 0;
+-- databases from before concurrent labels (issue 25): every label competes (the paper)
+ALTER TABLE models ADD COLUMN IF NOT EXISTS concurrent_labels VARCHAR[];
 
 -- One row per fine class: its coarse label (squat1Reps -> exercise), the
 -- quantization threshold δ of its template, its hit threshold τ and the
@@ -137,5 +140,27 @@ CREATE TABLE IF NOT EXISTS annotations (
     end_s        DOUBLE NOT NULL,
     tau          DOUBLE,
     keyframes    BOOLEAN,
-    annotated_at TIMESTAMP NOT NULL DEFAULT current_timestamp
+    annotated_at TIMESTAMP NOT NULL DEFAULT current_timestamp,
+    confidence   DOUBLE                    -- 0-1: how far below tau the segment's best match lies
+);
+-- databases from before the confidence (issue 25): NULL for the segments stored then
+ALTER TABLE annotations ADD COLUMN IF NOT EXISTS confidence DOUBLE;
+
+-- The log of every ingest and import: one row per file, archive member or folder entry an
+-- `ingest` looked at, and per motion an `import-features` read (its source file), with what became
+-- of it. Rows of files that were stored commit with their motions; the others are written in
+-- transactions of their own, so a failed ingest, which leaves the tables above as they were,
+-- still leaves its log (DESIGN.md §6). Rows stay when their motion is deleted: it is a history.
+CREATE SEQUENCE IF NOT EXISTS ingest_run_seq START 1;
+
+CREATE TABLE IF NOT EXISTS ingest_log (
+    run_id     BIGINT NOT NULL,             -- one ingest or import call (ingest_run_seq)
+    command    VARCHAR NOT NULL,            -- 'ingest' or 'import-features'
+    path       VARCHAR NOT NULL,            -- absolute path of the file (of the archive, for a member)
+    member     VARCHAR,                     -- the member inside a zip archive, else NULL
+    outcome    VARCHAR NOT NULL CHECK (outcome IN ('ingested', 'skipped', 'failed', 'not a motion file')),
+    reason     VARCHAR,                     -- why skipped, failed or not a motion; what an ingested file replaced
+    notes      VARCHAR,                     -- what the reader decided, one note a line (motions.reader_options)
+    motion_id  BIGINT,                      -- the stored motion; NULL unless ingested
+    logged_at  TIMESTAMP NOT NULL DEFAULT current_timestamp
 );

@@ -91,3 +91,46 @@ def pack(data: bytes, name: str, folder, rng: np.random.Generator):
                 raw[int(rng.integers(0, len(raw)))] = int(rng.integers(0, 256))
         packed.write_bytes(bytes(raw))
     return path
+
+
+_MIB = 1 << 20
+
+
+def bomb(kind: str, expanded: int, *, head: bytes = b"", line: bytes = b"\0") -> bytes:
+    """A compression bomb: ``head``, then ``line`` repeated to about ``expanded`` bytes, compressed as
+    ``kind`` (``"gz"``, ``"bz2"``, ``"xz"``) in milliseconds — one compressed MiB of it repeated as
+    concatenated streams, which each format reads as one (2 GiB of a frame line: ~2 MB of gzip)."""
+    import bz2
+    import gzip
+    import lzma
+
+    module = {"gz": gzip, "bz2": bz2, "xz": lzma}[kind]
+    unit = module.compress(line * (_MIB // len(line)))
+    return module.compress(head) + unit * max(1, expanded // _MIB)
+
+
+def zip_bomb(path, name: str, expanded: int, *, declared: int | None = None, others=()):
+    """A zip archive whose member ``name`` inflates to ``expanded`` bytes of zeros (declared as
+    ``declared``, default the truth: a lying header declares less), beside ``others`` ((name, bytes)
+    members, deflated); written by hand in milliseconds: one MiB of zeros deflated and full-flushed,
+    the self-contained blocks repeated."""
+    import struct
+    import zlib
+
+    c = zlib.compressobj(9, zlib.DEFLATED, -15)
+    unit = c.compress(bytes(_MIB)) + c.flush(zlib.Z_FULL_FLUSH)
+    members = [(name, unit * max(1, expanded // _MIB) + b"\x03\x00", 0,
+                expanded if declared is None else declared)]
+    for other, data in others:
+        z = zlib.compressobj(9, zlib.DEFLATED, -15)
+        members.append((other, z.compress(data) + z.flush(), zlib.crc32(data), len(data)))
+    out, central = bytearray(), bytearray()
+    for member, packed, crc, size in members:
+        encoded = member.encode()
+        central += struct.pack("<IHHHHHHIIIHHHHHII", 0x02014B50, 20, 20, 0, 8, 0, 0x21, crc, len(packed),
+                               size, len(encoded), 0, 0, 0, 0, 0, len(out)) + encoded
+        out += struct.pack("<IHHHHHIIIHH", 0x04034B50, 20, 0, 8, 0, 0x21, crc, len(packed), size,
+                           len(encoded), 0) + encoded + packed
+    end = struct.pack("<IHHHHIIH", 0x06054B50, 0, 0, len(members), len(members), len(central), len(out), 0)
+    path.write_bytes(bytes(out + central + end))
+    return path

@@ -230,7 +230,7 @@ def test_form_segments_matches_toolbox_algorithm_on_random_data():
             docs.append(c)
         got = form_segments(np.concatenate(docs, axis=1), doc_lengths=lens, labels=labels)
         ref = naive_segments(docs, labels)
-        assert [tuple(x) for x in got.tolist()] == [
+        assert [tuple(x)[:5] for x in got.tolist()] == [
             (lab, d, s, e, c) for lab, d, s, e, c in ref]
 
 

@@ -4,6 +4,7 @@ import functools
 import io
 import json
 import lzma
+import os
 import re
 import shutil
 
@@ -85,7 +86,7 @@ def test_every_command_has_help_and_a_readme_entry():
 
 
 #: CLI parameters that only shape the output or the terminal, with no API counterpart
-PRESENTATION = {"silent", "fmt", "out", "read_only", "query", "sql_file"}
+PRESENTATION = {"silent", "fmt", "out", "read_only", "query", "sql_file", "table"}
 #: options spelled otherwise than their keyword: `class` is a Python keyword; a repeatable
 #: option names one of its values (--example A --example B is examples=[A, B])
 RENAMED = {"class_name": "--class", "examples": "--example"}
@@ -167,8 +168,9 @@ def test_a_locked_database_is_one_line_naming_the_process(tmp_path):
                                "print('ready', flush=True); time.sleep(60)"], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "ready"
+        # a writer waits for the lock a moment (a reader's request) before it says so: half a second here
         r = subprocess.run([sys.executable, "-P", "-m", "mocapdb.cli", "--db", str(db), "sql", "SELECT 1"],
-                           capture_output=True, text=True)
+                           capture_output=True, text=True, env={**os.environ, "MOCAPDB_LOCK_WAIT": "0.5"})
         assert r.returncode == 1 and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert r.stderr.startswith(f"Error: {db} is in use by another process (PID {holder.pid}, "), r.stderr
     finally:

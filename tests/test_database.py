@@ -10,7 +10,7 @@ import pytest
 import mocapdb
 from mocapdb.features import FEATURE_NAMES, motion_features
 from mocapdb import ingest
-from mocapdb.storage.ingest import motion_files
+from mocapdb.readers import motion_files
 from mocapdb.readers import read_motion
 
 from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH, amc_frame_count, c3d_frame_count

@@ -13,7 +13,7 @@ import pytest
 
 import mocapdb
 from mocapdb.errors import ParameterError, SchemaError
-from mocapdb.features import motion_features, unpack_words
+from mocapdb.features import N_BITS, motion_features, unpack_words
 from mocapdb.readers import JOINT_NAMES, read_amc, read_asf, read_motion
 from mocapdb.readers.amass_write import write_amass
 from mocapdb.readers.joints import JOINT_INDEX
@@ -97,7 +97,7 @@ def test_the_bvh_ingests_back_with_the_same_features(db, tmp_path, fmt):
         source = source_motion(con, mid)
         (_, _, file), = mocapdb.export_joints(con, [mid], tmp_path / "take.bvh", format="bvh").written
     back = read_motion(file)
-    a, b = unpack_words(motion_features(source)), unpack_words(motion_features(back))
+    a, b = unpack_words(motion_features(source), N_BITS), unpack_words(motion_features(back), N_BITS)
     assert a.shape == b.shape
     assert (a == b).mean() >= 0.98
     # the joints of the file, in metres, within a few centimetres (the BVH's bones have one length)

@@ -1,8 +1,10 @@
 """Every file of ../shared/data/foreign2 (and foreign/) through the CLI's ingest, each with its expected
-outcome and the summary's notes (issue 19 item 7). Credits: see ../shared/data/README.md (keenon/
+outcome and notes (issue 19 item 7) in the ingest_log table and the --report CSV, and one terminal line
+per failed file (issue 26 item 4). Credits: see ../shared/data/README.md (keenon/
 nimblephysics, AnyBody/ammr, kjangsy/DHNKinect, Digital-Humans-23/motion-matching, vtan05/Anytop_fork,
 UomoCaffeLatte/PyAsfAmc; foreign/: pyomeca/ezc3d-testFiles, 20tab/bvh-python, omimo/PyMO,
 Wasserwecken/bvhio, facebookresearch/fairmotion)."""
+import csv
 import json
 
 import numpy as np
@@ -17,7 +19,7 @@ from conftest import DATA, run
 
 pytestmark = pytest.mark.shared
 
-#: file -> "ingested" with the notes its summary lines must hold, or "failed" with its reason's start
+#: file -> "ingested" with the notes its ingest_log row must hold, or "failed" with its reason's start
 FOREIGN2 = {
     "amc/test_mass_kg.amc": ("ingested", ["ASF units mass 'kg' kept as written",
                                           "rate 30 Hz from the ASF's :documentation (the AMC has no "
@@ -51,9 +53,10 @@ FOREIGN = {
 
 @pytest.fixture(scope="module")
 def ingested(tmp_path_factory):
-    db = tmp_path_factory.mktemp("foreign2") / "f.duckdb"
-    r = run(db, "ingest", DATA / "foreign", DATA / "foreign2", "--silent", code=None)
-    return db, r
+    folder = tmp_path_factory.mktemp("foreign2")
+    db, report = folder / "f.duckdb", folder / "report.csv"
+    r = run(db, "ingest", DATA / "foreign", DATA / "foreign2", "--silent", "--report", report, code=None)
+    return db, r, report
 
 
 def test_the_folders_hold_what_the_tests_expect():
@@ -63,32 +66,51 @@ def test_the_folders_hold_what_the_tests_expect():
                   if p.suffix != ".asf") == sorted(FOREIGN)
 
 
-def test_every_file_gets_its_outcome_and_its_notes(ingested):
-    db, r = ingested
+def test_every_file_gets_its_outcome_and_its_notes(ingested, open_db):
+    db, r, report = ingested
     # every file has its verdict; the failed ones make the exit status 1 (README: ingest)
     assert r.exit_code == 1 and "Traceback" not in r.output
-    assert r.output.splitlines()[-1].startswith("11 ingested, 0 skipped, 7 failed, 2 not motion files; "
-                                                "5 read with notes (")
-    lines = r.output.splitlines()
-    for name, (outcome, expected) in FOREIGN2.items():
-        path = str(DATA / "foreign2" / name)
+    con = open_db(db, read_only=True)
+    log = {path: (outcome, reason, notes) for path, outcome, reason, notes in con.execute(
+        "SELECT path, outcome, reason, notes FROM ingest_log WHERE run_id = 1 AND member IS NULL").fetchall()}
+    expected = {str(DATA / "foreign2" / name): outcome for name, (outcome, _) in FOREIGN2.items()}
+    expected |= {str(DATA / "foreign" / name): "ingested" if outcome == "ingested" else "failed"
+                 for name, outcome in FOREIGN.items()}
+    expected |= {str(p): "not a motion file" for p in DATA.glob("foreign*/amc/*.asf")}
+    assert {path: row[0] for path, row in log.items()} == expected
+    for name, (outcome, wanted) in FOREIGN2.items():
+        _, reason, notes = log[str(DATA / "foreign2" / name)]
         if outcome == "failed":
-            mine = [ln for ln in lines if ln.startswith(f"failed  {path}: ")]
-            assert len(mine) == 1 and mine[0].startswith(f"failed  {path}: {expected}"), name
+            assert reason.startswith(f"{DATA / 'foreign2' / name}: {wanted}"), name
         else:
-            notes = [ln[len(f"note    {path}: "):] for ln in lines if ln.startswith(f"note    {path}: ")]
-            for note in expected:
-                assert any(n.startswith(note) for n in notes), (name, note, notes)
+            for note in wanted:
+                assert any(n.startswith(note) for n in notes.split("\n")), (name, note, notes)
     for name, outcome in FOREIGN.items():
-        path = str(DATA / "foreign" / name)
-        failed = [ln for ln in lines if ln.startswith(f"failed  {path}: ")]
-        assert (not failed) if outcome == "ingested" else failed[0].startswith(f"failed  {path}: {outcome}"), name
+        if outcome != "ingested":
+            assert log[str(DATA / "foreign" / name)][1].startswith(f"{DATA / 'foreign' / name}: {outcome}"), name
+    # stored motions, and only they, have a motion id: the motion whose row it is
+    stored = dict(con.execute("SELECT source_path, motion_id FROM motions").fetchall())
+    assert dict(con.execute("SELECT path, motion_id FROM ingest_log WHERE outcome = 'ingested'").fetchall()) == stored
+    assert con.execute("SELECT count(*) FROM ingest_log WHERE outcome <> 'ingested' AND motion_id IS NOT NULL"
+                       ).fetchall() == [(0,)]
+    # the terminal: a line per failed file, the summary, where the rest is
+    lines = r.output.splitlines()
+    failed = sorted(p for p, (outcome, _, _) in log.items() if outcome == "failed")
+    assert sorted(ln.split(": ", 1)[0][len("failed  "):] for ln in lines if ln.startswith("failed  ")) == failed
+    assert len(lines) == len(failed) + 2 and not any(ln.startswith("note") for ln in lines)
+    assert lines[-2].startswith("11 ingested, 0 skipped, 7 failed, 2 not motion files; 5 read with notes (")
+    assert lines[-1] == f"every file's outcome, reason and notes: ingest_log run 1, and {report}"
+    # --report: the same rows as CSV
+    with report.open(newline="", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(log) and {r["path"]: (r["outcome"], r["reason"], r["notes"]) for r in rows} == {
+        path: (outcome, reason or "", notes or "") for path, (outcome, reason, notes) in log.items()}
 
 
 def test_notes_are_stored_with_the_motion_and_the_source_rereads(ingested, open_db):
     """The notes live in motions.reader_options under "notes" (with "source_frames"), which the re-read
     path passes over: the viewer's source_motion gives the stored motion's frames again."""
-    db, _ = ingested
+    db, _, _ = ingested
     con = open_db(db, read_only=True)
     rows = dict(con.execute("SELECT name, reader_options FROM motions").fetchall())
     cortex = json.loads(rows["cortex_dotted_trial1"])

@@ -10,6 +10,7 @@ hold FIFOs and files with control characters in their names. (The 2,400
 cases take ~20 s on 2 cores; benchmarks/bench_bvh.py times the same generator.)
 """
 import os
+import zipfile
 
 import numpy as np
 import pytest
@@ -149,4 +150,49 @@ def test_packed_and_hostile_files_never_escape(sources, tmp_path, open_db):
     assert seen | {str(p) for p in paths if str(p).split(".zip/")[0] + ".zip" in damaged} \
         == {str(p) for p in paths}
     assert (str(folder / "pipe.bvh"), "a FIFO (named pipe), not a regular file") in report.unsupported
+    assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == len(report.ingested)
+
+
+def test_hostile_members_and_bombs_among_packed_files(sources, tmp_path, open_db, monkeypatch):
+    """The probe's cases among mutated packed files (issue 27): zip members named with absolute paths,
+    '..' and drive letters, pointing at real files of the host, and 2 GiB bombs (gzip, bzip2, xz, a zip
+    member) with the cap set low. Every file is reported; no host file is read; each bomb fails with
+    the cap's line and the rest is stored."""
+    from fuzzing import bomb, zip_bomb
+
+    monkeypatch.setenv("MOCAPDB_MAX_DECOMPRESSED", "16MiB")
+    rng = np.random.default_rng(27)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    (folder / "HDM_bd.asf").write_bytes(ASF.read_bytes())
+    host = tmp_path / "host.bvh"
+    host.write_bytes(sources[5][1])
+    paths = []
+    for case in range(40):
+        kind, data, asf = sources[int(rng.integers(0, len(sources)))]
+        if kind == "asf" or asf not in (ASF, None):
+            continue
+        paths.append(pack(mutate(data, rng) if case % 2 else data, f"HDM_bd_h{case:03d}.{kind}", folder, rng))
+    hostile = [str(host), "../host.bvh", "takes/../../host.bvh", "C:\\host.bvh", "D:/host.bvh"]
+    with zipfile.ZipFile(folder / "hostile.zip", "w") as z:
+        for name in hostile:
+            z.writestr(name, sources[5][1])
+    bombs = []
+    for kind in ("gz", "bz2", "xz"):
+        bombs.append(folder / f"bomb.bvh.{kind}")
+        bombs[-1].write_bytes(bomb(kind, 2 << 30, head=sources[5][1].partition(b"MOTION")[0] + b"MOTION\n"))
+    bombs.append(zip_bomb(folder / "bomb.zip", "takes/bomb.c3d", 2 << 30) / "takes" / "bomb.c3d")
+    con = open_db(tmp_path / "h.duckdb")
+    report = mocapdb.ingest(con, [folder], asf=ASF)
+    failed = dict(report.failed)
+    seen = {p for p, *_ in report.ingested} | {p for p, _ in report.skipped} | set(failed)
+    damaged = {p for p, why in report.unreadable if why.startswith("unreadable archive")}
+    assert seen | {str(p) for p in paths if str(p).split(".zip/")[0] + ".zip" in damaged} == \
+        {str(p) for p in paths} | {f"{folder / 'hostile.zip'}/{n}" for n in hostile} | set(map(str, bombs))
+    for name in hostile:
+        assert "refused: its name" in failed[f"{folder / 'hostile.zip'}/{name}"]
+    for path in bombs:
+        assert failed[str(path)].startswith(f"{path}: cannot read it (decompresses to more than 16 MiB")
+    assert report.ingested
+    assert str(host) not in {p for p, *_ in con.execute("SELECT source_path FROM motions").fetchall()}
     assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == len(report.ingested)

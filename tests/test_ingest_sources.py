@@ -123,9 +123,13 @@ def test_fifos_and_sockets_are_named_as_such(tmp_path):
     try:
         db = tmp_path / "f.duckdb"
         r = run(db, "ingest", folder, "--silent")
-        assert f"not a motion file {folder / 'pipe.bvh'}: a FIFO (named pipe), not a regular file" in r.output
-        assert f"not a motion file {folder / 'sock.bvh'}: a socket, not a regular file" in r.output
         assert "1 ingested, 0 skipped, 0 failed, 2 not motion files" in r.output
+        assert "pipe.bvh" not in r.output   # the terminal names failed files; every file is in ingest_log
+        with mocapdb.connect(db, read_only=True) as con:
+            assert con.execute("SELECT path, outcome, reason FROM ingest_log WHERE outcome <> 'ingested' "
+                               "ORDER BY path").fetchall() == [
+                (str(folder / "pipe.bvh"), "not a motion file", "a FIFO (named pipe), not a regular file"),
+                (str(folder / "sock.bvh"), "not a motion file", "a socket, not a regular file")]
         r = run(db, "ingest", folder / "pipe.bvh", "--silent", code=1)
         assert "does not exist" not in r.output
         assert f"failed  {folder / 'pipe.bvh'}: a FIFO (named pipe), not a motion file" in r.output
@@ -147,6 +151,9 @@ def test_an_unreadable_folder_gets_a_line(tmp_path, monkeypatch):
     r = run(tmp_path / "u.duckdb", "ingest", folder, "--silent", code=None)
     assert f"unreadable {folder / 'locked'}: unreadable folder (Permission denied)" in r.output
     assert "1 ingested, 0 skipped, 0 failed, 1 unreadable" in r.output
+    with mocapdb.connect(tmp_path / "u.duckdb", read_only=True) as con:   # logged as a failure to read
+        assert con.execute("SELECT path, outcome, reason FROM ingest_log WHERE outcome <> 'ingested'").fetchall() \
+            == [(str(folder / "locked"), "failed", "unreadable folder (Permission denied)")]
 
 
 def test_an_unreadable_skeleton_is_reported_under_its_own_name(tmp_path, open_db):

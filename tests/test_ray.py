@@ -156,12 +156,42 @@ def test_every_format_and_every_failure_as_ingest(local_ray, tmp_path, open_db):
         assert _archive_rows(con, out, "f", dataset) == _rows(con, dataset, DB_TABLES), dataset
     errors = pq.read_table(out / "errors").to_pylist()
     assert sorted((e["file"], e["reason"]) for e in errors) == sorted(report.failed) == sorted(ray_report.failed)
+    # its import logs what ingest logs: the motions under their files, with the readers' notes, and the
+    # files ray-annotate could not read (issue 26 item 4)
+    into = open_db()
+    run_id = api.import_features(into, out).run_id
+    log = "SELECT path, outcome, notes, reason FROM ingest_log WHERE run_id = ? AND outcome IN ('ingested', 'failed')"
+    ingested = sorted(r[:3] for r in con.execute(log, [report.run_id]).fetchall())
+    imported = into.execute(log, [run_id]).fetchall()
+    assert sorted(r[:3] for r in imported) == ingested and len(ingested) == len(report.ingested) + len(report.failed)
+    assert sorted(r[3] for r in imported if r[1] == "failed") == sorted(f"ray-annotate: {e['reason']}" for e in errors)
+
+
+@pytest.mark.shared
+def test_ingest_and_ray_annotate_read_a_c3d_with_marker_rules_alike(local_ray, tmp_path, open_db):
+    """One ReaderOptions value from the CLI to the workers (issue 26 item 5): `--marker-rules
+    anatomical` reaches ray-annotate's workers as it reaches ingest (it was lost on the way), so the
+    HDM05 C3D reads alike — the same motions row, features and postings — and not as the toolbox reads
+    it."""
+    c3d = DATA / "hdm05_full" / "HDM_dg_06-03_03_120.c3d"
+    db, out = tmp_path / "i.duckdb", tmp_path / "archive"
+    run(db, "ingest", c3d, "--marker-rules", "anatomical", "--silent")
+    r = CliRunner().invoke(main, ["ray-annotate", str(c3d), "--out", str(out), "--marker-rules", "anatomical"])
+    assert r.exit_code == 0, r.output
+    con = open_db(db, read_only=True)
+    for dataset in ("motions", "features", "postings"):
+        assert _archive_rows(con, out, "r", dataset) == _rows(con, dataset, DB_TABLES), dataset
+    assert con.execute("SELECT reader_options FROM motions").fetchall()[0][0].startswith(
+        '{"marker_rules": "anatomical"')
+    toolbox = open_db()
+    mocapdb.ingest(toolbox, [c3d])
+    assert _rows(toolbox, "features", DB_TABLES) != _rows(con, "features", DB_TABLES)
 
 
 def test_amass_files_with_a_body_model_as_ingest(local_ray, tmp_path, open_db):
     """AMASS-format takes (written from the shipped 86_09) beside an AMASS shape file, read with a
-    body model folder: the same motions and rows as ingest + annotate, so the option reaches the
-    workers; the shape file is no motion in either."""
+    body model folder (`--body-model`, one ReaderOptions field): the same motions and rows as ingest +
+    annotate, so the option reaches the workers; the shape file is no motion in either."""
     from amass_files import make_body_model
     from mocapdb.readers import generic_rest, read_amc, read_asf
     from mocapdb.readers.amass_write import write_amass
@@ -180,10 +210,12 @@ def test_amass_files_with_a_body_model_as_ingest(local_ray, tmp_path, open_db):
     report = mocapdb.ingest(con, [tmp_path / "AMASS"], body_model=models)
     mocapdb.annotate(con)
     assert len(report.ingested) == 2 and not report.failed
+    assert [u[0] for u in report.unsupported] == [str(folder / "shape.npz")]
     out = tmp_path / "archive"
-    ray_report = ray_annotate([tmp_path / "AMASS"], out, body_model=models)
-    assert len(ray_report.ingested) == 2 and not ray_report.failed
-    assert [u[0] for u in ray_report.unsupported] == [u[0] for u in report.unsupported] == [str(folder / "shape.npz")]
+    r = CliRunner().invoke(main, ["ray-annotate", str(tmp_path / "AMASS"), "--out", str(out), "--body-model",
+                                  str(models)])
+    assert r.exit_code == 0, r.output
+    assert "(0 skipped, 0 failed, 1 not motion files)" in r.output   # the shape file
     for dataset in DB_TABLES:
         assert _archive_rows(con, out, "a", dataset) == _rows(con, dataset, DB_TABLES), dataset
 

@@ -56,6 +56,26 @@ def test_the_readme_has_the_examples_this_test_runs():
     assert {"ingest", "annotate", "convert-labels", "ray-annotate", "import-features"} <= set(names)
 
 
+def _serve_once(args, cwd):
+    """``mocapdb … serve`` as printed (on a free port): it listens, and its pages and API answer."""
+    import urllib.request
+
+    proc = subprocess.Popen([sys.executable, "-P", "-m", "mocapdb.cli", *args, "--port", "0"], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert "Serving" in line, f"mocapdb {shlex.join(args)}: {line}{proc.stderr.read()[-2000:]}"
+        url = line.split(" at ", 1)[1].split()[0]
+        for path in ("", "stats", "api/motions", "api/stats", "motion/1"):
+            with urllib.request.urlopen(url + path, timeout=120) as r:
+                assert r.status == 200, path
+    finally:
+        proc.terminate()
+        proc.wait(30)
+        proc.stdout.close()
+        proc.stderr.close()
+
+
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     """Where the README's commands ran: a folder with ../shared beside it."""
@@ -65,6 +85,9 @@ def workdir(tmp_path_factory):
     work.mkdir()
     for args in commands():
         if "--address" in args:  # for a cluster of the reader's own (test_ray runs one, with token auth)
+            continue
+        if "serve" in args:  # serves until stopped: started, its pages asked for, stopped
+            _serve_once(args, work)
             continue
         r = subprocess.run([sys.executable, "-P", "-m", "mocapdb.cli", *args], cwd=work, capture_output=True,
                            text=True, timeout=900)

@@ -11,7 +11,7 @@ LIBRARY = sorted([*(REPO / "mocapdb").rglob("*.py"), *(REPO / "extension").glob(
 
 #: the sub-packages in pipeline order (docs/ARCHITECTURE.md): each imports only from those before it
 LAYERS = ("errors", "_numba", "readers", "features", "templates", "keyframes", "annotation", "learning",
-          "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "api", "cli")
+          "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "server", "api", "cli")
 
 
 def _module(path):

@@ -20,7 +20,8 @@ import numba
 import numpy as np
 
 from mocapdb.annotation.chain_kernels import (_count_candidates_kernel, _extract_hits_kernel, _label_scatter_kernel,
-                                              _merge_kernel, _scatter_kernel, _segments_kernel, _sort_by_key)
+                                              _merge_kernel, _scatter_kernel, _segment_min_kernel, _segments_kernel,
+                                              _sort_by_key)
 from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.annotation.model import DEFAULT_TAU, Model
 from mocapdb.annotation.postprocess import (apply_margin, drop_short_segments, drop_unwon_segments, label_min_frames,
@@ -29,7 +30,7 @@ from mocapdb.features import as_words as _as_words
 from mocapdb.templates import ANNOTATION_STEPS, DEFAULT_CHUNK, mt_distance_slices
 
 __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotate", "annotate_sweep",
-           "extract_hits", "combine_by_label", "frame_labels", "form_segments"]
+           "extract_hits", "combine_by_label", "frame_labels", "form_segments", "segment_confidence"]
 
 #: the toolbox's limit of hits per class and document (annotationScript.m), where it stops with an
 #: error: a long repetitive take (a treadmill walk) has thousands of hits of one class. annotate()
@@ -37,8 +38,10 @@ __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotat
 #: below the limit the segments are the same
 MATCH_NUM_MAX = 2000
 
+#: ``confidence`` (0–1): how far below τ the segment's best hit lies, 1 − Δ̄^τ / τ at its
+#: best frame (:func:`segment_confidence`); 1 is a perfect match, 0 a match at τ
 SEGMENT_DTYPE = np.dtype([("label", object), ("doc", np.int64), ("start", np.int64),
-                          ("end", np.int64), ("cost", np.float64)])
+                          ("end", np.int64), ("cost", np.float64), ("confidence", np.float64)])
 #: hits: ``class_id`` indexes :attr:`Annotation.class_names` (hits are many)
 HIT_DTYPE = np.dtype([("class_id", np.int64), ("doc", np.int64), ("start", np.int64),
                       ("end", np.int64), ("cost", np.float64)])
@@ -270,6 +273,67 @@ def _form_segments(cdl, bounds, labels):
     return out
 
 
+def segment_confidence(segments, label_ratio, doc_bounds, labels) -> np.ndarray:
+    """Per segment, how far its best match lies below τ: ``1 − min Δ̄^τ/τ`` over its frames, in [0, 1].
+
+    Parameters
+    ----------
+    segments : ndarray of SEGMENT_DTYPE
+        Frames within documents.
+    label_ratio : (n_labels, N) float64
+        Per label and frame the smallest Δ̄^τ / τ among its classes (+inf where
+        none matches).
+    doc_bounds : (n_docs + 1,) int
+    labels : sequence of str
+        Label order of ``label_ratio``.
+
+    Returns
+    -------
+    (n_segments,) float64
+        1 for a perfect match, 0 for one at τ (a segment that only its
+        extension reaches, with no hit inside, gets 0).
+    """
+    li = {lab: k for k, lab in enumerate(labels)}
+    if not segments.size:
+        return np.zeros(0)
+    lab = np.array([li[x] for x in segments["label"]], dtype=np.int64)
+    b = np.asarray(doc_bounds, dtype=np.int64)
+    first = b[segments["doc"]] + segments["start"]
+    last = b[segments["doc"]] + segments["end"]
+    best = np.empty(segments.size)
+    _segment_min_kernel(np.ascontiguousarray(label_ratio, dtype=np.float64), lab, first.astype(np.int64),
+                        last.astype(np.int64), best)
+    return np.clip(1.0 - best, 0.0, 1.0)
+
+
+def _concurrent_rows(model):
+    """Label indices of the model's concurrent labels (annotated on their own, beside the others)."""
+    return np.array([k for k, lab in enumerate(model.labels) if lab in model.concurrent_labels], dtype=np.int64)
+
+
+def _segment_labels(label_cd, label_ratio, doc_bounds, labels, concurrent, margin, min_won):
+    """Segments of one batch: the competing labels by Δarg (§10.3), each concurrent label on its own.
+
+    A concurrent label (``Model.concurrent_labels``: a walker who turns is
+    still walking) takes no frame from the others: its row leaves the
+    competition, and its segments are the runs of its own matches.
+    """
+    own = None
+    if concurrent.size:
+        own = label_cd[concurrent].copy()
+        label_cd = label_cd.copy()
+        label_cd[concurrent] = np.inf
+    apply_margin(label_cd, margin)
+    segs = _form_segments(label_cd, doc_bounds, labels)
+    if min_won is not None:
+        segs = drop_unwon_segments(segs, label_cd, doc_bounds, labels, min_won)
+    if own is not None:
+        parts = [segs] + [_form_segments(own[i:i + 1], doc_bounds, (labels[k],)) for i, k in enumerate(concurrent)]
+        segs = _sort_by_label(np.concatenate(parts), labels)
+    segs["confidence"] = segment_confidence(segs, label_ratio, doc_bounds, labels)
+    return segs
+
+
 # ---------------------------------------------------------------------------
 # the whole chain
 
@@ -431,23 +495,26 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
             hdoc = task_doc[qq]
             first_in_doc = ta[qq] - bounds[hdoc]
             hits = (sel[qq], tc[qq], hdoc, hs[idx] + first_in_doc, he[idx] + first_in_doc, hc[idx])
-        # Δ̄^τ per label over the batch, +inf outside the tasks
+        # Δ̄^τ per label over the batch, +inf outside the tasks; and Δ̄^τ / τ (the confidence)
         kept = None
+        ratio = cd / np.repeat(class_taus[tc], np.diff(offsets)) if cd.size else cd
         if keep_deltas or tiled:
             full_cd = _per_class(cd, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
             label_cd = combine_by_label(full_cd, model.label_index, len(labels))
+            label_ratio = combine_by_label(_per_class(ratio, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled),
+                                           model.label_index, len(labels))
             if keep_deltas:
                 full_delta = _per_class(delta, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
                 kept = (full_delta, full_cd, label_cd)
         else:  # preselected slices: straight into the label rows, no per-class arrays
             label_cd = np.full((len(labels), f1 - f0), np.inf)
+            label_ratio = np.full((len(labels), f1 - f0), np.inf)
             _label_scatter_kernel(cd, offsets, tc, ta - f0, model.label_index, np.full(f1 - f0, -1, np.int64),
                                   label_cd)
-        apply_margin(label_cd, margin)
+            _label_scatter_kernel(ratio, offsets, tc, ta - f0, model.label_index, np.full(f1 - f0, -1, np.int64),
+                                  label_ratio)
         doc_bounds = bounds[g0:g1 + 1] - bounds[g0]
-        segs = _form_segments(label_cd, doc_bounds, labels)
-        if min_won is not None:
-            segs = drop_unwon_segments(segs, label_cd, doc_bounds, labels, min_won)
+        segs = _segment_labels(label_cd, label_ratio, doc_bounds, labels, _concurrent_rows(model), margin, min_won)
         segs["doc"] += g0
         out.append((segs, hits, kept))
     return out

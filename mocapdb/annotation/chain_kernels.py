@@ -258,3 +258,15 @@ def _won_kernel(cdl, seg_label, seg_first, seg_last, out):  # pragma: no cover
             if _best_label(cdl, f) == seg_label[s]:
                 n += 1
         out[s] = n
+
+
+@jit
+def _segment_min_kernel(x, seg_label, seg_first, seg_last, out):  # pragma: no cover
+    """out[s] = min of x[seg_label[s], seg_first[s] … seg_last[s]] (+inf if the segment is empty)."""
+    for s in range(seg_label.shape[0]):
+        best = np.inf
+        row = seg_label[s]
+        for f in range(seg_first[s], seg_last[s] + 1):
+            if x[row, f] < best:
+                best = x[row, f]
+        out[s] = best

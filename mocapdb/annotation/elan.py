@@ -41,7 +41,8 @@ from mocapdb.errors import ParameterError, ParseError
 
 log = logging.getLogger("mocapdb")
 
-__all__ = ["EAF_FPS_PROPERTY", "eaf_document", "eaf_source_fps", "read_eaf", "write_eaf", "is_eaf"]
+__all__ = ["EAF_FPS_PROPERTY", "CONFIDENCE_TIER", "eaf_document", "eaf_source_fps", "read_eaf", "write_eaf",
+           "is_eaf"]
 
 #: header property holding the document's native frame rate (Hz)
 EAF_FPS_PROPERTY = "mocapdb:source_fps"
@@ -162,7 +163,11 @@ def read_eaf(path, *, fps=None):
     return out
 
 
-def write_eaf(path, labels, start_s, end_s, *, media=None, fps=None, author="mocapdb"):
+#: suffix of the tier that holds a label tier's confidences (a symbolic association: readers skip it)
+CONFIDENCE_TIER = " confidence"
+
+
+def write_eaf(path, labels, start_s, end_s, *, media=None, fps=None, author="mocapdb", confidence=None):
     """Write one document's labelled segments as an ELAN file (one tier per label).
 
     Parameters
@@ -179,6 +184,11 @@ def write_eaf(path, labels, start_s, end_s, *, media=None, fps=None, author="moc
         Native frame rate of the recording, stored as the header property
         ``mocapdb:source_fps`` so the file reads back without a database.
     author : str
+    confidence : (n,) float, optional
+        Each segment's confidence (0–1), written on a dependent tier
+        ``"<label> confidence"`` (symbolic association, ELAN shows it under
+        its label; :func:`read_eaf` skips such tiers, so the file reads back
+        onto the same segments).
 
     Raises
     ------
@@ -209,4 +219,13 @@ def write_eaf(path, labels, start_s, end_s, *, media=None, fps=None, author="moc
         eaf.add_tier(lab)
     for lab, a, b in zip(labels, t0.tolist(), t1.tolist()):
         eaf.add_annotation(lab, a, b, lab)
+    if confidence is not None:
+        conf = np.asarray(confidence, dtype=np.float64)
+        if conf.size != len(labels):
+            raise ParameterError(f"confidence must have one value per segment ({len(labels)}), got {conf.size}")
+        eaf.add_linguistic_type("confidence", constraints="Symbolic_Association", timealignable=False)
+        for lab in dict.fromkeys(labels):
+            eaf.add_tier(lab + CONFIDENCE_TIER, ling="confidence", parent=lab)
+        for lab, a, b, q in zip(labels, t0.tolist(), t1.tolist(), conf.tolist()):
+            eaf.add_ref_annotation(lab + CONFIDENCE_TIER, lab, (a + b) // 2, f"{q:.3f}")
     pympi.Elan.to_eaf(str(path), eaf, pretty=True)

@@ -99,12 +99,18 @@ class Model:
     margin : float, default 0.0
         Frames whose best label's Δ̄^τ beats the second best by less than this
         stay unlabelled (:mod:`mocapdb.annotation.postprocess`); 0: the paper.
+    concurrent_labels : tuple of str, default ()
+        Labels annotated on their own, beside the others instead of against
+        them (beyond the paper, whose segmenter gives each frame one label):
+        a walker who turns round is walking and turning, so ``turn`` takes no
+        frame from ``move``. Each must be a label of the model; () is the paper.
     """
 
     name: str
     classes: tuple = field(default_factory=tuple)
     labels: tuple | None = None
     margin: float = 0.0
+    concurrent_labels: tuple = ()
 
     def __post_init__(self):
         classes = tuple(self.classes)
@@ -126,6 +132,13 @@ class Model:
             if missing:
                 raise ParameterError(f"labels lacks the class labels {missing}; add them")
         check_nonnegative(self.margin, "margin")
+        if isinstance(self.concurrent_labels, str):
+            raise ParameterError(f"concurrent_labels must be a sequence of labels, got {self.concurrent_labels!r}")
+        concurrent = tuple(dict.fromkeys(str(x) for x in self.concurrent_labels))
+        stray = sorted(set(concurrent) - set(labels))
+        if stray:
+            raise ParameterError(f"concurrent_labels {stray} are not labels of the model {labels}")
+        object.__setattr__(self, "concurrent_labels", concurrent)
         object.__setattr__(self, "classes", classes)
         object.__setattr__(self, "labels", labels)
         object.__setattr__(self, "margin", float(self.margin))

@@ -18,12 +18,12 @@ from mocapdb.errors import ParameterError
 #: Arrow schema of :func:`segment_table` (frames 1-based, inclusive, at the feature rate; seconds)
 SEGMENT_SCHEMA = pa.schema([("motion_id", pa.int32()), ("document", pa.string()), ("label", pa.string()),
                             ("start_frame", pa.int32()), ("end_frame", pa.int32()), ("start_s", pa.float64()),
-                            ("end_s", pa.float64()), ("cost", pa.float64())])
+                            ("end_s", pa.float64()), ("cost", pa.float64()), ("confidence", pa.float64())])
 #: columns of :func:`segment_table`
 SEGMENT_COLUMNS = tuple(SEGMENT_SCHEMA.names)
 #: a segment of one motion, as SQL ``annotate(motion_id)`` lists them (the motion is the row's)
 SEGMENT_ARROW = pa.struct([SEGMENT_SCHEMA.field(name) for name in
-                           ("label", "start_frame", "end_frame", "cost", "start_s", "end_s")])
+                           ("label", "start_frame", "end_frame", "cost", "start_s", "end_s", "confidence")])
 
 
 def segment_table(segments, *, motion_ids, names, fps) -> pa.Table:
@@ -61,6 +61,7 @@ def segment_table(segments, *, motion_ids, names, fps) -> pa.Table:
         "start_s": segs["start"] / seg_fps,
         "end_s": (segs["end"] + 1) / seg_fps,
         "cost": segs["cost"],
+        "confidence": segs["confidence"],
     }, schema=SEGMENT_SCHEMA)
 
 

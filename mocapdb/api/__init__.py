@@ -18,6 +18,8 @@ CLI                           API
 ``mocapdb report``             :func:`report`
 ``mocapdb view``               :func:`view`
 ``mocapdb similar``            :func:`similar`
+``mocapdb stats``              :func:`stats`
+``mocapdb serve``              :func:`serve`
 ``mocapdb create-index``       :func:`create_index`
 ``mocapdb drop-index``         :func:`drop_index`
 ``mocapdb export-features``    :func:`export_features`
@@ -39,10 +41,11 @@ from mocapdb.api.kernels import (background_compile_running, kernels_cold, start
                                  wait_for_background_compile, warmup)
 from mocapdb.api.learning import define_class, learn_keyframes, train
 from mocapdb.api.annotating import BATCH_FILES, BUCKET_MOTIONS, annotate, evaluate, ray_annotate
-from mocapdb.api.outputs import FIGURES, SIMILAR_FORMATS, report, similar, view
+from mocapdb.api.outputs import FIGURES, SIMILAR_FORMATS, report, serve, similar, stats, view
 
 #: exactly the commands: ``mocapdb COMMAND`` calls the function of that name (``sql`` is
 #: ``connect(...).sql``); the other names here are what the command line needs besides
 __all__ = ["connect", "ingest", "delete", "train", "learn_keyframes", "define_class", "annotate", "evaluate",
-           "report", "view", "similar", "create_index", "drop_index", "export_features", "import_features",
-           "export_joints", "attach", "ray_annotate", "convert_labels", "relocate", "joint_map_template", "warmup"]
+           "report", "view", "similar", "stats", "serve", "create_index", "drop_index", "export_features",
+           "import_features", "export_joints", "attach", "ray_annotate", "convert_labels", "relocate",
+           "joint_map_template", "warmup"]

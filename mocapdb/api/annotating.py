@@ -10,6 +10,7 @@ from mocapdb.distributed import BATCH_FILES, BUCKET_MOTIONS
 from mocapdb.distributed import ray_annotate as run_on_ray
 from mocapdb.errors import ParameterError, PartialAnnotationError, SchemaError, check_nonnegative
 from mocapdb.evaluation import evaluate_annotation, evaluate_by_label, parse_tau_grid
+from mocapdb.readers import ReaderOptions
 from mocapdb.storage import annotations as stored_annotations
 from mocapdb.storage.annotations import (EXPORT_FORMATS, annotate_documents, annotate_motions,
                                         export_segments, store_annotations)
@@ -172,8 +173,8 @@ def _scores(truth_rows, auto_rows, vocabulary, by_label):
 
 
 def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
-                 asf=None, joint_map=None, marker_map=None, body_model=None, num_cpus=None, batch_files=BATCH_FILES,
-                 bucket_motions=BUCKET_MOTIONS, overwrite=False):
+                 asf=None, joint_map=None, marker_map=None, marker_rules=None, body_model=None, max_decompressed=None,
+                 num_cpus=None, batch_files=BATCH_FILES, bucket_motions=BUCKET_MOTIONS, overwrite=False):
     """``ingest`` + ``annotate`` on a Ray cluster, Parquet out (needs the ``ray`` extra).
 
     Reads the recordings on Ray actors with the same readers, kernels and
@@ -193,11 +194,17 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
         Ray cluster address; default: a local Ray with ``num_cpus`` CPUs.
     model, tau, keyframes
         As :func:`annotate`; the model is a shipped one or one stored in ``database``.
+    asf, joint_map, marker_map, marker_rules, max_decompressed : optional, keyword-only
+        How files are read, as :func:`mocapdb.api.ingest` reads them (one
+        :class:`mocapdb.readers.ReaderOptions` value, checked here and sent to
+        every worker).
 
     Returns
     -------
     mocapdb.distributed.RayReport
     """
+    options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
+                            body_model=body_model, max_decompressed=max_decompressed)
     return run_on_ray(sources, out, address=address, model=model, tau=tau, keyframes=keyframes, database=database,
-                      asf=asf, joint_map=joint_map, marker_map=marker_map, body_model=body_model, num_cpus=num_cpus,
-                      batch_files=batch_files, bucket_motions=bucket_motions, overwrite=overwrite)
+                      options=options, num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
+                      overwrite=overwrite)

@@ -3,11 +3,14 @@ the canonical joints out, archives in place, moved files, other projects' label 
 from __future__ import annotations
 
 import dataclasses
+import os
+import time
 from pathlib import Path
 
 from mocapdb.annotation import write_labels
 from mocapdb.annotation.foreign_labels import read_label_file
-from mocapdb.errors import SchemaError
+from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.readers import ReaderOptions
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
 from mocapdb.storage import attached, parquet, postings
@@ -15,11 +18,32 @@ from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.joint_export import JointsExport
 from mocapdb.storage.joint_export import export_joints as storage_export_joints
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
-from mocapdb.storage.schema import require_own_tables
+from mocapdb.storage.schema import DatabaseLockedError, require_own_tables
 from mocapdb.warmup import sample_files
 
 
-def connect(path=":memory:", *, read_only: bool = False, create: bool = True, memory_limit=None):
+#: seconds a read-write open waits while another process holds the file: a reader such as `mocapdb serve`
+#: holds it only while it answers a request, so a writer starting then gets in a moment later instead of
+#: failing; a writer still holding it after the wait is an error naming it (MOCAPDB_LOCK_WAIT overrides)
+LOCK_WAIT = 5.0
+LOCK_WAIT_ENV = "MOCAPDB_LOCK_WAIT"
+
+
+def _lock_wait(lock_wait, read_only):
+    if lock_wait is None:
+        if read_only:  # a reader waiting for a writer would mostly wait for minutes (an ingest): no wait
+            return 0.0
+        lock_wait = os.environ.get(LOCK_WAIT_ENV) or LOCK_WAIT
+    try:
+        wait = float(lock_wait)
+    except (TypeError, ValueError):
+        wait = -1.0
+    if not wait >= 0:
+        raise ParameterError(f"lock_wait (or ${LOCK_WAIT_ENV}) must be a number of seconds >= 0, got {lock_wait!r}")
+    return wait
+
+
+def connect(path=":memory:", *, read_only: bool = False, create: bool = True, memory_limit=None, lock_wait=None):
     """Open (or create) a mocap database with the mocapdb SQL functions registered.
 
     Parameters
@@ -40,6 +64,12 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
         or 512MB: mocapdb's own work runs a batch of motions at a time, and
         DuckDB spills to disk beyond its limit; see
         :data:`mocapdb.storage.schema.DEFAULT_MEMORY_LIMIT`).
+    lock_wait : float, optional, keyword-only
+        Seconds to wait while another process holds the file (DuckDB lets one
+        process write it, and none open it meanwhile); default
+        :data:`LOCK_WAIT` (``$MOCAPDB_LOCK_WAIT``) for a read-write open, so a
+        writer waits for a reader such as ``mocapdb serve`` to finish its
+        request, and none for a read-only open.
 
     Returns
     -------
@@ -53,7 +83,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
     Raises
     ------
     mocapdb.storage.schema.DatabaseLockedError
-        Another process is writing the file.
+        Another process still holds the file after ``lock_wait`` seconds.
     SchemaError
         ``create=False`` (or ``read_only``) and the file does not exist.
 
@@ -65,11 +95,18 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
     if not create and str(path) != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (a mistyped --db? `mocapdb ingest` or "
                           "`mocapdb import-features` create one)")
-    return connect_database(path, read_only=read_only, memory_limit=memory_limit)
+    deadline = time.monotonic() + _lock_wait(lock_wait, read_only)
+    while True:
+        try:
+            return connect_database(path, read_only=read_only, memory_limit=memory_limit)
+        except DatabaseLockedError:
+            if time.monotonic() >= deadline:
+                raise
+            time.sleep(0.05)
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
-           body_model=None, progress=None, replace=False) -> IngestReport:
+           body_model=None, progress=None, replace=False, max_decompressed=None, report=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -82,26 +119,27 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     sample : bool, keyword-only
         Also ingest the real recordings shipped with mocapdb
         (:func:`mocapdb.warmup.sample_files`; README "Data and credits").
-    asf : str or Path, optional, keyword-only
-        Skeleton for every AMC file (default: found by the dataset conventions).
-    joint_map : dict, str or Path, optional, keyword-only
-        BVH files: canonical joint → the file's joint name(s) (TOML/JSON file or
-        dict), overriding the automatic mapping (README "Mapping files").
-    marker_map : dict, str or Path, optional, keyword-only
-        C3D files: canonical joint → the markers whose mean it is.
-    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
-        C3D files of the HDM05/CMU marker set: the toolbox's formulas (default,
-        the reference) or anatomical joint centres (README "C3D marker files").
-    body_model : str or Path, optional, keyword-only
-        AMASS ``.npz`` files: the SMPL-H/SMPL-X body model file the user
-        downloaded, or a folder of them (chosen by family and gender), giving
-        each take's own rest joints; default: the generic rest skeleton
-        shipped with mocapdb (README "AMASS").
+    asf, joint_map, marker_map, marker_rules, body_model, max_decompressed : optional, keyword-only
+        How files are read: the fields of one :class:`mocapdb.readers.ReaderOptions`
+        value, checked here, before any file is read — the ASF of every AMC
+        (default: found by the dataset conventions), a BVH joint map and a C3D
+        marker map (TOML/JSON file or dict; README "Mapping files", "C3D marker
+        maps"), the C3D marker rules (``"toolbox"``, the reference, or
+        ``"anatomical"``), the SMPL-H/SMPL-X body model of AMASS ``.npz`` takes
+        (a model file or a folder of them, chosen by family and gender;
+        default: the generic rest skeleton shipped with mocapdb; README
+        "AMASS"), the bytes a compressed file or zip member may decompress to
+        (``"2GiB"``; default ``MOCAPDB_MAX_DECOMPRESSED``, else 512 MiB).
+        ``ray_annotate`` takes the same and reads the same.
     progress : callable, optional, keyword-only
         ``progress(n_files_done, n_files, path)`` once per file.
     replace : bool, keyword-only
         Read files already stored (same bytes) again and replace their
         motions, e.g. after correcting ``joint_map``; default: skip them.
+    report : str or Path, optional, keyword-only
+        Write the call's rows of the ``ingest_log`` table to this file as CSV
+        (``path, member, outcome, reason, notes, motion_id, logged_at, run_id,
+        command``; NULL as an empty field), also when the call fails.
 
     Returns
     -------
@@ -109,12 +147,14 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         Ingested, skipped, failed and unsupported files, unreadable folder
         entries, and the readers' notes on what they decided per file;
         ``failed`` lists every file that was not stored, with the reason
-        (the command exits 1 when it is not empty).
+        (the command exits 1 when it is not empty). Every file's row is in
+        the table ``ingest_log`` (``run_id`` = the report's ``run_id``).
     """
     require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
-    return ingest_files(con, paths, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                        marker_rules=marker_rules, body_model=body_model, progress=progress, replace=replace)
+    options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
+                            body_model=body_model, max_decompressed=max_decompressed)
+    return ingest_files(con, paths, options=options, progress=progress, replace=replace, log_csv=report)
 
 
 def joint_map_template(path) -> str:
@@ -238,7 +278,9 @@ def import_features(con, directory):
     Returns
     -------
     mocapdb.storage.parquet.ImportReport
-        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions.
+        ``imported`` maps archive motion ids to the new ones; ``failed`` names the refused motions;
+        ``run_id`` names the call's rows of the ``ingest_log`` table (one per motion, under its
+        source file, and one per file of a ``ray_annotate`` archive's ``errors`` dataset).
     """
     require_own_tables(con, "import-features")
     return parquet.import_features(con, directory)

@@ -1,4 +1,5 @@
-"""What users look at: the paper's figures, viewer pages and query by example."""
+"""What users look at: the paper's figures, viewer pages, query by example, the archive's summary and the
+archive in a browser."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,11 +7,12 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.api.annotating import evaluate
-from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.errors import MocapdbError, ParameterError, SchemaError
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_ids
 from mocapdb.storage.sqltext import statement
+from mocapdb.storage.stats import archive_stats
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
 from mocapdb.storage.retrieval import query_stretch, similar_stretches
 from mocapdb.viewer.results import write_results_pages
@@ -222,3 +224,66 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
     if out is not None:
         write_results_pages(con, table, [s[:3] for s in stretches], out, model=model, progress=progress)
     return table
+
+
+def stats(con, *, model=DEFAULT_MODEL):
+    """What the archive holds: hours and motions per source format and rate, annotated hours per label,
+    and the files its ingests refused.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    model : str, keyword-only
+        The model whose stored annotations (``annotations``) give the hours per label.
+
+    Returns
+    -------
+    mocapdb.storage.stats.ArchiveStats
+        Arrow tables ``formats`` (``format, source_fps, motions, hours``),
+        ``labels`` (``label, segments, motions, hours``) and ``refused``
+        (``path, member, outcome, reason, logged_at`` of each file whose latest
+        ingest failed or found no motion; None when the database keeps no
+        ingest log), and the totals ``motions`` and ``hours``.
+    """
+    return archive_stats(con, model=model)
+
+
+def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, ready=None):
+    """Serve the archive in ``db`` to a web browser until interrupted (needs the ``serve`` extra).
+
+    Pages: ``/`` every motion with name, format, rate, duration, stored labels
+    and a strip of its label timeline, filtered by label, format, name and
+    duration, sorted and paged; ``/stats`` the summary of :func:`stats` with
+    bars; ``/motion/<id>`` the viewer page of :func:`view` with "find similar"
+    (:func:`similar` on a stretch selected on the timeline) and every segment
+    of a label across the archive. The JSON API the pages use is under
+    ``/api/`` (:mod:`mocapdb.server.app`).
+
+    The server never writes: it opens ``db`` read-only for each request and
+    closes it after, so ``ingest``, ``annotate`` and the other writers can
+    work beside it; while one holds the file, requests answer "busy" and the
+    pages ask again (:mod:`mocapdb.server.archive`).
+
+    Parameters
+    ----------
+    db : str or Path
+        The database file (it must exist).
+    host : str, keyword-only, default "127.0.0.1"
+        The address to listen on: this machine only unless given otherwise.
+    port : int, keyword-only, default 8765
+        0 takes any free port.
+    model : str, keyword-only
+        The model whose stored annotations the pages show.
+    ready : callable, optional, keyword-only
+        ``ready(url)`` once the server listens.
+    """
+    if not Path(db).is_file():
+        raise SchemaError(f"{db}: no such database file (a mistyped --db? `mocapdb ingest` creates one)")
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise ParameterError(f"port must be an integer from 0 to 65535, got {port!r}")
+    try:
+        from mocapdb.server import serve as run
+    except ImportError as exc:
+        raise MocapdbError(f"mocapdb serve needs the serve extra: pip install \"mocapdb[serve]\" (starlette and "
+                           f"uvicorn; {exc})") from None
+    run(db, host=host, port=port, model=model, ready=ready)

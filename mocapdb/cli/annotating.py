@@ -31,9 +31,11 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
     """Annotate motions (ids or names; default all) and store the segments in `annotations`.
 
     Frames are 30 Hz frames, 1-based inclusive; CSV (and JSON) columns
-    document,label,start_frame,end_frame,fps,start_s,end_s,cost, where fps
-    (30) is the rate of the frames: the file reads back as --truth or
-    --labels onto exactly its frames. Seconds are rounded to 0.1 ms.
+    document,label,start_frame,end_frame,fps,start_s,end_s,cost,confidence,
+    where fps (30) is the rate of the frames: the file reads back as --truth
+    or --labels onto exactly its frames. Seconds are rounded to 0.1 ms;
+    confidence (0-1) says how far the segment's best match lies below τ
+    (1 − cost/τ): filter on it to keep the surest segments.
 
     \b
     Examples:
@@ -56,9 +58,9 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
     if export:
         click.echo(f"{table.num_rows} segment(s) written to {out}")
     else:
-        cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost"]
-        rows = [(d, lab, s, e, round(a, 4), round(b, 4), round(c, 6))
-                for d, lab, s, e, a, b, c in zip(*(table.column(c).to_pylist() for c in cols))]
+        cols = ["document", "label", "start_frame", "end_frame", "start_s", "end_s", "cost", "confidence"]
+        rows = [(d, lab, s, e, round(a, 4), round(b, 4), round(c, 6), round(q, 3))
+                for d, lab, s, e, a, b, c, q in zip(*(table.column(c).to_pylist() for c in cols))]
         if fmt != "table":  # a file carries its frame grid (label files read it: the fps column)
             rates = [int(r) if r.is_integer() else r for r in (round(x, 6) for x in frame_rates(table))]
             rows = [(*r[:4], f, *r[4:]) for r, f in zip(rows, rates)]
@@ -125,8 +127,8 @@ def evaluate(ctx, truth, pred, label_map, vocabulary, model, tau, keyframes, min
               help="Motions per motion_bucket partition of features, postings and annotations.")
 @click.option("--overwrite", is_flag=True, help="Replace an archive already in --out.")
 @click.pass_context
-def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_map, marker_map, body_model,
-                 num_cpus, batch_files, bucket_motions, overwrite):
+def ray_annotate(ctx, sources, out, address, model, tau, keyframes, reader, num_cpus, batch_files, bucket_motions,
+                 overwrite):
     """Ingest and annotate files, folders or glob patterns on a Ray cluster; write Parquet.
 
     Needs the ray extra (pip install 'mocapdb[ray]'). Writes the datasets
@@ -141,8 +143,7 @@ def ray_annotate(ctx, sources, out, address, model, tau, keyframes, asf, joint_m
     """
 
     report = api.ray_annotate(sources, out, address=address, model=model, tau=tau, keyframes=keyframes,
-                              database=ctx.obj.get("db"), asf=asf, joint_map=joint_map, marker_map=marker_map,
-                              body_model=body_model, num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
-                              overwrite=overwrite)
+                              database=ctx.obj.get("db"), num_cpus=num_cpus, batch_files=batch_files,
+                              bucket_motions=bucket_motions, overwrite=overwrite, **reader)
     # the failed files are data of the archive (its errors dataset): the run failed only if nothing went in
     echo_report(ctx, report, all_must_succeed=False)

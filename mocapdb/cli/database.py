@@ -20,23 +20,24 @@ from mocapdb.cli.output import write_rows, echo_report
 @click.option("--sample", is_flag=True,
               help="Also ingest the real recordings shipped with mocapdb (a CMU take, a BVH walk, an HDM05 C3D).")
 @reader_options
-@click.option("--marker-rules", type=click.Choice(("toolbox", "anatomical")), default=None,
-              help="C3D files of the HDM05/CMU marker set: the toolbox's formulas (default, the reference) or "
-                   "anatomical joint centres (closer to the same take's AMC).")
 @click.option("--replace", is_flag=True, help="Read files already stored (same bytes) again and replace their "
                                               "motions, e.g. with a corrected --joint-map (default: skip them).")
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also write every file's row of the ingest_log table (outcome, reason, the reader's notes, "
+                   "motion_id) to this CSV file.")
 @silent_option
 @click.pass_context
-def ingest(ctx, paths, sample, asf, joint_map, marker_map, body_model, marker_rules, replace, silent):
+def ingest(ctx, paths, sample, reader, replace, report, silent):
     """Read ASF/AMC, BVH, C3D and AMASS .npz files (or folders, recursively) into the database.
 
     Files may be .gz, .bz2 or .xz compressed, and folders may be .zip archives
     (read in place). A broken file changes nothing and the others still go in;
     files already stored (same bytes) are skipped (--replace reads them
-    again). Lines starting "note" say what a reader decided for a stored file
-    (a joint placed without markers, lost tracking interpolated, frames cut).
-    Exit status 1 when any file failed (each is listed with its reason), 0
-    otherwise.
+    again). The terminal gets one line per failed file and a summary; every
+    file's outcome, reason and the reader's notes (a joint placed without
+    markers, lost tracking interpolated, frames cut) go to the table
+    ingest_log, and with --report FILE to a CSV file too. Exit status 1 when
+    any file failed, 0 otherwise.
 
     \b
     Example (the recordings shipped with mocapdb):
@@ -46,10 +47,9 @@ def ingest(ctx, paths, sample, asf, joint_map, marker_map, body_model, marker_ru
         raise click.UsageError("give files or folders to ingest, or --sample")
     con = open_db(ctx, create=True)
     with progress_bar(None, "ingest", silent) as bar:
-        report = api.ingest(con, paths, sample=sample, asf=asf, joint_map=joint_map, marker_map=marker_map,
-                            marker_rules=marker_rules, body_model=body_model, replace=replace,
-                            progress=bar_progress(bar))
-    echo_report(ctx, report)
+        result = api.ingest(con, paths, sample=sample, replace=replace, progress=bar_progress(bar), report=report,
+                            **reader)
+    echo_report(ctx, result, log_csv=report)
 
 
 @command()
@@ -207,7 +207,9 @@ def import_features(ctx, directory):
 
     Motions already present are kept. Every motion is checked to be exactly
     its frames 1 … n: an incomplete one is refused and named (exit 1), the
-    others are imported; an unfinished archive is refused.
+    others are imported; an unfinished archive is refused. Every motion's
+    outcome goes to the table ingest_log, under its source file, and so do
+    the files a ray-annotate run could not read (its errors dataset).
     """
 
     report = api.import_features(open_db(ctx, create=True), directory)
@@ -216,6 +218,7 @@ def import_features(ctx, directory):
     for name, reason in report.failed:
         click.echo(f"refused  {reason}", err=True)
     click.echo(report.summary())
+    click.echo(f"every motion's outcome: ingest_log run {report.run_id}", err=True)
     if report.failed:
         ctx.exit(1)
 

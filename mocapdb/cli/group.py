@@ -126,5 +126,5 @@ def main(ctx, db):
     ctx.ensure_object(dict)
     ctx.obj["db"] = db
     if ctx.invoked_subcommand not in (None, "attach", "delete", "drop-index", "export-features", "joint-map-template",
-                                      "convert-labels", "relocate", "warmup"):
+                                      "convert-labels", "relocate", "warmup", "stats"):
         _say_when_compiling(ctx, ctx.invoked_subcommand)

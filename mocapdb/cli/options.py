@@ -1,10 +1,10 @@
 """The options several commands share (one definition each, one help text)."""
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import click
-
 
 
 FORMATS = ("table", "csv", "json")
@@ -63,22 +63,43 @@ map_option = click.option("--label-map", type=click.Path(exists=True, dir_okay=F
                           help="CSV class,label renaming truth labels to model labels (e.g. walk -> move).")
 
 
+#: the options of how files are read, as the API's keywords (the fields of mocapdb.readers.ReaderOptions)
+READER_KEYWORDS = ("asf", "joint_map", "marker_map", "marker_rules", "body_model", "max_decompressed")
+
+
 def reader_options(fn):
-    """``--asf``, ``--joint-map``, ``--marker-map`` and ``--body-model``: how files are read (ingest,
-    ray-annotate)."""
-    fn = click.option("--body-model", type=click.Path(exists=True, path_type=Path),
-                      help="AMASS .npz files: the SMPL-H/SMPL-X body model .npz you downloaded, or a folder of "
-                           "them (chosen by family and gender, e.g. smplh/female/model.npz), giving each take's "
-                           "own rest joints (default: a generic rest skeleton shipped with mocapdb).")(fn)
-    fn = click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-                      help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")(fn)
-    fn = click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-                      help="TOML/JSON file: canonical joint = the BVH joint (its origin), \"Joint/end\" (its End "
-                           "Site) or a list of joints (their mean); overrides the automatic mapping of every "
-                           "BVH file.")(fn)
+    """``--asf``, ``--joint-map``, ``--marker-map``, ``--marker-rules``, ``--body-model`` and
+    ``--max-decompressed``: how files are read, one set of options for ``ingest`` and ``ray-annotate``
+    (so both read a file alike). The command gets them as one value, ``reader`` (a dict of the API's
+    keywords), and passes it on whole: ``api.ingest(…, **reader)``. A new reader option is one more
+    option here and one more name in :data:`READER_KEYWORDS`."""
+
+    @functools.wraps(fn)
+    def command(*args, **kwargs):
+        reader = {name: kwargs.pop(name) for name in READER_KEYWORDS}
+        return fn(*args, reader=reader, **kwargs)
+
+    command = click.option("--max-decompressed", metavar="SIZE", default=None,
+                           help="The bytes a compressed file or zip member may decompress to (e.g. 2GiB); a "
+                                "file over it fails, the others go in (default: MOCAPDB_MAX_DECOMPRESSED, else "
+                                "512MiB).")(command)
+    command = click.option("--body-model", type=click.Path(exists=True, path_type=Path),
+                           help="AMASS .npz files: the SMPL-H/SMPL-X body model .npz you downloaded, or a folder "
+                                "of them (chosen by family and gender, e.g. smplh/female/model.npz), giving each "
+                                "take's own rest joints (default: a generic rest skeleton shipped with "
+                                "mocapdb).")(command)
+    command = click.option("--marker-rules", type=click.Choice(("toolbox", "anatomical")), default=None,
+                           help="C3D files of the HDM05/CMU marker set: the toolbox's formulas (default, the "
+                                "reference) or anatomical joint centres (closer to the same take's AMC).")(command)
+    command = click.option("--marker-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                           help="TOML/JSON file: canonical joint = the C3D markers whose mean it is.")(command)
+    command = click.option("--joint-map", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                           help="TOML/JSON file: canonical joint = the BVH joint (its origin), \"Joint/end\" (its "
+                                "End Site) or a list of joints (their mean); overrides the automatic mapping of "
+                                "every BVH file.")(command)
     return click.option("--asf", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                         help="Skeleton for every AMC file (default: found by the dataset conventions: "
-                             "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")(fn)
+                             "same-stem .asf, the CMU subject's NN.asf, HDM05's HDM_<actor>.asf).")(command)
 
 
 def annotation_options(fn):

@@ -57,21 +57,23 @@ def _json_default(v):
     return str(v)
 
 
-def echo_report(ctx, report, *, all_must_succeed=True):
-    """The files a run did not store, a line each, what the readers noted about the stored ones,
-    then its summary; exit 1 when any file failed (``all_must_succeed``), else when no file went in."""
-    lines = [f"not a motion file {path}: {reason}" for path, reason in report.unsupported]
-    lines += [f"unreadable {path}: {reason}" for path, reason in getattr(report, "unreadable", ())]
-    lines += [f"skipped {path}: {reason}" for path, reason in report.skipped]
-    lines += [f"repaired {path}: {reason}" for path, reason in getattr(report, "repaired", ())]
+def echo_report(ctx, report, *, all_must_succeed=True, log_csv=None):
+    """One line per file a run could not read (failed, or an unreadable folder entry), then its
+    summary and where the rest is (every file's row: the ``ingest_log`` table, ``--report``); exit 1
+    when any file failed (``all_must_succeed``), else when no file went in."""
+    lines = [f"unreadable {path}: {reason}" for path, reason in getattr(report, "unreadable", ())]
     lines += [f"failed  {reason}" if reason.startswith(path) else f"failed  {path}: {reason}"
               for path, reason in report.failed]
-    lines += [f"replaced motion {old} by {path}" for path, old in getattr(report, "replaced", ())]
-    lines += [f"note    {path}: {note}" for path, note in getattr(report, "notes", ())]
     for line in lines:
         # control characters of a file name or a binary file's bytes are never sent raw
         click.echo(escape_control(line), err=True)
     click.echo(f"{report.summary()} ({report.source_frames} source frames)")
+    run_id = getattr(report, "run_id", None)
+    if run_id is not None:
+        click.echo(f"every file's outcome, reason and notes: ingest_log run {run_id}"
+                   + (f", and {log_csv}" if log_csv is not None else
+                      f" (SELECT * FROM ingest_log WHERE run_id = {run_id}; --report FILE writes a CSV)"),
+                   err=True)
     if report.failed and (all_must_succeed or not (report.ingested or report.skipped)):
         ctx.exit(1)
 

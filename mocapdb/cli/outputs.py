@@ -143,3 +143,90 @@ def similar(ctx, motion, start_frame, end_frame, start, end, examples, limit, fe
         return
     cols = list(table.column_names)
     write_rows(list(zip(*(table.column(c).to_pylist() for c in cols))), cols, fmt, out)
+
+
+#: the tables of ``stats``, in printing order
+STATS_TABLES = ("formats", "labels", "refused")
+
+
+@command()
+@model_option("Model whose stored annotations give the hours per label.")
+@click.option("--table", type=click.Choice(STATS_TABLES),
+              help="Print this table only (csv prints one table: give it). Default: all of them.")
+@click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True)
+@click.pass_context
+def stats(ctx, model, table, fmt):
+    """What the archive holds: hours and motions per source format and rate, annotated hours per label
+    (the stored annotations of --model), and the files its ingests refused.
+
+    Refused files (failed, or not a motion file, at their latest ingest) come
+    from the database's ingest log; a database without one says nothing
+    about them.
+
+    \b
+    Examples:
+      mocapdb --db a.duckdb stats
+      mocapdb --db a.duckdb stats --table labels --format csv
+    """
+
+    if fmt == "csv" and table is None:
+        raise click.UsageError("--format csv prints one table: give --table formats, labels or refused")
+    s = api.stats(open_db(ctx, read_only=True), model=model)
+    tables = s.tables()
+    if table is not None and table not in tables:
+        raise click.UsageError(f"this database keeps no ingest log, so it has no {table} table")
+    chosen = [table] if table else list(tables)
+    if fmt == "json":
+        import json
+
+        out = {name: tables[name].to_pylist() for name in chosen}
+        if table is None:
+            out = {"model": model, "motions": s.motions, "hours": s.hours, **out}
+        click.echo(json.dumps(out, indent=1, default=str))
+        return
+    titles = {"formats": "hours and motions per source format and rate",
+              "labels": f"annotated hours per label (model {model})",
+              "refused": "files refused at their latest ingest"}
+    if table is None:
+        click.echo(f"{s.motions} motion(s), {s.hours:.2f} hours")
+    for name in chosen:
+        t = tables[name]
+        if table is None:
+            click.echo(f"\n{titles[name]}:")
+            if t.num_rows == 0:
+                click.echo("  none" if name != "labels" else
+                           f"  none stored (mocapdb annotate stores them; models with annotations: "
+                           f"{', '.join(s.annotated_models) or 'none'})")
+                continue
+        cols = list(t.column_names)
+        write_rows(list(zip(*(t.column(c).to_pylist() for c in cols))), cols, fmt)
+
+
+@command()
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on (the default answers this machine only; 0.0.0.0 opens it to the network).")
+@click.option("--port", type=int, default=8765, show_default=True, help="Port (0: any free port).")
+@model_option("Model whose stored annotations the pages show.")
+@click.pass_context
+def serve(ctx, host, port, model):
+    """Browse the archive in a web browser (needs the 'serve' extra: pip install 'mocapdb[serve]').
+
+    The archive page lists every motion with its format, rate, duration,
+    stored labels and a strip of its label timeline, filtered by label,
+    format, name and duration, sorted and paged; /stats sums up the archive;
+    a motion's page is its viewer page with "find similar" on a stretch
+    selected on the timeline, and every segment of a label across the
+    archive. JSON under /api/. The database is only read, a request at a
+    time: ingest and annotate can run beside the server (pages say "busy"
+    while they write). Ctrl-C stops it.
+
+    \b
+    Example:
+      mocapdb --db a.duckdb serve            # then open http://127.0.0.1:8765/
+    """
+
+    db = ctx.obj.get("db")
+    if db is None:
+        raise click.UsageError("this command needs a database: mocapdb --db FILE …")
+    api.serve(db, host=host, port=port, model=model,
+              ready=lambda url: click.echo(f"Serving {db} at {url} (read only; Ctrl-C stops)"))

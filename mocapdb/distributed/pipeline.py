@@ -35,8 +35,8 @@ import pyarrow.parquet as pq
 from mocapdb.distributed.layout import ERRORS_SCHEMA, finish_output, prepare_output, write_part
 from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
-from mocapdb.readers import companion_kind
-from mocapdb.storage.ingest import MOTION_SUFFIXES, IngestReport, motion_files, reader_maps
+from mocapdb.readers import MOTION_SUFFIXES, ReaderOptions, companion_kind, motion_files
+from mocapdb.storage.ingest import IngestReport
 from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
 from mocapdb.storage.parquet import table_schemas, write_manifest
 from mocapdb.storage.schema import open_database
@@ -98,7 +98,7 @@ class RayReport(IngestReport):
 def expand_sources(sources, *, unsupported=None) -> list[Path]:
     """Files, folders (recursively) and glob patterns → the motion files, as absolute paths.
 
-    Folders are walked as by ``ingest`` (:func:`mocapdb.storage.ingest.motion_files`);
+    Folders are walked as by ``ingest`` (:func:`mocapdb.readers.motion_files`);
     a pattern (``*``, ``?``, ``[…]``, ``**`` for any depth) adds its matching
     folders and motion files. A file listed twice counts once. ``unsupported``
     receives ``(path, reason)`` of the other files of the folders, as with
@@ -209,8 +209,8 @@ def _check(tau, num_cpus, batch_files, bucket_motions):
 
 
 def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
-                 asf=None, joint_map=None, marker_map=None, body_model=None, num_cpus=None, batch_files=BATCH_FILES,
-                 bucket_motions=BUCKET_MOTIONS, overwrite=False, worker=MotionWorker) -> RayReport:
+                 options=None, num_cpus=None, batch_files=BATCH_FILES, bucket_motions=BUCKET_MOTIONS,
+                 overwrite=False, worker=MotionWorker) -> RayReport:
     """Read, compute features, index and annotate recordings on a Ray cluster; write Parquet.
 
     The single-machine pipeline (``ingest`` then ``annotate``) on Ray Data: the
@@ -239,8 +239,10 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
         as ``mocapdb.api.annotate``.
     database : str or Path, optional, keyword-only
         A mocap database to read the model from (opened read-only).
-    asf, joint_map, marker_map, body_model : keyword-only
-        As ``mocapdb.api.ingest``.
+    options : ReaderOptions, optional, keyword-only
+        How files are read (:class:`mocapdb.readers.ReaderOptions`), as by
+        ``ingest``: the same value reaches every worker, so a file reads as
+        ``ingest`` reads it (joint and marker maps, marker rules included).
     num_cpus : int, optional, keyword-only
         CPUs of a local Ray (default: all cores).
     batch_files : int, keyword-only, default 64
@@ -270,15 +272,14 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     ray = require_ray()
     report = RayReport()
     files = expand_sources(sources, unsupported=report.unsupported)
-    maps = reader_maps(joint_map=joint_map, marker_map=marker_map, body_model=body_model)
-    asf = None if asf is None else os.path.abspath(asf)  # workers have their own working directory
+    options = options or ReaderOptions()   # its paths are absolute: workers have their own working directory
     the_model = _model(model, database)
     schemas = {**table_schemas(), "errors": ERRORS_SCHEMA}
     out = prepare_output(out, overwrite=overwrite)
     stamp = datetime.now().replace(microsecond=0)  # one ingested_at / annotated_at for the run
     report.out = str(out)
     init = {"model_name": model, "tau": tau, "keyframes": keyframes, "out": str(out), "schemas": schemas,
-            "stamp": stamp, "bucket_motions": bucket_motions, "asf": asf, "maps": maps, "threads": ACTOR_CPUS}
+            "stamp": stamp, "bucket_motions": bucket_motions, "options": options, "threads": ACTOR_CPUS}
     with ray_session(ray, address=address, num_cpus=num_cpus) as cpus, _quiet_data(ray):
         log.info("ray_annotate: %d files on %d CPUs", len(files), cpus)
         rows = _compute(ray, worker, {"model": ray.put(the_model), **init}, files, cpus, batch_files)

@@ -76,15 +76,16 @@ class MotionWorker:
         value, so a retried batch writes identical rows).
     bucket_motions : int
         Motions per bucket of the partitioned datasets.
-    asf, maps
-        As :func:`mocapdb.storage.ingest.prepare_file`.
+    options : ReaderOptions, optional
+        How files are read, as :func:`mocapdb.storage.ingest.prepare_file`
+        (:class:`mocapdb.readers.ReaderOptions`; the driver's value, as ``ingest`` has it).
     threads : int
         Threads of the parallel kernels: the actor's CPUs (the actors already
         use every CPU of the cluster).
     """
 
-    def __init__(self, *, model, model_name, tau, keyframes, out, schemas, stamp, bucket_motions, asf=None,
-                 maps=None, threads=1):
+    def __init__(self, *, model, model_name, tau, keyframes, out, schemas, stamp, bucket_motions, options=None,
+                 threads=1):
         if not isinstance(model, Model):
             import ray  # the model was put in the object store once by the driver
 
@@ -98,8 +99,7 @@ class MotionWorker:
         self.schemas = schemas
         self.stamp = stamp
         self.bucket_motions = int(bucket_motions)
-        self.asf = asf
-        self.maps = maps
+        self.options = options
 
     def __call__(self, batch: pa.Table) -> pa.Table:
         """Compute and write one batch (columns ``motion_id``, ``path``); returns
@@ -131,7 +131,7 @@ class MotionWorker:
         done, errors = {}, {}
         for mid, path in zip(ids.tolist(), paths):
             try:
-                prep = prepare_file(path, asf=self.asf, maps=self.maps)
+                prep = prepare_file(path, self.options)
                 compute_motion(prep)
                 if prep.error is not None:
                     raise MocapdbError(prep.error)

@@ -15,7 +15,19 @@ are in :mod:`mocapdb.evaluation.documents`):
   (leave-one-document-out), so no document is annotated by a model that saw
   it;
 * **cmu** (both CMU sets) and **all** (loao and cmu), concatenated, as the
-  paper scores its evaluation set.
+  paper scores its evaluation set;
+* **bandai2** — another studio's clips named by their action
+  (:mod:`mocapdb.evaluation.studio`): a model that trains on the studio's
+  clips is built without the style it annotates (leave-one-style-out),
+  and :attr:`DevelopmentEvaluation.studio` holds the measures that tell
+  whether labels travel (locomotion labelled ``move``, turns, silence on
+  gestures).
+
+The truths of loao, cmu86_09 and mocap6 label one activity per frame and
+never a turn (11 HDM05 classes; walks, claps and exercises): a turn there —
+a circle jog, a walker who turns round — can be neither right nor wrong, so
+those settings do not score ``turn`` (:data:`UNSCORED`); bandai2's truth
+carries it beside ``move``.
 
 :func:`development_evaluation` builds one model per fold — by default the
 toolbox's way (a template per HDM05 class, :func:`mocapdb.learning.train_model`),
@@ -44,6 +56,7 @@ from mocapdb.evaluation.documents import (CLIPS_PER_DOCUMENT, MOCAP6_TRIALS, Doc
                                           cmu86_documents, cmu_stretches, concatenate_motions, loao_documents,
                                           mirror_document_set, mocap6_documents, pose_clips)
 from mocapdb.evaluation.metrics import evaluate_annotation
+from mocapdb.evaluation.studio import STUDIO_FOLDER, studio_documents, studio_measures, studio_training
 from mocapdb.features import motion_features
 from mocapdb.learning.cutting import clips_from_stretches
 from mocapdb.learning.recipe import Clip, default_recipe
@@ -52,12 +65,14 @@ from mocapdb.readers import read_motion
 
 __all__ = ["DocumentSet", "DevelopmentEvaluation", "DevelopmentData", "concatenate_motions", "loao_documents",
            "cmu86_documents", "mocap6_documents", "development_evaluation", "development_data",
-           "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS"]
+           "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS", "UNSCORED"]
 
 log = logging.getLogger("mocapdb")
 
 #: the settings :func:`development_evaluation` scores, in report order
-SETTINGS = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all")
+SETTINGS = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all", "bandai2")
+#: labels a setting's truth can never carry, left out of its scores (module docstring)
+UNSCORED = {s: ("turn",) for s in ("loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all")}
 
 
 # ---------------------------------------------------------------------------
@@ -80,6 +95,10 @@ class DevelopmentData:
         CMU document → subject.
     poses : dict of str to list of Clip
         Poses held still in HDM05 full documents (:func:`mocapdb.evaluation.documents.pose_clips`).
+    studio : StudioDocuments or None
+        Another studio's clips (:func:`mocapdb.evaluation.studio.studio_documents`).
+    studio_clips : dict of str to list of Clip
+        What a model may learn from them (:func:`mocapdb.evaluation.studio.studio_training`; group = style).
     """
 
     hdm05: dict
@@ -87,16 +106,23 @@ class DevelopmentData:
     cmu_rows: np.ndarray = field(default_factory=lambda: np.empty(0, LABEL_DTYPE))
     cmu_groups: dict = field(default_factory=dict)
     poses: dict = field(default_factory=dict)
+    studio: object = None
+    studio_clips: dict = field(default_factory=dict)
+
+    @property
+    def styles(self):
+        return sorted(set(self.studio.styles)) if self.studio is not None else []
 
     @property
     def actors(self):
         return sorted({c.group for cl in self.hdm05.values() for c, _ in cl if c.group})
 
-    def clips(self, *, without_actor=None, without_document=None, cut_params=None):
-        """Training clips of a fold: class → list of Clip (HDM05 clips, then CMU repetitions).
+    def clips(self, *, without_actor=None, without_document=None, without_style=None, cut_params=None):
+        """Training clips of a fold: class → list of Clip (HDM05 clips, CMU repetitions, the studio's).
 
         The CMU stretches of ``without_document`` are dropped before cutting,
-        so the cut (its anchor feature) never sees the held-out document.
+        so the cut (its anchor feature) never sees the held-out document;
+        ``without_style`` leaves out the studio's clips of that style.
         """
         out = {c: [clip for clip, _ in cl if clip.group != without_actor] for c, cl in self.hdm05.items()}
         for c, cl in self.poses.items():
@@ -107,10 +133,14 @@ class DevelopmentData:
             cut = clips_from_stretches(self.cmu_words, rows, groups=self.cmu_groups.get, **(cut_params or {}))
             for c, items in cut.items():
                 out.setdefault(c, []).extend(Clip(n, w, g, d) for n, g, d, w in items)
+        for c, items in self.studio_clips.items():
+            kept = [x for x in items if x.group != without_style]
+            if kept:
+                out.setdefault(c, []).extend(kept)
         return out
 
 
-def development_data(data_dir, *, classes=None, cmu_training=True, definitions=None) -> DevelopmentData:
+def development_data(data_dir, *, classes=None, cmu_training=True, definitions=None, studio=True) -> DevelopmentData:
     """Read the training material of the development folds.
 
     Parameters
@@ -123,6 +153,9 @@ def development_data(data_dir, *, classes=None, cmu_training=True, definitions=N
         and the poses of the HDM05 full documents (:func:`mocapdb.evaluation.documents.pose_clips`).
     definitions : sequence of ClassDefinition, optional
         The definitions that find the poses (default the shipped ones).
+    studio : bool, default True
+        Also the studio's clips (``bandai2_dev``), where the folder exists:
+        documents to annotate and, with ``cmu_training``, material to learn from.
     """
     files = clip_files(Path(data_dir) / "hdm05_cut", classes=classes)
     hdm05 = {}
@@ -131,11 +164,13 @@ def development_data(data_dir, *, classes=None, cmu_training=True, definitions=N
         for p in ps:
             m = read_motion(p)
             hdm05[c].append((Clip(p.stem, motion_features(m), clip_actor(p.stem) or "", p.stem), m))
+    docs = studio_documents(data_dir) if studio and (Path(data_dir) / STUDIO_FOLDER).is_dir() else None
     if not cmu_training:
-        return DevelopmentData(hdm05)
+        return DevelopmentData(hdm05, studio=docs)
     words, rows, groups = cmu_stretches(data_dir)
     defs = default_recipe().definitions if definitions is None else definitions
-    return DevelopmentData(hdm05, words, rows, groups, pose_clips(data_dir, defs))
+    return DevelopmentData(hdm05, words, rows, groups, pose_clips(data_dir, defs), docs,
+                           studio_training(docs) if docs is not None else {})
 
 
 # ---------------------------------------------------------------------------
@@ -168,6 +203,8 @@ class DevelopmentEvaluation:
         query or without keyframes): where a label *can* be found.
     vocabulary : dict of str to tuple of str
         The labels scored per setting.
+    studio : StudioScores or None
+        The studio measures of the bandai2 setting (:func:`mocapdb.evaluation.studio.studio_measures`).
     """
 
     scores: dict
@@ -179,6 +216,7 @@ class DevelopmentEvaluation:
     timings: dict = field(default_factory=dict)
     preselected: dict = field(default_factory=dict)
     vocabulary: dict = field(default_factory=dict)
+    studio: object = None
 
 
 def _preselect(preselection, model, docs, keyframes):
@@ -237,7 +275,8 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
                            clips_per_document=CLIPS_PER_DOCUMENT, held_out=None, classes=None,
                            class_labels=None, real_documents=True, preselection=None,
                            keyframes=None, sweep_taus=None, progress=None, build=None, cmu_training=None,
-                           mirrored=False, vocabulary=None, modes=None, data=None, cut_params=None):
+                           mirrored=False, vocabulary=None, modes=None, data=None, cut_params=None,
+                           studio=True):
     """Leave-one-actor-out and real-document evaluation of the annotation.
 
     For each held-out actor: build a model without that actor's clips,
@@ -301,6 +340,10 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
         Already read material (:func:`development_data`); default read here.
     cut_params : dict, optional
         Options of :func:`mocapdb.learning.cutting.cut_repetitions` for the CMU stretches.
+    studio : bool, default True
+        Also the bandai2 setting, where ``data`` holds the studio's clips: a
+        model built without each style annotates that style's clips when the
+        studio trains (``cmu_training``), else the model of every fold's data.
 
     Returns
     -------
@@ -400,10 +443,26 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
         documents["cmu"] = DocumentSet.concat([documents["cmu86_09"], documents["mocap6"]])
         if progress is not None:
             progress(n_steps, n_steps, "CMU documents")
+    if studio and data.studio is not None:
+        documents["bandai2"] = data.studio.docs
+        if cmu_training and data.studio_clips:
+            for style in data.styles:
+                model = make(data.clips(without_style=style, cut_params=cut_params), f"without_{style}")
+                models[model.name] = model
+                add("bandai2", data.studio.subset(np.array(data.studio.styles) == style).docs, model)
+        else:
+            if "all" not in models:
+                models["all"] = make(data.clips(cut_params=cut_params), "all")
+            add("bandai2", data.studio.docs, models["all"])
+        if progress is not None:
+            progress(n_steps, n_steps, "studio clips")
     results = {}
     for m in modes:
         results[m] = _scores(parts[m], vocabulary, models, documents, timings, sweep_parts if m == next(iter(modes))
                              else [], sweep_taus)
+        if "bandai2" in results[m].auto:
+            object.__setattr__(results[m], "studio", studio_measures(data.studio, results[m].auto["bandai2"],
+                                                                      vocabulary=results[m].vocabulary["bandai2"]))
     timings["total"] = time.perf_counter() - t_start
     log.info("development evaluation: %s", {m: {s: round(v.f1, 3) for s, v in r.scores.items()}
                                             for m, r in results.items()})
@@ -434,6 +493,7 @@ def _scores(parts, vocabulary, models, documents, timings, sweep_parts, sweep_ta
             vocab[s] = tuple(dict.fromkeys(lab for x in have for lab in vocab[x]))
     if vocabulary is not None:
         vocab = {s: tuple(vocabulary) for s in vocab}
+    vocab = {s: tuple(lab for lab in v if lab not in UNSCORED.get(s, ())) for s, v in vocab.items()}
     scores = {s: evaluate_annotation(truth[s], auto[s], labels=vocab[s]) for s in SETTINGS if s in truth}
     sweep = None
     if sweep_taus is not None and sweep_parts:

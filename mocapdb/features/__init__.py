@@ -6,16 +6,19 @@
 packing, runs, mirroring, time reversal).
 """
 from mocapdb.features.relational import (FEATURE_THRESHOLDS, ROOT_ANG_VEL_THRESHOLDS_ALT, SMOOTHING_MS,
-                                         hysteresis, motion_features, relational_features, smoothing_window)
+                                         heading_turned, hysteresis, motion_features, relational_features,
+                                         smoothing_window)
 from mocapdb.features.rates import (FEATURE_RATE, RATE_METHODS, TOOLBOX_RATE, feature_frame_count, feature_grid,
                                     grid_source_frames, resample_joints)
-from mocapdb.features.words import (DOWNSAMPLING_FACTOR, FEATURE_NAMES, FEATURE_SETS, MIRROR_FEATURES, N_FEATURES,
+from mocapdb.features.words import (DERIVED_FEATURE_NAMES, MIRROR_BITS, N_BITS, WORD_FEATURE_NAMES,
+                                    DOWNSAMPLING_FACTOR, FEATURE_NAMES, FEATURE_SETS, MIRROR_FEATURES, N_FEATURES,
                                     SET_BITS, as_doc_lengths, as_words, downsample, feature_runs, mirror_words,
                                     pack_words, segment_runs, unpack_words, reverse_fuzzy_words, DIRECTION_FEATURES,
                                     REVERSE_SWAP)
 
 __all__ = [
-    "FEATURE_NAMES", "N_FEATURES", "FEATURE_SETS", "SET_BITS", "MIRROR_FEATURES", "DOWNSAMPLING_FACTOR",
+    "FEATURE_NAMES", "N_FEATURES", "DERIVED_FEATURE_NAMES", "N_BITS", "WORD_FEATURE_NAMES", "MIRROR_BITS",
+    "heading_turned", "FEATURE_SETS", "SET_BITS", "MIRROR_FEATURES", "DOWNSAMPLING_FACTOR",
     "FEATURE_THRESHOLDS", "SMOOTHING_MS", "ROOT_ANG_VEL_THRESHOLDS_ALT",
     "relational_features", "hysteresis", "smoothing_window", "motion_features",
     "downsample", "pack_words", "unpack_words", "feature_runs", "segment_runs", "mirror_words",

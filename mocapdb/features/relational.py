@@ -24,6 +24,7 @@ from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, feature_frame_count,
                                     grid_source_frames, resample_joints)
+from mocapdb.features.heading import HEADING_THRESHOLDS, HEADING_WINDOW_S, heading_change
 from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
 from mocapdb.readers import JOINT_INDEX
 
@@ -644,8 +645,41 @@ def relational_features(joints, root_rotation, fps, *,
     return out
 
 
+def heading_turned(joints, root_rotation, fps, *, window_s=HEADING_WINDOW_S, thresholds=HEADING_THRESHOLDS):
+    """Feature 41 (beyond the paper, FEATURES.md §10) per native frame: the heading turned far around the frame.
+
+    The heading change across a window centred on the frame
+    (:func:`mocapdb.features.heading.heading_change`) reaches the strict
+    threshold, and the feature stays on while it stays above the lenient one
+    (the §5 hysteresis).
+
+    Parameters
+    ----------
+    joints : (n, 24, 3) float
+    root_rotation : (n, 3, 3) float or None
+    fps : float
+    window_s : float, default 3.0
+    thresholds : (float, float), default (45, 70)
+        Lenient and strict heading change, degrees.
+
+    Returns
+    -------
+    (n,) bool
+    """
+    try:
+        lo, hi = (float(v) for v in thresholds)
+    except (TypeError, ValueError):
+        raise ParameterError(f"thresholds must be two numbers (lenient, strict) in degrees, got {thresholds!r}") from None
+    if not (math.isfinite(hi) and 0.0 < lo <= hi):
+        raise ParameterError(f"thresholds must satisfy 0 < lenient <= strict degrees, got {thresholds!r}")
+    change = heading_change(joints, root_rotation, fps, window_s=window_s)
+    if change.size < 2:
+        return np.zeros(change.size, dtype=bool)
+    return hysteresis(change >= lo, change >= hi)
+
+
 def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_method: str = "resample"):
-    """The whole feature pipeline of one motion: 40 features → 30 Hz → words.
+    """The whole feature pipeline of one motion: 40 features (+ feature 41) → 30 Hz → words.
 
     Parameters
     ----------
@@ -662,7 +696,9 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
     Returns
     -------
     ndarray, shape (feature_frame_count(n_frames, fps),), uint64
-        One packed word per 30 Hz frame (``ceil(n_frames/4)`` at 120 Hz).
+        One packed word per 30 Hz frame (``ceil(n_frames/4)`` at 120 Hz):
+        bits 0–39 the toolbox's 40 features, bit 40 feature 41
+        (:func:`heading_turned`).
 
     References
     ----------
@@ -676,6 +712,8 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
         joints, rot = resample_joints(joints, rot, fps)
         fps = TOOLBOX_RATE
     feats = relational_features(joints, rot, fps, root_ang_vel_thresholds=root_ang_vel_thresholds)
+    # bit 40: feature 41, the heading turned (beyond the paper; the 40 stay the toolbox's)
+    feats = np.column_stack([feats, heading_turned(joints, rot, fps)])
     if fps == TOOLBOX_RATE:
         words = pack_words(downsample(feats))
     else:
@@ -689,5 +727,5 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
 
 __all__ = [
     "FEATURE_THRESHOLDS", "SMOOTHING_MS", "ROOT_ANG_VEL_THRESHOLDS_ALT", "relational_features",
-    "hysteresis", "smoothing_window", "motion_features",
+    "hysteresis", "smoothing_window", "motion_features", "heading_turned",
 ]

@@ -38,6 +38,14 @@ FEATURE_NAMES = (
     "root_high_vel", "root_high_ang_vel",
 )
 N_FEATURES = 40
+#: features beyond the paper, after the 40 (FEATURES.md §10): bit 40 + k of a word is
+#: derived feature k (feature 41: the heading turned, :mod:`mocapdb.features.heading`)
+DERIVED_FEATURE_NAMES = ("root_heading_turned",)
+#: bits of a packed word that carry features: the 40, then the derived ones
+N_BITS = N_FEATURES + len(DERIVED_FEATURE_NAMES)
+#: every feature a template or keyframe may name, in bit order
+WORD_FEATURE_NAMES = FEATURE_NAMES + DERIVED_FEATURE_NAMES
+_DERIVED_MASK = np.uint64(((1 << N_BITS) - 1) ^ ((1 << N_FEATURES) - 1))
 
 #: the toolbox's three feature sets (index per set): name -> (first bit, n bits)
 FEATURE_SETS = {"upper": (0, 14), "lower": (14, 12), "mix": (26, 14)}
@@ -46,6 +54,8 @@ FEATURE_SETS = {"upper": (0, 14), "lower": (14, 12), "mix": (26, 14)}
 MIRROR_FEATURES = tuple(i - 1 for i in (
     2, 1, 4, 3, 6, 5, 8, 7, 9, 10, 12, 11, 14, 13, 16, 15, 18, 17, 19, 21, 20,
     22, 23, 24, 26, 25, 28, 27, 30, 29, 31, 32, 34, 33, 36, 35, 37, 38, 39, 40))
+#: the same over every feature bit: a derived feature has no side (the heading turns either way)
+MIRROR_BITS = MIRROR_FEATURES + tuple(range(N_FEATURES, N_BITS))
 
 #: time reversal (:func:`reverse_fuzzy_words`): features that say a body part moves in a
 #: direction (forward, upward, together, away from the root); played backwards it moves
@@ -303,10 +313,11 @@ def feature_runs(words):
 
 
 def mirror_words(words):
-    """Swap left and right in packed 40-feature words.
+    """Swap left and right in packed feature words.
 
     Mirrored feature i is original feature ``MIRROR_FEATURES[i]`` (FEATURES.md
-    §7): the word of a left/right mirrored motion.
+    §7): the word of a left/right mirrored motion. Derived features (bit 40
+    on, FEATURES.md §10) have no side and are kept.
 
     Parameters
     ----------
@@ -316,7 +327,9 @@ def mirror_words(words):
     -------
     ndarray, shape (n_frames,), uint64
     """
-    return pack_words(unpack_words(words)[:, list(MIRROR_FEATURES)])
+    w = as_words(words)
+    # derived features (bit 40 on) have no side: they keep their bits
+    return pack_words(unpack_words(w)[:, list(MIRROR_FEATURES)]) | (w & _DERIVED_MASK)
 
 
 
@@ -357,7 +370,8 @@ def reverse_fuzzy_words(mask, value):
 
 
 __all__ = [
-    "FEATURE_NAMES", "N_FEATURES", "FEATURE_SETS", "SET_BITS", "MIRROR_FEATURES", "DOWNSAMPLING_FACTOR",
+    "FEATURE_NAMES", "N_FEATURES", "DERIVED_FEATURE_NAMES", "N_BITS", "WORD_FEATURE_NAMES", "MIRROR_BITS",
+    "FEATURE_SETS", "SET_BITS", "MIRROR_FEATURES", "DOWNSAMPLING_FACTOR",
     "downsample", "pack_words", "unpack_words", "feature_runs", "segment_runs", "mirror_words", "as_words",
     "reverse_fuzzy_words", "DIRECTION_FEATURES", "REVERSE_SWAP",
     "as_doc_lengths",

@@ -3,7 +3,8 @@
 "Because of their explicit semantic interpretation, even a manual design or
 tuning of motion templates and keyframes is feasible in case no suitable
 example motions are available" (paper Sect. 8). A class definition says what
-the 40 named features (:data:`mocapdb.features.FEATURE_NAMES`) do during the
+the named features (the 40 of :data:`mocapdb.features.FEATURE_NAMES`, and
+feature 41 ``root_heading_turned``, FEATURES.md §10) do during the
 motion, phase by phase; it compiles to what a learned class has: a quantized
 motion template (columns of 0 / 1 / wildcard, TEMPLATES.md §8) and a keyframe
 query (KEYFRAMES.md §2).
@@ -83,7 +84,7 @@ import numpy as np
 from mocapdb.annotation.labels import read_text
 from mocapdb.annotation.model import DEFAULT_TAU, ClassModel
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.features import FEATURE_NAMES, FEATURE_RATE, MIRROR_FEATURES, N_FEATURES, reverse_fuzzy_words
+from mocapdb.features import FEATURE_RATE, MIRROR_BITS, N_BITS, N_FEATURES, WORD_FEATURE_NAMES, reverse_fuzzy_words
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery
 from mocapdb.templates import QuantizedTemplate
 
@@ -93,7 +94,7 @@ __all__ = ["Phase", "ClassDefinition", "KeyframeDefinition", "parse_class_defini
 
 #: the wildcard value of a feature in a definition
 WILDCARD = "*"
-_FEATURE = {name: k for k, name in enumerate(FEATURE_NAMES)}
+_FEATURE = {name: k for k, name in enumerate(WORD_FEATURE_NAMES)}
 _CLASS_KEYS = {"name", "label", "mirror", "reverse", "tau", "default", "description", "keyframes", "phase"}
 _PHASE_KEYS = {"seconds", "frames", "keyframe", "name"}
 #: a single duration d admits [d / WARP, d · WARP] in the keyframe gaps: the
@@ -242,8 +243,8 @@ def _value(v, where, ci, pi, key):
 def _feature(name, where, ci, pi, key=None):
     if name in _FEATURE:
         return _FEATURE[name]
-    close = difflib.get_close_matches(str(name), FEATURE_NAMES, n=3)
-    hint = f"; did you mean {', '.join(close)}?" if close else "; see mocapdb.features.FEATURE_NAMES"
+    close = difflib.get_close_matches(str(name), WORD_FEATURE_NAMES, n=3)
+    hint = f"; did you mean {', '.join(close)}?" if close else "; see mocapdb.features.WORD_FEATURE_NAMES"
     raise where.error(f"unknown feature {name!r}{hint}", ci, pi, key or name)
 
 
@@ -282,7 +283,8 @@ def _phase(phase, default, where, ci, pi):
     if not isinstance(phase, dict):
         raise where.error("a phase must be a table [[class.phase]]", ci, pi)
     nominal, lo, hi = _duration(phase, where, ci, pi)
-    values = [default] * N_FEATURES
+    # a phase's default covers the 40 features; derived ones (FEATURES.md §10) only when named
+    values = [default] * N_FEATURES + [None] * (N_BITS - N_FEATURES)
     for key, v in phase.items():
         if key in _PHASE_KEYS:
             continue
@@ -290,13 +292,18 @@ def _phase(phase, default, where, ci, pi):
     fixed = tuple(k for k, v in enumerate(values) if v is not None)
     kf = phase.get("keyframe", True)
     if isinstance(kf, bool):
-        keyframe = fixed if kf else ()
+        # keyframes are searched in the index of the 40 features: derived ones stay out
+        keyframe = tuple(k for k in fixed if k < N_FEATURES) if kf else ()
     elif isinstance(kf, list) and kf and all(isinstance(x, str) for x in kf):
         keyframe = tuple(sorted({_feature(x, where, ci, pi, "keyframe") for x in kf}))
-        loose = [FEATURE_NAMES[k] for k in keyframe if values[k] is None]
+        loose = [WORD_FEATURE_NAMES[k] for k in keyframe if values[k] is None]
         if loose:
             raise where.error(f"keyframe names {', '.join(loose)}, which the phase leaves as wildcards; "
                               "a keyframe fixes features the phase fixes", ci, pi, "keyframe")
+        derived = [WORD_FEATURE_NAMES[k] for k in keyframe if k >= N_FEATURES]
+        if derived:
+            raise where.error(f"keyframe names {', '.join(derived)}, a derived feature (FEATURES.md §10) that "
+                              "the keyframe index does not hold; name features of the 40", ci, pi, "keyframe")
     else:
         raise where.error(f"keyframe = {kf!r}: expected true, false or a list of feature names",
                           ci, pi, "keyframe")
@@ -389,7 +396,7 @@ def _keyframes(table, where, ki):
     for pi, kf in enumerate(frames):
         if not isinstance(kf, dict):
             raise where.error("a keyframe must be a table [[keyframes.keyframe]]", ki, pi)
-        values = [None] * N_FEATURES
+        values = [None] * N_BITS
         for key, v in kf.items():
             if key != "name":
                 values[_feature(key, where, ki, pi)] = _value(v, where, ki, pi, key)
@@ -513,9 +520,9 @@ def read_class_definitions(paths):
 
 def mirror_definition(defn: ClassDefinition, name: str) -> ClassDefinition:
     """The left/right mirror image of a definition (FEATURES.md §7), named ``name``."""
-    perm = MIRROR_FEATURES
-    inv = {perm[i]: i for i in range(N_FEATURES)}
-    phases = tuple(Phase(tuple(p.values[perm[i]] for i in range(N_FEATURES)), p.nominal, p.min_frames,
+    perm = MIRROR_BITS
+    inv = {perm[i]: i for i in range(N_BITS)}
+    phases = tuple(Phase(tuple(p.values[perm[i]] for i in range(N_BITS)), p.nominal, p.min_frames,
                          p.max_frames, tuple(sorted(inv[k] for k in p.keyframe)), p.line, p.name)
                    for p in defn.phases)
     return ClassDefinition(name, defn.label, phases, defn.tau, defn.keyframes, defn.description,
@@ -531,8 +538,8 @@ def reverse_definition(defn: ClassDefinition, name: str, label: str) -> ClassDef
         km, kv = _words(p.values, set(p.keyframe))
         (m, km), (v, _) = reverse_fuzzy_words([m, km], [v, kv])
         m, v, km = int(m), int(v), int(km)
-        values = tuple((v >> k) & 1 if (m >> k) & 1 else None for k in range(N_FEATURES))
-        keyframe = tuple(k for k in range(N_FEATURES) if (km >> k) & 1)
+        values = tuple((v >> k) & 1 if (m >> k) & 1 else None for k in range(N_BITS))
+        keyframe = tuple(k for k in range(N_BITS) if (km >> k) & 1)
         phases.append(Phase(values, p.nominal, p.min_frames, p.max_frames, keyframe, p.line, p.name))
     return ClassDefinition(name, label, tuple(phases), defn.tau, defn.keyframes and any(p.keyframe for p in phases),
                            defn.description, defn.source, mirror_of=defn.mirror_of)
@@ -638,10 +645,12 @@ def attach_keyframes(cls: ClassModel, kdef: KeyframeDefinition) -> ClassModel:
         raise ParameterError(f"expected a KeyframeDefinition, got {type(kdef).__name__}")
     if cls.template is not None:
         prob = np.asarray(cls.template.real, dtype=np.float64)            # (L, 40): P(feature on)
+        # a learned template never saw the derived features: either value as likely
+        prob = np.hstack([prob, np.full((prob.shape[0], N_BITS - prob.shape[1]), 0.5)])
     else:
         q = cls.quantized.expand()
         m, v = q.mask, q.value
-        bits = np.arange(N_FEATURES, dtype=np.uint64)
+        bits = np.arange(N_BITS, dtype=np.uint64)
         fixed = ((m[:, None] >> bits) & np.uint64(1)).astype(bool)
         on = ((v[:, None] >> bits) & np.uint64(1)).astype(float)
         prob = np.where(fixed, on, 0.5)
@@ -649,7 +658,7 @@ def attach_keyframes(cls: ClassModel, kdef: KeyframeDefinition) -> ClassModel:
     runs, start = [], 0
     for mask, value in kdef.keyframes:
         fit = np.ones(L)
-        for f in range(N_FEATURES):
+        for f in range(N_BITS):
             if (mask >> f) & 1:
                 fit *= prob[:, f] if (value >> f) & 1 else 1.0 - prob[:, f]
         fit[:start] = -1.0

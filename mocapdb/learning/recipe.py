@@ -41,7 +41,8 @@ from mocapdb.learning.class_definitions import attach_keyframes, compile_definit
 from mocapdb.templates import learn_template
 
 __all__ = ["Clip", "Recipe", "PAPER_LABELS", "build_model", "mirror_class", "reverse_class", "clip_words",
-           "recipe_clips", "default_recipe", "DEFAULT_MIRRORS", "DEFAULT_REVERSALS", "DEFINITIONS_DIR"]
+           "recipe_clips", "default_recipe", "DEFAULT_MIRRORS", "DEFAULT_REVERSALS", "DEFINITIONS_DIR",
+           "DEFAULT_CONCURRENT", "OTHERS"]
 
 #: the shipped default model's mirrored classes (learned class -> mirror image):
 #: one-sided motions whose other side the data lacks (RESULTS.md, issue 11)
@@ -53,6 +54,11 @@ DEFAULT_REVERSALS = {"lieDownFloor": ("standUpLieFloor", "standUp")}
 #: the shipped class definitions (hand-designed classes), ``mocapdb/shipped_models/classes/*.toml``
 DEFINITIONS_DIR = "classes"
 
+#: the class of training clips that show motions of no class (the authors' ``others``):
+#: no template is learned from them; τ learning keeps every class from claiming them
+OTHERS = "others"
+#: the shipped default model's concurrent labels: a walker who turns is still walking
+DEFAULT_CONCURRENT = ("turn",)
 #: the paper's 15 labels (Table 1), in its order (Δarg ties go to the earlier label)
 PAPER_LABELS = ("neutral", "tpose", "move", "turn", "sitLieDown", "standUp", "hopOneLeg", "jump", "kick",
                 "punch", "rotateArms", "throwR", "grabDepR", "cartwheel", "exercise")
@@ -102,6 +108,9 @@ class Recipe:
         order of appearance.
     delta, tau : float
         δ of the learned templates; τ of learned, mirrored and reversed classes.
+    concurrent_labels : tuple of str
+        Labels annotated beside the others (``Model.concurrent_labels``);
+        those without a class in the model are left out.
     """
 
     labels: Mapping = field(default_factory=dict)
@@ -112,6 +121,7 @@ class Recipe:
     label_order: tuple = PAPER_LABELS
     delta: float = DEFAULT_DELTA
     tau: float = DEFAULT_TAU
+    concurrent_labels: tuple = ()
 
 
 def clip_words(clips):
@@ -227,7 +237,8 @@ def build_model(clips, recipe, *, name, keyframes=None, cache=None):
     rank = {lab: k for k, lab in enumerate(order)}
     classes.sort(key=lambda c: rank[c.label])  # stable: keeps the source order within a label
     used = {c.label for c in classes}
-    return Model(name, tuple(classes), labels=tuple(lab for lab in order if lab in used))
+    return Model(name, tuple(classes), labels=tuple(lab for lab in order if lab in used),
+                 concurrent_labels=tuple(lab for lab in recipe.concurrent_labels if lab in used))
 
 
 def default_recipe(definitions=None) -> Recipe:
@@ -245,4 +256,4 @@ def default_recipe(definitions=None) -> Recipe:
     else:
         defs, keyframes = read_definitions(definitions)
     return Recipe(labels=class_labels("default"), mirrors=dict(DEFAULT_MIRRORS), reversals=dict(DEFAULT_REVERSALS),
-                  definitions=tuple(defs), keyframes=tuple(keyframes))
+                  definitions=tuple(defs), keyframes=tuple(keyframes), concurrent_labels=DEFAULT_CONCURRENT)

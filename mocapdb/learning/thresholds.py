@@ -43,6 +43,15 @@ them — on actors the templates did not see:
    measured on are short and a long recording of those motions gives the
    template the chances the clips do not.
 
+6. **Motions of no class.** Clips of :data:`mocapdb.learning.recipe.OTHERS`
+   (waving, raising a hand: motions a user's archive holds that none of
+   the classes are) are held out with their group like every clip, and a
+   class that claims one counts a false positive, as for another label's
+   clip: the τ that tells the classes apart also keeps them silent there.
+   They are whole recordings, so (with ``keyframes``) every class with a
+   query meets them through its preselection, as annotation does: a class
+   whose keyframes never hold in a wave need not give up τ for it.
+
 Designed classes therefore never take more than their author gave them, and
 learned ones get the τ at which unseen actors' clips are told apart best.
 """
@@ -57,7 +66,7 @@ from mocapdb.annotation.preselection import preselection_for
 from mocapdb.errors import ParameterError
 from mocapdb.features import FEATURE_NAMES
 from mocapdb.keyframes import KeyframeQuery
-from mocapdb.learning.recipe import build_model, recipe_clips
+from mocapdb.learning.recipe import OTHERS, build_model, recipe_clips
 from mocapdb.templates import ANNOTATION_STEPS, mt_distance_slices
 
 __all__ = ["TAU_GRID", "VELOCITY_FEATURES", "clip_costs", "learn_taus", "with_taus", "still_clips", "is_static",
@@ -262,7 +271,8 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
     if grid.size == 0 or (grid < 0).any():
         raise ParameterError("grid must hold non-negative τ values")
     every = recipe_clips(clips, recipe)
-    groups = sorted({x.group for v in every.values() for x in v})
+    negatives = list(clips.get(OTHERS, ()))
+    groups = sorted({x.group for v in every.values() for x in v} | {x.group for x in negatives})
     if len(groups) < 2:
         raise ParameterError(f"learning τ needs clips of at least two groups (actors), got {groups}")
     full = build_model(clips, recipe, name="taus", cache=cache)
@@ -275,11 +285,19 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
         rest = {c: [x for x in v if x.group != g] for c, v in clips.items()}
         model = build_model(rest, recipe, name=f"without_{g}", cache=cache)
         held = [(c, x) for c, v in every.items() for x in v if x.group == g]
-        if not held:
+        negs = [x for x in negatives if x.group == g]
+        if not held and not negs:
             continue
         stills = [s for _, x in held for s in still_clips(x.words)] if max_still_rate is not None else []
         m = clip_costs(model, [x.words for _, x in held] + stills,
                        preselect=[c for c in through if c in model.class_names])
+        if negs:
+            # motions of no class (step 6) are whole recordings, met as annotation with keyframes
+            # meets them: a class claims one only where its keyframes let it
+            queried = [c.name for c in model.classes if keyframes and c.keyframe_query is not None]
+            m = np.hstack([m[:, :len(held)], clip_costs(model, [x.words for x in negs], preselect=queried),
+                           m[:, len(held):]])
+            held += [(OTHERS, x) for x in negs]
         row = {c: k for k, c in enumerate(model.class_names)}
         full_m = np.full((len(names), m.shape[1]), np.inf)
         for k, c in enumerate(names):

@@ -32,7 +32,7 @@ from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, hip_axis_is_x
 from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.motion import Motion, check_finite_motion, check_rate, snap_rate
 from mocapdb.readers.smpl import FAMILIES, generic_rest, smpl_forward_kinematics
-from mocapdb.readers.sources import motion_stem, plain_file, read_bytes
+from mocapdb.readers.sources import format_size, max_decompressed, motion_stem, plain_file, read_bytes
 
 __all__ = ["read_amass", "RATE_KEYS", "SHAPE_FILE_PATTERNS", "UP_ROTATIONS"]
 
@@ -68,6 +68,15 @@ class _Arrays:
             raise ParseError(path, None, f"not an .npz archive of arrays ({exc})") from None
         if not isinstance(self.npz, np.lib.npyio.NpzFile):
             raise ParseError(path, None, "a single .npy array, not an .npz archive of named arrays")
+        # an .npz is a zip: deflated arrays (np.savez_compressed) are decompressed as any compressed
+        # recording is, so they are held to the same cap (READERS.md §7), by their declared sizes (zipfile
+        # stops a member there)
+        inflated = sum(i.file_size for i in self.npz.zip.infolist() if i.compress_type != zipfile.ZIP_STORED)
+        if inflated > max_decompressed():
+            self.npz.close()
+            raise ParseError(path, None, f"its compressed arrays decompress to {format_size(inflated)}, more than "
+                             f"{format_size(max_decompressed())}, the cap on a recording's decompressed bytes (a "
+                             "compression bomb?); a larger cap: ingest --max-decompressed SIZE")
         self.keys = set(self.npz.files)
 
     def get(self, key, *, numeric=False):

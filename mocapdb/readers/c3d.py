@@ -166,9 +166,28 @@ def _to_y_up(xyz: np.ndarray, axis: int, sign: int, factor: float) -> np.ndarray
     return out
 
 
-def _describe(labels, limit=60):
-    shown = ", ".join(printable(label) for label in labels[:limit])
-    return shown + (f", … ({len(labels)} in all)" if len(labels) > limit else "")
+#: markers an error lists at most: enough to write a marker map from, short enough to read
+SHOWN_MARKERS = 12
+
+#: what each kind of required joint needs, said when one or two kinds cannot be placed
+_NEEDS = {"root": "the pelvis needs both ASIS with the PSIS, a sacrum or lateral waist markers",
+          "hip": "the pelvis needs both ASIS with the PSIS, a sacrum or lateral waist markers",
+          "knee": "knees need a femoral epicondyle marker", "ankle": "ankles need a malleolus or heel marker",
+          "toes": "toes need a toe or metatarsal marker",
+          "shoulder": "shoulders need an acromion or front and back shoulder markers",
+          "elbow": "elbows need a humeral epicondyle marker", "wrist": "wrists need a styloid or wrist marker"}
+
+
+def _describe(index: MarkerIndex, limit=SHOWN_MARKERS):
+    """At most ``limit`` of the file's markers: those read as no landmark first (what a marker map
+    would name), then the others, in file order."""
+    labels, unnamed = index.file_labels, index.unnamed
+    order = unnamed + [i for i in range(len(labels)) if i not in set(unnamed)]
+    shown = ", ".join(printable(labels[i]) for i in order[:limit])
+    if len(labels) <= limit:
+        return shown
+    return shown + f", … ({limit} of {len(labels)}" + (
+        f"; the {len(unnamed)} naming no landmark first)" if 0 < len(unnamed) < len(labels) else ")")
 
 
 def _find(index: MarkerIndex, rule):
@@ -216,7 +235,7 @@ def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="
             if absent:
                 raise ParseError(path, None, f"marker_map: {joint} = {marker_map[joint]!r}, but the file has no "
                                  f"usable marker {', '.join(map(repr, absent))} (its markers: "
-                                 f"{_describe(index.labels)})")
+                                 f"{_describe(index)})")
             candidates[joint] = [rule]
         else:
             candidates[joint] = candidate_rules(joint, marker_rules)
@@ -264,9 +283,12 @@ def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="
         required = [j for j in unplaced if j in REQUIRED]
         what = (f"{len(required)} of the {len(REQUIRED)} joints a marker set must place: pelvis, hips, knees, "
                 "ankles, toes, shoulders, elbows and wrists") if required else f"{len(unplaced)} of the 24 joints"
+        # what the missing ones need, when a near miss (a set without wrist markers), not a set of other names
+        needs = list(dict.fromkeys(_NEEDS[j if j == "root" else j[1:]] for j in required))
+        needs = needs if len(needs) <= 2 else []
         raise ParseError(path, None, f"no full-body marker set: cannot place {', '.join(required or unplaced)} "
-                         f"({what}) from the markers {_describe(index.labels)}; name them in a marker map "
-                         "(marker_map= / --marker-map FILE, see the README)")
+                         f"({what}{'; ' + ', '.join(needs) if needs else ''}) from the markers {_describe(index)}; "
+                         "name them in a marker map (marker_map= / --marker-map FILE, see the README)")
     return chosen
 
 

@@ -16,6 +16,12 @@ label is read in three steps (:func:`landmark_of`):
 3. **Landmark**: the remaining words, compared as a compact string
    (``ASI``, ``KNI``, ``IWR``, ``FM5``) or as a set of words (``KNEE LAT`` =
    ``LatKnee``), against :data:`LANDMARKS`.
+4. **Virtual points**: a label that reads as none of them but does after a
+   leading ``V`` (Vicon Clinical Manager's virtual points: ``VSAC`` the
+   sacrum, ``VRHI``, ``VLKN``, ``VRAN`` the right hip, left knee and right
+   ankle joint centres) is that point; a virtual hip, knee, ankle,
+   shoulder, elbow or wrist is the joint centre (``r_hip_jc``, …), as are
+   labels that say so (``R_HJC``, ``LKJC``, ``R.Hip.JC``).
 
 Each landmark belongs to a rigid segment (:data:`SEGMENT_OF`: pelvis,
 thorax, head, thigh, shank, foot, upper arm, forearm, hand); a marker lost
@@ -26,7 +32,8 @@ References
 ----------
 G. Wu et al.: ISB recommendation on definitions of joint coordinate systems,
 J. Biomech. 35 (2002) 543–548 and 38 (2005) 981–992 (landmark names); Vicon
-Plug-in Gait marker placement; Motion Analysis Helen Hayes marker set.
+Plug-in Gait marker placement; Motion Analysis Helen Hayes marker set; Vicon Clinical Manager
+(virtual points); the OpenSim/OpenCap marker names (``r_mknee``, ``R_wrist_radius``).
 """
 from __future__ import annotations
 
@@ -75,29 +82,37 @@ _SYNONYMS = {
 #: blank a compact string. ``l_``/``r_`` landmarks are looked up without the side.
 _SIDED = {
     # pelvis
-    "asis": ("ASI", "ASIS", "IAS", "FWT", "WAIST FRONT", "PELVIS FRONT", "ILIAC FRONT", "ILIUM FRONT",
-             "SPINE ILIAC FRONT", "ASIS FRONT"),
-    "psis": ("PSI", "PSIS", "IPS", "BWT", "WAIST BACK", "PELVIS BACK", "ILIAC BACK", "ILIUM BACK",
-             "SPINE ILIAC BACK", "PSIS BACK"),
+    # SIAS/SIPS (Italian, German: spina iliaca), EIAS/EIPS (French, Spanish: épine/espina iliaque)
+    "asis": ("ASI", "ASIS", "IAS", "FWT", "SIAS", "EIAS", "WAIST FRONT", "PELVIS FRONT", "ILIAC FRONT",
+             "ILIUM FRONT", "SPINE ILIAC FRONT", "ASIS FRONT", "ILIAC FRONT UPPER", "SPINE ILIAC FRONT UPPER",
+             "ILIAC SPINE FRONT"),
+    "psis": ("PSI", "PSIS", "IPS", "BWT", "SIPS", "EIPS", "WAIST BACK", "PELVIS BACK", "ILIAC BACK",
+             "ILIUM BACK", "SPINE ILIAC BACK", "PSIS BACK", "ILIAC BACK UPPER", "SPINE ILIAC BACK UPPER",
+             "ILIAC SPINE BACK"),
     "waist_mid": ("MWT", "WAIST MID", "WAIST LAT", "ICT", "ILIAC CREST", "CREST", "WAIST", "PELVIS LAT"),
     # leg
     "trochanter": ("FTC", "TROC", "GTR", "TROCHANTER", "GREATER TROCHANTER", "HIP", "HIP LAT"),
     "thigh": ("THI", "THIGH", "THIGH1", "THIGH2", "THIGH3", "UPPERLEG", "UPPER LEG", "FEMUR", "THIGH FRONT",
               "THIGH LAT", "THIGH UPPER", "THIGH LOWER"),
-    "knee_lat": ("KNE", "KNEE", "FLE", "LFE", "KNEL", "KNEE1", "LATKNEE", "KNEE LAT", "KNEE EPI LAT",
+    # LKNEE/MKNEE: a side word apart (OpenSim's r_lknee, r_mknee)
+    "knee_lat": ("KNE", "KNEE", "FLE", "LFE", "KNEL", "KNEE1", "LATKNEE", "LKNEE", "KNEE LAT", "KNEE EPI LAT",
                  "FEMUR EPI LAT", "EPI LAT"),
-    "knee_med": ("KNM", "KNI", "MKNE", "FME", "MFE", "KNEM", "KNEE2", "MEDKNEE", "KNEEMED", "KNEE MED",
+    "knee_med": ("KNM", "KNI", "MKNE", "MKNEE", "FME", "MFE", "KNEM", "KNEE2", "MEDKNEE", "KNEEMED", "KNEE MED",
                  "KNEE EPI MED", "FEMUR EPI MED", "EPI MED"),
     "shank": ("SHN", "TIB", "SHANK", "SHIN", "TIBIA", "LOWERLEG", "LOWER LEG", "SHANK MID", "SHANK LOWER",
               "SHANK UPPER", "MIDSHANK", "DISTALSHANK", "TTC", "TIBTUBERCLE", "TIB TUBERCLE", "TUBEROSITY",
               "FAX", "FIBULA", "FIBULA HEAD", "CALF"),
-    "ankle_lat": ("ANK", "ANKLE", "FAL", "LMAL", "LATMALL", "ANKL", "MALL", "ANKLE LAT", "MALL LAT",
+    "ankle_lat": ("ANK", "ANKLE", "FAL", "LMAL", "LATMALL", "ANKL", "LANKLE", "MALL", "ANKLE LAT", "MALL LAT",
                   "FIBULA MALL"),
-    "ankle_med": ("MED", "MMAL", "TAM", "MEDMALL", "ANKM", "ANKI", "ANKLE MED", "MALL MED", "TIBIA MALL"),
+    "ankle_med": ("MED", "MMAL", "TAM", "MEDMALL", "ANKM", "ANKI", "MANKLE", "ANKLE MED", "MALL MED",
+                  "TIBIA MALL"),
     "heel": ("HEE", "HEEL", "HEL", "FCC", "CAL", "CALC", "CALCANEUS", "HEEL BACK", "HEEL LOWER", "HEEL UPPER"),
-    "toe": ("TOE", "FM2", "MT2", "MET2", "TOETIP", "TOE TIP", "FOREFOOT2", "BIGTOE", "TOE BIG", "TOE FRONT"),
-    "mt1": ("FM1", "MT1", "MET1", "MH1", "FOREFOOT1", "TOE MED", "FOOT MED"),
-    "mt5": ("MT5", "FM5", "MET5", "MH5", "MET", "FOREFOOT5", "LATERALFOOT", "FOOT LAT", "TOE LAT"),
+    # TO: Vicon Clinical Manager's toe (R.TO); 2META/5META: OpenSim's metatarsal heads (r_5meta)
+    "toe": ("TOE", "TO", "FM2", "MT2", "MET2", "2META", "META2", "TOETIP", "TOE TIP", "FOREFOOT2", "BIGTOE",
+            "TOE BIG", "TOE FRONT"),
+    "mt1": ("FM1", "MT1", "MET1", "MH1", "1META", "META1", "FOREFOOT1", "TOE MED", "FOOT MED"),
+    "mt5": ("MT5", "FM5", "MET5", "MH5", "5META", "META5", "MET", "FOREFOOT5", "LATERALFOOT", "FOOT LAT",
+            "TOE LAT"),
     "foot": ("FOOT", "POSTERIORFOOT", "FOOT BACK", "MIDFOOT", "FOOT MID", "NAV", "FOOT UPPER", "INSTEP"),
     # arm
     "acromion": ("SHOULDER", "SHOU", "SHOULD", "SAJ", "SAE", "ACROMION", "SHOULDER TOP", "SHOULDER UPPER",
@@ -106,15 +121,17 @@ _SIDED = {
     "shoulder_back": ("BSH", "SHOULDER BACK", "SAA", "ACROMION BACK"),
     "upper_arm": ("UPA", "UPA1", "UPA2", "ARM", "UPPERARM", "UPPER ARM", "HUMERUS", "BICEP", "BICEPS",
                   "ARM UPPER", "TRICEP", "TRICEPS"),
-    "elbow_lat": ("ELBOW", "HLE", "LEL", "ELBL", "LATELB", "ELBOW LAT", "HUMERUS EPI LAT", "ELBOW EPI LAT"),
-    "elbow_med": ("HME", "MEL", "MELB", "IEL", "ELBM", "MEDELB", "ELBOW MED", "HUMERUS EPI MED",
+    "elbow_lat": ("ELBOW", "HLE", "LEL", "ELBL", "LATELB", "LELBOW", "ELBOW LAT", "HUMERUS EPI LAT",
+                  "ELBOW EPI LAT"),
+    "elbow_med": ("HME", "MEL", "MELB", "IEL", "ELBM", "MEDELB", "MELBOW", "ELBOW MED", "HUMERUS EPI MED",
                   "ELBOW EPI MED"),
     "forearm": ("FRM", "FOREARM", "FORE ARM", "LOWERARM", "LOWER ARM", "ARM LOWER", "WRE", "UOA", "OLECRANON",
                 "OLEC", "ULNA", "RADIUS"),
-    "wrist_rad": ("WRA", "RSP", "WRR", "RADSTY", "OWR", "WRIST LAT", "RADIUS STY", "STY RADIUS",
-                  "WRIST THUMB"),
-    "wrist_uln": ("WRB", "UHE", "USP", "WRU", "ULNSTY", "IWR", "WRIST MED", "ULNA STY", "STY ULNA",
-                  "WRIST PINKY"),
+    # in the anatomical position the radius is lateral: OpenSim's r_lwrist / R_wrist_radius
+    "wrist_rad": ("WRA", "RSP", "WRR", "RADSTY", "OWR", "LWRIST", "WRIST LAT", "RADIUS STY", "STY RADIUS",
+                  "WRIST THUMB", "WRIST RADIUS", "WRIST RADIAL", "RADIAL STY"),
+    "wrist_uln": ("WRB", "UHE", "USP", "WRU", "ULNSTY", "IWR", "MWRIST", "WRIST MED", "ULNA STY", "STY ULNA",
+                  "WRIST PINKY", "WRIST ULNA", "WRIST ULNAR", "ULNAR STY"),
     "wrist": ("WRIST", "WRIST MID", "WRIST BACK", "WRIST FRONT", "WRIST UPPER"),
     "finger": ("FINGER", "FING", "FINGERTIP", "FINGER TIP", "FINGER MID", "FINGER2", "FINGER3"),
     "mcp2": ("HM2", "MCP2", "MH2", "MC2", "INDEX", "HAND MED", "IHAND", "HAND INDEX", "HAND THUMB"),
@@ -125,7 +142,21 @@ _SIDED = {
                    "HEAD FOREHEAD"),
     "head_back": ("BHD", "HDB", "BH", "BACKHEAD", "HEAD BACK"),
     "head_side": ("HEAD", "HEAD LAT", "EAR"),
+    # joint centres a lab's software computed and wrote as points (Plug-in Gait, OpenSim, Vicon
+    # Clinical Manager's virtual points: see _VIRTUAL_JOINTS)
+    "hip_jc": ("HJC", "HIPJC", "HIP JC"),
+    "knee_jc": ("KJC", "KNEEJC", "KNEE JC"),
+    "ankle_jc": ("AJC", "ANKLEJC", "ANKLE JC"),
+    "shoulder_jc": ("SJC", "GHJC", "SHOULDERJC", "SHOULDER JC", "GH JC"),
+    "elbow_jc": ("EJC", "ELBOWJC", "ELBOW JC"),
+    "wrist_jc": ("WJC", "WRISTJC", "WRIST JC"),
 }
+
+#: what a virtual (``V``-prefixed) hip, knee, … is: the joint centre (``VRHI``, ``VLKN``, ``VRAN``)
+_VIRTUAL_JOINTS = {"HI": "hip_jc", "HIP": "hip_jc", "KN": "knee_jc", "KNE": "knee_jc", "KNEE": "knee_jc",
+                   "AN": "ankle_jc", "ANK": "ankle_jc", "ANKLE": "ankle_jc", "SH": "shoulder_jc",
+                   "SHO": "shoulder_jc", "SHOULDER": "shoulder_jc", "EL": "elbow_jc", "ELB": "elbow_jc",
+                   "ELBOW": "elbow_jc", "WR": "wrist_jc", "WRI": "wrist_jc", "WRIST": "wrist_jc"}
 
 _CENTRAL = {
     "c7": ("C7", "CV7", "VC7", "C07", "SPINETOP", "SPINE TOP", "NECK BACK", "C7 SPINE"),
@@ -134,8 +165,8 @@ _CENTRAL = {
              "CLAVICLE", "NECK FRONT", "SUPRASTERNAL"),
     "strn": ("STRN", "SXS", "PX", "XP", "XIPH", "XIPHOID", "STERNUM", "STERNUM LOWER", "CHEST", "CHEST FRONT"),
     "back": ("BAC", "BACK", "RBAC", "BACK UPPER", "BACK MID", "SCAP", "SCAPULA", "THORAX BACK", "SPINE"),
-    "sacr": ("SACR", "SACRUM", "SACRAL", "VSACRAL", "V SACRAL", "SACRUM MID", "PELVIS BACK", "WAIST BACK",
-             "PSIS MID"),
+    "sacr": ("SACR", "SAC", "SACRUM", "SACRAL", "VSACRAL", "V SACRAL", "SACRUM MID", "PELVIS BACK", "WAIST BACK",
+             "PSIS MID", "MIDPSIS"),
     "head_top": ("ARIEL", "HEADTOP", "HEAD TOP", "TOP HEAD", "TOPHEAD", "VERTEX", "HEAD UPPER", "HEAD MID"),
     "head_front": ("HEAD FRONT", "FRONTHEAD", "FOREHEAD", "FHD", "HEAD FOREHEAD"),
     "head_back": ("HEAD BACK", "BACKHEAD", "BHD", "OCCIPUT"),
@@ -146,14 +177,14 @@ LANDMARKS = tuple(f"{s}_{k}" for k in _SIDED for s in "lr") + tuple(f"c_{k}" if 
                                                                    for k in _CENTRAL)
 
 _SEGMENTS = {
-    "pelvis": ("asis", "psis", "waist_mid", "sacr"),
+    "pelvis": ("asis", "psis", "waist_mid", "sacr", "hip_jc"),
     "thorax": ("c7", "t10", "clav", "strn", "back"),
     "head": ("head_front", "head_back", "head_side", "head_top"),
-    "thigh": ("trochanter", "thigh", "knee_lat", "knee_med"),
-    "shank": ("shank", "ankle_lat", "ankle_med"),
+    "thigh": ("trochanter", "thigh", "knee_lat", "knee_med", "knee_jc"),
+    "shank": ("shank", "ankle_lat", "ankle_med", "ankle_jc"),
     "foot": ("heel", "toe", "mt1", "mt5", "foot"),
-    "upper_arm": ("upper_arm", "elbow_lat", "elbow_med"),
-    "forearm": ("forearm", "wrist_rad", "wrist_uln", "wrist"),
+    "upper_arm": ("upper_arm", "elbow_lat", "elbow_med", "elbow_jc"),
+    "forearm": ("forearm", "wrist_rad", "wrist_uln", "wrist", "wrist_jc"),
     "hand": ("finger", "mcp2", "mcp5", "hand"),
 }
 _CENTRAL_SEGMENTS = {"pelvis", "thorax", "head"}
@@ -212,12 +243,44 @@ def _lookup(words, compact_table, phrase_table):
 
 
 def landmark_of(label: str) -> str | None:
-    """The anatomical landmark a marker label names (``"l_asis"``, ``"c7"``, …), or None.
+    """The anatomical landmark a marker label names (``"l_asis"``, ``"c7"``, ``"r_knee_jc"``, …), or None.
 
     See the module docstring for the rules. Central landmarks of a sided name
     (``c_head_front``) are the unsided forms of head markers.
     """
     words = label_words(label)
+    found = _landmark(words)
+    if found is not None or not words:
+        return found
+    # a virtual point (Vicon Clinical Manager): V, then a label (VSAC, V.RHip, VRHI, VLKN)
+    if words[0] in ("V", "VIRT", "VIRTUAL") and len(words) > 1:
+        rest = words[1:]
+    elif words[0].startswith("V") and len(words[0]) > 2:
+        rest = [words[0][1:]] + words[1:]
+    else:
+        return None
+    return _joint_centre(rest) or _landmark(rest)
+
+
+def _joint_centre(words):
+    """``r_knee_jc`` for the words of a virtual right knee (``RKN``, ``R KNEE``), else None."""
+    sides = [i for i, w in enumerate(words) if w in _SIDES]
+    if len(sides) == 1 and len(words) == 2:
+        side, base = _SIDES[words[sides[0]]], words[1 - sides[0]]
+    elif len(words) == 1:
+        for prefix, side in (("L", "l"), ("R", "r")):
+            if words[0].startswith(prefix):
+                base = words[0][len(prefix):]
+                break
+        else:
+            return None
+    else:
+        return None
+    joint = _VIRTUAL_JOINTS.get(base)
+    return f"{side}_{joint}" if joint else None
+
+
+def _landmark(words):
     if not words:
         return None
     sides = [i for i, w in enumerate(words) if w in _SIDES]

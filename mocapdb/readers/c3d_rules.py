@@ -10,6 +10,8 @@ Four sources of rules, tried per joint in this order:
    vendor's label as a landmark: ``LASI``, ``L_IAS``, ``L.ASIS``, ``LASIS``
    are all the left ASIS). Per joint, from the best landmarks first:
 
+   - a joint centre written as a point (Vicon Clinical Manager's virtual
+     ``VRHI``, ``VLKN``, ``VRAN``; ``R_HJC``) is the joint, before any estimate;
    - pelvis (root) and hips from the ASIS pair with the PSIS pair, the
      sacrum or the lateral waist markers (a missing one of four is mirrored
      by :mod:`~mocapdb.readers.c3d`); hip centres by Bell et al. (1989);
@@ -91,13 +93,19 @@ class MarkerIndex:
 
     def __init__(self, labels, usable):
         self.labels = tuple(labels)
+        #: the file's own labels (points added later are not)
+        self.file_labels = self.labels
+        #: positions of the file's labels that name no landmark (what a marker map would have to name)
+        self.unnamed = []
         self._exact, self._compact, self._landmarks = {}, {}, {}
         for i, (label, ok) in enumerate(zip(self.labels, usable)):
+            landmark = landmark_of(label)
+            if landmark is None:
+                self.unnamed.append(i)
             if not ok:
                 continue
             self._exact.setdefault(marker_key(label), i)
             self._compact.setdefault(_compact(label), i)
-            landmark = landmark_of(label)
             if landmark is not None:
                 self._landmarks.setdefault(landmark, i)
 
@@ -360,7 +368,10 @@ def _side_rules(s):
     R = ROLES
     p = f"{s}_"
     pelvis = ("l_asis", "r_asis")
-    rules = []
+    # a joint centre the lab's software wrote as a point (VRHI, R_HJC) is taken as it is, before
+    # any estimate from the landmarks around it
+    rules = [Rule(f"{s}{joint}", R, (f"{p}{joint}_jc",), _mean(f"{p}{joint}_jc"))
+             for joint in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")]
     for back, keys in _BACKS.items():
         rules.append(Rule(f"{s}hip", R, pelvis + keys, _bell_hip(s, back)))
     rules += [

@@ -11,14 +11,13 @@ DESIGN.md §1, §6; READERS.md §5, §7, §9.
 """
 from __future__ import annotations
 
-import fnmatch
 import re
 from pathlib import Path
 
 import numpy as np
 
 from mocapdb.errors import MocapdbError, ParameterError, ParseError
-from mocapdb.readers.amass import SHAPE_FILE_PATTERNS, read_amass
+from mocapdb.readers.amass import read_amass
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.asf_humanoid import asf_humanoid_joints
@@ -26,34 +25,15 @@ from mocapdb.readers.bvh import read_bvh
 from mocapdb.readers.c3d import read_c3d
 from mocapdb.readers.humanoid import MappingError
 from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
-from mocapdb.readers.mapping import load_mapping
 from mocapdb.readers.motion import Motion, check_finite_motion
+from mocapdb.readers.options import ReaderOptions
 from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix,
                                      special_kind)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
-           "load_skeleton", "companion_kind", "SUPPORTED_EXTENSIONS", "READER_OPTIONS"]
+           "load_skeleton", "SUPPORTED_EXTENSIONS"]
 
 SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d", ".npz")
-#: the reader options stored with a motion (``motions.reader_options``) that :func:`read_motion` takes
-#: back when the source is re-read; other keys there (``notes``, ``source_frames``) only inform
-READER_OPTIONS = ("joint_map", "marker_map", "marker_rules", "body_model")
-
-
-def companion_kind(path) -> str | None:
-    """What a file that sits beside motions without being one is, or None.
-
-    An ASF skeleton (read with its AMC takes), and AMASS's body shape files
-    (``shape.npz``, ``*_stagei.npz``: betas and gender, no motion), which a
-    folder walk lists as not motion files rather than failed ones.
-    """
-    p = Path(path)
-    if motion_suffix(p) == ".asf":
-        return "an ASF skeleton (read with its AMC takes)"
-    name = Path(motion_stem(p) + motion_suffix(p)).name.lower()
-    if any(fnmatch.fnmatchcase(name, pattern) for pattern in SHAPE_FILE_PATTERNS):
-        return "an AMASS body shape file (betas and gender, no motion)"
-    return None
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
@@ -182,7 +162,8 @@ def read_asf_amc(amc_path, asf) -> Motion:
                         "frames": (1, len(joints))})
 
 
-def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, body_model=None) -> Motion:
+def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None, marker_rules=None,
+                body_model=None) -> Motion:
     """Read a motion file (by extension) into the 24 canonical joints.
 
     Parameters
@@ -190,6 +171,10 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules
     path : str or Path
         ``.amc`` (Acclaim motion; needs a skeleton), ``.bvh``, ``.c3d`` or an
         AMASS ``.npz``.
+    options : ReaderOptions, optional
+        How to read it (:class:`~mocapdb.readers.options.ReaderOptions`: what
+        ingest, ray-annotate and the viewer pass); or the keywords below,
+        which build one (not both).
     asf : str, Path or Skeleton, optional, keyword-only
         Skeleton of an AMC file; default: :func:`find_skeleton`. Ignored for BVH.
     joint_map : dict, str or Path, optional, keyword-only
@@ -220,20 +205,28 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules
     ParseError
         Malformed file (file, line and what was expected), an unsupported
         extension, or an AMC whose skeleton cannot be found.
-    FileNotFoundError
+    ParameterError
+        Bad options, or ``options`` with keywords.
 
     References
     ----------
     DESIGN.md §1, §6; FEATURES.md §2.
     """
+    keywords = {"asf": asf, "joint_map": joint_map, "marker_map": marker_map, "marker_rules": marker_rules,
+                "body_model": body_model}
+    if options is None:
+        options = ReaderOptions(**keywords)
+    elif any(v is not None for v in keywords.values()):
+        raise ParameterError("read_motion: give options or the keywords asf, joint_map, marker_map, marker_rules, "
+                             "body_model, not both")
     path = Path(path)
     kind = special_kind(path)
     if kind is not None:   # reading a FIFO would block, a device never end
         raise ParseError(path, None, f"{kind}, not a motion file")
     try:
         # hostile values overflow in FK; the result is checked for finiteness
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            return _read(path, asf, joint_map, marker_map, marker_rules or "toolbox", body_model)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"), options.capped():
+            return _read(path, options)
     except MocapdbError:
         raise
     except OSError as exc:
@@ -245,8 +238,9 @@ def read_motion(path, *, asf=None, joint_map=None, marker_map=None, marker_rules
         raise ParseError(path, None, f"unreadable ({type(exc).__name__}: {exc})") from None
 
 
-def _read(path, asf, joint_map, marker_map, marker_rules, body_model) -> Motion:
+def _read(path, options) -> Motion:
     ext = motion_suffix(path)
+    asf = options.asf
     if ext == ".amc":
         if asf is None:
             asf = find_skeleton(path)
@@ -263,11 +257,11 @@ def _read(path, asf, joint_map, marker_map, marker_rules, body_model) -> Motion:
                 return motion
         return read_asf_amc(path, asf)
     if ext == ".bvh":
-        return read_bvh(path, joint_map=load_mapping(joint_map, what="joint_map"))
+        return read_bvh(path, joint_map=options.mapping("joint_map"))
     if ext == ".c3d":
-        return read_c3d(path, marker_map=load_mapping(marker_map, what="marker_map"), marker_rules=marker_rules)
+        return read_c3d(path, marker_map=options.mapping("marker_map"), marker_rules=options.marker_rules)
     if ext == ".npz":
-        return read_amass(path, body_model=body_model)
+        return read_amass(path, body_model=options.body_model)
     raise ParseError(path, None, f"unsupported file type {ext or path.suffix!r} (expected "
                      + " or ".join(SUPPORTED_EXTENSIONS) + ", optionally compressed: "
                      + ", ".join(COMPRESSED) + ")")

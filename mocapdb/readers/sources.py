@@ -13,21 +13,35 @@ are read in place, never unpacked to disk:
   motion's ``source_path``: :func:`read_bytes` re-reads it for the viewer, and
   an AMC inside finds its ASF among its siblings in the same archive
   (:func:`is_file`, :func:`list_dir`). A member may itself be compressed.
+  A member whose name would leave its archive — absolute (``/home/u/x.bvh``),
+  with a drive letter (``C:/x.bvh``) or with ``..`` — is never read
+  (:func:`member_problem`): joined to the archive's path it would name a
+  file of the host, not of the archive.
 
 :func:`sha256` hashes the recording's own bytes (decompressed; a member's
 bytes) while streaming, so a take stored plain, gzipped or zipped is one
 motion, and re-ingest is a no-op. :func:`bytes_file` gives libraries that
 need a file name (ezc3d) an in-memory file (``memfd``), not a copy on disk.
+
+Decompression is bounded: a compressed recording or a compressed zip member
+may decompress to at most :func:`max_decompressed` bytes (default
+:data:`DEFAULT_MAX_DECOMPRESSED`; the environment's ``MOCAPDB_MAX_DECOMPRESSED``,
+or :func:`decompression_cap` around a call, change it). A compression bomb —
+megabytes that expand to gigabytes — stops at the cap with an ``OSError``
+while it is hashed, before any reader holds its bytes; a member whose
+declared size is over the cap stops before a byte is read.
 """
 from __future__ import annotations
 
 import bz2
 import contextlib
+import contextvars
 import gzip
 import hashlib
 import io
 import lzma
 import os
+import re
 import stat
 import tempfile
 import threading
@@ -35,9 +49,12 @@ import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
 
+from mocapdb.errors import ParameterError
+
 __all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
            "sha256", "stream_size", "is_file", "list_dir", "identity", "FileCache", "bytes_file", "special_kind",
-           "zip_members"]
+           "zip_members", "member_problem", "DEFAULT_MAX_DECOMPRESSED", "max_decompressed", "decompression_cap",
+           "parse_size", "format_size"]
 
 #: compression suffix → the module that opens it as a stream
 COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
@@ -46,6 +63,70 @@ ARCHIVES = (".zip",)
 _CHUNK = 1 << 20
 #: what a damaged compressed stream raises besides OSError
 _DECODE_ERRORS = (EOFError, lzma.LZMAError, zlib.error, zipfile.BadZipFile)
+#: the bytes a compressed recording or zip member may decompress to, unless the environment's
+#: MOCAPDB_MAX_DECOMPRESSED or :func:`decompression_cap` say otherwise: far above any take of the
+#: test archives (the largest, 27 MB), and low enough that a bomb stops within seconds
+DEFAULT_MAX_DECOMPRESSED = 512 << 20
+#: the cap set by :func:`decompression_cap` for the calls inside it (per thread: a context variable)
+_CAP = contextvars.ContextVar("mocapdb_max_decompressed", default=None)
+_SIZE = re.compile(r"^\s*(\d+(?:\.\d*)?(?:e\d+)?)\s*([kmgt]?)(i?)b?\s*$", re.IGNORECASE)
+
+
+def parse_size(value, *, what="max_decompressed") -> int:
+    """A byte count from an int or a text such as ``"512MiB"``, ``"2G"``, ``"1.5GB"``, ``"1000000"``.
+
+    ``K``/``M``/``G``/``T`` with an ``i`` are powers of 1024, without one powers of 1000.
+
+    Raises
+    ------
+    ParameterError
+        If ``value`` is not a positive size; the message names ``what``.
+    """
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        n = value
+    else:
+        m = _SIZE.match(str(value))
+        if m is None:
+            raise ParameterError(f"{what}: {value!r} is not a size in bytes (e.g. 512MiB, 2GiB, 1000000000)")
+        n = float(m.group(1)) * (1024 if m.group(3) else 1000) ** " kmgt".index((m.group(2) or " ").lower())
+    if not n >= 1:
+        raise ParameterError(f"{what}: {value!r} is not a positive size in bytes (e.g. 512MiB)")
+    return int(n)
+
+
+def format_size(n: int) -> str:
+    """``536870912`` → ``"512 MiB"``: a byte count for a message."""
+    for unit, scale in (("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n} bytes"
+
+
+def max_decompressed() -> int:
+    """The cap on a recording's decompressed bytes now: the innermost :func:`decompression_cap`, else
+    the environment's ``MOCAPDB_MAX_DECOMPRESSED``, else :data:`DEFAULT_MAX_DECOMPRESSED`."""
+    cap = _CAP.get()
+    if cap is not None:
+        return cap
+    env = os.environ.get("MOCAPDB_MAX_DECOMPRESSED", "").strip()
+    return parse_size(env, what="MOCAPDB_MAX_DECOMPRESSED") if env else DEFAULT_MAX_DECOMPRESSED
+
+
+@contextlib.contextmanager
+def decompression_cap(cap):
+    """Within the block (this thread), recordings may decompress to at most ``cap`` bytes (an int or a
+    size text, :func:`parse_size`); None keeps the cap as it is."""
+    token = _CAP.set(parse_size(cap) if cap is not None else _CAP.get())
+    try:
+        yield
+    finally:
+        _CAP.reset(token)
+
+
+def _over_cap(cap: int) -> OSError:
+    return OSError(f"decompresses to more than {format_size(cap)}, the cap on a recording's decompressed "
+                   "bytes (a compression bomb?); a larger cap: ingest --max-decompressed SIZE or "
+                   "MOCAPDB_MAX_DECOMPRESSED=SIZE")
 
 
 def _is_zip(p: Path) -> bool:
@@ -114,22 +195,71 @@ def _zip(archive: Path) -> zipfile.ZipFile:
     return zf
 
 
-def zip_members(archive) -> list:
-    """Names of the regular members of a zip archive (folders left out)."""
+_DRIVE = re.compile(r"^[A-Za-z]:")
+
+
+def member_problem(name: str) -> str | None:
+    """Why a zip member's name cannot be read as a path inside its archive, or None.
+
+    An absolute name, a drive letter or a ``..`` part (``/`` or ``\\`` separated)
+    would name a file outside the archive once joined to the archive's path;
+    empty and ``.`` parts would name another member than this one.
+    """
+    if name.startswith(("/", "\\")):
+        return "its name is absolute (it would name a file outside the archive)"
+    if _DRIVE.match(name):
+        return "its name starts with a drive letter (it would name a file outside the archive)"
+    parts = re.split(r"[/\\]", name.rstrip("/"))
+    if ".." in parts:
+        return "its name holds '..' (it would name a file outside the archive)"
+    if "" in parts or "." in parts:
+        return "its name holds an empty or '.' part (it would name another member)"
+    return None
+
+
+def zip_members(archive, *, refused=None) -> list:
+    """Names of the regular members of a zip archive (folders left out) that name a file inside it.
+
+    ``refused`` receives ``(name, reason)`` for members whose names would
+    leave the archive (:func:`member_problem`); they are not returned.
+    """
     try:
-        return [i.filename for i in _zip(Path(archive)).infolist() if not i.is_dir()]
+        infos = _zip(Path(archive)).infolist()
     except zipfile.BadZipFile as exc:
         raise OSError(f"not a readable zip archive ({exc})") from None
+    out = []
+    for info in infos:
+        if info.is_dir():
+            continue
+        problem = member_problem(info.filename)
+        if problem is None:
+            out.append(info.filename)
+        elif refused is not None:
+            refused.append((info.filename, problem))
+    return out
+
+
+def _member_info(archive: Path, member: str) -> zipfile.ZipInfo:
+    """The member's entry; KeyError when absent, OSError when its name would leave the archive."""
+    problem = member_problem(member)
+    if problem is not None:
+        raise OSError(f"member {member!r} of {archive} refused: {problem}")
+    return _zip(archive).getinfo(member)
 
 
 def _raw_stream(path):
+    """The file's or zip member's bytes as a stream, and whether they are inflated (a compressed member)."""
     archive, member = split_archive(path)
     if member is None:
-        return open(archive, "rb")
+        return open(archive, "rb"), False
     if member == "":
         raise IsADirectoryError(f"{archive} is a zip archive, not a motion file")
     try:
-        return _zip(archive).open(member)
+        info = _member_info(archive, member)
+        inflated = info.compress_type != zipfile.ZIP_STORED
+        if inflated and info.file_size > max_decompressed():
+            raise _over_cap(max_decompressed())   # declared: refused before a byte is inflated
+        return _zip(archive).open(info), inflated
     except KeyError:
         raise FileNotFoundError(f"no member {member!r} in {archive}") from None
     except zipfile.BadZipFile as exc:
@@ -138,19 +268,31 @@ def _raw_stream(path):
 
 class _Stream(io.RawIOBase):
     """A decompressing stream whose damaged data raises OSError (as a damaged file does), not the
-    codec's own error types."""
+    codec's own error types, and that stops with OSError past ``cap`` bytes (None: no cap)."""
 
-    def __init__(self, inner):
+    def __init__(self, inner, cap=None):
         self.inner = inner
+        self.cap = cap
+        self.count = 0
 
     def readable(self):
         return True
 
     def read(self, size=-1):
+        if size is None or size < 0:
+            # read all, a bounded piece at a time: one unbounded read of a bomb would inflate it whole
+            out = io.BytesIO()
+            while chunk := self.read(_CHUNK):
+                out.write(chunk)
+            return out.getvalue()
         try:
-            return self.inner.read(size)
+            data = self.inner.read(size if self.cap is None else min(size, self.cap + 1 - self.count))
         except _DECODE_ERRORS as exc:
             raise OSError(f"corrupt compressed data ({exc})") from None
+        self.count += len(data)
+        if self.cap is not None and self.count > self.cap:
+            raise _over_cap(self.cap)
+        return data
 
     def readinto(self, b):
         data = self.read(len(b))
@@ -164,10 +306,13 @@ class _Stream(io.RawIOBase):
 
 def open_stream(path):
     """A binary stream of the recording's bytes (decompressed); close it after use. Damaged
-    compressed data raises OSError."""
-    raw = _raw_stream(path)
+    compressed data, and decompressed bytes past :func:`max_decompressed`, raise OSError."""
+    raw, inflated = _raw_stream(path)
     module = COMPRESSED.get(Path(path).suffix.lower())
-    return _Stream(raw if module is None else module.open(raw))
+    # zipfile stops a member at its declared size (checked above) and then checks its CRC; the count
+    # guards the compressed file's own stream
+    return _Stream(raw if module is None else module.open(raw),
+                   max_decompressed() if inflated or module is not None else None)
 
 
 def stream_size(path) -> int | None:
@@ -177,7 +322,7 @@ def stream_size(path) -> int | None:
         return None
     if member is None:
         return os.stat(path).st_size
-    return _zip(archive).getinfo(member).file_size
+    return _member_info(archive, member).file_size
 
 
 def read_bytes(path) -> bytes:
@@ -209,7 +354,7 @@ def is_file(path) -> bool:
     if not member:
         return False
     try:
-        info = _zip(archive).getinfo(member)
+        info = _member_info(archive, member)
     except (KeyError, OSError, zipfile.BadZipFile):
         return False
     return not info.is_dir()
@@ -243,7 +388,7 @@ def identity(path) -> tuple:
     st = os.stat(archive)
     if member is None:
         return (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
-    info = _zip(archive).getinfo(member)
+    info = _member_info(archive, member)
     return (str(archive.resolve()), member, st.st_size, st.st_mtime_ns, info.CRC)
 
 

@@ -226,7 +226,8 @@ def export_segments(con, table, out, *, format, motion_ids):
         # the last 30 Hz frame may cover fewer native frames than 4: end at the recording's end
         end = np.minimum(rows.column("end_s").to_numpy(), s["n_source_frames"] / s["source_fps"])
         write_eaf(path, rows.column("label").to_pylist(), rows.column("start_s").to_numpy(), end,
-                  media=s["source_path"], fps=s["source_fps"])
+                  media=s["source_path"], fps=s["source_fps"],
+                  confidence=rows.column("confidence").to_numpy(zero_copy_only=False))
         written.append(path)
     return written
 

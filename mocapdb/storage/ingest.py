@@ -6,6 +6,7 @@ folder is a no-op.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -19,20 +20,15 @@ import pyarrow as pa
 
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
-from mocapdb.readers import (READER_OPTIONS, SUPPORTED_EXTENSIONS, companion_kind, find_skeleton, load_mapping,
-                             read_motion, skeleton_note)
-from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, sha256,
-                                     special_kind, split_archive, zip_members)
+from mocapdb.readers import ReaderOptions, find_skeleton, motion_files, read_motion, skeleton_note
+from mocapdb.readers.sources import motion_stem, motion_suffix, sha256, special_kind
+from mocapdb.storage.ingest_log import IngestLog, write_report
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
 log = logging.getLogger("mocapdb")
-
-#: file extensions ingest reads as motions
-MOTION_SUFFIXES = SUPPORTED_EXTENSIONS
-
 
 @dataclass
 class IngestReport:
@@ -55,6 +51,7 @@ class IngestReport:
     notes: list = field(default_factory=list)        # (path, note): what the reader decided for a stored file
     unreadable: list = field(default_factory=list)   # (path, reason): folder entries that could not be read
     source_frames: int = 0
+    run_id: int | None = None   # the run's rows in ingest_log (mocapdb.storage.ingest_log)
 
     def summary(self) -> str:
         out = (f"{len(self.ingested)} ingested"
@@ -71,118 +68,6 @@ class IngestReport:
         return out
 
 
-def _hidden(name: str) -> bool:
-    # hidden files and folders (.DS_Store, .git) and macOS zip metadata are nobody's motions
-    return name.startswith(".") or name == "__MACOSX"
-
-
-def _walk(folder: Path, files: list, unsupported, unreadable):
-    """Regular files of a folder, recursively (symlinked folders followed once); special files
-    and unreadable folders reported."""
-    seen = set()
-
-    def onerror(exc):
-        if unreadable is not None:
-            unreadable.append((str(exc.filename), f"unreadable folder ({exc.strerror or exc})"))
-
-    for root, dirs, names in os.walk(folder, onerror=onerror, followlinks=True):
-        try:
-            st = os.stat(root)
-        except OSError:
-            dirs[:] = []
-            continue
-        if (st.st_dev, st.st_ino) in seen:   # a symlink loop
-            dirs[:] = []
-            continue
-        seen.add((st.st_dev, st.st_ino))
-        dirs[:] = sorted(d for d in dirs if not _hidden(d))
-        for name in sorted(names):
-            if _hidden(name):
-                continue
-            q = Path(root) / name
-            kind = special_kind(q)
-            if kind is not None:
-                if unsupported is not None:
-                    unsupported.append((str(q), f"{kind}, not a regular file"))
-                continue
-            files.append(q)
-
-
-def _archive_files(archive: Path, unreadable) -> list:
-    """The members of a zip archive as paths through it (hidden ones left out)."""
-    try:
-        names = zip_members(archive)
-    except OSError as exc:
-        if unreadable is not None:
-            unreadable.append((str(archive), f"unreadable archive ({exc})"))
-        return []
-    return [archive / name for name in sorted(names)
-            if not any(_hidden(part) for part in name.split("/"))]
-
-
-def _classify(q: Path, out: list, unsupported):
-    ext = motion_suffix(q)
-    if ext in MOTION_SUFFIXES and companion_kind(q) is None:
-        out.append(q)
-    elif unsupported is not None:
-        why = companion_kind(q) or (f"unsupported file type {q.suffix!r}" if q.suffix else "no file extension")
-        unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ", optionally "
-                            + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
-
-
-def motion_files(paths, *, unsupported=None, unreadable=None) -> list[Path]:
-    """Expand files, folders (recursively) and zip archives into motion files, in sorted order.
-
-    Parameters
-    ----------
-    paths : iterable of str or Path
-        Files (``.amc``, ``.bvh``, ``.c3d``, ``.npz``, each possibly
-        ``.gz``/``.bz2``/``.xz`` compressed), folders, ``.zip`` archives, or paths through an archive
-        (``cmu.zip/subjects/02``, a folder inside it).
-    unsupported : list, optional, keyword-only
-        Receives ``(path, reason)`` for every file of a folder or archive that
-        is not a motion file (an ASF skeleton, an AMASS body shape file,
-        :func:`mocapdb.readers.companion_kind`), and every special file (FIFO, device, socket) in
-        a folder. A file named explicitly is always returned: reading it says
-        what is wrong.
-    unreadable : list, optional, keyword-only
-        Receives ``(path, reason)`` for folders and archives that cannot be read.
-
-    Raises
-    ------
-    ParameterError
-        If a path does not exist.
-    """
-    out = []
-    for p in map(Path, paths):
-        archive, member = split_archive(p)
-        if member is not None and member != "" and not is_file(p):
-            # a folder inside an archive
-            members = [q for q in _archive_files(archive, unreadable)
-                       if str(q).startswith(str(p).rstrip("/") + "/")]
-            if not members:
-                raise ParameterError(f"paths: {str(p)!r} does not exist (no such member in {archive})")
-            for q in members:
-                _classify(q, out, unsupported)
-        elif member == "":
-            for q in _archive_files(archive, unreadable):
-                _classify(q, out, unsupported)
-        elif p.is_dir():
-            found = []
-            _walk(p, found, unsupported, unreadable)
-            for q in found:
-                if q.suffix.lower() in ARCHIVES:
-                    for m in _archive_files(q, unreadable):
-                        _classify(m, out, unsupported)
-                else:
-                    _classify(q, out, unsupported)
-        elif is_file(p) or os.path.lexists(p):
-            out.append(p)   # a special file named directly is refused by name when read
-        else:
-            raise ParameterError(f"paths: {str(p)!r} does not exist")
-    return out
-
-
 @dataclass
 class _Prepared:
     path: Path
@@ -192,13 +77,16 @@ class _Prepared:
     motion: object = None
     words: np.ndarray | None = None
     error: str | None = None
-    reader_options: str | None = None  # JSON of the reader options besides the skeleton
+    options: ReaderOptions = field(default_factory=ReaderOptions)   # how it is read (the skeleton: skeleton_path)
+    reader_options: str | None = None  # JSON stored in motions.reader_options: its options, the reader's notes
     replaces: int | None = None  # the stored motion of the same bytes this one replaces (replace=True,
     #                              or its stored features are incomplete)
     notes: list = field(default_factory=list)   # what the reader decided (stored under reader_options "notes")
+    log_reason: str | None = None   # the ingest_log reason of a stored file: the motion it replaces
 
 
 def _fingerprint(path: Path, asf) -> _Prepared:
+    """The file's and its skeleton's hashes: the key that makes re-ingest a no-op."""
     kind = special_kind(path)
     if kind is not None:   # opening a FIFO would block, a device never end
         raise MocapdbError(f"{path}: {kind}, not a motion file")
@@ -217,30 +105,35 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     return _Prepared(path, digest, skel, skel_digest)
 
 
-def prepare_file(path, *, asf=None, maps=None):
+def prepare_file(path, options=None):
     """Fingerprint one file as ingest does, before reading it.
 
     Parameters
     ----------
     path : str or Path
-    asf : str or Path, optional, keyword-only
-        Skeleton of an AMC file (default: found by the dataset conventions).
-    maps : dict, optional, keyword-only
-        :func:`reader_maps` output.
+    options : ReaderOptions, optional
+        How files are read (:class:`mocapdb.readers.ReaderOptions`; its
+        ``asf``, else the AMC's skeleton by the dataset conventions). Its
+        decompression cap applies to the hashing: a compression bomb stops
+        here.
 
     Returns
     -------
     record
         ``path``, ``sha256``, ``skeleton_path`` and ``skeleton_sha256`` (the
-        ``motions`` key) and ``reader_options``; the input of :func:`compute_motion`.
+        ``motions`` key), ``options`` and ``reader_options`` (what the
+        motion stores); the input of :func:`compute_motion`.
 
     Raises
     ------
     MocapdbError
         If an AMC file's skeleton cannot be found, or the file cannot be read.
     """
-    prep = _fingerprint(Path(path), asf)
-    prep.reader_options = _reader_options(prep.path, maps or {})
+    options = options or ReaderOptions()
+    with options.capped():
+        prep = _fingerprint(Path(path), options.asf)
+    prep.options = options
+    prep.reader_options = options.stored(prep.path)
     return prep
 
 
@@ -254,14 +147,13 @@ def compute_motion(prep):
     # any failure stays with its file: a reader raises only MocapdbError, but a
     # bug must not stop the other files of an archive (READERS.md §4)
     try:
-        options = json.loads(prep.reader_options) if prep.reader_options else {}
-        prep.motion = read_motion(prep.path, asf=prep.skeleton_path,
-                                  **{k: v for k, v in options.items() if k in READER_OPTIONS})
+        prep.motion = read_motion(prep.path, prep.options.replace(asf=prep.skeleton_path))
         prep.words = motion_features(prep.motion)
         prep.notes = _notes(prep)
         if prep.notes or prep.motion.meta.get("frames", (1, None))[0] != 1:
-            # kept with the motion; the re-read path (storage.motions.source_motion) passes only
-            # READER_OPTIONS back to the reader
+            # kept with the motion; the re-read path (storage.motions.source_motion) gives only the
+            # reader's own options back to the reader (ReaderOptions.from_stored)
+            options = prep.options.for_file(prep.path)
             options["notes"] = prep.notes
             first, last = prep.motion.meta.get("frames", (1, prep.motion.n_frames))
             options["source_frames"] = [int(first), int(last)]
@@ -327,10 +219,11 @@ def motions_table(preps) -> pa.Table:
 
 
 
-def store_motions(con, preps) -> list[int]:
+def store_motions(con, preps, *, log=None) -> list[int]:
     """Insert computed motions — their ``motions`` rows, ``features`` rows and,
     when the keyframe index exists, postings — in one transaction (which first
-    deletes the stored motions they replace, ``prep.replaces``).
+    deletes the stored motions they replace, ``prep.replaces``), with their
+    ``ingest_log`` rows when ``log`` (:class:`~mocapdb.storage.ingest_log.IngestLog`) is given.
 
     Returns the new motion ids in the order of ``preps``.
     """
@@ -338,7 +231,10 @@ def store_motions(con, preps) -> list[int]:
     meta = meta.add_column(0, "ord", pa.array(np.arange(len(preps), dtype=np.int32)))
     with transaction(con):
         remove_motions(con, [p.replaces for p in preps if p.replaces is not None])
-        return insert_motions(con, meta, [p.words for p in preps])
+        ids = insert_motions(con, meta, [p.words for p in preps])
+        if log is not None:
+            log.insert_stored([(p.path, mid, p.log_reason, p.notes) for p, mid in zip(preps, ids)])
+        return ids
 
 
 def insert_motions(con, meta: pa.Table, words: list) -> list[int]:
@@ -407,8 +303,8 @@ BATCH_FILES = 64
 BATCH_FRAMES = 1_000_000
 
 
-def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marker_rules=None, body_model=None,
-                 progress=None, workers: int = 2, replace: bool = False) -> IngestReport:
+def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, replace: bool = False,
+                 log_csv=None) -> IngestReport:
     """Read recordings, compute their features and store them.
 
     Parameters
@@ -416,23 +312,14 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     con : duckdb.DuckDBPyConnection
         A connection with the mocapdb schema.
     paths : iterable of str or Path
-        Files (``.amc``, ``.bvh``, ``.c3d``, ``.npz``) or folders, searched recursively.
-    asf : str or Path, optional, keyword-only
-        Skeleton for every AMC file. By default each AMC's ASF is found by the
-        dataset conventions (:func:`mocapdb.readers.find_skeleton`).
-    joint_map, marker_map : dict, str or Path, optional, keyword-only
-        Mapping of the canonical joints to a BVH file's joints / a C3D file's
-        markers (TOML or JSON file, or dict; :func:`mocapdb.readers.load_mapping`),
-        for every file of that type. Stored in ``motions.reader_options``.
-    marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
-        How C3D files of the HDM05/CMU marker set are read (default: the
-        toolbox's formulas, the reference; :func:`mocapdb.readers.read_c3d`).
-        Stored in ``motions.reader_options``.
-    body_model : str or Path, optional, keyword-only
-        AMASS ``.npz`` files: an SMPL-family body model file, or a folder of
-        them, giving each take's own rest joints (default: the generic rest
-        skeleton; :func:`mocapdb.readers.read_amass`). Stored (absolute) in
-        ``motions.reader_options``.
+        Files (``.amc``, ``.bvh``, ``.c3d``, ``.npz``) or folders, searched
+        recursively (:func:`mocapdb.readers.motion_files`).
+    options : ReaderOptions, optional, keyword-only
+        How every file is read (:class:`mocapdb.readers.ReaderOptions`: the
+        AMC skeleton, joint and marker maps, marker rules, the body model of
+        AMASS takes, the decompression cap); those of each file's type are
+        stored in ``motions.reader_options``.
+        Default: every file by its own rules.
     progress : callable, optional, keyword-only
         Called as ``progress(n_files_done, n_files, path)`` once per file (the
         ``progress(n_done, n_total, …)`` of every long command).
@@ -442,11 +329,15 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         Read files whose bytes are already stored again and replace those
         motions (a new id; their annotations go), e.g. with a corrected
         ``joint_map``. Default: skip them.
+    log_csv : str or Path, optional, keyword-only
+        Also write the run's ``ingest_log`` rows to this CSV file
+        (:func:`mocapdb.storage.ingest_log.write_report`), also when the call fails.
 
     Returns
     -------
     IngestReport
-        Ingested, skipped (already stored) and failed files with reasons.
+        Ingested, skipped (already stored) and failed files with reasons;
+        ``run_id`` names the call's rows in ``ingest_log``.
 
     Notes
     -----
@@ -454,12 +345,41 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     that computed are stored in batches, one transaction per batch
     (DESIGN.md §6: "one transaction per file or batch"); if storing a batch
     fails, its files are retried one transaction each, so a failure stays
-    confined to its file.
+    confined to its file. Every file gets its row in ``ingest_log``
+    (:mod:`mocapdb.storage.ingest_log`), a stored one in its batch's
+    transaction, the others in transactions of their own — also when the
+    call fails (a path that does not exist is logged, then raised).
     """
     report = IngestReport()
-    files = motion_files(paths, unsupported=report.unsupported, unreadable=report.unreadable)
+    log = IngestLog(con, "ingest")
+    report.run_id = log.run_id
+    try:
+        _ingest(con, paths, report, log, options=options or ReaderOptions(), progress=progress, workers=workers,
+                replace=replace)
+    except BaseException:
+        with contextlib.suppress(Exception):   # the call's own error, not the log's, is what to report
+            log.add_report(report)
+            log.flush()
+            if log_csv is not None:
+                write_report(con, log.run_id, log_csv)
+        raise
+    log.add_report(report)
+    log.flush()
+    if log_csv is not None:
+        write_report(con, log.run_id, log_csv)
+    return report
+
+
+def _ingest(con, paths, report, log, *, options, progress, workers, replace):
+    files = []
+    for p in paths:
+        try:
+            files += motion_files([p], unsupported=report.unsupported, unreadable=report.unreadable,
+                                  refused=report.failed)
+        except ParameterError as exc:   # a path that is not there: logged, and the call fails
+            log.add(p, "failed", str(exc))
+            raise
     tick = _ticker(progress, len(files))
-    maps = reader_maps(joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules, body_model=body_model)
     stored = _stored_keys(con)
     todo = []
     already = []      # (path, prep, key) of files whose bytes are stored: decided after the loop
@@ -467,7 +387,7 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
     duplicates = []   # (path, key): decided once the first file is read
     for path in files:
         try:
-            prep = prepare_file(path, asf=asf, maps=maps)
+            prep = prepare_file(path, options)   # a compression bomb stops here, while it is hashed
         except MocapdbError as exc:
             report.failed.append((str(path), str(exc)))
             tick(path)
@@ -496,18 +416,21 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             prep.replaces = mid
             if mid in broken:
                 report.repaired.append((str(path), broken[mid]))
+                prep.log_reason = f"repaired motion {mid}: {broken[mid]}"
+            else:
+                prep.log_reason = f"replaces motion {mid} (replace=True: read again)"
             todo.append(prep)
 
     batch = []
 
     def flush():
         try:
-            ids = store_motions(con, batch)
+            ids = store_motions(con, batch, log=log)
         except Exception:  # noqa: BLE001 - retried file by file below
             ids = []
             for p in batch:  # one transaction each: a failure stays with its file
                 try:
-                    ids.extend(store_motions(con, [p]))
+                    ids.extend(store_motions(con, [p], log=log))
                 except Exception as exc:  # noqa: BLE001 - reported per file
                     report.failed.append((str(p.path), f"{p.path}: not stored ({exc})"))
                     ids.append(None)
@@ -521,6 +444,9 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
             tick(p.path)
             p.motion = p.words = None  # free memory early on big archives
         batch.clear()
+        # the rows of the files that failed or were skipped so far, after the batch's commit
+        log.add_report(report)
+        log.flush()
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
         for prep in pool.map(compute_motion, todo):
@@ -542,31 +468,6 @@ def ingest_files(con, paths, *, asf=None, joint_map=None, marker_map=None, marke
         else:
             report.skipped.append((str(path), f"same bytes as {first} of this ingest"))
         tick(path)
-    return report
-
-
-#: which reader option applies to which file type
-_OPTION_SUFFIX = {"joint_map": ".bvh", "marker_map": ".c3d", "marker_rules": ".c3d", "body_model": ".npz"}
-
-
-def reader_maps(*, joint_map=None, marker_map=None, marker_rules=None, body_model=None) -> dict:
-    """The reader options of an ingest, loaded and checked once (:func:`mocapdb.readers.load_mapping`)."""
-    if marker_rules not in (None, "toolbox", "anatomical"):
-        raise ParameterError(f"marker_rules must be 'toolbox' or 'anatomical', got {marker_rules!r}")
-    if body_model is not None and not os.path.exists(body_model):
-        raise ParameterError(f"body_model: {str(body_model)!r} does not exist (give an SMPL-H/SMPL-X model .npz "
-                             "or a folder of them)")
-    return {"joint_map": load_mapping(joint_map, what="joint_map"),
-            "marker_map": load_mapping(marker_map, what="marker_map"),
-            # the default (the toolbox's formulas) is not stored: motions read as before keep their options
-            "marker_rules": None if marker_rules in (None, "toolbox") else marker_rules,
-            # absolute: the viewer re-reads the source from another working directory, as Ray workers do
-            "body_model": None if body_model is None else os.path.abspath(body_model)}
-
-
-def _reader_options(path: Path, maps: dict) -> str | None:
-    opts = {k: v for k, v in maps.items() if v is not None and motion_suffix(path) == _OPTION_SUFFIX[k]}
-    return json.dumps(opts, sort_keys=True) if opts else None
 
 
 def _ticker(progress, total):
@@ -607,6 +508,5 @@ def remove_motions(con, motion_ids) -> int:
     return len(con.execute(_sql("delete_motions"), ids).fetchall())
 
 
-__all__ = ["ingest_files", "IngestReport", "motion_files", "store_motions", "store_words", "delete_motions",
-           "remove_motions", "insert_motions", "insert_features",
-           "MOTION_SUFFIXES", "prepare_file", "compute_motion", "motions_table", "reader_maps"]
+__all__ = ["ingest_files", "IngestReport", "store_motions", "store_words", "delete_motions", "remove_motions",
+           "insert_motions", "insert_features", "prepare_file", "compute_motion", "motions_table"]

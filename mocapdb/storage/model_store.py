@@ -50,6 +50,8 @@ def fingerprint(model: Model) -> str:
     h.update(repr(model.labels).encode())
     if model.margin:  # models without the segment filters keep their fingerprints
         h.update(f"margin={model.margin!r}".encode())
+    if model.concurrent_labels:  # as may models without concurrent labels
+        h.update(f"concurrent={model.concurrent_labels!r}".encode())
     for c in model.classes:
         q = c.quantized
         h.update(f"{c.name}|{c.label}|{c.delta!r}|{c.tau!r}".encode())
@@ -117,7 +119,8 @@ def model_tables(model: Model, *, description=None, source=None, keyframe_stats=
         return pa.Table.from_pylist([dict(zip(schema.names, r)) for r in rows], schema=schema)
 
     return {
-        "models": table([(name, description, source, fingerprint(model), shipped, float(model.margin))],
+        "models": table([(name, description, source, fingerprint(model), shipped, float(model.margin),
+                         list(model.concurrent_labels))],
                         _SCHEMAS["models"]),
         "classes": table(classes, _SCHEMAS["classes"]),
         "templates": table(templates, _SCHEMAS["templates"]),
@@ -131,7 +134,7 @@ _U64, _I32, _F64, _STR = pa.uint64(), pa.int32(), pa.float64(), pa.string()
 #: Arrow types of the rows the codec writes (names as in sql/schema.sql)
 _SCHEMAS = {
     "models": pa.schema([("model", _STR), ("description", _STR), ("source", _STR), ("fingerprint", _STR),
-                         ("shipped", pa.bool_()), ("margin", _F64)]),
+                         ("shipped", pa.bool_()), ("margin", _F64), ("concurrent_labels", pa.list_(_STR))]),
     "classes": pa.schema([("model", _STR), ("class", _STR), ("class_id", _I32), ("label", _STR),
                           ("label_id", _I32), ("delta", _F64), ("tau", _F64), ("n_clips", _I32),
                           ("min_frames", _I32)]),
@@ -206,7 +209,11 @@ def model_from_tables(tables: dict) -> Model:
                               tau=r["tau"], keyframe_query=query, min_frames=int(r.get("min_frames") or 0)))
     models = tables["models"]
     margin = models.column("margin")[0].as_py() if "margin" in models.column_names else None
-    return Model(name, tuple(out), labels=tuple(labels), margin=float(margin or 0.0))
+    # models stored before concurrent labels have none (the paper's segmenter)
+    concurrent = (models.column("concurrent_labels")[0].as_py() if "concurrent_labels" in models.column_names
+                  else None)
+    return Model(name, tuple(out), labels=tuple(labels), margin=float(margin or 0.0),
+                 concurrent_labels=tuple(concurrent or ()))
 
 
 # -- the database ---------------------------------------------------------------

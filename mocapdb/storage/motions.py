@@ -1,7 +1,6 @@
 """Reading motions back from the database: ids, metadata and packed feature words."""
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, replace
 
@@ -9,7 +8,7 @@ import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import ParameterError, SchemaError, shorten
-from mocapdb.readers import READER_OPTIONS, read_motion
+from mocapdb.readers import ReaderOptions, read_motion
 from mocapdb.readers.sources import is_file, sha256
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
@@ -346,10 +345,7 @@ def source_motion(con, motion_id):
             raise SchemaError(f"motion {motion_id}: {f} is gone; if the files moved, repoint the database: "
                               "mocapdb relocate OLD_FOLDER NEW_FOLDER")
     # only the reader's own options: notes and source frames stored beside them only inform
-    kwargs = {k: v for k, v in (json.loads(options) if options else {}).items() if k in READER_OPTIONS}
-    if skeleton:
-        kwargs["asf"] = skeleton
-    return read_motion(path, **kwargs)
+    return read_motion(path, ReaderOptions.from_stored(options, asf=skeleton or None))
 
 
 def motions_to_delete(con, motions, *, all_named=False):

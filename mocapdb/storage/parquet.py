@@ -23,6 +23,7 @@ the batches that never ran left no trace in it to check against.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -35,8 +36,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.errors import MocapdbError, ParameterError, SchemaError
 from mocapdb.storage.ingest import insert_features, remove_motions
+from mocapdb.storage.ingest_log import IngestLog
 from mocapdb.storage.motions import (BATCH_FRAMES, check_frames, frame_batches, incomplete_motions,
                                      incomplete_reason)
 from mocapdb.storage.names import check_motion_names
@@ -280,6 +282,7 @@ class ImportReport:
     skipped: list = field(default_factory=list)    # (name, reason): already in the database
     repaired: list = field(default_factory=list)   # (name, reason): stored with incomplete features, replaced
     failed: list = field(default_factory=list)     # (name, reason): incomplete in the archive, not imported
+    run_id: int | None = None                      # the run's rows in ingest_log
 
     def summary(self) -> str:
         out = f"{len(self.imported)} motion(s) imported"
@@ -318,35 +321,76 @@ def import_features(con, directory, *, max_frames=BATCH_FRAMES) -> ImportReport:
     ParameterError
         Not an archive, or an unfinished one (an export or a ``ray_annotate``
         run that was stopped).
+
+    Notes
+    -----
+    Every motion of the archive gets its row in ``ingest_log`` under its
+    source file (:mod:`mocapdb.storage.ingest_log`; an imported one in its
+    batch's transaction), and so does every file of a ``ray_annotate``
+    archive's ``errors`` dataset (failed); an archive refused whole gets one
+    row under its folder.
     """
+    log = IngestLog(con, "import-features")
+    report = ImportReport(run_id=log.run_id)
+    try:
+        _import(con, directory, max_frames, report, log)
+    except BaseException as exc:
+        with contextlib.suppress(Exception):   # the import's own error, not the log's, is what to report
+            if isinstance(exc, MocapdbError):
+                log.add(directory, "failed", str(exc))
+            log.flush()
+        raise
+    log.flush()
+    return report
+
+
+def _archive_errors(archive) -> list:
+    """``(file, reason)`` of a ``ray_annotate`` archive's ``errors`` dataset (the files it could not read)."""
+    out = []
+    for _, _, f in _parts(archive.root / "errors") if archive.kind == "ray" else ():
+        try:
+            table = pq.read_table(f)
+        except (OSError, pa.ArrowException) as exc:
+            out.append((str(f), f"{f}: cannot read this part of the archive's errors ({exc})"))
+            continue
+        out.extend(zip(table.column("file").to_pylist(), table.column("reason").to_pylist()))
+    return out
+
+
+def _import(con, directory, max_frames, report, log) -> None:
     archive = Archive.open(directory)
     motions = archive.motions
     # names become file names (view --all, ELAN export): refuse what no ingest could give
     check_motion_names(motions.column("name").to_pylist(), source=Path(directory))
-    report = ImportReport()
+    for file, reason in _archive_errors(archive):
+        log.add(file, "failed", f"ray-annotate: {reason}")
     stored = {(a, b): mid for mid, a, b in con.execute(statement("motions.sql", "stored_keys")).fetchall()}
     keys = list(zip(motions.column("sha256").to_pylist(), motions.column("skeleton_sha256").to_pylist()))
     names = motions.column("name").to_pylist()
+    sources = motions.column("source_path").to_pylist()
     present = [stored[k] for k in keys if k in stored]
     broken = {mid: reason for mid, _, reason in incomplete_motions(con, present)}
     todo, replaces = [], {}
     for k, (key, name) in enumerate(zip(keys, names)):
         if key in stored and stored[key] not in broken:
             report.skipped.append((name, f"already in the database as motion {stored[key]}"))
+            log.add(sources[k], "skipped", f"archive motion {name} is already in the database as motion "
+                                           f"{stored[key]} ({directory})")
             continue
         if key in stored:
             replaces[k] = stored[key]
             report.repaired.append((name, broken[stored[key]]))
         todo.append(k)
+    log.flush()
     todo = np.asarray(todo, dtype=np.int64)
     old_ids = motions.column("motion_id").to_numpy().astype(np.int64)
     lengths = motions.column("n_frames").to_numpy().astype(np.int64)
     for a, b in frame_batches(lengths[todo], max_frames):
-        _import_batch(con, archive, todo[a:b], old_ids, lengths, names, replaces, report)
-    return report
+        _import_batch(con, archive, todo[a:b], old_ids, lengths, names, replaces, report, log)
+        log.flush()
 
 
-def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, report) -> None:
+def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, report, log) -> None:
     """Read, check and store one batch of an archive's motions (positions ``rows_k`` of its motions table)."""
     ids = old_ids[rows_k]
     lo, hi = int(ids.min()), int(ids.max())
@@ -377,6 +421,7 @@ def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, repor
                    else incomplete_reason(mid, name, n_rows[k], lengths[rows_k[k]], what="archive motion",
                                           remedy="not imported"))
             report.failed.append((name, why))
+            log.add(archive.motions.column("source_path")[int(rows_k[k])].as_py(), "failed", why)
     if not ok.any():
         return
     starts = np.concatenate(([0], np.cumsum(n_rows)))
@@ -394,7 +439,27 @@ def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, repor
             id_map = pa.table({"old": pa.array(ids[ok], pa.int32()), "new": pa.array(new_ids, pa.int32())})
             with registered(con, mocap_id_map=id_map, mocap_archive_annotations=ann):
                 con.execute(_sql("import_annotations"))
+        log.insert_stored([(new.column("source_path")[i].as_py(), mid, _log_reason(archive, k, replaces),
+                            _reader_notes(new.column("reader_options")[i].as_py()))
+                           for i, (k, mid) in enumerate(zip(keep_k.tolist(), new_ids))])
     report.imported.update(zip(ids[ok].tolist(), new_ids))
+
+
+def _log_reason(archive, k, replaces) -> str:
+    """The ``ingest_log`` reason of an imported motion: where it came from, and what it replaced."""
+    name = archive.motions.column("name")[k].as_py()
+    mid = archive.motions.column("motion_id")[k].as_py()
+    return (f"imported archive motion {mid} ({name}) from {archive.root}"
+            + (f", repairing motion {replaces[k]}" if k in replaces else ""))
+
+
+def _reader_notes(reader_options) -> list:
+    """The reader's notes stored in a motion's ``reader_options`` (JSON, key ``notes``)."""
+    try:
+        notes = json.loads(reader_options).get("notes", []) if reader_options else []
+    except (ValueError, AttributeError):
+        return []
+    return [str(n) for n in notes] if isinstance(notes, list) else []
 
 
 __all__ = ["export_features", "import_features", "features_sql", "table_schemas", "ARCHIVE_TABLES", "ImportReport",

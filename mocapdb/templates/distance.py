@@ -3,7 +3,7 @@
 TEMPLATES.md §9 and §12, paper Sect. 4 eq. (2):
 
 * :func:`cost_table` — the wildcard-aware local cost c^Q of one template as a
-  ``(K, 41)`` table indexed by popcount((value XOR word) AND mask);
+  ``(K, 42)`` table indexed by popcount((value XOR word) AND mask);
 * :func:`mt_distance` — Δ of one or many templates over one or many documents
   (one parallel numba kernel over (template, document chunk) pairs);
 * :func:`mt_distance_slices` — the same kernel on arbitrary (template, slice)
@@ -38,7 +38,7 @@ from numba.extending import intrinsic
 
 from mocapdb._numba import jit, pjit, prange
 from mocapdb.errors import ParameterError
-from mocapdb.features import N_FEATURES, unpack_words
+from mocapdb.features import N_BITS, N_FEATURES, unpack_words
 from mocapdb.features import as_words as _as_words
 from mocapdb.templates.template import QuantizedTemplate, _expand_counts
 
@@ -50,7 +50,7 @@ ANNOTATION_STEPS = ((1, 1, 1.0), (1, 2, 1.0), (2, 1, 2.0))
 #: default of the toolbox's retrieval functions when no steps are passed
 RETRIEVAL_STEPS = ((1, 1, 1.0), (0, 1, 1.0), (1, 0, 1.0))
 RULES = ("toolbox", "textbook")
-_N_COST = 41  # popcount of a 40-bit masked difference: 0..40
+_N_COST = N_BITS + 1  # popcount of a masked difference over the feature bits (40 + derived): 0..41
 _N_BYTES = 5  # bytes of a 40-bit word: the feature-weighted cost is a sum of one table entry per byte
 _CACHE_BITS = 12  # 4096 slots of the weighted costs of recent words, per worker thread
 _NO_WORD = np.uint64(1 << 63)  # a tag no 40-bit word has
@@ -105,7 +105,7 @@ def _dp_task(words, masks, values, tables, btables, C, K, a0, lo, hi, D, S, c, c
     """Subsequence DP of one template over frames a0..hi-1 of a document or slice.
 
     Local costs of frame j: from the packed word ``words[j]`` against the K
-    template columns (masks, values (K,) uint64; tables (K, 41)), or, if
+    template columns (masks, values (K,) uint64; tables (K, 42)), or, if
     btables has rows, the sum of the five byte tables (K, 5, 256) of
     feature-weighted costs at the word's bytes, or, if C has rows, the dense
     column ``C[:, j]``. The byte-table costs of a word are kept in the
@@ -267,7 +267,7 @@ def _mt_distance_kernel(words, masks, values, tables, btables, toff, overlap, di
                         Dbuf, Sbuf, cbuf, Cbuf, Tbuf, last_t):  # pragma: no cover
     """Δ for many (template, document slice, chunk) work items, in parallel.
 
-    words (N,) uint64; masks, values (ΣK,) uint64 and tables (ΣK, 41) of all
+    words (N,) uint64; masks, values (ΣK,) uint64 and tables (ΣK, 42) of all
     templates, template t at rows toff[t]:toff[t+1]; btables (ΣK, 5, 256) the
     feature-weighted byte tables of all templates, or no rows (popcount
     costs); overlap (n_t,) warm-up
@@ -406,7 +406,7 @@ def cost_table(template, *, doc_weight=1.0):
 
     Returns
     -------
-    ndarray, shape (K, 41), float64
+    ndarray, shape (K, 42), float64
 
     References
     ----------

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.features import MIRROR_FEATURES, N_FEATURES, mirror_words, pack_words, reverse_fuzzy_words, unpack_words
+from mocapdb.features import MIRROR_FEATURES, N_BITS, N_FEATURES, mirror_words, pack_words, reverse_fuzzy_words, unpack_words
 
 # ---------------------------------------------------------------------------
 # helpers
@@ -96,8 +96,8 @@ class QuantizedTemplate:
             raise ParameterError("a quantized template needs at least one column")
         if (value & ~mask).any():
             raise ParameterError("value has bits outside mask; value must be a subset of mask")
-        if (mask >> np.uint64(N_FEATURES)).any():
-            raise ParameterError(f"mask has bits above feature {N_FEATURES}")
+        if (mask >> np.uint64(N_BITS)).any():
+            raise ParameterError(f"mask has bits above feature {N_BITS} (the 40 and the derived ones, FEATURES.md §10)")
         if not np.isfinite(weights).all() or (weights <= 0).any():
             raise ParameterError("weights must be positive and finite")
         object.__setattr__(self, "mask", mask)

@@ -1,6 +1,6 @@
 """A viewer page's data, encoded compactly and inlined with its HTML, CSS and JS (no network).
 
-Each page is one self-contained HTML file per motion. The page (``shell.html``, ``page.html``, ``page.css``, ``page.js`` beside this module) draws
+Each page is one self-contained HTML file per motion. The page (``shell.html``, ``page.html``, ``page.css``, ``errors.js``, ``page.js`` beside this module) draws
 the skeleton with its own perspective projection on a 2-D canvas (orbit by
 dragging, zoom by the wheel, play/pause, scrubber, speed), the annotation
 under it as a timeline (one element ``.seg[data-label]`` per segment, one
@@ -35,7 +35,7 @@ from mocapdb.errors import ParameterError
 from mocapdb.readers import JOINT_INDEX, JOINT_NAMES
 
 __all__ = ["BONES", "PALETTE", "encode_poses", "encode_delta", "label_colors", "render_page", "render_index",
-           "page_html"]
+           "page_html", "json_script", "error_script"]
 
 #: bones between the 24 canonical joints (parent, child), drawn as lines
 BONES = tuple((JOINT_INDEX[a], JOINT_INDEX[b]) for a, b in (
@@ -139,19 +139,26 @@ def _fill(template, values):
     return _MARKER.sub(lambda m: values[m.group(1)], template)
 
 
-def page_html(title, body):
-    """A whole page: ``shell.html`` (head, the stylesheet) around ``body``."""
-    return _fill(_asset("shell.html"), {"TITLE": title, "CSS": _asset("page.css"), "BODY": body})
+def error_script():
+    """The JavaScript (``errors.js``) that writes a page's uncaught errors into its ``#errors`` list;
+    every page inlines it once, before its own script."""
+    return _asset("errors.js")
 
 
-def _json_script(obj):
+def page_html(title, body, *, css=""):
+    """A whole page: ``shell.html`` (head, the stylesheet and ``css`` after it) around ``body``."""
+    return _fill(_asset("shell.html"), {"TITLE": title, "CSS": _asset("page.css") + css, "BODY": body})
+
+
+def json_script(obj):
+    """``obj`` as JSON to inline in a ``<script type="application/json">`` element (no ``<``, ``>``, ``&``)."""
     # inside <script type="application/json"> no "<" may appear: "</script" would end the element
     # and "<!--<script" would swallow the rest of the page; \u003c is the same character to JSON
     text = json.dumps(obj, separators=(",", ":"), allow_nan=False)
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
-def render_page(view, joints, *, index_href=None):
+def render_page(view, joints, *, index_href=None, extra="", css=""):
     """The HTML of a motion's viewer page.
 
     Parameters
@@ -161,6 +168,11 @@ def render_page(view, joints, *, index_href=None):
         The poses on the feature grid (:func:`mocapdb.viewer.motion_poses`).
     index_href : str, optional
         Link back to an index page.
+    extra : str, optional
+        HTML placed under the viewer, inside its ``<main>`` (``mocapdb serve``
+        adds its find-similar and label panel there); nothing by default.
+    css : str, optional
+        CSS added after the page's own (for ``extra``).
 
     Returns
     -------
@@ -190,8 +202,8 @@ def render_page(view, joints, *, index_href=None):
         "index": index_href,
     }
     title = html.escape(f"{view.name} — mocapdb")
-    return page_html(title, _fill(_asset("page.html"), {"TITLE": title, "JS": _asset("page.js"),
-                                                      "DATA": _json_script(data)}))
+    return page_html(title, _fill(_asset("page.html"), {"TITLE": title, "JS": error_script() + _asset("page.js"),
+                                                      "DATA": json_script(data), "EXTRA": extra}), css=css)
 
 
 def render_index(entries, *, title="mocapdb motions"):

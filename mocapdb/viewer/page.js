@@ -8,16 +8,7 @@
 (function () {
   const $ = (id) => document.getElementById(id);
 
-  // -- errors: written into the page, so a headless browser's DOM shows them -----------------
-  function reportError(text) {
-    const li = document.createElement("li");
-    li.textContent = text;
-    $("errors").appendChild(li);
-    document.body.dataset.errors = String($("errors").children.length);
-  }
-  window.addEventListener("error", (e) => reportError(`${e.message} (${e.filename}:${e.lineno})`));
-  window.addEventListener("unhandledrejection", (e) =>
-    reportError(`unhandled rejection: ${e.reason && e.reason.stack ? e.reason.stack : e.reason}`));
+  // errors are written into the page by errors.js, inlined before this script
 
   const D = JSON.parse($("mocapdb-data").textContent);
   const N = D.n, FPS = D.fps, J = D.joints.length;

@@ -1,0 +1,167 @@
+"""Which recordings a path holds: the walk of files, folders and zip archives that ingest reads.
+
+:func:`motion_files` expands what a user names — files, folders (recursively,
+symlinked folders once), ``.zip`` archives read as folders, a folder inside
+an archive (``cmu.zip/subjects/02``) — into the motion files to read, in a
+fixed order, and reports what it passes over: files that are no motions (an
+ASF beside its AMCs, an AMASS body shape file, a README), special files (FIFOs, devices, sockets),
+folders and archives it cannot read, and zip members whose names would leave
+their archive (:func:`~mocapdb.readers.sources.member_problem`). Where the
+bytes of each file then come from is :mod:`~mocapdb.readers.sources`; both
+``ingest`` (``storage.ingest``) and ``ray-annotate`` (``distributed``) walk
+through here, so they read the same files.
+"""
+from __future__ import annotations
+
+import fnmatch
+import os
+from pathlib import Path
+
+from mocapdb.errors import ParameterError
+from mocapdb.readers.amass import SHAPE_FILE_PATTERNS
+from mocapdb.readers.files import SUPPORTED_EXTENSIONS
+from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, special_kind,
+                                     split_archive, zip_members)
+
+__all__ = ["motion_files", "MOTION_SUFFIXES", "companion_kind"]
+
+#: file extensions ingest reads as motions
+MOTION_SUFFIXES = SUPPORTED_EXTENSIONS
+
+
+def companion_kind(path) -> str | None:
+    """What a file that sits beside motions without being one is, or None.
+
+    An ASF skeleton (read with its AMC takes), and AMASS's body shape files
+    (``shape.npz``, ``*_stagei.npz``: betas and gender, no motion), which a
+    folder walk lists as not motion files rather than failed ones.
+    """
+    p = Path(path)
+    if motion_suffix(p) == ".asf":
+        return "an ASF skeleton (read with its AMC takes)"
+    name = (motion_stem(p) + motion_suffix(p)).lower()
+    if any(fnmatch.fnmatchcase(name, pattern) for pattern in SHAPE_FILE_PATTERNS):
+        return "an AMASS body shape file (betas and gender, no motion)"
+    return None
+
+
+def _hidden(name: str) -> bool:
+    # hidden files and folders (.DS_Store, .git) and macOS zip metadata are nobody's motions
+    return name.startswith(".") or name == "__MACOSX"
+
+
+def _walk(folder: Path, files: list, unsupported, unreadable):
+    """Regular files of a folder, recursively (symlinked folders followed once); special files
+    and unreadable folders reported."""
+    seen = set()
+
+    def onerror(exc):
+        if unreadable is not None:
+            unreadable.append((str(exc.filename), f"unreadable folder ({exc.strerror or exc})"))
+
+    for root, dirs, names in os.walk(folder, onerror=onerror, followlinks=True):
+        try:
+            st = os.stat(root)
+        except OSError:
+            dirs[:] = []
+            continue
+        if (st.st_dev, st.st_ino) in seen:   # a symlink loop
+            dirs[:] = []
+            continue
+        seen.add((st.st_dev, st.st_ino))
+        dirs[:] = sorted(d for d in dirs if not _hidden(d))
+        for name in sorted(names):
+            if _hidden(name):
+                continue
+            q = Path(root) / name
+            kind = special_kind(q)
+            if kind is not None:
+                if unsupported is not None:
+                    unsupported.append((str(q), f"{kind}, not a regular file"))
+                continue
+            files.append(q)
+
+
+def _archive_files(archive: Path, unreadable, refused=None) -> list:
+    """The members of a zip archive as paths through it (hidden ones left out); ``refused`` receives
+    the members whose names would leave the archive (never joined to its path: an absolute name
+    would replace it)."""
+    bad = []
+    try:
+        names = zip_members(archive, refused=bad)
+    except OSError as exc:
+        if unreadable is not None:
+            unreadable.append((str(archive), f"unreadable archive ({exc})"))
+        return []
+    if refused is not None:
+        for name, problem in bad:
+            where = f"{archive}/{name}"   # text only, for the report
+            refused.append((where, f"{where}: refused: {problem}; a member must name a file inside its archive"))
+    return [archive / name for name in sorted(names)
+            if not any(_hidden(part) for part in name.split("/"))]
+
+
+def _classify(q: Path, out: list, unsupported):
+    ext = motion_suffix(q)
+    if ext in MOTION_SUFFIXES and companion_kind(q) is None:
+        out.append(q)
+    elif unsupported is not None:
+        why = companion_kind(q) or (f"unsupported file type {q.suffix!r}" if q.suffix else "no file extension")
+        unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ", optionally "
+                            + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
+
+
+def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> list[Path]:
+    """Expand files, folders (recursively) and zip archives into motion files, in sorted order.
+
+    Parameters
+    ----------
+    paths : iterable of str or Path
+        Files (``.amc``, ``.bvh``, ``.c3d``, each possibly ``.gz``/``.bz2``/``.xz``
+        compressed), folders, ``.zip`` archives, or paths through an archive
+        (``cmu.zip/subjects/02``, a folder inside it).
+    unsupported : list, optional, keyword-only
+        Receives ``(path, reason)`` for every file of a folder or archive that
+        is not a motion file, and every special file (FIFO, device, socket) in
+        a folder. A file named explicitly is always returned: reading it says
+        what is wrong.
+    unreadable : list, optional, keyword-only
+        Receives ``(path, reason)`` for folders and archives that cannot be read.
+    refused : list, optional, keyword-only
+        Receives ``(path, reason)`` for zip members whose names would leave
+        their archive (absolute, a drive letter, ``..``;
+        :func:`mocapdb.readers.sources.member_problem`): never read.
+
+    Raises
+    ------
+    ParameterError
+        If a path does not exist.
+    """
+    out = []
+    for p in map(Path, paths):
+        archive, member = split_archive(p)
+        if member is not None and member != "" and not is_file(p):
+            # a folder inside an archive
+            members = [q for q in _archive_files(archive, unreadable, refused)
+                       if str(q).startswith(str(p).rstrip("/") + "/")]
+            if not members:
+                raise ParameterError(f"paths: {str(p)!r} does not exist (no such member in {archive})")
+            for q in members:
+                _classify(q, out, unsupported)
+        elif member == "":
+            for q in _archive_files(archive, unreadable, refused):
+                _classify(q, out, unsupported)
+        elif p.is_dir():
+            found = []
+            _walk(p, found, unsupported, unreadable)
+            for q in found:
+                if q.suffix.lower() in ARCHIVES:
+                    for m in _archive_files(q, unreadable, refused):
+                        _classify(m, out, unsupported)
+                else:
+                    _classify(q, out, unsupported)
+        elif is_file(p) or os.path.lexists(p):
+            out.append(p)   # a special file named directly is refused by name when read
+        else:
+            raise ParameterError(f"paths: {str(p)!r} does not exist")
+    return out

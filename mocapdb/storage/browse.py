@@ -1,0 +1,213 @@
+"""The archive as ``mocapdb serve`` shows it: pages of motions with their label strips, one motion, a label's segments.
+
+Every function only reads (serve opens the database read-only). A page of
+the archive is one query (``sql/browse.sql``, ``motion_page``): the filters —
+a label among the motion's stored segments, the source format, a substring
+of the name, the duration — one of :data:`SORTS`, ``LIMIT``/``OFFSET``, and
+the number of motions kept as a window count beside the rows. The label
+strips are then read for the page's motions only (``page_segments``: a
+semi-join on their ids, never the archive's annotations), so a page costs
+the same on a 100-hour archive as on a small one apart from the scan of
+``motions``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapdb.errors import ParameterError, SchemaError
+from mocapdb.storage.model_store import DEFAULT_MODEL
+from mocapdb.storage.sqltext import statement
+
+__all__ = ["SORTS", "STRIP_BINS", "MAX_LIMIT", "MotionPage", "motion_page", "motion_row", "motion_segments",
+           "label_segments", "model_labels"]
+
+#: the orders of a page: a column, ``-`` for descending (``id``: ingest order)
+SORTS = ("id", "-id", "name", "-name", "seconds", "-seconds", "format", "-format", "rate", "-rate")
+#: cells of a motion's label strip (a strip is drawn ~240 px wide: two pixels a cell)
+STRIP_BINS = 120
+#: the most rows one page or one request returns
+MAX_LIMIT = 500
+
+
+def _sql(name):
+    return statement("browse.sql", name)
+
+
+@dataclass(frozen=True)
+class MotionPage:
+    """One page of the archive.
+
+    Attributes
+    ----------
+    rows : list of dict
+        Per motion: ``motion_id``, ``name``, ``format``, ``source_fps``,
+        ``fps``, ``n_frames``, ``seconds``, ``source_path``, ``labels`` (the
+        labels of its stored segments, most time first) and ``strip``: runs
+        ``[label, first, last]`` of :data:`STRIP_BINS` cells over the
+        motion's duration (a cell holds a label when a segment of it covers
+        part of the cell).
+    total : int
+        The motions the filters keep (all pages).
+    """
+
+    rows: list
+    total: int
+
+
+def _check_limit(limit, offset):
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or not 1 <= limit <= MAX_LIMIT:
+        raise ParameterError(f"limit must be an integer from 1 to {MAX_LIMIT}, got {limit!r}")
+    if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
+        raise ParameterError(f"offset must be a non-negative integer, got {offset!r}")
+
+
+def _check_seconds(name, value):
+    if value is None:
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number of seconds, got {value!r}") from None
+    if not math.isfinite(v) or v < 0:
+        raise ParameterError(f"{name} must be a finite number of seconds >= 0, got {value!r}")
+    return v
+
+
+def _strips(rows, segments):
+    """Each row's labels (most covered time first) and label strip, from the page's segments."""
+    by_motion = {}
+    for mid, label, a, b in zip(segments["motion_id"].tolist(), segments["label"].tolist(),
+                                segments["start_frame"].tolist(), segments["end_frame"].tolist()):
+        by_motion.setdefault(mid, []).append((label, a, b))
+    for row in rows:
+        n = max(int(row["n_frames"]), 1)
+        cells, covered = {}, {}
+        for label, a, b in by_motion.get(row["motion_id"], ()):
+            covered[label] = covered.get(label, 0) + (b - a + 1)
+            first, last = (a - 1) * STRIP_BINS // n, min((b - 1) * STRIP_BINS // n, STRIP_BINS - 1)
+            cells.setdefault(label, set()).update(range(first, last + 1))
+        strip = []
+        for label, on in cells.items():
+            on = sorted(on)
+            start = prev = on[0]
+            for c in on[1:]:
+                if c != prev + 1:
+                    strip.append([label, start, prev])
+                    start = c
+                prev = c
+            strip.append([label, start, prev])
+        row["labels"] = sorted(covered, key=lambda lab: (-covered[lab], lab))
+        row["strip"] = sorted(strip, key=lambda s: (s[1], s[0]))
+    return rows
+
+
+def motion_page(con, *, label=None, format=None, q=None, min_s=None, max_s=None, sort="id", limit=50, offset=0,
+                model=DEFAULT_MODEL) -> MotionPage:
+    """One page of the archive's motions, filtered and sorted, with their label strips.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    label : str, optional, keyword-only
+        Keep motions with a stored segment of this label (of ``model``).
+    format : str, optional
+        Keep motions of this source format (``amc``, ``bvh``, ``c3d``, …).
+    q : str, optional
+        Keep motions whose name contains this (ignoring case).
+    min_s, max_s : float, optional
+        Keep motions lasting at least / at most this many seconds.
+    sort : str, default "id"
+        One of :data:`SORTS`.
+    limit : int, default 50
+        Rows of the page (1 … :data:`MAX_LIMIT`).
+    offset : int, default 0
+        Rows skipped before the page.
+    model : str
+        The model whose stored segments (``annotations``) give labels and strips.
+
+    Returns
+    -------
+    MotionPage
+
+    Raises
+    ------
+    ParameterError
+        A sort not in :data:`SORTS`, a bad limit, offset or duration.
+    """
+    if sort not in SORTS:
+        raise ParameterError(f"sort must be one of {', '.join(SORTS)}, got {sort!r}")
+    _check_limit(limit, offset)
+    params = {"label": label or None, "format": format or None, "q": q or None,
+              "min_s": _check_seconds("min_s", min_s), "max_s": _check_seconds("max_s", max_s), "model": model}
+    cur = con.execute(_sql("motion_page"), {**params, "sort": sort, "limit": int(limit), "offset": int(offset)})
+    cols = [d[0] for d in cur.description]
+    rows = [dict(zip(cols, r)) for r in cur.fetchall()]
+    if rows:
+        total = int(rows[0]["total"])
+    else:
+        total = int(con.execute(_sql("motion_count"), params).fetchall()[0][0]) if offset else 0
+    for r in rows:
+        del r["total"]
+    segments = con.execute(_sql("page_segments"), {"model": model, "ids": [r["motion_id"] for r in rows]}
+                           ).fetchnumpy() if rows else None
+    return MotionPage(_strips(rows, segments) if rows else rows, total)
+
+
+def motion_row(con, motion_id, *, model=DEFAULT_MODEL) -> dict:
+    """One motion's row (``motions`` columns, ``seconds``) with its stored labels and label strip
+    (as :class:`MotionPage` rows).
+
+    Raises
+    ------
+    SchemaError
+        No motion with this id.
+    """
+    cur = con.execute(_sql("motion_row"), {"id": int(motion_id)})
+    cols = [d[0] for d in cur.description]
+    found = cur.fetchall()
+    if not found:
+        raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
+    row = dict(zip(cols, found[0]))
+    row["ingested_at"] = str(row["ingested_at"])
+    segments = con.execute(_sql("page_segments"), {"model": model, "ids": [int(motion_id)]}).fetchnumpy()
+    return _strips([row], segments)[0]
+
+
+def motion_segments(con, motion_id, *, model=DEFAULT_MODEL) -> list:
+    """One motion's stored segments of a model (``label``, ``start_frame``, ``end_frame``, ``start_s``,
+    ``end_s``, ``cost``; 30 Hz frames, 1-based inclusive), in time order."""
+    cur = con.execute(_sql("motion_segments"), {"model": model, "id": int(motion_id)})
+    cols = [d[0] for d in cur.description]
+    return [dict(zip(cols, r)) for r in cur.fetchall()]
+
+
+def label_segments(con, label, *, model=DEFAULT_MODEL, limit=50, offset=0):
+    """Every stored segment of a label across the archive, a page at a time (longest first).
+
+    Returns
+    -------
+    rows : list of dict
+        ``motion_id``, ``name``, ``start_frame``, ``end_frame`` (30 Hz, 1-based
+        inclusive), ``start_s``, ``end_s``, ``cost``.
+    total : int
+        The label's segments in all.
+    """
+    if not label:
+        raise ParameterError("label must be a label name, got an empty one")
+    _check_limit(limit, offset)
+    cur = con.execute(_sql("label_segments"), {"model": model, "label": str(label), "limit": int(limit),
+                                               "offset": int(offset)})
+    cols = [d[0] for d in cur.description]
+    rows = [dict(zip(cols, r)) for r in cur.fetchall()]
+    total = int(rows[0]["total"]) if rows else 0
+    for r in rows:
+        del r["total"]
+    return rows, total
+
+
+def model_labels(con, model=DEFAULT_MODEL) -> list:
+    """A model's labels in its label order (empty when the database lacks the model)."""
+    return [r[0] for r in con.execute(_sql("model_labels"), {"model": model}).fetchall()]
