@@ -90,6 +90,8 @@ def _cell(res, s, label=None):
         return "    -    "
     if label is None:
         sc = res.scores[s]
+    elif label not in res.vocabulary.get(s, ()):
+        return "    -    "                                    # not scored on this set (UNSCORED)
     else:
         sc = evaluate_by_label(res.truth[s], res.auto[s], labels=[label])[label]
         if not (sc.truth_segments or sc.auto_segments):
@@ -111,7 +113,7 @@ def print_table(columns):
         print(f"{'  all labels':<24s}" + "".join(f"{_cell(r, s):>12s}" for r in columns.values()))
         for lab in PAPER_LABELS:
             cells = [_cell(r, s, lab) for r in columns.values()]
-            if any(c.strip() not in (".", "-") for c in cells):
+            if any(c.strip() not in (".", "-") for c in cells):  # "-": not scored, ".": no segment either side
                 print(f"{'  ' + lab:<24s}" + "".join(f"{c:>12s}" for c in cells))
 
 

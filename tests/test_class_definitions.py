@@ -187,7 +187,11 @@ def test_the_shipped_definitions_cover_the_labels_no_example_motion_gives():
     assert labels <= set(PAPER_LABELS)
     for d in defs:
         c = compile_definition(d)
-        assert c.keyframe_query is not None and c.min_frames > 0
+        assert c.min_frames > 0
+        if d.name == "turnHeading":  # reads feature 41, which the keyframe index does not hold
+            assert c.keyframe_query is None and int(c.quantized.mask[0]) >> 40 == 1
+            continue
+        assert c.keyframe_query is not None
         assert c.keyframe_query.template_length == len(c.quantized)
     names = {d.name for d in defs}
     assert {"punchLFront1Reps", "hopRLeg1hops", "cartwheelRHandStart1Reps", "standUpSitChair"} <= names
@@ -232,12 +236,12 @@ def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir
     r = runner.invoke(main, ["--db", str(db), "define-class", str(mine), str(SHIPPED / "turn.toml"),
                              "--model", "mine"])
     assert r.exit_code == 0, r.output
-    assert "liftThenHop" in r.output and "turnAround" in r.output and "turnWalking" in r.output
-    assert "3 classes" in r.output
+    assert "liftThenHop" in r.output and "turnHeading" in r.output
+    assert "2 classes" in r.output
     r = runner.invoke(main, ["--db", str(db), "annotate", "--model", "mine", "--format", "csv"])
     assert r.exit_code == 0, r.output
     labels = {line.split(",")[1] for line in r.output.strip().splitlines()[1:]}
-    assert labels <= {"turn", "hopOneLeg"} and "turn" in labels          # 86_09 turns around between walks
+    assert labels <= {"turn", "hopOneLeg"} and "turn" in labels          # 86_09 turns round while walking
     r = runner.invoke(main, ["--db", str(db), "define-class", str(mine), "--model", "mine"])
     assert r.exit_code == 1 and "already has the classes ['liftThenHop']" in r.output
     bad = tmp_path / "bad.toml"
@@ -254,14 +258,18 @@ def test_train_with_definitions_adds_the_designed_classes(tmp_path, data_dir, op
 
     con = open_db(tmp_path / "t.duckdb")
     m = train(con, model="m", folder=data_dir / "hdm05_cut", definitions=[SHIPPED / "turn.toml"])
-    assert {"turnAround", "turnWalking"} <= set(m.class_names) and "turn" in m.labels and len(m.classes) == 13
+    assert "turnHeading" in m.class_names and "turn" in m.labels and len(m.classes) == 12
+    # the turn reads feature 41, which the keyframe index does not hold: no query
     stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'm' AND class LIKE 'turn%'")
-    assert stored.fetchall() == [("class definition",)] * 2
+    assert stored.fetchall() == []
 
 
 def test_a_definition_keyframe_query_is_valid(tmp_path):
     for d in read_class_definitions(SHIPPED):
         q = compile_definition(d).keyframe_query
+        if d.name == "turnHeading":  # feature 41 only: no query (keyframes search the 40)
+            assert q is None
+            continue
         assert isinstance(q, KeyframeQuery)
         assert (q.d_min <= q.d_max).all()
 

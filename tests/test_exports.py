@@ -3,6 +3,8 @@ from importlib import resources
 
 import numpy as np
 import pyarrow.parquet as pq
+import pyarrow as pa
+import pyarrow.compute  # noqa: F401
 import pytest
 from click.testing import CliRunner
 
@@ -75,8 +77,14 @@ def test_eaf_file_layout(db, tmp_path):
     run(db, "annotate", "86_09", "--format", "eaf", "--out", out)
     eaf = pympi.Elan.Eaf(str(out))
     assert [m["MEDIA_URL"] for m in eaf.media_descriptors] == [AMC_86_09.resolve().as_uri()]
-    assert sorted(eaf.get_tier_names()) == sorted(set(table.column("label").to_pylist()))
-    got = sorted((t, a, b, v) for t in eaf.get_tier_names() for a, b, v in eaf.get_annotation_data_for_tier(t))
+    labels = sorted(set(table.column("label").to_pylist()))
+    # a time-aligned tier per label, and under each a tier of the segments' confidences (references)
+    assert sorted(eaf.get_tier_names()) == sorted(labels + [lab + " confidence" for lab in labels])
+    for lab in labels:
+        conf = sorted(float(a[2]) for a in eaf.get_ref_annotation_data_for_tier(lab + " confidence"))
+        mine = table.filter(pa.compute.equal(table.column("label"), lab))
+        assert conf == sorted(round(x, 3) for x in mine.column("confidence").to_pylist())
+    got = sorted((t, a, b, v) for t in labels for a, b, v in eaf.get_annotation_data_for_tier(t))
     # times in ms; a segment ending with the last 30 Hz frame ends with the recording (4794 frames at 120 Hz)
     want = sorted((lab, round(s * 1000), round(min(e, 4794 / 120) * 1000), lab) for lab, s, e in
                   zip(*(table.column(c).to_pylist() for c in ("label", "start_s", "end_s"))))

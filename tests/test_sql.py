@@ -56,9 +56,9 @@ def test_every_unnest_form_and_the_python_api_agree(db):
                             ORDER BY ALL""").fetchall()
     assert select_list == lateral and len(select_list) > 19
     table = annotate_motions(db, model="oracle")
-    cols = ["motion_id", "label", "start_frame", "end_frame", "cost", "start_s", "end_s"]
+    cols = ["motion_id", "label", "start_frame", "end_frame", "cost", "start_s", "end_s", "confidence"]
     assert sorted(zip(*(table.column(c).to_pylist() for c in cols))) == select_list
-    stored = db.execute("SELECT motion_id, label, start_frame, end_frame, cost, start_s, end_s FROM annotations "
+    stored = db.execute("SELECT motion_id, label, start_frame, end_frame, cost, start_s, end_s, confidence FROM annotations "
                         "WHERE model = 'oracle' ORDER BY ALL").fetchall()
     assert stored == select_list
     # re-annotating replaces, never duplicates

@@ -363,7 +363,8 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
     cmu_training = build is not None if cmu_training is None else bool(cmu_training)
     t0 = time.perf_counter()
     if data is None:
-        data = development_data(data_dir, classes=classes, cmu_training=cmu_training and real_documents)
+        data = development_data(data_dir, classes=classes, cmu_training=cmu_training and real_documents,
+                                studio=studio)
     actors = data.actors
     held_out = actors if held_out is None else [str(a) for a in held_out]
     unknown = sorted(set(held_out) - set(actors))
