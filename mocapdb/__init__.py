@@ -14,6 +14,7 @@ pages) below :mod:`~mocapdb.api`, which the command line mirrors one to one. The
 - :func:`annotate` — label motions with a model
 - :func:`view` — a motion's skeleton and labels as a self-contained HTML page
 - :func:`similar` — the stretches of the archive most like a stretch of a motion
+- :func:`export_joints` — motions' 24 joints as npz, csv or bvh files for other tools
 - :func:`read_motion` / :func:`motion_features` — a file to 24 joints to packed 30 Hz feature words
 """
 import os as _os
@@ -26,7 +27,7 @@ if not _os.path.isdir(_os.path.join(__path__[0], "extension")):
     if _os.path.isfile(_os.path.join(_root, "extension", "__init__.py")):
         __path__.append(_root)
 
-from mocapdb.api import annotate, connect, delete, evaluate, ingest, similar, train, view  # noqa: E402
+from mocapdb.api import annotate, connect, delete, evaluate, export_joints, ingest, similar, train, view  # noqa: E402
 from mocapdb.errors import MocapdbError, ParameterError, ParseError, SchemaError  # noqa: E402
 from mocapdb.features import motion_features, relational_features  # noqa: E402
 from mocapdb.readers import read_motion  # noqa: E402
@@ -34,7 +35,7 @@ from mocapdb.readers import read_motion  # noqa: E402
 __version__ = "0.2.0"
 
 __all__ = [
-    "connect", "ingest", "delete", "annotate", "train", "evaluate", "view", "similar", "read_motion",
+    "connect", "ingest", "delete", "annotate", "train", "evaluate", "view", "similar", "export_joints", "read_motion",
     "motion_features",
     "relational_features", "MocapdbError", "ParameterError", "ParseError", "SchemaError",
 ]

@@ -40,7 +40,7 @@ from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError
 from mocapdb.extension import connect as connect_database
 from mocapdb.features import motion_features
-from mocapdb.readers import motion_files, read_motion
+from mocapdb.readers import generic_rest, motion_files, read_motion, smpl_forward_kinematics
 from mocapdb.storage.annotations import annotate_documents
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import ingest_files
@@ -102,6 +102,7 @@ def compile_kernels(parts=PARTS) -> float:
         ingest_files(con, sample_files())
         if "ingest" in parts:
             _other_rates()
+            _smpl_kinematics()
         cache = connection_cache(con)
         docs = motion_documents(con)
         runs = ([(DEFAULT_MODEL, None)] if "search" in parts else []) + \
@@ -127,6 +128,11 @@ def _other_rates() -> None:
     m60 = type(m)(joints=np.ascontiguousarray(m.joints[::2]), root_rotation=None, fps=m.fps / 2, name=m.name,
                   skeleton=m.skeleton, source_format=m.source_format)
     motion_features(m60)
+
+
+def _smpl_kinematics() -> None:
+    """The forward kinematics of AMASS takes (no AMASS file ships: licence), on the rest pose."""
+    smpl_forward_kinematics(generic_rest(), np.zeros((2, 22, 3)), np.zeros((2, 3)))
 
 
 # -- the background compile of a cold cache -----------------------------------------

@@ -141,3 +141,62 @@ def naive_bvh_fk(hierarchy, values):
             if jt.end_site is not None:
                 ends[f, j] = origins[f, j] + glob[f, j] @ jt.end_site
     return origins, ends, glob
+
+
+def naive_axis_angle(v):
+    """Rotation matrix of an axis-angle vector: a rotation by |v| about v/|v| as the product of
+    elementary rotations (the axis turned onto z, rotated about z, turned back)."""
+    theta = math.sqrt(sum(float(x) ** 2 for x in v))
+    if theta == 0.0:
+        return np.eye(3)
+    k = np.asarray(v, dtype=float) / theta
+    # turn k onto +z: about z by -atan2(ky, kx), then about y by -acos(kz)
+    az, el = math.atan2(k[1], k[0]), math.acos(max(-1.0, min(1.0, k[2])))
+    to_z = rot("y", -el) @ rot("z", -az)
+    return to_z.T @ rot("z", theta) @ to_z
+
+
+def naive_smpl_fk(rest_joints, rest_ends, pose, trans):
+    """READERS.md §9 per frame: SMPL forward kinematics and the canonical joints written from the
+    spec text (22 body joints, five end points on the feet, the head and the wrists).
+
+    Returns (joints (n, 24, 3), pelvis rotation (n, 3, 3)).
+    """
+    parents = [-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19]
+    ends_on = [10, 11, 15, 20, 21]
+    body = {"root": 0, "lhip": 1, "lknee": 4, "lankle": 7, "rhip": 2, "rknee": 5, "rankle": 8, "neck": 12,
+            "head": 15, "lclavicle": 12, "rclavicle": 12, "lshoulder": 16, "lelbow": 18, "lwrist": 20,
+            "rshoulder": 17, "relbow": 19, "rwrist": 21}
+    ends = {"ltoes": 0, "rtoes": 1, "headtop": 2, "lfingers": 3, "rfingers": 4}
+    spine = [0, 3, 6, 9, 12]
+    lengths = [float(np.linalg.norm(rest_joints[b] - rest_joints[a])) for a, b in zip(spine, spine[1:])]
+    n = len(pose)
+    out = np.zeros((n, 24, 3))
+    pelvis = np.zeros((n, 3, 3))
+    for f in range(n):
+        G, P = [None] * 22, [None] * 22
+        for j in range(22):
+            R = naive_axis_angle(pose[f][j])
+            if parents[j] < 0:
+                G[j], P[j] = R, rest_joints[j] + trans[f]
+            else:
+                p = parents[j]
+                G[j] = G[p] @ R
+                P[j] = P[p] + G[p] @ (rest_joints[j] - rest_joints[p])
+        E = [P[j] + G[j] @ (rest_ends[k] - rest_joints[j]) for k, j in enumerate(ends_on)]
+        pelvis[f] = G[0]
+        for i, name in enumerate(JOINT_NAMES):
+            if name in body:
+                out[f, i] = P[body[name]]
+            elif name in ends:
+                out[f, i] = E[ends[name]]
+            else:   # belly, chest: 1/3 and 2/3 of the rest spine's length, between the joints around it
+                at = (1.0 if name == "belly" else 2.0) / 3.0 * sum(lengths)
+                walked = 0.0
+                for s, length in enumerate(lengths):
+                    if walked + length >= at or s == len(lengths) - 1:
+                        u = (at - walked) / length if length else 0.0
+                        out[f, i] = (1 - u) * P[spine[s]] + u * P[spine[s + 1]]
+                        break
+                    walked += length
+    return out, pelvis

@@ -191,6 +191,38 @@ def test_ingest_and_ray_annotate_read_a_c3d_with_marker_rules_alike(local_ray, t
     assert _rows(toolbox, "features", DB_TABLES) != _rows(con, "features", DB_TABLES)
 
 
+def test_amass_files_with_a_body_model_as_ingest(local_ray, tmp_path, open_db):
+    """AMASS-format takes (written from the shipped 86_09) beside an AMASS shape file, read with a
+    body model folder (`--body-model`, one ReaderOptions field): the same motions and rows as ingest +
+    annotate, so the option reaches the workers; the shape file is no motion in either."""
+    from amass_files import make_body_model
+    from mocapdb.readers import generic_rest, read_amc, read_asf
+    from mocapdb.readers.amass_write import write_amass
+
+    folder = tmp_path / "AMASS" / "CMU" / "86"
+    folder.mkdir(parents=True)
+    skel = read_asf(SAMPLE_86_09.parent / "86.asf")
+    amc = read_amc(SAMPLE_86_09, skel)
+    write_amass(folder / "86_09_poses.npz", skel, amc, gender="female")
+    write_amass(folder / "86_09_x_poses.npz", skel, amc, family="smplx", gender="male")
+    (folder / "shape.npz").write_bytes((folder / "86_09_poses.npz").read_bytes())
+    models = tmp_path / "models"
+    for family, file in (("smplh", "smplh/female/model.npz"), ("smplx", "smplx/SMPLX_MALE.npz")):
+        make_body_model(models / file, generic_rest(), family=family)
+    con = open_db()
+    report = mocapdb.ingest(con, [tmp_path / "AMASS"], body_model=models)
+    mocapdb.annotate(con)
+    assert len(report.ingested) == 2 and not report.failed
+    assert [u[0] for u in report.unsupported] == [str(folder / "shape.npz")]
+    out = tmp_path / "archive"
+    r = CliRunner().invoke(main, ["ray-annotate", str(tmp_path / "AMASS"), "--out", str(out), "--body-model",
+                                  str(models)])
+    assert r.exit_code == 0, r.output
+    assert "(0 skipped, 0 failed, 1 not motion files)" in r.output   # the shape file
+    for dataset in DB_TABLES:
+        assert _archive_rows(con, out, "a", dataset) == _rows(con, dataset, DB_TABLES), dataset
+
+
 def _broken_folder(tmp_path):
     """Real HDM05 files, a truncated copy of one (cut inside a frame) and a byte-identical copy."""
     d = tmp_path / "mixed"

@@ -41,7 +41,7 @@ def test_checked_once_frozen_and_one_value_for_threads_and_workers(tmp_path):
                          ({"joint_map": {"knee": "Knee"}}, "joint_map: 'knee' is not a canonical joint"),
                          ({"marker_map": tmp_path / "none.toml"}, "marker_map .*none.toml: cannot read it"),
                          ({"max_decompressed": "lots"}, "max_decompressed: 'lots' is not a size"),
-                         ({"body_model": tmp_path / "model.npz"}, "body_model: .*model.npz' is not a file")]:
+                         ({"body_model": tmp_path / "model.npz"}, "body_model: .*model.npz' does not exist")]:
         with pytest.raises(ParameterError, match=message):
             ReaderOptions(**bad)
     # the API checks them before any file is read

@@ -24,6 +24,7 @@ CLI                           API
 ``mocapdb drop-index``         :func:`drop_index`
 ``mocapdb export-features``    :func:`export_features`
 ``mocapdb import-features``    :func:`import_features`
+``mocapdb export-joints``      :func:`export_joints`
 ``mocapdb attach``             :func:`attach`
 ``mocapdb ray-annotate``       :func:`ray_annotate`
 ``mocapdb convert-labels``     :func:`convert_labels`
@@ -34,7 +35,8 @@ CLI                           API
 =============================  ==========================
 """
 from mocapdb.api.database import (DeleteReport, attach, connect, convert_labels, create_index, delete, drop_index,
-                                  export_features, import_features, ingest, joint_map_template, relocate)
+                                  export_features, export_joints, import_features, ingest, joint_map_template,
+                                  relocate)
 from mocapdb.api.kernels import (background_compile_running, kernels_cold, start_background_compile,
                                  wait_for_background_compile, warmup)
 from mocapdb.api.learning import define_class, learn_keyframes, train
@@ -44,5 +46,6 @@ from mocapdb.api.outputs import FIGURES, SIMILAR_FORMATS, report, serve, similar
 #: exactly the commands: ``mocapdb COMMAND`` calls the function of that name (``sql`` is
 #: ``connect(...).sql``); the other names here are what the command line needs besides
 __all__ = ["connect", "ingest", "delete", "train", "learn_keyframes", "define_class", "annotate", "evaluate",
-           "report", "view", "similar", "stats", "serve", "create_index", "drop_index", "export_features", "import_features",
-           "attach", "ray_annotate", "convert_labels", "relocate", "joint_map_template", "warmup"]
+           "report", "view", "similar", "stats", "serve", "create_index", "drop_index", "export_features",
+           "import_features", "export_joints", "attach", "ray_annotate", "convert_labels", "relocate",
+           "joint_map_template", "warmup"]

@@ -177,8 +177,8 @@ def _scores(truth_rows, auto_rows, vocabulary, by_label):
 
 
 def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, keyframes=None, database=None,
-                 asf=None, joint_map=None, marker_map=None, marker_rules=None, max_decompressed=None, num_cpus=None,
-                 batch_files=BATCH_FILES, bucket_motions=BUCKET_MOTIONS, overwrite=False):
+                 asf=None, joint_map=None, marker_map=None, marker_rules=None, body_model=None, max_decompressed=None,
+                 num_cpus=None, batch_files=BATCH_FILES, bucket_motions=BUCKET_MOTIONS, overwrite=False):
     """``ingest`` + ``annotate`` on a Ray cluster, Parquet out (needs the ``ray`` extra).
 
     Reads the recordings on Ray actors with the same readers, kernels and
@@ -208,7 +208,7 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     mocapdb.distributed.RayReport
     """
     options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
-                            max_decompressed=max_decompressed)
+                            body_model=body_model, max_decompressed=max_decompressed)
     return run_on_ray(sources, out, address=address, model=model, tau=tau, keyframes=keyframes, database=database,
                       options=options, num_cpus=num_cpus, batch_files=batch_files, bucket_motions=bucket_motions,
                       overwrite=overwrite)

@@ -1,5 +1,5 @@
 """The database and its recordings: open, ingest, delete, the keyframe index, Parquet in and out,
-archives in place, moved files, other projects' label files."""
+the canonical joints out, archives in place, moved files, other projects' label files."""
 from __future__ import annotations
 
 import dataclasses
@@ -15,6 +15,8 @@ from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
 from mocapdb.storage import attached, parquet, postings
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
+from mocapdb.storage.joint_export import JointsExport
+from mocapdb.storage.joint_export import export_joints as storage_export_joints
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
 from mocapdb.storage.schema import DatabaseLockedError, require_own_tables
 from mocapdb.warmup import sample_files
@@ -104,7 +106,7 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
-           progress=None, replace=False, max_decompressed=None, report=None) -> IngestReport:
+           body_model=None, progress=None, replace=False, max_decompressed=None, report=None) -> IngestReport:
     """Read recordings (files or folders, recursively), compute their features and store them.
 
     A broken file changes nothing and the others still go in; files already
@@ -117,15 +119,18 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     sample : bool, keyword-only
         Also ingest the real recordings shipped with mocapdb
         (:func:`mocapdb.warmup.sample_files`; README "Data and credits").
-    asf, joint_map, marker_map, marker_rules, max_decompressed : optional, keyword-only
+    asf, joint_map, marker_map, marker_rules, body_model, max_decompressed : optional, keyword-only
         How files are read: the fields of one :class:`mocapdb.readers.ReaderOptions`
         value, checked here, before any file is read — the ASF of every AMC
         (default: found by the dataset conventions), a BVH joint map and a C3D
         marker map (TOML/JSON file or dict; README "Mapping files", "C3D marker
         maps"), the C3D marker rules (``"toolbox"``, the reference, or
-        ``"anatomical"``), the bytes a compressed file or zip member may
-        decompress to (``"2GiB"``; default ``MOCAPDB_MAX_DECOMPRESSED``, else
-        512 MiB). ``ray_annotate`` takes the same and reads the same.
+        ``"anatomical"``), the SMPL-H/SMPL-X body model of AMASS ``.npz`` takes
+        (a model file or a folder of them, chosen by family and gender;
+        default: the generic rest skeleton shipped with mocapdb; README
+        "AMASS"), the bytes a compressed file or zip member may decompress to
+        (``"2GiB"``; default ``MOCAPDB_MAX_DECOMPRESSED``, else 512 MiB).
+        ``ray_annotate`` takes the same and reads the same.
     progress : callable, optional, keyword-only
         ``progress(n_files_done, n_files, path)`` once per file.
     replace : bool, keyword-only
@@ -148,7 +153,7 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     require_own_tables(con, "ingest")
     paths = [*paths, *(sample_files() if sample else [])]
     options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
-                            max_decompressed=max_decompressed)
+                            body_model=body_model, max_decompressed=max_decompressed)
     return ingest_files(con, paths, options=options, progress=progress, replace=replace, log_csv=report)
 
 
@@ -224,6 +229,41 @@ def export_features(con, directory, *, overwrite=False) -> int:
         The number of motions written.
     """
     return parquet.export_features(con, directory, overwrite=overwrite)
+
+
+def export_joints(con, motions, out, *, format="npz", progress=None) -> JointsExport:
+    """Write the 24 canonical joints of motions as files for other tools (fairmotion, Blender, aitviewer).
+
+    Each motion's source is re-read with the options it was ingested with
+    (as the viewer does): its joints at the recording's own rate, in metres,
+    Y up, in ``JOINT_NAMES`` order. See
+    :func:`mocapdb.storage.joint_export.export_joints` and
+    :mod:`mocapdb.readers.joints_write`.
+
+    Parameters
+    ----------
+    con : duckdb.DuckDBPyConnection
+    motions : iterable of int or str
+        Motion ids or names.
+    out : str or Path
+        The file (one motion, ``out`` ending in ``.<format>``), else a
+        directory of ``<motion name>.<format>`` files.
+    format : {"npz", "csv", "bvh"}, keyword-only
+        ``npz``: ``joints`` (frames × 24 × 3), ``fps``, ``joint_names``;
+        ``csv``: a row per frame (``frame``, ``time``, ``<joint>_x/_y/_z``);
+        ``bvh``: a skeleton of the canonical joints that mocapdb (and other
+        tools) read back.
+    progress : callable, optional, keyword-only
+        ``progress(n_done, n_motions, name)`` once per motion.
+
+    Returns
+    -------
+    mocapdb.storage.joint_export.JointsExport
+        ``written`` ``(motion_id, name, path)``; ``failed`` ``(motion_id, name,
+        reason)`` for each motion whose source could not be read (the
+        command exits 1 when it is not empty).
+    """
+    return storage_export_joints(con, motions, out, format=format, progress=progress)
 
 
 def import_features(con, directory):

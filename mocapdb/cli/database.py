@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 import mocapdb.api as api
+from mocapdb.errors import escape_control
 from mocapdb.cli.options import format_option, reader_options, silent_option
 from mocapdb.cli.group import bar_progress, command, open_db, progress_bar
 from mocapdb.cli.output import write_rows, echo_report
@@ -27,7 +28,7 @@ from mocapdb.cli.output import write_rows, echo_report
 @silent_option
 @click.pass_context
 def ingest(ctx, paths, sample, reader, replace, report, silent):
-    """Read ASF/AMC, BVH and C3D files (or folders, recursively) into the database.
+    """Read ASF/AMC, BVH, C3D and AMASS .npz files (or folders, recursively) into the database.
 
     Files may be .gz, .bz2 or .xz compressed, and folders may be .zip archives
     (read in place). A broken file changes nothing and the others still go in;
@@ -163,6 +164,39 @@ def export_features(ctx, directory, overwrite):
     """Write motions and features to Parquet, partitioned by motion (DIR/features/motion_id=N/)."""
 
     click.echo(f"{api.export_features(open_db(ctx), directory, overwrite=overwrite)} motion(s) exported to {directory}")
+
+
+@command("export-joints")
+@click.argument("motions", nargs=-1, required=True)
+@click.option("--format", "fmt", type=click.Choice(("npz", "csv", "bvh")), default="npz", show_default=True,
+              help="npz: joints (frames × 24 × 3), fps, joint_names; csv: a row per frame (frame, time, "
+                   "<joint>_x/_y/_z); bvh: a skeleton of the canonical joints.")
+@click.option("--out", required=True, type=click.Path(path_type=Path),
+              help="The file for one motion (ending in .npz, .csv or .bvh), else a directory of files named by "
+                   "motion.")
+@silent_option
+@click.pass_context
+def export_joints(ctx, motions, fmt, out, silent):
+    """Write the 24 canonical joints of motions (ids or names) for other tools.
+
+    Each motion's source file is read again as it was ingested: its joints
+    at the recording's own rate, in metres, Y up, in JOINT_NAMES order. A
+    motion that cannot be exported (its source moved) is named; the others
+    are written, and the exit status is 1.
+
+    \b
+    Example:
+      mocapdb --db demo.duckdb export-joints 86_09 --format bvh --out 86_09.bvh
+    """
+    con = open_db(ctx, read_only=True)
+    with progress_bar(None, "export-joints", silent, unit="motion") as bar:
+        report = api.export_joints(con, motions, out, format=fmt, progress=bar_progress(bar))
+    for mid, name, path in report.written:   # a name is data: never its control characters raw
+        click.echo(escape_control(f"wrote {path} (motion {mid} {name})"))
+    for mid, name, reason in report.failed:
+        click.echo(escape_control(f"failed  {reason}"), err=True)
+    if report.failed:
+        ctx.exit(1)
 
 
 @command("import-features")

@@ -64,15 +64,15 @@ map_option = click.option("--label-map", type=click.Path(exists=True, dir_okay=F
 
 
 #: the options of how files are read, as the API's keywords (the fields of mocapdb.readers.ReaderOptions)
-READER_KEYWORDS = ("asf", "joint_map", "marker_map", "marker_rules", "max_decompressed")
+READER_KEYWORDS = ("asf", "joint_map", "marker_map", "marker_rules", "body_model", "max_decompressed")
 
 
 def reader_options(fn):
-    """``--asf``, ``--joint-map``, ``--marker-map``, ``--marker-rules`` and ``--max-decompressed``: how files
-    are read, one set of options for ``ingest`` and ``ray-annotate`` (so both read a file alike). The
-    command gets them as one value, ``reader`` (a dict of the API's keywords), and passes it on whole:
-    ``api.ingest(…, **reader)``. A new reader option (an SMPL body model for AMASS files, say) is one
-    more option here and one more name in :data:`READER_KEYWORDS`."""
+    """``--asf``, ``--joint-map``, ``--marker-map``, ``--marker-rules``, ``--body-model`` and
+    ``--max-decompressed``: how files are read, one set of options for ``ingest`` and ``ray-annotate``
+    (so both read a file alike). The command gets them as one value, ``reader`` (a dict of the API's
+    keywords), and passes it on whole: ``api.ingest(…, **reader)``. A new reader option is one more
+    option here and one more name in :data:`READER_KEYWORDS`."""
 
     @functools.wraps(fn)
     def command(*args, **kwargs):
@@ -83,6 +83,11 @@ def reader_options(fn):
                            help="The bytes a compressed file or zip member may decompress to (e.g. 2GiB); a "
                                 "file over it fails, the others go in (default: MOCAPDB_MAX_DECOMPRESSED, else "
                                 "512MiB).")(command)
+    command = click.option("--body-model", type=click.Path(exists=True, path_type=Path),
+                           help="AMASS .npz files: the SMPL-H/SMPL-X body model .npz you downloaded, or a folder "
+                                "of them (chosen by family and gender, e.g. smplh/female/model.npz), giving each "
+                                "take's own rest joints (default: a generic rest skeleton shipped with "
+                                "mocapdb).")(command)
     command = click.option("--marker-rules", type=click.Choice(("toolbox", "anatomical")), default=None,
                            help="C3D files of the HDM05/CMU marker set: the toolbox's formulas (default, the "
                                 "reference) or anatomical joint centres (closer to the same take's AMC).")(command)

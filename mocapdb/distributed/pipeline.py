@@ -35,7 +35,7 @@ import pyarrow.parquet as pq
 from mocapdb.distributed.layout import ERRORS_SCHEMA, finish_output, prepare_output, write_part
 from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
-from mocapdb.readers import MOTION_SUFFIXES, ReaderOptions, motion_files
+from mocapdb.readers import MOTION_SUFFIXES, ReaderOptions, companion_kind, motion_files
 from mocapdb.storage.ingest import IngestReport
 from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
 from mocapdb.storage.parquet import archive_parts, table_schemas, write_manifest
@@ -113,7 +113,7 @@ def expand_sources(sources, *, unsupported=None) -> list[Path]:
     for s in sources:
         if not Path(s).exists() and _GLOB.search(str(s)):
             hits = [Path(h) for h in sorted(glob.glob(str(s), recursive=True))]
-            hits = [h for h in hits if h.is_dir() or h.suffix.lower() in MOTION_SUFFIXES]
+            hits = [h for h in hits if h.is_dir() or (h.suffix.lower() in MOTION_SUFFIXES and companion_kind(h) is None)]
             if not hits:
                 raise ParameterError(f"sources: the pattern {str(s)!r} matches no motion file or folder")
             paths.extend(hits)

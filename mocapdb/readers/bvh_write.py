@@ -17,7 +17,7 @@ from mocapdb.readers.amc import AmcMotion
 from mocapdb.readers.asf import Skeleton
 from mocapdb.readers.kinematics import local_rotations, node_positions
 
-__all__ = ["write_bvh", "euler_angles", "CMU_BONE_NAMES"]
+__all__ = ["write_bvh", "write_bvh_tree", "euler_angles", "CMU_BONE_NAMES"]
 
 #: ASF bone -> joint name in the cmuconvert (cgspeed) CMU BVH files
 CMU_BONE_NAMES = {
@@ -110,7 +110,6 @@ def write_bvh(path, skeleton: Skeleton, motion: AmcMotion, *, layout: str = "asf
     ParameterError
         Unknown layout, a bone without a cmuconvert name, a bad rotation order.
     """
-    path = Path(path)
     if layout not in ("asf", "cmu"):
         raise ParameterError(f"layout={layout!r}: expected 'asf' or 'cmu'")
     if layout == "cmu":
@@ -123,6 +122,61 @@ def write_bvh(path, skeleton: Skeleton, motion: AmcMotion, *, layout: str = "asf
     else:
         rename = {b.name: b.name for b in skeleton.bones}
         rename["root"] = "root"
+    root_rot, local = local_rotations(skeleton, motion)
+    positions, _ = node_positions(skeleton, motion)
+    bones = skeleton.bones
+    index = {b.name: k + 1 for k, b in enumerate(bones)}
+    index["root"] = 0
+    # a joint sits where its bone starts: its OFFSET is its parent bone's vector; a leaf bone ends in
+    # an End Site with its own vector
+    offsets = np.zeros((len(bones) + 1, 3))
+    for k, b in enumerate(bones):
+        if b.parent != "root":
+            offsets[k + 1] = skeleton.bone(b.parent).offset
+    leaves = {k + 1: b.offset for k, b in enumerate(bones) if not skeleton.children(b.name)}
+    rotations = np.concatenate([root_rot[:, None], local], axis=1)
+    return write_bvh_tree(path, [rename["root"], *(rename[b.name] for b in bones)],
+                          [-1, *(index[b.parent] for b in bones)], offsets, positions[:, 0, :], rotations,
+                          motion.fps, end_sites=leaves, rotation_order=rotation_order, rest_frame=rest_frame,
+                          precision=precision)
+
+
+def write_bvh_tree(path, names, parents, offsets, root_positions, rotations, fps, *, end_sites=None,
+                   rotation_order="ZYX", rest_frame: bool = False, precision: int = 12) -> Path:
+    """Write a skeleton and its motion as a BVH file: the one BVH writer of mocapdb.
+
+    Parameters
+    ----------
+    path : str or Path
+    names : sequence of str
+        Joint names; joint 0 is the root.
+    parents : sequence of int
+        The parent of each joint (-1 for the root); a joint's children are
+        written in index order, depth first.
+    offsets : array_like, shape (n_joints, 3)
+        Each joint's OFFSET: where it sits relative to its parent's origin
+        at rest (the root's is written as given).
+    root_positions : ndarray, shape (n_frames, 3)
+        The root's position channels.
+    rotations : ndarray, shape (n_frames, n_joints, 3, 3)
+        Each joint's rotation relative to its parent (the root's: global).
+    fps : float
+    end_sites : dict, optional, keyword-only
+        Joint index → the OFFSET of its End Site.
+    rotation_order, rest_frame, precision : keyword-only
+        As :func:`write_bvh`.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ParameterError
+        A bad rotation order.
+    """
+    path = Path(path)
+    end_sites = end_sites or {}
 
     def order_of(joint):
         o = rotation_order.get(joint, "ZYX") if isinstance(rotation_order, dict) else rotation_order
@@ -131,56 +185,46 @@ def write_bvh(path, skeleton: Skeleton, motion: AmcMotion, *, layout: str = "asf
                                  "permutation of 'XYZ'")
         return o.upper()
 
-    root_rot, local = local_rotations(skeleton, motion)
-    positions, _ = node_positions(skeleton, motion)
-    bones = skeleton.bones
-    children = {"root": [b for b in bones if b.parent == "root"]}
-    for b in bones:
-        children[b.name] = [c for c in bones if c.parent == b.name]
+    children = {k: [c for c in range(len(names)) if parents[c] == k] for k in range(len(names))}
     fmt = lambda x: _fmt(x, precision)  # noqa: E731
     lines = ["HIERARCHY"]
     columns = []  # per joint: (n, k) arrays in channel order
 
-    def emit(bone, depth, offset):
+    def emit(k, depth):
         ind = "\t" * depth
-        name = rename[bone.name if bone is not None else "root"]
-        key = "ROOT" if bone is None else "JOINT"
+        name = names[k]
         order = order_of(name)
         rot_names = [f"{a}rotation" for a in order]
-        lines.append(f"{ind}{key} {name}")
+        lines.append(f"{ind}{'ROOT' if k == 0 else 'JOINT'} {name}")
         lines.append(f"{ind}{{")
-        lines.append(f"{ind}\tOFFSET {' '.join(fmt(v) for v in offset)}")
-        if bone is None:
+        lines.append(f"{ind}\tOFFSET {' '.join(fmt(v) for v in offsets[k])}")
+        if k == 0:
             lines.append(f"{ind}\tCHANNELS 6 Xposition Yposition Zposition {' '.join(rot_names)}")
-            columns.append(positions[:, 0, :])
-            rot = root_rot
+            columns.append(root_positions)
         else:
             lines.append(f"{ind}\tCHANNELS 3 {' '.join(rot_names)}")
-            rot = local[:, skeleton.bone_index[bone.name]]
-        deg = np.degrees(euler_angles(rot, order))
+        deg = np.degrees(euler_angles(rotations[:, k], order))
         # angles below 1e-10° are rounding noise of the Euler decomposition (a
         # position error of ~1e-12 bone lengths); write them as 0 rather than
         # as 1e-15-style tokens that every reader must parse the slow way
         deg[np.abs(deg) < 1e-10] = 0.0
         columns.append(deg)
-        kids = children[bone.name if bone is not None else "root"]
-        own = bone.offset if bone is not None else np.zeros(3)
-        for c in kids:
-            emit(c, depth + 1, own)
-        if bone is not None and not kids:
+        for c in children[k]:
+            emit(c, depth + 1)
+        if k in end_sites:
             lines.append(f"{ind}\tEnd Site")
             lines.append(f"{ind}\t{{")
-            lines.append(f"{ind}\t\tOFFSET {' '.join(fmt(v) for v in own)}")
+            lines.append(f"{ind}\t\tOFFSET {' '.join(fmt(v) for v in end_sites[k])}")
             lines.append(f"{ind}\t}}")
         lines.append(f"{ind}}}")
 
-    emit(None, 0, np.zeros(3))
+    emit(0, 0)
     table = np.concatenate(columns, axis=1)
     if rest_frame:
         table = np.concatenate([np.zeros((1, table.shape[1])), table])
     lines.append("MOTION")
     lines.append(f"Frames: {table.shape[0]}")
-    lines.append(f"Frame Time: {fmt(1.0 / motion.fps)}")
+    lines.append(f"Frame Time: {fmt(1.0 / fps)}")
     body = "\n".join(" ".join(fmt(v) for v in row) for row in table)
     path.write_text("\n".join(lines) + "\n" + body + "\n", encoding="latin-1")
     return path

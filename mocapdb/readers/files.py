@@ -1,23 +1,23 @@
 """Read any supported motion file into a :class:`~mocapdb.readers.motion.Motion`.
 
 :func:`read_motion` dispatches on the extension (``.amc`` with its ASF
-skeleton, ``.bvh``, ``.c3d``; each also compressed or inside a zip archive,
-:mod:`~mocapdb.readers.sources`); :func:`find_skeleton` implements the
+skeleton, ``.bvh``, ``.c3d``, AMASS ``.npz``; each also compressed or inside a
+zip archive, :mod:`~mocapdb.readers.sources`); :func:`find_skeleton` implements the
 dataset conventions for locating the ASF of an AMC file.
 
 References
 ----------
-DESIGN.md §1, §6; READERS.md §5, §7.
+DESIGN.md §1, §6; READERS.md §5, §7, §9.
 """
 from __future__ import annotations
 
 import re
-import threading
 from pathlib import Path
 
 import numpy as np
 
 from mocapdb.errors import MocapdbError, ParameterError, ParseError
+from mocapdb.readers.amass import read_amass
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.asf_humanoid import asf_humanoid_joints
@@ -27,13 +27,13 @@ from mocapdb.readers.humanoid import MappingError
 from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
 from mocapdb.readers.motion import Motion, check_finite_motion
 from mocapdb.readers.options import ReaderOptions
-from mocapdb.readers.sources import (COMPRESSED, identity, is_file, list_dir, motion_stem, motion_suffix,
+from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix,
                                      special_kind)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
            "load_skeleton", "SUPPORTED_EXTENSIONS"]
 
-SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d")
+SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d", ".npz")
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
@@ -107,25 +107,14 @@ def skeleton_note(amc_path, asf_path) -> str | None:
 
 # Skeletons are re-read for every take of an actor during ingest; cache them by
 # file identity (path, size, mtime; an archive member's CRC). Skeleton objects are immutable.
-_ASF_CACHE: dict = {}
-_ASF_LOCK = threading.Lock()
+_ASF_CACHE = FileCache(64)
 
 
 def load_skeleton(asf) -> Skeleton:
     """A :class:`Skeleton` from a path (cached by file identity) or a Skeleton."""
     if isinstance(asf, Skeleton):
         return asf
-    p = Path(asf)
-    key = identity(p)
-    with _ASF_LOCK:
-        hit = _ASF_CACHE.get(key)
-    if hit is None:
-        hit = read_asf(p)
-        with _ASF_LOCK:
-            if len(_ASF_CACHE) > 64:
-                _ASF_CACHE.clear()
-            _ASF_CACHE[key] = hit
-    return hit
+    return _ASF_CACHE.get(Path(asf), read_asf)
 
 
 def read_asf_amc(amc_path, asf) -> Motion:
@@ -173,13 +162,15 @@ def read_asf_amc(amc_path, asf) -> Motion:
                         "frames": (1, len(joints))})
 
 
-def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None, marker_rules=None) -> Motion:
+def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None, marker_rules=None,
+                body_model=None) -> Motion:
     """Read a motion file (by extension) into the 24 canonical joints.
 
     Parameters
     ----------
     path : str or Path
-        ``.amc`` (Acclaim motion; needs a skeleton), ``.bvh`` or ``.c3d``.
+        ``.amc`` (Acclaim motion; needs a skeleton), ``.bvh``, ``.c3d`` or an
+        AMASS ``.npz``.
     options : ReaderOptions, optional
         How to read it (:class:`~mocapdb.readers.options.ReaderOptions`: what
         ingest, ray-annotate and the viewer pass); or the keywords below,
@@ -195,6 +186,11 @@ def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None
     marker_rules : {"toolbox", "anatomical"}, optional, keyword-only
         C3D only: how the HDM05/CMU marker set is read (default ``"toolbox"``,
         the reference; :func:`~mocapdb.readers.c3d.read_c3d`).
+    body_model : str or Path, optional, keyword-only
+        AMASS ``.npz`` only: an SMPL-family body model file, or a folder of
+        them, giving the take's own rest joints
+        (:func:`~mocapdb.readers.amass.read_amass`; default: the generic rest
+        skeleton).
 
     Returns
     -------
@@ -216,12 +212,13 @@ def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None
     ----------
     DESIGN.md §1, §6; FEATURES.md §2.
     """
-    keywords = {"asf": asf, "joint_map": joint_map, "marker_map": marker_map, "marker_rules": marker_rules}
+    keywords = {"asf": asf, "joint_map": joint_map, "marker_map": marker_map, "marker_rules": marker_rules,
+                "body_model": body_model}
     if options is None:
         options = ReaderOptions(**keywords)
     elif any(v is not None for v in keywords.values()):
         raise ParameterError("read_motion: give options or the keywords asf, joint_map, marker_map, marker_rules, "
-                             "not both")
+                             "body_model, not both")
     path = Path(path)
     kind = special_kind(path)
     if kind is not None:   # reading a FIFO would block, a device never end
@@ -263,6 +260,8 @@ def _read(path, options) -> Motion:
         return read_bvh(path, joint_map=options.mapping("joint_map"))
     if ext == ".c3d":
         return read_c3d(path, marker_map=options.mapping("marker_map"), marker_rules=options.marker_rules)
+    if ext == ".npz":
+        return read_amass(path, body_model=options.body_model)
     raise ParseError(path, None, f"unsupported file type {ext or path.suffix!r} (expected "
                      + " or ".join(SUPPORTED_EXTENSIONS) + ", optionally compressed: "
                      + ", ".join(COMPRESSED) + ")")

@@ -80,10 +80,13 @@ class ReaderOptions:
         C3D files of the HDM05/CMU marker set: the toolbox's formulas (default,
         the reference) or anatomical joint centres (READERS.md §3.2).
     body_model : str, optional
-        For the SMPL-family (AMASS ``.npz``) reader of issue 26 item 1: the SMPL-H/SMPL-X body
-        model file (``model.npz``) whose joint regressor, template and shape blend shapes give each
-        take's rest joints from its betas; an absolute path. Without it the reader uses its shipped
-        generic rest skeleton. Stored with the motions it reads (:data:`APPLIES_TO`).
+        AMASS ``.npz`` files (READERS.md §9): the SMPL-H/SMPL-X body model file
+        (``model.npz``, ``SMPLX_*.npz``) whose joint regressor, template and
+        shape directions give each take's rest joints from its betas, or a
+        folder of them (each take gets the model of its family and gender,
+        :func:`~mocapdb.readers.body_model.find_body_model`); an absolute path.
+        Without it the reader uses its shipped generic rest skeleton. Stored
+        with the motions it reads (:data:`APPLIES_TO`).
     max_decompressed : int, optional
         Bytes a compressed file or zip member may decompress to (given as an
         int or a size such as ``"2GiB"``); default: the environment's
@@ -96,7 +99,7 @@ class ReaderOptions:
     ParameterError
         A mapping file that cannot be read or names no canonical joint, an
         unknown ``marker_rules``, a size that is none, a ``body_model`` that is
-        no file (the message names the parameter and the value).
+        neither a file nor a folder (the message names the parameter and the value).
     """
 
     asf: object = None
@@ -121,9 +124,9 @@ class ReaderOptions:
             raise ParameterError(f"marker_rules must be one of {', '.join(map(repr, MARKER_RULES))} "
                                  f"(--marker-rules), got {self.marker_rules!r}")
         if self.body_model is not None:
-            if not Path(self.body_model).is_file():
-                raise ParameterError(f"body_model: {str(self.body_model)!r} is not a file (the SMPL-H/SMPL-X "
-                                     "model.npz; --body-model PATH)")
+            if not (Path(self.body_model).is_file() or Path(self.body_model).is_dir()):
+                raise ParameterError(f"body_model: {str(self.body_model)!r} does not exist (give an SMPL-H/SMPL-X "
+                                     "model .npz or a folder of them: --body-model PATH)")
             set_(self, "body_model", os.path.abspath(self.body_model))
         if self.max_decompressed is not None:
             set_(self, "max_decompressed", parse_size(self.max_decompressed))

@@ -52,9 +52,9 @@ from pathlib import Path, PurePosixPath
 from mocapdb.errors import ParameterError
 
 __all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
-           "sha256", "stream_size", "is_file", "list_dir", "identity", "bytes_file", "special_kind", "zip_members",
-           "member_problem", "DEFAULT_MAX_DECOMPRESSED", "max_decompressed", "decompression_cap", "parse_size",
-           "format_size"]
+           "sha256", "stream_size", "is_file", "list_dir", "identity", "FileCache", "bytes_file", "special_kind",
+           "zip_members", "member_problem", "DEFAULT_MAX_DECOMPRESSED", "max_decompressed", "decompression_cap",
+           "parse_size", "format_size"]
 
 #: compression suffix → the module that opens it as a stream
 COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
@@ -400,6 +400,34 @@ def identity(path) -> tuple:
         return (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
     info = _member_info(archive, member)
     return (str(archive.resolve()), member, st.st_size, st.st_mtime_ns, info.CRC)
+
+
+class FileCache:
+    """Objects read from files, kept by the file's :func:`identity` (thread-safe).
+
+    Skeletons and body models are read again for every take that uses them
+    during an ingest; the objects are immutable, so one read serves all. A
+    changed file (size, modification time, a member's CRC) is read anew;
+    beyond ``limit`` entries the cache starts over.
+    """
+
+    def __init__(self, limit: int):
+        self.limit = limit
+        self._items: dict = {}
+        self._lock = threading.Lock()
+
+    def get(self, path, read):
+        """``read(path)``, or what it gave for the same file before."""
+        key = identity(path)
+        with self._lock:
+            hit = self._items.get(key)
+        if hit is None:
+            hit = read(path)
+            with self._lock:
+                if len(self._items) > self.limit:
+                    self._items.clear()
+                self._items[key] = hit
+        return hit
 
 
 def special_kind(path) -> str | None:

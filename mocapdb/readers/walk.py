@@ -4,7 +4,7 @@
 symlinked folders once), ``.zip`` archives read as folders, a folder inside
 an archive (``cmu.zip/subjects/02``) — into the motion files to read, in a
 fixed order, and reports what it passes over: files that are no motions (an
-ASF beside its AMCs, a README), special files (FIFOs, devices, sockets),
+ASF beside its AMCs, an AMASS body shape file, a README), special files (FIFOs, devices, sockets),
 folders and archives it cannot read, and zip members whose names would leave
 their archive (:func:`~mocapdb.readers.sources.member_problem`). Where the
 bytes of each file then come from is :mod:`~mocapdb.readers.sources`; both
@@ -13,20 +13,36 @@ through here, so they read the same files.
 """
 from __future__ import annotations
 
+import fnmatch
 import os
 from pathlib import Path
 
 from mocapdb.errors import ParameterError
+from mocapdb.readers.amass import SHAPE_FILE_PATTERNS
 from mocapdb.readers.files import SUPPORTED_EXTENSIONS
-from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_suffix, special_kind, split_archive,
-                                     zip_members)
+from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, special_kind,
+                                     split_archive, zip_members)
 
-__all__ = ["motion_files", "MOTION_SUFFIXES"]
+__all__ = ["motion_files", "MOTION_SUFFIXES", "companion_kind"]
 
 #: file extensions ingest reads as motions
 MOTION_SUFFIXES = SUPPORTED_EXTENSIONS
-#: files a motion folder holds beside its motions, and why they are not ingested
-_COMPANIONS = {".asf": "an ASF skeleton (read with its AMC takes)"}
+
+
+def companion_kind(path) -> str | None:
+    """What a file that sits beside motions without being one is, or None.
+
+    An ASF skeleton (read with its AMC takes), and AMASS's body shape files
+    (``shape.npz``, ``*_stagei.npz``: betas and gender, no motion), which a
+    folder walk lists as not motion files rather than failed ones.
+    """
+    p = Path(path)
+    if motion_suffix(p) == ".asf":
+        return "an ASF skeleton (read with its AMC takes)"
+    name = (motion_stem(p) + motion_suffix(p)).lower()
+    if any(fnmatch.fnmatchcase(name, pattern) for pattern in SHAPE_FILE_PATTERNS):
+        return "an AMASS body shape file (betas and gender, no motion)"
+    return None
 
 
 def _hidden(name: str) -> bool:
@@ -92,10 +108,10 @@ def _archive_files(archive: Path, unreadable, refused=None, *, named=False) -> l
 
 def _classify(q: Path, out: list, unsupported):
     ext = motion_suffix(q)
-    if ext in MOTION_SUFFIXES:
+    if ext in MOTION_SUFFIXES and companion_kind(q) is None:
         out.append(q)
     elif unsupported is not None:
-        why = _COMPANIONS.get(ext) or (f"unsupported file type {q.suffix!r}" if q.suffix else "no file extension")
+        why = companion_kind(q) or (f"unsupported file type {q.suffix!r}" if q.suffix else "no file extension")
         unsupported.append((str(q), why + " (motions: " + ", ".join(MOTION_SUFFIXES) + ", optionally "
                             + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
 

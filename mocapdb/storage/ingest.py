@@ -312,12 +312,13 @@ def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, r
     con : duckdb.DuckDBPyConnection
         A connection with the mocapdb schema.
     paths : iterable of str or Path
-        Files (``.amc``, ``.bvh``, ``.c3d``) or folders, searched recursively
-        (:func:`mocapdb.readers.motion_files`).
+        Files (``.amc``, ``.bvh``, ``.c3d``, ``.npz``) or folders, searched
+        recursively (:func:`mocapdb.readers.motion_files`).
     options : ReaderOptions, optional, keyword-only
         How every file is read (:class:`mocapdb.readers.ReaderOptions`: the
-        AMC skeleton, joint and marker maps, marker rules, the decompression
-        cap); those of each file's type are stored in ``motions.reader_options``.
+        AMC skeleton, joint and marker maps, marker rules, the body model of
+        AMASS takes, the decompression cap); those of each file's type are
+        stored in ``motions.reader_options``.
         Default: every file by its own rules.
     progress : callable, optional, keyword-only
         Called as ``progress(n_files_done, n_files, path)`` once per file (the
