@@ -61,6 +61,8 @@ TOUR = [
      lambda r, t: t["page"].read_text(encoding="utf-8").startswith("<!DOCTYPE html>")),
     ("report", ["report", "--figure", "delta", "--motion", "86_09", "--out", "{figure}"],
      lambda r, t: t["figure"].read_bytes()[:4] == b"\x89PNG"),
+    ("export-joints", ["export-joints", "86_09", "--format", "csv", "--out", "{joints}"],
+     lambda r, t: len(_rows(t["joints"])) == 4794 and "lknee_y" in _rows(t["joints"])[0]),
     ("train", ["train", "--model", "tour", "--labels", "{truth}", "--silent"], lambda r, t: "tour" in r.output),
     ("learn-keyframes", ["learn-keyframes", "--model", "tour", "--labels", "{truth}", "--runs", "1", "--generations",
                          "2", "--jobs", "1", "--silent"], lambda r, t: r.output.split()[:3] == ["class", "keyframes", "fitness"]),
@@ -112,7 +114,7 @@ def test_every_command_runs_on_real_recordings(tmp_path, monkeypatch):
          "foreign": tmp_path / "foreign.csv", "page": tmp_path / "86_09.html", "figure": tmp_path / "delta.png",
          "cartwheel": SAMPLE.parent / "shipped_models" / "classes" / "cartwheel.toml", "export": tmp_path / "export",
          "imported": tmp_path / "imported.duckdb", "moved": tmp_path / "moved", "archive": tmp_path / "archive",
-         "views": tmp_path / "views.duckdb"}
+         "views": tmp_path / "views.duckdb", "joints": tmp_path / "86_09_joints.csv"}
     db = tmp_path / "tour.duckdb"
     # Ray starts its workers from the working directory: not the checkout, whose mocapdb would shadow
     monkeypatch.chdir(tmp_path)
