@@ -32,7 +32,7 @@ from mocapdb.errors import MocapdbError, ParameterError, ParseError, SchemaError
 from mocapdb.features import motion_features, relational_features  # noqa: E402
 from mocapdb.readers import read_motion  # noqa: E402
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 __all__ = [
     "connect", "ingest", "delete", "annotate", "train", "evaluate", "view", "similar", "export_joints", "read_motion",
