@@ -56,7 +56,7 @@ from mocapdb.evaluation.documents import (CLIPS_PER_DOCUMENT, MOCAP6_TRIALS, Doc
                                           cmu86_documents, cmu_stretches, concatenate_motions, loao_documents,
                                           mirror_document_set, mocap6_documents, pose_clips)
 from mocapdb.evaluation.metrics import evaluate_annotation
-from mocapdb.evaluation.studio import STUDIO_FOLDER, studio_documents, studio_measures, studio_training
+from mocapdb.evaluation.studio import STUDIO_FOLDER, studio_documents, studio_measures, studio_style, studio_training
 from mocapdb.features import motion_features
 from mocapdb.learning.cutting import clips_from_stretches
 from mocapdb.learning.recipe import Clip, default_recipe
@@ -98,7 +98,8 @@ class DevelopmentData:
     studio : StudioDocuments or None
         Another studio's clips (:func:`mocapdb.evaluation.studio.studio_documents`).
     studio_clips : dict of str to list of Clip
-        What a model may learn from them (:func:`mocapdb.evaluation.studio.studio_training`; group = style).
+        What a model may learn from them (:func:`mocapdb.evaluation.studio.studio_training`: one
+        performer's; the style is in each clip's document name).
     """
 
     hdm05: dict
@@ -134,7 +135,7 @@ class DevelopmentData:
             for c, items in cut.items():
                 out.setdefault(c, []).extend(Clip(n, w, g, d) for n, g, d, w in items)
         for c, items in self.studio_clips.items():
-            kept = [x for x in items if x.group != without_style]
+            kept = [x for x in items if without_style is None or studio_style(x.document) != without_style]
             if kept:
                 out.setdefault(c, []).extend(kept)
         return out

@@ -19,7 +19,10 @@ clips with a ``turn`` (none should have one), the share of gesture frames
 under a label but ``neutral``, and the paper's frame and segment P/R/F1
 against that truth. :func:`studio_training` gives the clips a model may
 train on — walks and runs cut into steps, gestures as motions of no class
-(``others``) — grouped by style, so that a fold can leave a style out.
+(``others``) — one performer's, so grouped as one (τ learning leaves a
+performer out, and styles of one performer are no new performers), each
+clip's style in its document name, so that a fold can leave a style out
+(:func:`studio_style`).
 """
 from __future__ import annotations
 
@@ -38,8 +41,8 @@ from mocapdb.learning.cutting import clips_from_stretches
 from mocapdb.learning.recipe import OTHERS, Clip
 from mocapdb.readers import read_motion
 
-__all__ = ["STUDIO_CONTENTS", "STUDIO_FOLDER", "STUDIO_TRAINING_CLASSES", "StudioDocuments", "StudioScores",
-           "studio_documents", "studio_measures", "studio_training"]
+__all__ = ["STUDIO_CONTENTS", "STUDIO_FOLDER", "STUDIO_GROUP", "STUDIO_TRAINING_CLASSES", "StudioDocuments",
+           "StudioScores", "studio_documents", "studio_measures", "studio_training", "studio_style"]
 
 #: the folder of the development data that holds the clips
 STUDIO_FOLDER = "bandai2_dev"
@@ -55,7 +58,15 @@ STUDIO_CONTENTS = {
 #: content → the learned class whose steps it trains (:func:`studio_training`); turning walks
 #: are left out, since their steps turn
 STUDIO_TRAINING_CLASSES = {"walk": "bandaiWalk2Steps", "run": "bandaiRun2Steps"}
+#: the group of every studio clip in training: one performer (τ is learned leaving performers out)
+STUDIO_GROUP = "bandai2"
 _NAME = re.compile(r"^dataset-2_(?P<content>[a-z-]+?)_(?P<style>[a-z]+)_(?P<take>\d+)$")
+
+
+def studio_style(document) -> str | None:
+    """The acting style a studio clip's document name says (``None`` for another name)."""
+    m = _NAME.match(str(document))
+    return m["style"] if m else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,7 +151,12 @@ def studio_documents(data_dir, *, styles=None) -> StudioDocuments:
 
 
 def studio_training(studio: StudioDocuments, **cut_params) -> dict:
-    """The clips a model may learn from the studio, grouped by style (a fold leaves one out).
+    """The clips a model may learn from the studio: one performer's (group :data:`STUDIO_GROUP`).
+
+    Their documents say their style (:func:`studio_style`), so that a fold
+    can leave a style out; τ learning sees one performer, and a class learned
+    only from them takes the τ at which it claims no other label's clip
+    (:func:`mocapdb.learning.thresholds.learn_taus`).
 
     * walks and runs (:data:`STUDIO_TRAINING_CLASSES`), each clip a stretch,
       cut into two-step repetitions by :func:`mocapdb.learning.cutting.clips_from_stretches`;
@@ -154,14 +170,13 @@ def studio_training(studio: StudioDocuments, **cut_params) -> dict:
     d = studio.docs
     off = np.concatenate(([0], np.cumsum(d.doc_lengths)))
     words = {n: d.words[off[k]:off[k + 1]] for k, n in enumerate(d.names)}
-    style = dict(zip(d.names, studio.styles))
     rows = [(n, STUDIO_TRAINING_CLASSES[c], 0, int(d.doc_lengths[k]) - 1)
             for k, (n, c) in enumerate(zip(d.names, studio.contents)) if c in STUDIO_TRAINING_CLASSES]
     out = {}
     if rows:
-        cut = clips_from_stretches(words, label_rows(*zip(*rows)), groups=style.get, **cut_params)
+        cut = clips_from_stretches(words, label_rows(*zip(*rows)), groups=lambda doc: STUDIO_GROUP, **cut_params)
         out = {c: [Clip(n, w, g, doc) for n, g, doc, w in items] for c, items in cut.items()}
-    others = [Clip(n, words[n], style[n], n) for n, c in zip(d.names, studio.contents)
+    others = [Clip(n, words[n], STUDIO_GROUP, n) for n, c in zip(d.names, studio.contents)
               if STUDIO_CONTENTS[c][0] == "gesture"]
     if others:
         out[OTHERS] = others
