@@ -77,6 +77,9 @@ def test_confidence_is_how_far_the_best_match_lies_below_tau():
     by = {str(s["label"]): s for s in ann.segments}
     assert by["walk"]["confidence"] == pytest.approx(1.0)            # a perfect match
     assert ((ann.segments["confidence"] >= 0) & (ann.segments["confidence"] <= 1)).all()
+    # at τ = 0 only perfect matches are hits: their confidence is 1, not 0/0
+    exact = annotate(w, Model("m", (cls("A", "walk", 0, tau=0.0),)))
+    assert len(exact.segments) and (exact.segments["confidence"] == 1.0).all()
 
 
 def test_segment_min_kernel_matches_brute_force():

@@ -272,6 +272,15 @@ def _form_segments(cdl, bounds, labels):
     return out
 
 
+def _tau_ratio(cd, tau):
+    """Δ̄^τ / τ per cell; at τ = 0 only a perfect match is a hit, and it counts as 0 (confidence 1)."""
+    out = np.full(cd.shape, np.inf)
+    pos = tau > 0
+    np.divide(cd, tau, out=out, where=pos)
+    out[~pos & (cd <= 0)] = 0.0
+    return out
+
+
 def _concurrent_rows(model):
     """Label indices of the model's concurrent labels (annotated on their own, beside the others)."""
     return np.array([k for k, lab in enumerate(model.labels) if lab in model.concurrent_labels], dtype=np.int64)
@@ -463,7 +472,7 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
             hits = (sel[qq], tc[qq], hdoc, hs[idx] + first_in_doc, he[idx] + first_in_doc, hc[idx])
         # Δ̄^τ per label over the batch, +inf outside the tasks; and Δ̄^τ / τ (the confidence)
         kept = None
-        ratio = cd / np.repeat(class_taus[tc], np.diff(offsets)) if cd.size else cd
+        ratio = _tau_ratio(cd, np.repeat(class_taus[tc], np.diff(offsets)))
         if keep_deltas or tiled:
             full_cd = _per_class(cd, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
             label_cd = combine_by_label(full_cd, model.label_index, len(labels))
