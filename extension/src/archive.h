@@ -1,0 +1,47 @@
+/* Reading an archive written by `mocapdb ingest` through the extension's own
+ * connection: the motions' lengths and a batch of motions' keyframe-index runs. */
+#ifndef MOCAPDB_ARCHIVE_H
+#define MOCAPDB_ARCHIVE_H
+
+#include <pthread.h>
+#include <stdint.h>
+
+#include "duckdb_extension.h"
+
+/* What a loaded extension keeps per database: a connection of its own (opened at
+ * LOAD; the C API hands the database out only then) and the lock that serialises
+ * its use (a DuckDB connection runs one query at a time). */
+typedef struct {
+	duckdb_connection con;
+	pthread_mutex_t lock;
+} mdb_state;
+
+/* The stored motions, ascending ids, with their 30 Hz frame counts. */
+typedef struct {
+	int32_t *id;
+	int64_t *n_frames;
+	size_t n;
+} mdb_motions;
+
+/* The 40-bit-word runs of a batch of motions, in (motion, run) order. */
+typedef struct {
+	int32_t *motion;
+	uint64_t *word;
+	int64_t *start; /* 0-based first frame */
+	int64_t *len;
+	size_t n;
+	size_t cap;
+} mdb_runs;
+
+/* Error text of the archive functions (set when they return non-zero). */
+typedef struct {
+	char text[512];
+} mdb_error;
+
+int mdb_read_motions(mdb_state *st, mdb_motions *out, mdb_error *err);
+void mdb_motions_free(mdb_motions *m);
+/* The runs of motions lo .. hi (ids, inclusive) of the 'full' part of the index. */
+int mdb_read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_error *err);
+void mdb_runs_free(mdb_runs *r);
+
+#endif

@@ -1,0 +1,13 @@
+/* The SQL functions of the native extension, registered at LOAD. */
+#ifndef MOCAPDB_FUNCTIONS_H
+#define MOCAPDB_FUNCTIONS_H
+
+#include "archive.h"
+
+/* limits of an inline keyframe query, as mocapdb.extension.udfs.MAX_KEYFRAMES / MAX_GAP */
+#define MDB_MAX_KEYFRAMES 32
+#define MDB_MAX_GAP (30 * 3600)
+
+int mdb_register_keyframe_words(duckdb_connection con, mdb_state *st);
+
+#endif
