@@ -1,0 +1,258 @@
+"""The native DuckDB extension (``mocapdb.duckdb_extension``, extension/src, docs/EXTENSION.md).
+
+What holds it: the binary ``pip install .`` built (``mocapdb extension-path``) LOADs into the two
+DuckDBs at hand — Python ``duckdb`` 2.0.x in a process that never imports mocapdb, and the DuckDB
+CLI 1.5.x of PyPI's ``duckdb-cli`` — and its ``keyframe_search_words`` gives the same rows as the
+Python UDF (the numba kernels) on real recordings, for seeded random queries built from the
+archive's own words; bad arguments are DuckDB errors naming the problem, a missing table names the
+table and ``mocapdb ingest``; and a build under ``-fsanitize=address,undefined`` survives thousands
+of seeded random calls.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mocapdb
+from mocapdb.extension.native_build import build
+from conftest import DATA, run
+
+# A client that never imported mocapdb: plain Python duckdb, the extension LOADed, the queries of a
+# JSON list on stdin run one by one; each answer is its rows or its error's first line.
+PLAIN_CLIENT = r"""
+import json, sys
+import duckdb
+db, ext, queries = json.load(sys.stdin)
+con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
+con.execute(f"LOAD '{ext}'")
+out = []
+for q in queries:
+    try:
+        out.append({"rows": [list(r) for r in con.execute(q).fetchall()]})
+    except duckdb.Error as e:
+        out.append({"error": str(e).splitlines()[0]})
+assert "mocapdb" not in sys.modules
+print(json.dumps(out))
+"""
+
+
+def plain_client(db, ext, queries, env=None):
+    """Answers of :data:`PLAIN_CLIENT` in a fresh process (the extension keeps the database open
+    for the life of its process: docs/EXTENSION.md)."""
+    run = subprocess.run([sys.executable, "-c", PLAIN_CLIENT], input=json.dumps([str(db), str(ext), queries]),
+                         capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout)
+
+
+def words_query(masks, vals, gap_min, gap_max, left, right):
+    def sql_list(xs):
+        return "[" + ", ".join("NULL" if x is None else str(int(x)) for x in xs) + "]"
+
+    return (f"SELECT * FROM keyframe_search_words({sql_list(masks)}::UBIGINT[], {sql_list(vals)}::UBIGINT[], "
+            f"{sql_list(gap_min)}::BIGINT[], {sql_list(gap_max)}::BIGINT[], extend_left := {left}, "
+            f"extend_right := {right}) ORDER BY ALL")
+
+
+@pytest.fixture(scope="module")
+def native():
+    return mocapdb.api.extension_path()
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory):
+    """The shipped sample recordings and, from ../shared, an HDM05 document and the 40 squat clips
+    (many motions: the search goes motion by motion)."""
+    path = tmp_path_factory.mktemp("native") / "archive.duckdb"
+    with mocapdb.connect(path) as con:
+        mocapdb.ingest(con, sample=True)
+        if DATA.is_dir():
+            mocapdb.ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.amc", DATA / "hdm05_cut" / "squat1Reps"],
+                           asf=DATA / "hdm05_full" / "HDM_dg.asf")
+    return path
+
+
+def random_queries(path, n, seed):
+    """Seeded keyframe queries that hit: keyframes are a few bits of the words of real frames
+    (chosen along one motion, so the chain exists), gap bounds around the frames' distances,
+    sometimes unbounded; margins up to 2 s."""
+    rng = np.random.default_rng(seed)
+    with mocapdb.connect(path, read_only=True) as con:
+        words = con.execute("SELECT motion_id, list(bits ORDER BY frame) FROM features GROUP BY ALL "
+                            "ORDER BY motion_id").fetchall()
+    queries = []
+    for _ in range(n):
+        _, w = words[rng.integers(len(words))]
+        K = int(rng.integers(1, 5))
+        frames = np.sort(rng.integers(0, len(w), K))
+        masks, vals = [], []
+        for f in frames:
+            mask = 0
+            for b in rng.choice(40, int(rng.integers(0, 7)), replace=False):
+                mask |= 1 << int(b)
+            masks.append(mask)
+            vals.append(int(w[f]) & mask)
+        gaps = np.diff(frames)
+        gap_min = [int(max(0, g - rng.integers(0, 20))) for g in gaps]
+        gap_max = [None if rng.random() < 0.2 else int(g + rng.integers(0, 40)) for g in gaps]
+        queries.append(words_query(masks, vals, gap_min, gap_max, int(rng.integers(0, 61)),
+                                   int(rng.integers(0, 61))))
+    return queries
+
+
+@pytest.mark.shared
+def test_keyframe_search_words_equals_the_python_udf(archive, native):
+    """Seeded random queries over real recordings: the native rows are the numba kernels' rows."""
+    queries = random_queries(archive, 300, seed=31)
+    with mocapdb.connect(archive, read_only=True) as con:
+        want = [[list(r) for r in con.execute(q).fetchall()] for q in queries]
+    got = plain_client(archive, native, queries)
+    assert [g.get("error") for g in got] == [None] * len(queries)
+    assert [g["rows"] for g in got] == want
+    assert sum(map(bool, want)) > 200  # most queries hit: the comparison is not over empty answers
+    assert len({m for rows in want for m, _, _ in rows}) > 20  # across many motions
+
+
+def test_bad_arguments_are_errors_that_name_them(archive, native):
+    cases = {
+        "keyframe_search_words([], [], [], [])": "a query has 1..32 keyframes, got 0",
+        "keyframe_search_words(NULL, [1], [], [])": "masks and values must not be NULL",
+        "keyframe_search_words([1, 2], [1], [0], [1])": "2 masks but 1 values",
+        "keyframe_search_words([1], [2], [], [])": "keyframe 1 must be 40-bit words",
+        "keyframe_search_words([1099511627776], [0], [], [])": "keyframe 1 must be 40-bit words",
+        "keyframe_search_words([-1], [0], [], [])": "keyframe 1 must be 40-bit words",
+        "keyframe_search_words([1, 2], [1, 0], [5], [3])": "gap 1 must have 0 <= d_min <= d_max <= 108000",
+        "keyframe_search_words([1, 2], [1, 0], [NULL], [3])": "gap 1 must have",
+        "keyframe_search_words([1, 2], [1, 0], [0], [108001])": "gap 1 must have",
+        "keyframe_search_words([1, 2], [1, 0], [], [])": "a query of 2 keyframes needs 1 gap bounds",
+        "keyframe_search_words([1], [1], [], [], extend_left := -1)": "extend_left must be in 0..108000 frames",
+        "keyframe_search_words([1], [1], [], [], extend_right := NULL)": "extend_right must be in 0..108000",
+        "keyframe_search_words('x', [0], [], [])": "masks must be a list of integers",
+        "keyframe_search_words([1.5], [0], [], [])": "masks must be a list of integers",
+        "keyframe_search_words(range(40), range(40), [], [])": "a query has 1..32 keyframes, got 40",
+    }
+    got = plain_client(archive, native, [f"SELECT * FROM {q}" for q in cases])
+    for (q, message), answer in zip(cases.items(), got):
+        assert message in answer.get("error", ""), (q, answer)
+    # integer lists of any type bind (the Python macro casts; here the function reads them)
+    ok = plain_client(archive, native, ["SELECT count(*) FROM keyframe_search_words([0], [0], [], [])",
+                                        "SELECT count(*) FROM motions"])
+    assert ok[0]["rows"] == ok[1]["rows"]  # an all-wildcard keyframe matches every motion once, whole
+
+
+def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, native, tmp_path):
+    no_index = tmp_path / "no_index.duckdb"
+    shutil.copy(archive, no_index)
+    with mocapdb.connect(no_index) as con:
+        mocapdb.api.drop_index(con)
+    empty = tmp_path / "empty.duckdb"
+    __import__("duckdb").connect(str(empty)).close()
+    q = ["SELECT * FROM keyframe_search_words([1], [1], [], [])"]
+    assert "table mocap_index.postings does not exist" in plain_client(no_index, native, q)[0]["error"]
+    err = plain_client(empty, native, q)[0]["error"]
+    assert "table motions does not exist" in err and "`mocapdb ingest` creates it" in err
+
+
+def test_the_duckdb_cli_loads_it(archive, native, tmp_path):
+    """PyPI's duckdb-cli (1.5.x): LOAD with -unsigned, the same rows as in Python duckdb 2.0; without
+    -unsigned DuckDB refuses the unsigned binary cleanly. The CLI reads storage up to v1.5, so the
+    archive is copied into a file of that storage version first."""
+    cli = shutil.which("duckdb")
+    assert cli, "the [test] extra installs duckdb-cli (a `duckdb` executable)"
+    old = tmp_path / "v15.duckdb"
+    copy = ("import duckdb, sys; c = duckdb.connect(); c.execute(f\"ATTACH '{sys.argv[1]}' AS src (READ_ONLY)\"); "
+            "c.execute(f\"ATTACH '{sys.argv[2]}' AS dst (STORAGE_VERSION 'v1.5.0')\"); "
+            "c.execute('COPY FROM DATABASE src TO dst')")
+    subprocess.run([sys.executable, "-c", copy, str(archive), str(old)], check=True, timeout=300)
+    query = "SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_right := 5) ORDER BY ALL"
+    run = subprocess.run([cli, "-unsigned", "-csv", "-noheader", str(old), "-c", f"LOAD '{native}'; {query}"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    got = [[int(x) for x in line.split(",")] for line in run.stdout.split()]
+    assert got and got == plain_client(archive, native, [query])[0]["rows"]
+    refused = subprocess.run([cli, str(old), "-c", f"LOAD '{native}'"], capture_output=True, text=True, timeout=300)
+    assert refused.returncode != 0 and "unsigned" in refused.stderr + refused.stdout
+
+
+def test_mocapdb_extension_path_names_the_binary(native, tmp_path):
+    out = run(tmp_path / "unused.duckdb", "extension-path").output.strip()
+    assert Path(out) == native and native.is_absolute() and native.name == "mocapdb.duckdb_extension"
+    # DuckDB's footer: C API v1.2.0, the C_STRUCT ABI, unsigned (a zero signature)
+    tail = native.read_bytes()[-534:]
+    assert tail[:22] == b"\x00\x93\x04\x10duckdb_signature\x80\x04"
+    fields = [tail[22 + 32 * i:54 + 32 * i].rstrip(b"\0").decode() for i in range(8)][::-1]
+    assert fields[0] == "4" and fields[1] == "linux_amd64" and fields[2] == "v1.2.0" and fields[4] == "C_STRUCT"
+    assert tail[-256:] == bytes(256)
+
+
+# Thousands of seeded random calls, valid and not: every one must end in rows or a DuckDB error.
+FUZZ_CLIENT = r"""
+import json, random, sys
+import duckdb
+db, ext, seed, n = json.load(sys.stdin)
+rng = random.Random(seed)
+con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
+con.execute(f"LOAD '{ext}'")
+SCALARS = ["NULL", "0", "1", "-1", "3", "1023", "1099511627775", "1099511627776", "9223372036854775807",
+           "-9223372036854775808", "18446744073709551615", "108000", "108001", "2.5", "'x'", "true", "[]", "[[1]]"]
+def value():
+    return rng.choice(SCALARS) if rng.random() < 0.7 else str(rng.randrange(-5, 1 << 41))
+def a_list():
+    r = rng.random()
+    if r < 0.05:
+        return "NULL"
+    if r < 0.1:
+        return rng.choice(["'text'", "42", "[1.5, 2]", "{'a': 1}", "range(100)", "[NULL]::UBIGINT[]"])
+    n = rng.choice([0, 1, 2, 3, 4, 5, 31, 32, 33, 200])
+    items = [value() for _ in range(n)]
+    cast = rng.choice(["", "::UBIGINT[]", "::BIGINT[]", "::INTEGER[]", "::VARCHAR[]"])
+    return "[" + ", ".join(items) + "]" + cast
+n_rows = n_errors = 0
+for i in range(n):
+    k = rng.choice([1, 2, 3, 4, 32])
+    if rng.random() < 0.5:  # a well-formed query with random words and bounds
+        masks = [rng.randrange(0, 1 << 40) & rng.choice([0, 1, 15, 1023, (1 << 40) - 1]) for _ in range(k)]
+        vals = [m & rng.randrange(0, 1 << 40) for m in masks]
+        lo = [rng.choice([0, 1, 10, 108000]) for _ in range(k - 1)]
+        hi = [rng.choice(["NULL", str(x + rng.choice([0, 5, 1000])), "108000"]) for x in lo]
+        args = [str(masks), str(vals), str(lo), "[" + ", ".join(hi) + "]::BIGINT[]"]
+    else:
+        args = [a_list() for _ in range(4)]
+    named = []
+    for name in ("extend_left", "extend_right"):
+        if rng.random() < 0.5:
+            named.append(f"{name} := {rng.choice(['NULL', '0', '5', '108000', '108001', '-3', str(1 << 40)])}")
+    q = f"SELECT count(*), min(start_frame), max(end_frame) FROM keyframe_search_words({', '.join(args + named)})"
+    try:
+        con.execute(q).fetchall()
+        n_rows += 1
+    except duckdb.Error:
+        n_errors += 1
+print(json.dumps([n_rows, n_errors]))
+"""
+
+
+def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
+    """A build with -fsanitize=address,undefined (UBSan aborting on the first finding) LOADed into
+    Python duckdb with libasan preloaded: 3,000 seeded random calls, none may crash."""
+    cc = os.environ.get("CC") or shutil.which("gcc")
+    assert cc, "the sanitizer test needs gcc"
+    asan = subprocess.run([cc, "-print-file-name=libasan.so"], capture_output=True, text=True).stdout.strip()
+    ubsan = subprocess.run([cc, "-print-file-name=libubsan.so"], capture_output=True, text=True).stdout.strip()
+    assert Path(asan).is_file() and Path(ubsan).is_file(), "gcc's libasan/libubsan (Debian: libgcc-12-dev)"
+    ext = build(tmp_path / "mocapdb.duckdb_extension", sanitize=True)
+    # leaks: CPython and DuckDB keep memory at exit by design; the extension's own are bounded by LOAD
+    env = dict(os.environ, LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
+               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
+    run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT], input=json.dumps([str(archive), str(ext), 31, 3000]),
+                         capture_output=True, text=True, env=env, timeout=1200)
+    assert run.returncode == 0, run.stderr[-4000:]
+    n_rows, n_errors = json.loads(run.stdout)
+    assert n_rows + n_errors == 3000 and n_rows > 500 and n_errors > 500  # both paths were exercised
