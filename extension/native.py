@@ -35,8 +35,8 @@ def extension_path() -> Path:
         return path
     missing = HERE / MISSING_NAME
     why = missing.read_text().strip() if missing.is_file() else (
-        "it was not built (an editable install: run `python extension/native_build.py`, or reinstall with "
-        "`pip install .`)")
+        "it was not built with this install; reinstall with `pip install .` (or `pip install -e .`) on a "
+        "machine with gcc")
     raise NativeExtensionMissing(f"the native DuckDB extension is missing: {why}")
 
 

@@ -62,6 +62,7 @@ def footer(platform_name: str, extension_version: str) -> bytes:
 
 
 def compiler() -> str:
+    """The C compiler to build with: $CC, else gcc or cc on PATH."""
     cc = os.environ.get("CC") or shutil.which("gcc") or shutil.which("cc")
     if not cc:
         raise BuildError("no C compiler (gcc or cc) on PATH; install one and reinstall mocapdb to get the "
@@ -103,12 +104,8 @@ def build_or_explain(package_dir: Path, *, extension_version: str = "dev") -> st
     try:
         path = build(package_dir / BINARY_NAME, extension_version=extension_version)
     except BuildError as exc:
+        (package_dir / BINARY_NAME).unlink(missing_ok=True)  # never a stale binary beside the reason
         missing.write_text(f"{exc}\n")
         return f"native extension NOT built: {exc}"
     missing.unlink(missing_ok=True)
     return f"native extension built: {path}"
-
-
-if __name__ == "__main__":  # python extension/native_build.py [OUT]: a development build
-    target = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / BINARY_NAME
-    print(build(target))

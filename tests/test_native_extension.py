@@ -29,8 +29,8 @@ from conftest import DATA, run
 PLAIN_CLIENT = r"""
 import json, sys
 import duckdb
-db, ext, queries = json.load(sys.stdin)
-con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
+db, ext, queries, read_only = json.load(sys.stdin)
+con = duckdb.connect(db, read_only=read_only, config={"allow_unsigned_extensions": "true"})
 con.execute(f"LOAD '{ext}'")
 out = []
 for q in queries:
@@ -43,10 +43,11 @@ print(json.dumps(out))
 """
 
 
-def plain_client(db, ext, queries, env=None):
+def plain_client(db, ext, queries, env=None, read_only=True):
     """Answers of :data:`PLAIN_CLIENT` in a fresh process (the extension keeps the database open
     for the life of its process: docs/EXTENSION.md)."""
-    run = subprocess.run([sys.executable, "-c", PLAIN_CLIENT], input=json.dumps([str(db), str(ext), queries]),
+    run = subprocess.run([sys.executable, "-c", PLAIN_CLIENT],
+                         input=json.dumps([str(db), str(ext), queries, read_only]),
                          capture_output=True, text=True, env=env, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     return json.loads(run.stdout)
@@ -145,6 +146,26 @@ def test_bad_arguments_are_errors_that_name_them(archive, native):
     ok = plain_client(archive, native, ["SELECT count(*) FROM keyframe_search_words([0], [0], [], [])",
                                         "SELECT count(*) FROM motions"])
     assert ok[0]["rows"] == ok[1]["rows"]  # an all-wildcard keyframe matches every motion once, whole
+
+
+def test_a_changed_index_is_read_again(archive, native, tmp_path):
+    """The extension keeps index batches between queries, keyed by mocap_index.state.version: a
+    write that bumps it (as every ingest, delete and import does) is seen by the next query, and
+    postings stored out of (motion, run) order give the same rows."""
+    db = tmp_path / "changed.duckdb"
+    shutil.copy(archive, db)
+    q = "SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_left := 3) ORDER BY ALL"
+    answers = plain_client(db, native, [
+        q,
+        "CREATE OR REPLACE TABLE mocap_index.postings AS SELECT * FROM mocap_index.postings ORDER BY random()",
+        "UPDATE mocap_index.state SET version = version + 1",
+        q,
+        "DELETE FROM mocap_index.postings WHERE motion_id = 1",
+        "UPDATE mocap_index.state SET version = version + 1",
+        q], read_only=False)
+    before, shuffled, deleted = answers[0]["rows"], answers[3]["rows"], answers[6]["rows"]
+    assert before and shuffled == before
+    assert deleted == [r for r in before if r[0] != 1] != before
 
 
 def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, native, tmp_path):

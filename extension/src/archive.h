@@ -11,9 +11,13 @@
 /* What a loaded extension keeps per database: a connection of its own (opened at
  * LOAD; the C API hands the database out only then) and the lock that serialises
  * its use (a DuckDB connection runs one query at a time). */
+struct mdb_batch;
+
 typedef struct {
 	duckdb_connection con;
 	pthread_mutex_t lock;
+	struct mdb_batch *cache; /* index batches read, newest first (see mdb_acquire_runs) */
+	size_t cache_bytes;
 } mdb_state;
 
 /* The stored motions, ascending ids, with their 30 Hz frame counts. */
@@ -33,6 +37,16 @@ typedef struct {
 	size_t cap;
 } mdb_runs;
 
+/* A batch of motions' runs as read at one index version, shared by the queries using it. */
+typedef struct mdb_batch {
+	int64_t version;
+	int32_t lo, hi;
+	mdb_runs runs;
+	int refs;     /* queries holding it */
+	int detached; /* no longer in the cache: freed by its last release */
+	struct mdb_batch *next;
+} mdb_batch;
+
 /* Error text of the archive functions (set when they return non-zero). */
 typedef struct {
 	char text[512];
@@ -40,8 +54,12 @@ typedef struct {
 
 int mdb_read_motions(mdb_state *st, mdb_motions *out, mdb_error *err);
 void mdb_motions_free(mdb_motions *m);
-/* The runs of motions lo .. hi (ids, inclusive) of the 'full' part of the index. */
-int mdb_read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_error *err);
+/* The runs of motions lo .. hi (ids, inclusive) of the 'full' part of the index, in (motion,
+ * run) order: from the cache while the index version is the same (a bounded number of bytes,
+ * so memory stays flat in archive size), else read. NULL after an error. Give it back with
+ * mdb_release_runs. */
+mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err);
+void mdb_release_runs(mdb_state *st, mdb_batch *b);
 void mdb_runs_free(mdb_runs *r);
 
 #endif

@@ -33,11 +33,12 @@ typedef struct {
 typedef struct {
 	mdb_motions motions;
 	size_t next_motion;   /* first motion of the next batch */
-	mdb_runs runs;        /* the current batch's runs */
+	mdb_batch *batch;     /* the current batch's runs (held from the cache) */
 	int32_t *out_motion;  /* rows found in the current batch, not yet emitted */
 	mdb_spans out;
 	size_t out_cap, emitted;
 	int loaded;
+	mdb_state *state;
 } query_scan;
 
 static void bind_destroy(void *p) {
@@ -47,7 +48,7 @@ static void bind_destroy(void *p) {
 static void scan_destroy(void *p) {
 	query_scan *s = p;
 	mdb_motions_free(&s->motions);
-	mdb_runs_free(&s->runs);
+	mdb_release_runs(s->state, s->batch);
 	mdb_spans_free(&s->out);
 	free(s->out_motion);
 	free(s);
@@ -228,6 +229,7 @@ static void query_init_fn(duckdb_init_info info) {
 		duckdb_init_set_error(info, WHAT ": out of memory");
 		return;
 	}
+	s->state = duckdb_init_get_extra_info(info);
 	duckdb_init_set_init_data(info, s, scan_destroy);
 	duckdb_init_set_max_threads(info, 1);
 }
@@ -262,20 +264,23 @@ static int search_batch(mdb_state *st, const query_bind *q, query_scan *s, mdb_e
 	s->next_motion = last;
 	s->out.n = 0;
 	s->emitted = 0;
-	if (mdb_read_runs(st, s->motions.id[first], s->motions.id[last - 1], &s->runs, err)) {
+	mdb_release_runs(st, s->batch);
+	s->batch = mdb_acquire_runs(st, s->motions.id[first], s->motions.id[last - 1], err);
+	if (!s->batch) {
 		return -1;
 	}
+	const mdb_runs *runs = &s->batch->runs;
 	mdb_spans iv = {0};
 	size_t off[MDB_MAX_KEYFRAMES + 1];
 	size_t r = 0;
 	int rc = 0;
 	for (size_t m = first; m < last && rc == 0; m++) {
 		int32_t id = s->motions.id[m];
-		while (r < s->runs.n && s->runs.motion[r] < id) {
+		while (r < runs->n && runs->motion[r] < id) {
 			r++; /* runs of a motion id the motions table lacks */
 		}
 		size_t a = r;
-		while (r < s->runs.n && s->runs.motion[r] == id) {
+		while (r < runs->n && runs->motion[r] == id) {
 			r++;
 		}
 		if (a == r || s->motions.n_frames[m] <= 0) {
@@ -284,7 +289,7 @@ static int search_batch(mdb_state *st, const query_bind *q, query_scan *s, mdb_e
 		iv.n = 0;
 		off[0] = 0;
 		for (size_t k = 0; k < q->K && rc == 0; k++) {
-			rc = keyframe_intervals(&s->runs, a, r, q->mask[k], q->value[k], &iv);
+			rc = keyframe_intervals(runs, a, r, q->mask[k], q->value[k], &iv);
 			off[k + 1] = iv.n;
 		}
 		size_t before = s->out.n;
