@@ -31,6 +31,7 @@ import json, sys
 import duckdb
 db, ext, queries, read_only = json.load(sys.stdin)
 con = duckdb.connect(db, read_only=read_only, config={"allow_unsigned_extensions": "true"})
+con.execute("SET enable_progress_bar = false")
 con.execute(f"LOAD '{ext}'")
 out = []
 for q in queries:
@@ -121,6 +122,44 @@ def test_keyframe_search_words_equals_the_python_udf(archive, native):
     assert len({m for rows in want for m, _, _ in rows}) > 20  # across many motions
 
 
+@pytest.mark.shared
+def test_mt_distance_equals_the_python_udf_bit_for_bit(archive, native):
+    """Δ of every class of both shipped models on every motion: the same doubles, bit for bit (the
+    C kernel does numba's operations in numba's order, without fused multiply-add), inf included."""
+    with mocapdb.connect(archive, read_only=True) as con:
+        classes = con.execute("SELECT model, class FROM classes WHERE model IN ('default', 'toolbox') "
+                              "ORDER BY ALL").fetchall()
+        queries = [f"SELECT motion_id, mt_distance(motion_id, '{c}', '{m}') FROM motions ORDER BY motion_id"
+                   for m, c in classes]
+        want = [[[mid, list(d)] for mid, d in con.execute(q).fetchall()] for q in queries]
+    got = plain_client(archive, native, queries)
+    assert len(classes) > 40 and [g.get("error") for g in got] == [None] * len(queries)
+    for (m, c), w, g in zip(classes, want, got):
+        a = np.array([x for _, d in w for x in d])
+        b = np.array([x for _, d in g["rows"] for x in d])
+        assert [r[0] for r in g["rows"]] == [r[0] for r in w] and a.shape == b.shape, (m, c)
+        assert np.array_equal(a.view(np.int64), b.view(np.int64)), (m, c)
+    assert np.isfinite(a).any() and np.isinf(a).any()  # both kinds of value were compared
+
+
+def test_mt_distance_arguments(archive, native):
+    """A NULL or unknown motion is NULL (as the Python UDF); a NULL or unknown class or model is an
+    error naming it; the model is the third argument, 'default' without it."""
+    got = plain_client(archive, native, [
+        "SELECT mt_distance(NULL, 'squat1Reps'), mt_distance(1000000, 'squat1Reps'), mt_distance(-1, 'squat1Reps')",
+        "SELECT len(mt_distance(1, 'squat1Reps')) = n_frames, mt_distance(1, 'squat1Reps') = mt_distance(1, "
+        "'squat1Reps', 'default') FROM motions WHERE motion_id = 1",
+        "SELECT mt_distance(1, 'nope')", "SELECT mt_distance(1, 'squat1Reps', 'nomodel')",
+        "SELECT mt_distance(1, NULL)", "SELECT mt_distance(1, 'squat1Reps', NULL)",
+        "SELECT mt_distance(1, 'standStill', 'toolbox')"])
+    assert got[0]["rows"] == [[None, None, None]]
+    assert got[1]["rows"] == [[True, True]]
+    assert "model 'default' has no class 'nope'; its classes: " in got[2]["error"]
+    assert "no model 'nomodel' in the database (stored models: default, toolbox" in got[3]["error"]
+    assert "class is NULL" in got[4]["error"] and "model is NULL" in got[5]["error"]
+    assert "model 'toolbox' has no class 'standStill'" in got[6]["error"]  # a class of the default model only
+
+
 def test_bad_arguments_are_errors_that_name_them(archive, native):
     cases = {
         "keyframe_search_words([], [], [], [])": "a query has 1..32 keyframes, got 0",
@@ -192,12 +231,15 @@ def test_the_duckdb_cli_loads_it(archive, native, tmp_path):
             "c.execute(f\"ATTACH '{sys.argv[2]}' AS dst (STORAGE_VERSION 'v1.5.0')\"); "
             "c.execute('COPY FROM DATABASE src TO dst')")
     subprocess.run([sys.executable, "-c", copy, str(archive), str(old)], check=True, timeout=300)
-    query = "SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_right := 5) ORDER BY ALL"
-    run = subprocess.run([cli, "-unsigned", "-csv", "-noheader", str(old), "-c", f"LOAD '{native}'; {query}"],
-                         capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr
-    got = [[int(x) for x in line.split(",")] for line in run.stdout.split()]
-    assert got and got == plain_client(archive, native, [query])[0]["rows"]
+    queries = ["SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_right := 5) ORDER BY ALL",
+               "SELECT motion_id, len(d), list_sum(list_filter(d, lambda x: isfinite(x))) * 1e6 // 1 "
+               "FROM (SELECT motion_id, mt_distance(motion_id, 'squat1Reps') AS d FROM motions) ORDER BY ALL"]
+    for query, want in zip(queries, plain_client(archive, native, queries)):
+        run = subprocess.run([cli, "-unsigned", "-csv", "-noheader", str(old), "-c", f"LOAD '{native}'; {query}"],
+                             capture_output=True, text=True, timeout=300)
+        assert run.returncode == 0, run.stderr
+        got = [[int(float(x)) for x in line.split(",")] for line in run.stdout.split()]
+        assert got and got == [[int(x) for x in row] for row in want["rows"]]
     refused = subprocess.run([cli, str(old), "-c", f"LOAD '{native}'"], capture_output=True, text=True, timeout=300)
     assert refused.returncode != 0 and "unsigned" in refused.stderr + refused.stdout
 
@@ -220,6 +262,7 @@ import duckdb
 db, ext, seed, n = json.load(sys.stdin)
 rng = random.Random(seed)
 con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
+con.execute("SET enable_progress_bar = false")
 con.execute(f"LOAD '{ext}'")
 SCALARS = ["NULL", "0", "1", "-1", "3", "1023", "1099511627775", "1099511627776", "9223372036854775807",
            "-9223372036854775808", "18446744073709551615", "108000", "108001", "2.5", "'x'", "true", "[]", "[[1]]"]
@@ -251,6 +294,12 @@ for i in range(n):
         if rng.random() < 0.5:
             named.append(f"{name} := {rng.choice(['NULL', '0', '5', '108000', '108001', '-3', str(1 << 40)])}")
     q = f"SELECT count(*), min(start_frame), max(end_frame) FROM keyframe_search_words({', '.join(args + named)})"
+    if rng.random() < 0.3:  # mt_distance: motions, classes and models good and bad, NULLs, a column of rows
+        motion = rng.choice(["NULL", "1", "3", "0", "-1", "2147483647", "2147483648", "motion_id", "'1'"])
+        cls = rng.choice(["'squat1Reps'", "'kickLFront1Reps'", "NULL", "''", "'x' || motion_id", "'squat1Reps'"])
+        model = rng.choice([[], ["'default'"], ["'toolbox'"], ["NULL"], ["'nomodel'"], ["''"]])
+        q = (f"SELECT count(*), sum(len(d)) FROM (SELECT mt_distance({', '.join([motion, cls] + model)}) AS d "
+             "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
     try:
         con.execute(q).fetchall()
         n_rows += 1
@@ -275,5 +324,6 @@ def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT], input=json.dumps([str(archive), str(ext), 31, 3000]),
                          capture_output=True, text=True, env=env, timeout=1200)
     assert run.returncode == 0, run.stderr[-4000:]
+    assert len(run.stdout.splitlines()) == 1, run.stdout[:3000]
     n_rows, n_errors = json.loads(run.stdout)
     assert n_rows + n_errors == 3000 and n_rows > 500 and n_errors > 500  # both paths were exercised

@@ -391,3 +391,263 @@ void mdb_release_runs(mdb_state *st, mdb_batch *b) {
 	}
 	pthread_mutex_unlock(&st->lock);
 }
+
+/* ---------------------------------------------------------------------------------------------
+ * models and motions */
+
+#define TEMPLATE_SQL "SELECT mask, value, weight FROM templates WHERE model = $1 AND class = $2 ORDER BY col"
+#define CLASSES_SQL "SELECT string_agg(class, ', ' ORDER BY class_id) FROM classes WHERE model = $1"
+#define MODELS_SQL "SELECT string_agg(model, ', ' ORDER BY model) FROM models"
+#define LENGTH_SQL "SELECT n_frames, name FROM motions WHERE motion_id = $1"
+#define WORDS_SQL "SELECT frame, bits FROM features WHERE motion_id = $1 ORDER BY frame"
+/* 41 feature bits (40 + the heading feature): a template column may fix no other */
+#define FEATURE_BITS ((((uint64_t)1) << (MDB_N_COST - 1)) - 1)
+/* more expanded columns than any template has (the longest are a few hundred) */
+#define MAX_COLUMNS ((size_t)1 << 16)
+
+/* A prepared statement with up to two text parameters or one integer, executed; 0 or -1
+ * (err names the table). */
+static int run_prepared(mdb_state *st, const char *sql, const char *table, const char *p1, const char *p2,
+                        const int32_t *i1, duckdb_result *res, mdb_error *err) {
+	duckdb_prepared_statement stmt = NULL;
+	int rc = -1;
+	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
+		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
+		duckdb_destroy_prepare(&stmt);
+		return -1;
+	}
+	if (p1) {
+		duckdb_bind_varchar(stmt, 1, p1);
+	}
+	if (p2) {
+		duckdb_bind_varchar(stmt, 2, p2);
+	}
+	if (i1) {
+		duckdb_bind_int32(stmt, 1, *i1);
+	}
+	if (duckdb_execute_prepared(stmt, res) == DuckDBError) {
+		query_error("mocapdb", table, duckdb_result_error(res), err);
+		duckdb_destroy_result(res);
+	} else {
+		rc = 0;
+	}
+	duckdb_destroy_prepare(&stmt);
+	return rc;
+}
+
+/* The first row's VARCHAR of a one-column result into buf ("" when NULL or none). */
+static void first_text(duckdb_result *res, char *buf, size_t size) {
+	buf[0] = 0;
+	duckdb_data_chunk chunk = duckdb_column_type(res, 0) == DUCKDB_TYPE_VARCHAR ? duckdb_fetch_chunk(*res) : NULL;
+	if (!chunk) {
+		return;
+	}
+	duckdb_vector v = duckdb_data_chunk_get_vector(chunk, 0);
+	if (duckdb_data_chunk_get_size(chunk) > 0 && duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), 0)) {
+		duckdb_string_t *x = duckdb_vector_get_data(v);
+		uint32_t len = duckdb_string_t_length(x[0]);
+		if (len >= size) {
+			len = (uint32_t)size - 1;
+		}
+		memcpy(buf, duckdb_string_t_data(&x[0]), len);
+		buf[len] = 0;
+	}
+	duckdb_destroy_data_chunk(&chunk);
+}
+
+/* Why a model has no template for a class: the model or the class is unknown. */
+static void unknown_class(mdb_state *st, const char *model, const char *cls, mdb_error *err) {
+	duckdb_result res;
+	char known[300];
+	if (run_prepared(st, CLASSES_SQL, "classes", model, NULL, NULL, &res, err)) {
+		return;
+	}
+	first_text(&res, known, sizeof known);
+	duckdb_destroy_result(&res);
+	if (known[0]) {
+		snprintf(err->text, sizeof err->text, "model '%s' has no class '%s'; its classes: %s", model, cls, known);
+		return;
+	}
+	if (run_prepared(st, MODELS_SQL, "models", NULL, NULL, NULL, &res, err)) {
+		return;
+	}
+	first_text(&res, known, sizeof known);
+	duckdb_destroy_result(&res);
+	snprintf(err->text, sizeof err->text,
+	         "no model '%s' in the database (stored models: %s); a database that mocapdb opened read-write once "
+	         "has the shipped ones",
+	         model, known[0] ? known : "none");
+}
+
+int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_template *out, mdb_error *err) {
+	duckdb_result res;
+	uint64_t *mask = NULL, *value = NULL;
+	double *weight = NULL;
+	size_t n = 0, cap = 0;
+	int rc = -1, bad = 0;
+	memset(out, 0, sizeof *out);
+	pthread_mutex_lock(&st->lock);
+	if (run_prepared(st, TEMPLATE_SQL, "templates", model, cls, NULL, &res, err)) {
+		goto unlock;
+	}
+	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_DOUBLE};
+	if (!column_types_ok(&res, want, 3)) {
+		snprintf(err->text, sizeof err->text, "mocapdb: table templates has unexpected column types");
+		goto done;
+	}
+	for (;;) {
+		duckdb_data_chunk chunk = duckdb_fetch_chunk(res);
+		if (!chunk) {
+			break;
+		}
+		idx_t m = duckdb_data_chunk_get_size(chunk);
+		if (n + m > cap) {
+			cap = 2 * (n + m);
+			uint64_t *a = realloc(mask, cap * sizeof *a);
+			if (a) {
+				mask = a;
+			}
+			uint64_t *b = realloc(value, cap * sizeof *b);
+			if (b) {
+				value = b;
+			}
+			double *c = realloc(weight, cap * sizeof *c);
+			if (c) {
+				weight = c;
+			}
+			if (!a || !b || !c) {
+				duckdb_destroy_data_chunk(&chunk);
+				snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading a template");
+				goto done;
+			}
+		}
+		duckdb_vector v[3];
+		for (idx_t c = 0; c < 3; c++) {
+			v[c] = duckdb_data_chunk_get_vector(chunk, c);
+		}
+		uint64_t *vm = duckdb_vector_get_data(v[0]), *vv = duckdb_vector_get_data(v[1]);
+		double *vw = duckdb_vector_get_data(v[2]);
+		for (idx_t i = 0; i < m; i++) {
+			for (idx_t c = 0; c < 3; c++) {
+				bad |= !duckdb_validity_row_is_valid(duckdb_vector_get_validity(v[c]), i);
+			}
+			mask[n] = vm[i];
+			value[n] = vv[i];
+			weight[n] = vw[i];
+			bad |= (vm[i] & ~FEATURE_BITS) != 0;
+			n++;
+		}
+		duckdb_destroy_data_chunk(&chunk);
+	}
+	if (n == 0) {
+		unknown_class(st, model, cls, err);
+		goto done;
+	}
+	int prep = bad ? -2 : mdb_template_prepare(mask, value, weight, n, MAX_COLUMNS, out);
+	if (prep == -2) {
+		snprintf(err->text, sizeof err->text,
+		         "model '%s', class '%s': the stored template is damaged (NULLs, bits past feature 41 or "
+		         "weights not in 0 < w <= %zu); train or install the model again",
+		         model, cls, MAX_COLUMNS);
+		goto done;
+	}
+	if (prep) {
+		snprintf(err->text, sizeof err->text, "mocapdb: out of memory preparing a template");
+		goto done;
+	}
+	rc = 0;
+done:
+	duckdb_destroy_result(&res);
+unlock:
+	pthread_mutex_unlock(&st->lock);
+	free(mask);
+	free(value);
+	free(weight);
+	return rc;
+}
+
+int mdb_read_words(mdb_state *st, int32_t motion, uint64_t **words, size_t *n, int *known, mdb_error *err) {
+	duckdb_result res;
+	int rc = -1;
+	int64_t n_frames = -1;
+	char name[128] = "";
+	*words = NULL;
+	*n = 0;
+	*known = 0;
+	pthread_mutex_lock(&st->lock);
+	if (run_prepared(st, LENGTH_SQL, "motions", NULL, NULL, &motion, &res, err)) {
+		goto unlock;
+	}
+	duckdb_data_chunk chunk = duckdb_column_type(&res, 0) == DUCKDB_TYPE_INTEGER ? duckdb_fetch_chunk(res) : NULL;
+	if (chunk && duckdb_data_chunk_get_size(chunk) > 0) {
+		duckdb_vector v = duckdb_data_chunk_get_vector(chunk, 0);
+		if (duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), 0)) {
+			n_frames = ((int32_t *)duckdb_vector_get_data(v))[0];
+		}
+		duckdb_vector vn = duckdb_data_chunk_get_vector(chunk, 1);
+		if (duckdb_column_type(&res, 1) == DUCKDB_TYPE_VARCHAR &&
+		    duckdb_validity_row_is_valid(duckdb_vector_get_validity(vn), 0)) {
+			duckdb_string_t *x = duckdb_vector_get_data(vn);
+			uint32_t len = duckdb_string_t_length(x[0]);
+			len = len < sizeof name - 1 ? len : (uint32_t)sizeof name - 1;
+			memcpy(name, duckdb_string_t_data(&x[0]), len);
+			name[len] = 0;
+		}
+		*known = 1;
+	}
+	if (chunk) {
+		duckdb_destroy_data_chunk(&chunk);
+	}
+	duckdb_destroy_result(&res);
+	if (!*known) {
+		rc = 0;
+		goto unlock;
+	}
+	if (n_frames < 0) {
+		n_frames = 0; /* NOT NULL in the schema; never trusted */
+	}
+	if (run_prepared(st, WORDS_SQL, "features", NULL, NULL, &motion, &res, err)) {
+		goto unlock;
+	}
+	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT};
+	size_t rows = 0;
+	int in_order = column_types_ok(&res, want, 2);
+	uint64_t *w = n_frames > 0 ? malloc((size_t)n_frames * sizeof *w) : NULL;
+	if (n_frames > 0 && !w) {
+		snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading motion %d", motion);
+		duckdb_destroy_result(&res);
+		goto unlock;
+	}
+	while (in_order && (chunk = duckdb_fetch_chunk(res)) != NULL) {
+		idx_t m = duckdb_data_chunk_get_size(chunk);
+		duckdb_vector vf = duckdb_data_chunk_get_vector(chunk, 0), vb = duckdb_data_chunk_get_vector(chunk, 1);
+		int32_t *frame = duckdb_vector_get_data(vf);
+		uint64_t *bits = duckdb_vector_get_data(vb);
+		for (idx_t i = 0; i < m && in_order; i++) {
+			in_order = rows < (size_t)n_frames && frame[i] == (int64_t)rows + 1 &&
+			           duckdb_validity_row_is_valid(duckdb_vector_get_validity(vf), i) &&
+			           duckdb_validity_row_is_valid(duckdb_vector_get_validity(vb), i);
+			if (in_order) {
+				w[rows] = bits[i];
+			}
+			rows++;
+		}
+		duckdb_destroy_data_chunk(&chunk);
+	}
+	duckdb_destroy_result(&res);
+	if (!in_order || rows != (size_t)n_frames) {
+		/* the words of mocapdb.storage.motions.incomplete_reason */
+		snprintf(err->text, sizeof err->text,
+		         "motion %d (%s) has feature rows that are not its frames 1…%lld: ingest or import it again to "
+		         "repair it",
+		         motion, name, (long long)n_frames);
+		free(w);
+		goto unlock;
+	}
+	*words = w;
+	*n = rows;
+	rc = 0;
+unlock:
+	pthread_mutex_unlock(&st->lock);
+	return rc;
+}

@@ -6,6 +6,7 @@
 #include <pthread.h>
 #include <stdint.h>
 
+#include "distance.h"
 #include "duckdb_extension.h"
 
 /* What a loaded extension keeps per database: a connection of its own (opened at
@@ -61,5 +62,12 @@ void mdb_motions_free(mdb_motions *m);
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err);
 void mdb_release_runs(mdb_state *st, mdb_batch *b);
 void mdb_runs_free(mdb_runs *r);
+
+/* A class's quantized template of a model, prepared for mdb_mt_distance. An unknown model or
+ * class is an error naming it and what the database has. */
+int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_template *out, mdb_error *err);
+/* A motion's packed 30 Hz words (frames 1 .. n); *known = 0 for a motion id the archive lacks.
+ * A motion whose features are not its frames 1 .. n is an error naming it. */
+int mdb_read_words(mdb_state *st, int32_t motion, uint64_t **words, size_t *n, int *known, mdb_error *err);
 
 #endif

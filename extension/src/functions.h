@@ -9,5 +9,6 @@
 #define MDB_MAX_GAP (30 * 3600)
 
 int mdb_register_keyframe_words(duckdb_connection con, mdb_state *st);
+int mdb_register_mt_distance(duckdb_connection con, mdb_state *st);
 
 #endif

@@ -288,12 +288,14 @@ static int search_batch(mdb_state *st, const query_bind *q, query_scan *s, mdb_e
 		}
 		iv.n = 0;
 		off[0] = 0;
-		for (size_t k = 0; k < q->K && rc == 0; k++) {
+		int absent = 0; /* a keyframe that never matches here: no chain, the other keyframes unread */
+		for (size_t k = 0; k < q->K && rc == 0 && !absent; k++) {
 			rc = keyframe_intervals(runs, a, r, q->mask[k], q->value[k], &iv);
 			off[k + 1] = iv.n;
+			absent = off[k + 1] == off[k];
 		}
 		size_t before = s->out.n;
-		if (rc == 0) {
+		if (rc == 0 && !absent) {
 			rc = mdb_chain_document(q->K, iv.start, iv.end, off, q->d_min, q->d_max, s->motions.n_frames[m], q->ext_l,
 			                        q->ext_r, &s->out);
 		}
