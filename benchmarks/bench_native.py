@@ -4,8 +4,9 @@ Run: ``python benchmarks/bench_native.py [--quick]``. Prints figures for benchma
 
 Archives: real documents of ../shared (the HDM05 documents, CMU subjects 02 and 86) repeated to
 the paper's 74 minutes (133,019 frames, as bench_sql.py) and to 10 hours (1,080,000 frames), with
-the keyframe index built. Queries: the shipped default model's 15 keyframe queries, inline
-(``keyframe_search_words`` with the stored masks, values and gap bounds), each run once per pass.
+the keyframe index built. Queries: the shipped default model's keyframe queries, inline (``keyframe_search_words`` with the
+stored masks, values and gap bounds), each run once per pass; and ``mt_distance`` of three classes
+(short, middle, long templates) on every motion.
 Every side runs in a process of its own (Python duckdb; the native side never imports mocapdb)
 and reports the first pass (cold: the Python side parses nothing, but loads index batches),
 the best of the next passes, the rows (which must agree) and the process's peak RSS.
@@ -46,6 +47,7 @@ else:
     import duckdb
     con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
     con.execute(f"LOAD '{ext}'")
+con.execute("SET enable_progress_bar = false")
 times, rows = [], None
 for _ in range(passes):
     t = time.perf_counter()
@@ -86,7 +88,9 @@ def main():
             mocapdb.ingest(con, [DATA / "cmu" / "02"])
             words, lengths = stored_words(con)
             queries = [words_sql(*r[1:]) for r in con.execute(QUERIES).fetchall()]
-        print(f"{len(queries)} queries (the default model's keyframe queries, inline)")
+        delta = [f"SELECT motion_id, mt_distance(motion_id, '{c}') FROM motions ORDER BY motion_id"
+                 for c in ("squat1Reps", "kickLFront1Reps", "lieDownFloor")]
+        print(f"{len(queries)} keyframe queries (the default model's, inline); mt_distance of {len(delta)} classes")
         print("| archive | function | side | first pass s | best pass s | rows | peak RSS MB |")
         print("|---|---|---|---|---|---|---|")
         for label, n_frames in (("74 min", PAPER_FRAMES), ("10 h", HOURS_10))[:1 if args.quick else 2]:
@@ -95,11 +99,13 @@ def main():
             con, _ = synthetic_db(path, w, lens)
             create_index(con)
             con.close()
-            got = {s: side(s, path, ext, queries, passes) for s in ("python", "native")}
-            assert got["python"]["digest"] == got["native"]["digest"], got  # the same rows
-            for s, r in got.items():
-                print(f"| {label} ({len(lens):,} motions) | keyframe_search_words ×{len(queries)} | {s} | "
-                      f"{r['first']:.3f} | {r['best']:.3f} | {r['rows']:,} | {r['rss_mb']:.0f} |")
+            for what, qs in ((f"keyframe_search_words ×{len(queries)}", queries),
+                             (f"mt_distance ×{len(delta)} classes", delta)):
+                got = {s: side(s, path, ext, qs, passes) for s in ("python", "native")}
+                assert got["python"]["digest"] == got["native"]["digest"], got  # the same rows, Δ bit for bit
+                for s, r in got.items():
+                    print(f"| {label} ({len(lens):,} motions) | {what} | {s} | "
+                          f"{r['first']:.3f} | {r['best']:.3f} | {r['rows']:,} | {r['rss_mb']:.0f} |")
             print(f"<!-- {load_now()} -->")
 
 

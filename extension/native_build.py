@@ -87,7 +87,8 @@ def build(out: Path, *, extension_version: str = "dev", sanitize: bool = False) 
         try:
             run = subprocess.run(cmd, capture_output=True, text=True)
         except OSError as exc:
-            raise BuildError(f"running the C compiler failed: {exc.strerror}") from None
+            raise BuildError(f"running the C compiler {cmd[0]} failed ({exc.strerror}); install gcc and reinstall "
+                             "mocapdb to get the native extension") from None
         if run.returncode != 0:
             first = next((line for line in run.stderr.splitlines() if "error" in line), run.stderr.strip()[:300])
             raise BuildError(f"compiling the native extension failed: {first}")

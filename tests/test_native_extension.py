@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import mocapdb
-from mocapdb.extension.native_build import build
+from mocapdb.extension.native_build import BINARY_NAME, MISSING_NAME, build, build_or_explain
 from conftest import DATA, run
 
 # A client that never imported mocapdb: plain Python duckdb, the extension LOADed, the queries of a
@@ -253,6 +253,16 @@ def test_mocapdb_extension_path_names_the_binary(native, tmp_path):
     fields = [tail[22 + 32 * i:54 + 32 * i].rstrip(b"\0").decode() for i in range(8)][::-1]
     assert fields[0] == "4" and fields[1] == "linux_amd64" and fields[2] == "v1.2.0" and fields[4] == "C_STRUCT"
     assert tail[-256:] == bytes(256)
+
+
+def test_a_machine_without_a_c_compiler_still_installs(tmp_path, monkeypatch):
+    """The build step leaves the reason where the binary would be (extension-path reports it), and
+    no stale binary."""
+    (tmp_path / BINARY_NAME).write_bytes(b"old")
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    status = build_or_explain(tmp_path)
+    assert status.startswith("native extension NOT built") and not (tmp_path / BINARY_NAME).exists()
+    assert "install gcc and reinstall mocapdb" in (tmp_path / MISSING_NAME).read_text()
 
 
 # Thousands of seeded random calls, valid and not: every one must end in rows or a DuckDB error.
