@@ -207,6 +207,19 @@ def test_a_changed_index_is_read_again(archive, native, tmp_path):
     assert deleted == [r for r in before if r[0] != 1] != before
 
 
+def test_a_damaged_motion_is_named(archive, native, tmp_path):
+    """Features that are not a motion's frames 1 … n (what an older mocapdb could leave) are an
+    error naming the motion, as the Python UDF's; the other motions are unaffected."""
+    db = tmp_path / "damaged.duckdb"
+    shutil.copy(archive, db)
+    got = plain_client(db, native, ["DELETE FROM features WHERE motion_id = 2 AND frame = 5",
+                                    "SELECT mt_distance(2, 'squat1Reps')",
+                                    "SELECT len(mt_distance(1, 'squat1Reps')), len(mt_distance(3, 'squat1Reps'))"],
+                       read_only=False)
+    assert "motion 2 has feature rows that are not its frames" in got[1]["error"]
+    assert got[2]["rows"] == [[1199, 266]]
+
+
 def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, native, tmp_path):
     no_index = tmp_path / "no_index.duckdb"
     shutil.copy(archive, no_index)

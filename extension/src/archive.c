@@ -10,13 +10,22 @@
 
 DUCKDB_EXTENSION_EXTERN
 
-#define MOTIONS_SQL "SELECT motion_id, n_frames FROM motions ORDER BY motion_id"
 /* no ORDER BY: the rows come in insertion order, which is (motion, run) order unless the table was
  * rewritten; sorting here only when they do not costs less than DuckDB's sort every time */
 #define RUNS_SQL                                                                                                       \
 	"SELECT motion_id, word, start_frame - 1, n_frames, seg FROM mocap_index.postings "                                \
 	"WHERE feature_set = 'full' AND motion_id BETWEEN $1 AND $2"
 #define VERSION_SQL "SELECT version FROM mocap_index.state"
+#define TEMPLATE_SQL "SELECT mask, value, weight FROM templates WHERE model = $1 AND class = $2 ORDER BY col"
+#define CLASSES_SQL "SELECT string_agg(class, ', ' ORDER BY class_id) FROM classes WHERE model = $1"
+#define MODELS_SQL "SELECT string_agg(model, ', ' ORDER BY model) FROM models"
+#define RANGE_SQL "SELECT motion_id, n_frames FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
+#define WORDS_SQL                                                                                                      \
+	"SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id, frame"
+/* 41 feature bits (40 + the heading feature): a template column may fix no other */
+#define FEATURE_BITS ((((uint64_t)1) << (MDB_N_COST - 1)) - 1)
+/* more expanded columns than any template has (the longest are a few hundred) */
+#define MAX_COLUMNS ((size_t)1 << 16)
 /* as mocapdb.storage.cache.INDEX_CACHE_BYTES: the index batches kept between queries */
 #define CACHE_BYTES ((size_t)256 << 20)
 
@@ -44,74 +53,123 @@ static int column_types_ok(duckdb_result *res, const duckdb_type *want, idx_t n)
 	return 1;
 }
 
+/* Grow the array *pp to cap elements of elem bytes; 0, or -1 leaving it as it was. */
+static int grow(void *pp, size_t elem, size_t cap) {
+	void **p = pp;
+	void *q = realloc(*p, cap * elem);
+	if (!q) {
+		return -1;
+	}
+	*p = q;
+	return 0;
+}
+
+/* A query with text parameters, then integer ones ($1, $2, … in that order), executed on the
+ * extension's connection (the caller holds the lock); 0, or -1 with err naming the table. */
+static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                     const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
+	duckdb_prepared_statement stmt = NULL;
+	int rc = -1;
+	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
+		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
+		duckdb_destroy_prepare(&stmt);
+		return -1;
+	}
+	for (idx_t i = 0; i < n_texts; i++) {
+		duckdb_bind_varchar(stmt, i + 1, texts[i]);
+	}
+	for (idx_t i = 0; i < n_ints; i++) {
+		duckdb_bind_int32(stmt, n_texts + i + 1, ints[i]);
+	}
+	if (duckdb_execute_prepared(stmt, res) == DuckDBError) {
+		query_error("mocapdb", table, duckdb_result_error(res), err);
+		duckdb_destroy_result(res);
+	} else {
+		rc = 0;
+	}
+	duckdb_destroy_prepare(&stmt);
+	return rc;
+}
+
+/* Where a query's rows go, a chunk of n at a time: 0 to go on, non-zero to stop (err set). */
+typedef int (*chunk_sink)(void *ctx, duckdb_data_chunk chunk, idx_t n, mdb_error *err);
+
+/* Run a query and hand its rows to sink, after checking that its columns have the types
+ * mocapdb writes; 0 or -1. The result is destroyed. */
+static int query_rows(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                      const int32_t *ints, idx_t n_ints, const duckdb_type *want, idx_t n_cols, chunk_sink sink,
+                      void *ctx, mdb_error *err) {
+	duckdb_result res;
+	if (run_query(st, sql, table, texts, n_texts, ints, n_ints, &res, err)) {
+		return -1;
+	}
+	int rc = 0;
+	if (!column_types_ok(&res, want, n_cols)) {
+		snprintf(err->text, sizeof err->text,
+		         "mocapdb: table %s has unexpected column types; was it written by `mocapdb ingest`?", table);
+		rc = -1;
+	}
+	while (rc == 0) {
+		duckdb_data_chunk chunk = duckdb_fetch_chunk(res);
+		if (!chunk) {
+			break;
+		}
+		rc = sink(ctx, chunk, duckdb_data_chunk_get_size(chunk), err) ? -1 : 0;
+		duckdb_destroy_data_chunk(&chunk);
+	}
+	duckdb_destroy_result(&res);
+	return rc;
+}
+
+/* Column c of a chunk: its data and validity. */
+#define COLUMN(chunk, c, type, data, valid)                                                                            \
+	duckdb_vector data##_v = duckdb_data_chunk_get_vector(chunk, c);                                                   \
+	type *data = duckdb_vector_get_data(data##_v);                                                                     \
+	uint64_t *valid = duckdb_vector_get_validity(data##_v)
+
+static int out_of_memory(mdb_error *err, const char *what) {
+	snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading %s", what);
+	return -1;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * motions */
+
+typedef struct {
+	mdb_motions *m;
+	size_t cap;
+} motions_ctx;
+
+static int motions_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	motions_ctx *c = p;
+	mdb_motions *m = c->m;
+	if (m->n + n > c->cap) {
+		c->cap = 2 * (m->n + n);
+		if (grow(&m->id, sizeof *m->id, c->cap) || grow(&m->n_frames, sizeof *m->n_frames, c->cap)) {
+			return out_of_memory(err, "motions");
+		}
+	}
+	COLUMN(chunk, 0, int32_t, ids, ok_id);
+	COLUMN(chunk, 1, int32_t, lens, ok_len);
+	for (idx_t i = 0; i < n; i++) {
+		if (!duckdb_validity_row_is_valid(ok_id, i)) {
+			continue; /* NOT NULL in the schema; never trusted */
+		}
+		m->id[m->n] = ids[i];
+		m->n_frames[m->n] = duckdb_validity_row_is_valid(ok_len, i) && lens[i] > 0 ? lens[i] : 0;
+		m->n++;
+	}
+	return 0;
+}
+
 void mdb_motions_free(mdb_motions *m) {
 	free(m->id);
 	free(m->n_frames);
 	memset(m, 0, sizeof *m);
 }
 
-int mdb_read_motions(mdb_state *st, mdb_motions *out, mdb_error *err) {
-	memset(out, 0, sizeof *out);
-	duckdb_result res;
-	int rc = -1;
-	size_t cap = 0;
-	pthread_mutex_lock(&st->lock);
-	if (duckdb_query(st->con, MOTIONS_SQL, &res) == DuckDBError) {
-		query_error("mocapdb", "motions", duckdb_result_error(&res), err);
-		goto done;
-	}
-	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
-	if (!column_types_ok(&res, want, 2)) {
-		snprintf(err->text, sizeof err->text,
-		         "mocapdb: table motions has unexpected column types; was it written by `mocapdb ingest`?");
-		goto done;
-	}
-	for (;;) {
-		duckdb_data_chunk chunk = duckdb_fetch_chunk(res);
-		if (!chunk) {
-			break;
-		}
-		idx_t n = duckdb_data_chunk_get_size(chunk);
-		duckdb_vector v_id = duckdb_data_chunk_get_vector(chunk, 0);
-		duckdb_vector v_len = duckdb_data_chunk_get_vector(chunk, 1);
-		int32_t *ids = duckdb_vector_get_data(v_id);
-		int32_t *lens = duckdb_vector_get_data(v_len);
-		uint64_t *ok_id = duckdb_vector_get_validity(v_id), *ok_len = duckdb_vector_get_validity(v_len);
-		if (out->n + n > cap) {
-			cap = 2 * (out->n + n);
-			int32_t *a = realloc(out->id, cap * sizeof *a);
-			if (a) {
-				out->id = a;
-			}
-			int64_t *b = realloc(out->n_frames, cap * sizeof *b);
-			if (b) {
-				out->n_frames = b;
-			}
-			if (!a || !b) {
-				duckdb_destroy_data_chunk(&chunk);
-				snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading motions");
-				goto done;
-			}
-		}
-		for (idx_t i = 0; i < n; i++) {
-			if (!duckdb_validity_row_is_valid(ok_id, i)) {
-				continue; /* NOT NULL in the schema; a foreign table may differ: skip */
-			}
-			out->id[out->n] = ids[i];
-			out->n_frames[out->n] = duckdb_validity_row_is_valid(ok_len, i) && lens[i] > 0 ? lens[i] : 0;
-			out->n++;
-		}
-		duckdb_destroy_data_chunk(&chunk);
-	}
-	rc = 0;
-done:
-	duckdb_destroy_result(&res);
-	pthread_mutex_unlock(&st->lock);
-	if (rc) {
-		mdb_motions_free(out);
-	}
-	return rc;
-}
+/* ---------------------------------------------------------------------------------------------
+ * the keyframe index */
 
 void mdb_runs_free(mdb_runs *r) {
 	free(r->motion);
@@ -126,30 +184,15 @@ static int runs_reserve(mdb_runs *r, size_t need) {
 		return 0;
 	}
 	size_t cap = need > 2 * r->cap ? need : 2 * r->cap;
-	int32_t *m = realloc(r->motion, cap * sizeof *m);
-	if (m) {
-		r->motion = m;
-	}
-	uint64_t *w = realloc(r->word, cap * sizeof *w);
-	if (w) {
-		r->word = w;
-	}
-	int64_t *s = realloc(r->start, cap * sizeof *s);
-	if (s) {
-		r->start = s;
-	}
-	int64_t *l = realloc(r->len, cap * sizeof *l);
-	if (l) {
-		r->len = l;
-	}
-	if (!m || !w || !s || !l) {
+	if (grow(&r->motion, sizeof *r->motion, cap) || grow(&r->word, sizeof *r->word, cap) ||
+	    grow(&r->start, sizeof *r->start, cap) || grow(&r->len, sizeof *r->len, cap)) {
 		return -1;
 	}
 	r->cap = cap;
 	return 0;
 }
 
-/* (motion, run) order of row i and j of the runs read, for the rare table not in that order */
+/* (motion, run) order of rows i and j of the runs read, for the rare table not in that order */
 static const mdb_runs *sort_runs;
 static const int32_t *sort_seg;
 
@@ -197,118 +240,86 @@ static int order_runs(mdb_runs *r, const int32_t *seg) {
 	return 0;
 }
 
+typedef struct {
+	mdb_runs *r;
+	int32_t *seg;
+	size_t seg_cap;
+} runs_ctx;
+
+static int runs_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	runs_ctx *c = p;
+	mdb_runs *r = c->r;
+	if (r->n + n > c->seg_cap) {
+		c->seg_cap = 2 * (r->n + n);
+		if (grow(&c->seg, sizeof *c->seg, c->seg_cap)) {
+			return out_of_memory(err, "the keyframe index");
+		}
+	}
+	if (runs_reserve(r, r->n + n)) {
+		return out_of_memory(err, "the keyframe index");
+	}
+	COLUMN(chunk, 0, int32_t, mid, v0);
+	COLUMN(chunk, 1, uint64_t, word, v1);
+	COLUMN(chunk, 2, int32_t, start, v2);
+	COLUMN(chunk, 3, int32_t, len, v3);
+	COLUMN(chunk, 4, int32_t, seg, v4);
+	for (idx_t i = 0; i < n; i++) {
+		int ok = duckdb_validity_row_is_valid(v0, i) && duckdb_validity_row_is_valid(v1, i) &&
+		         duckdb_validity_row_is_valid(v2, i) && duckdb_validity_row_is_valid(v3, i) &&
+		         duckdb_validity_row_is_valid(v4, i);
+		if (!ok || len[i] <= 0 || start[i] < 0) {
+			continue; /* NOT NULL and positive in the schema; never trusted */
+		}
+		r->motion[r->n] = mid[i];
+		r->word[r->n] = word[i];
+		r->start[r->n] = start[i];
+		r->len[r->n] = len[i];
+		c->seg[r->n] = seg[i];
+		r->n++;
+	}
+	return 0;
+}
+
 /* Read the runs of motions lo .. hi (the caller holds the lock). */
 static int read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_error *err) {
-	out->n = 0;
-	duckdb_prepared_statement stmt = NULL;
-	duckdb_result res;
-	int have_result = 0, rc = -1;
-	int32_t *seg = NULL;
-	size_t seg_cap = 0;
-	if (duckdb_prepare(st->con, RUNS_SQL, &stmt) == DuckDBError) {
-		query_error("mocapdb", "mocap_index.postings", duckdb_prepare_error(stmt), err);
-		goto done;
-	}
-	duckdb_bind_int32(stmt, 1, lo);
-	duckdb_bind_int32(stmt, 2, hi);
-	have_result = 1;
-	if (duckdb_execute_prepared(stmt, &res) == DuckDBError) {
-		query_error("mocapdb", "mocap_index.postings", duckdb_result_error(&res), err);
-		goto done;
-	}
+	runs_ctx ctx = {out, NULL, 0};
+	int32_t range[2] = {lo, hi};
 	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER,
 	                      DUCKDB_TYPE_INTEGER};
-	if (!column_types_ok(&res, want, 5)) {
-		snprintf(err->text, sizeof err->text,
-		         "mocapdb: table mocap_index.postings has unexpected column types; rebuild it with "
-		         "`mocapdb create-index`");
-		goto done;
+	out->n = 0;
+	int rc = query_rows(st, RUNS_SQL, "mocap_index.postings", NULL, 0, range, 2, want, 5, runs_sink, &ctx, err);
+	if (rc == 0 && order_runs(out, ctx.seg)) {
+		rc = out_of_memory(err, "the keyframe index");
 	}
-	for (;;) {
-		duckdb_data_chunk chunk = duckdb_fetch_chunk(res);
-		if (!chunk) {
-			break;
-		}
-		idx_t n = duckdb_data_chunk_get_size(chunk);
-		if (out->n + n > seg_cap) {
-			seg_cap = 2 * (out->n + n);
-			int32_t *grown = realloc(seg, seg_cap * sizeof *grown);
-			if (grown) {
-				seg = grown;
-			}
-		}
-		if (runs_reserve(out, out->n + n) || out->n + n > seg_cap) {
-			duckdb_destroy_data_chunk(&chunk);
-			snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading the keyframe index");
-			goto done;
-		}
-		duckdb_vector v[5];
-		uint64_t *valid[5];
-		for (idx_t c = 0; c < 5; c++) {
-			v[c] = duckdb_data_chunk_get_vector(chunk, c);
-			valid[c] = duckdb_vector_get_validity(v[c]);
-		}
-		int32_t *mid = duckdb_vector_get_data(v[0]);
-		uint64_t *word = duckdb_vector_get_data(v[1]);
-		int32_t *start = duckdb_vector_get_data(v[2]);
-		int32_t *len = duckdb_vector_get_data(v[3]);
-		int32_t *sg = duckdb_vector_get_data(v[4]);
-		for (idx_t i = 0; i < n; i++) {
-			int ok = 1;
-			for (idx_t c = 0; c < 5; c++) {
-				ok &= duckdb_validity_row_is_valid(valid[c], i);
-			}
-			if (!ok || len[i] <= 0 || start[i] < 0) {
-				continue; /* NOT NULL and positive in the schema; never trusted */
-			}
-			out->motion[out->n] = mid[i];
-			out->word[out->n] = word[i];
-			out->start[out->n] = start[i];
-			out->len[out->n] = len[i];
-			seg[out->n] = sg[i];
-			out->n++;
-		}
-		duckdb_destroy_data_chunk(&chunk);
-	}
-	if (order_runs(out, seg)) {
-		snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading the keyframe index");
-		goto done;
-	}
-	rc = 0;
-done:
-	free(seg);
-	if (have_result) {
-		duckdb_destroy_result(&res);
-	}
-	duckdb_destroy_prepare(&stmt);
+	free(ctx.seg);
 	return rc;
 }
 
 /* The index version (NULL: -1; no index built), the caller holding the lock. */
-static int index_version(mdb_state *st, int64_t *version, mdb_error *err) {
-	duckdb_result res;
-	int rc = -1;
-	if (duckdb_query(st->con, VERSION_SQL, &res) == DuckDBError) {
-		query_error("mocapdb", "mocap_index.state", duckdb_result_error(&res), err);
-		duckdb_destroy_result(&res);
+static int version_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	int64_t *version = p;
+	COLUMN(chunk, 0, int64_t, x, valid);
+	if (n != 1 || *version != -2) {
+		snprintf(err->text, sizeof err->text,
+		         "mocapdb: table mocap_index.state must have one row; `mocapdb ingest` writes it");
 		return -1;
 	}
+	*version = duckdb_validity_row_is_valid(valid, 0) ? x[0] : -1;
+	return 0;
+}
+
+static int index_version(mdb_state *st, int64_t *version, mdb_error *err) {
 	duckdb_type want[] = {DUCKDB_TYPE_BIGINT};
-	duckdb_data_chunk chunk = column_types_ok(&res, want, 1) ? duckdb_fetch_chunk(res) : NULL;
-	if (chunk && duckdb_data_chunk_get_size(chunk) == 1) {
-		duckdb_vector v = duckdb_data_chunk_get_vector(chunk, 0);
-		int64_t *x = duckdb_vector_get_data(v);
-		*version = duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), 0) ? x[0] : -1;
-		rc = 0;
-	} else {
+	*version = -2; /* no row yet */
+	if (query_rows(st, VERSION_SQL, "mocap_index.state", NULL, 0, NULL, 0, want, 1, version_sink, version, err)) {
+		return -1;
+	}
+	if (*version == -2) {
 		snprintf(err->text, sizeof err->text,
-		         "mocapdb: table mocap_index.state must have one BIGINT row; `mocapdb ingest` writes it");
+		         "mocapdb: table mocap_index.state must have one row; `mocapdb ingest` writes it");
+		return -1;
 	}
-	if (chunk) {
-		duckdb_destroy_data_chunk(&chunk);
-	}
-	duckdb_destroy_result(&res);
-	return rc;
+	return 0;
 }
 
 static void batch_free(mdb_batch *b) {
@@ -395,46 +406,6 @@ void mdb_release_runs(mdb_state *st, mdb_batch *b) {
 /* ---------------------------------------------------------------------------------------------
  * models and motions */
 
-#define TEMPLATE_SQL "SELECT mask, value, weight FROM templates WHERE model = $1 AND class = $2 ORDER BY col"
-#define CLASSES_SQL "SELECT string_agg(class, ', ' ORDER BY class_id) FROM classes WHERE model = $1"
-#define MODELS_SQL "SELECT string_agg(model, ', ' ORDER BY model) FROM models"
-#define LENGTH_SQL "SELECT n_frames, name FROM motions WHERE motion_id = $1"
-#define WORDS_SQL "SELECT frame, bits FROM features WHERE motion_id = $1 ORDER BY frame"
-/* 41 feature bits (40 + the heading feature): a template column may fix no other */
-#define FEATURE_BITS ((((uint64_t)1) << (MDB_N_COST - 1)) - 1)
-/* more expanded columns than any template has (the longest are a few hundred) */
-#define MAX_COLUMNS ((size_t)1 << 16)
-
-/* A prepared statement with up to two text parameters or one integer, executed; 0 or -1
- * (err names the table). */
-static int run_prepared(mdb_state *st, const char *sql, const char *table, const char *p1, const char *p2,
-                        const int32_t *i1, duckdb_result *res, mdb_error *err) {
-	duckdb_prepared_statement stmt = NULL;
-	int rc = -1;
-	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
-		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
-		duckdb_destroy_prepare(&stmt);
-		return -1;
-	}
-	if (p1) {
-		duckdb_bind_varchar(stmt, 1, p1);
-	}
-	if (p2) {
-		duckdb_bind_varchar(stmt, 2, p2);
-	}
-	if (i1) {
-		duckdb_bind_int32(stmt, 1, *i1);
-	}
-	if (duckdb_execute_prepared(stmt, res) == DuckDBError) {
-		query_error("mocapdb", table, duckdb_result_error(res), err);
-		duckdb_destroy_result(res);
-	} else {
-		rc = 0;
-	}
-	duckdb_destroy_prepare(&stmt);
-	return rc;
-}
-
 /* The first row's VARCHAR of a one-column result into buf ("" when NULL or none). */
 static void first_text(duckdb_result *res, char *buf, size_t size) {
 	buf[0] = 0;
@@ -459,7 +430,7 @@ static void first_text(duckdb_result *res, char *buf, size_t size) {
 static void unknown_class(mdb_state *st, const char *model, const char *cls, mdb_error *err) {
 	duckdb_result res;
 	char known[300];
-	if (run_prepared(st, CLASSES_SQL, "classes", model, NULL, NULL, &res, err)) {
+	if (run_query(st, CLASSES_SQL, "classes", &model, 1, NULL, 0, &res, err)) {
 		return;
 	}
 	first_text(&res, known, sizeof known);
@@ -468,7 +439,7 @@ static void unknown_class(mdb_state *st, const char *model, const char *cls, mdb
 		snprintf(err->text, sizeof err->text, "model '%s' has no class '%s'; its classes: %s", model, cls, known);
 		return;
 	}
-	if (run_prepared(st, MODELS_SQL, "models", NULL, NULL, NULL, &res, err)) {
+	if (run_query(st, MODELS_SQL, "models", NULL, 0, NULL, 0, &res, err)) {
 		return;
 	}
 	first_text(&res, known, sizeof known);
@@ -479,175 +450,145 @@ static void unknown_class(mdb_state *st, const char *model, const char *cls, mdb
 	         model, known[0] ? known : "none");
 }
 
+typedef struct {
+	uint64_t *mask, *value;
+	double *weight;
+	size_t n, cap;
+	int bad;
+} template_ctx;
+
+static int template_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	template_ctx *c = p;
+	if (c->n + n > c->cap) {
+		c->cap = 2 * (c->n + n);
+		if (grow(&c->mask, sizeof *c->mask, c->cap) || grow(&c->value, sizeof *c->value, c->cap) ||
+		    grow(&c->weight, sizeof *c->weight, c->cap)) {
+			return out_of_memory(err, "a template");
+		}
+	}
+	COLUMN(chunk, 0, uint64_t, mask, v0);
+	COLUMN(chunk, 1, uint64_t, value, v1);
+	COLUMN(chunk, 2, double, weight, v2);
+	for (idx_t i = 0; i < n; i++) {
+		c->bad |= !duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
+		          !duckdb_validity_row_is_valid(v2, i) || (mask[i] & ~FEATURE_BITS) != 0;
+		c->mask[c->n] = mask[i];
+		c->value[c->n] = value[i];
+		c->weight[c->n] = weight[i];
+		c->n++;
+	}
+	return 0;
+}
+
 int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_template *out, mdb_error *err) {
-	duckdb_result res;
-	uint64_t *mask = NULL, *value = NULL;
-	double *weight = NULL;
-	size_t n = 0, cap = 0;
-	int rc = -1, bad = 0;
+	template_ctx c = {0};
+	const char *key[2] = {model, cls};
+	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_DOUBLE};
+	int rc = -1;
 	memset(out, 0, sizeof *out);
 	pthread_mutex_lock(&st->lock);
-	if (run_prepared(st, TEMPLATE_SQL, "templates", model, cls, NULL, &res, err)) {
-		goto unlock;
-	}
-	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_DOUBLE};
-	if (!column_types_ok(&res, want, 3)) {
-		snprintf(err->text, sizeof err->text, "mocapdb: table templates has unexpected column types");
+	if (query_rows(st, TEMPLATE_SQL, "templates", key, 2, NULL, 0, want, 3, template_sink, &c, err)) {
 		goto done;
 	}
-	for (;;) {
-		duckdb_data_chunk chunk = duckdb_fetch_chunk(res);
-		if (!chunk) {
-			break;
-		}
-		idx_t m = duckdb_data_chunk_get_size(chunk);
-		if (n + m > cap) {
-			cap = 2 * (n + m);
-			uint64_t *a = realloc(mask, cap * sizeof *a);
-			if (a) {
-				mask = a;
-			}
-			uint64_t *b = realloc(value, cap * sizeof *b);
-			if (b) {
-				value = b;
-			}
-			double *c = realloc(weight, cap * sizeof *c);
-			if (c) {
-				weight = c;
-			}
-			if (!a || !b || !c) {
-				duckdb_destroy_data_chunk(&chunk);
-				snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading a template");
-				goto done;
-			}
-		}
-		duckdb_vector v[3];
-		for (idx_t c = 0; c < 3; c++) {
-			v[c] = duckdb_data_chunk_get_vector(chunk, c);
-		}
-		uint64_t *vm = duckdb_vector_get_data(v[0]), *vv = duckdb_vector_get_data(v[1]);
-		double *vw = duckdb_vector_get_data(v[2]);
-		for (idx_t i = 0; i < m; i++) {
-			for (idx_t c = 0; c < 3; c++) {
-				bad |= !duckdb_validity_row_is_valid(duckdb_vector_get_validity(v[c]), i);
-			}
-			mask[n] = vm[i];
-			value[n] = vv[i];
-			weight[n] = vw[i];
-			bad |= (vm[i] & ~FEATURE_BITS) != 0;
-			n++;
-		}
-		duckdb_destroy_data_chunk(&chunk);
-	}
-	if (n == 0) {
+	if (c.n == 0) {
 		unknown_class(st, model, cls, err);
 		goto done;
 	}
-	int prep = bad ? -2 : mdb_template_prepare(mask, value, weight, n, MAX_COLUMNS, out);
+	int prep = c.bad ? -2 : mdb_template_prepare(c.mask, c.value, c.weight, c.n, MAX_COLUMNS, out);
 	if (prep == -2) {
 		snprintf(err->text, sizeof err->text,
 		         "model '%s', class '%s': the stored template is damaged (NULLs, bits past feature 41 or "
 		         "weights not in 0 < w <= %zu); train or install the model again",
 		         model, cls, MAX_COLUMNS);
-		goto done;
+	} else if (prep) {
+		out_of_memory(err, "a template");
+	} else {
+		rc = 0;
 	}
-	if (prep) {
-		snprintf(err->text, sizeof err->text, "mocapdb: out of memory preparing a template");
-		goto done;
-	}
-	rc = 0;
 done:
-	duckdb_destroy_result(&res);
-unlock:
 	pthread_mutex_unlock(&st->lock);
-	free(mask);
-	free(value);
-	free(weight);
+	free(c.mask);
+	free(c.value);
+	free(c.weight);
 	return rc;
 }
 
-int mdb_read_words(mdb_state *st, int32_t motion, uint64_t **words, size_t *n, int *known, mdb_error *err) {
-	duckdb_result res;
-	int rc = -1;
-	int64_t n_frames = -1;
-	char name[128] = "";
-	*words = NULL;
-	*n = 0;
-	*known = 0;
+typedef struct {
+	const int32_t *want;
+	const int64_t *n_frames;
+	const size_t *off;
+	size_t n_want, k;
+	size_t *count; /* rows stored per wanted motion */
+	uint64_t *words;
+	int32_t bad;   /* a motion whose rows are not its frames 1, 2, …; 0: none */
+} words_ctx;
+
+static int words_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	words_ctx *c = p;
+	(void)err;
+	COLUMN(chunk, 0, int32_t, mid, v0);
+	COLUMN(chunk, 1, int32_t, frame, v1);
+	COLUMN(chunk, 2, uint64_t, bits, v2);
+	for (idx_t i = 0; i < n; i++) {
+		if (!duckdb_validity_row_is_valid(v0, i)) {
+			continue;
+		}
+		while (c->k < c->n_want && c->want[c->k] < mid[i]) {
+			c->k++;
+		}
+		if (c->k == c->n_want || c->want[c->k] != mid[i]) {
+			continue; /* a motion of the range that was not asked for */
+		}
+		size_t k = c->k, at = c->count[k];
+		if ((int64_t)at >= c->n_frames[k] || !duckdb_validity_row_is_valid(v1, i) ||
+		    !duckdb_validity_row_is_valid(v2, i) || frame[i] != (int64_t)at + 1) {
+			c->bad = mid[i];
+			return 1;
+		}
+		c->words[c->off[k] + at] = bits[i];
+		c->count[k]++;
+	}
+	return 0;
+}
+
+int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *out, mdb_error *err) {
+	memset(out, 0, sizeof *out);
+	motions_ctx ctx = {out, 0};
+	int32_t range[2] = {lo, hi};
+	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
 	pthread_mutex_lock(&st->lock);
-	if (run_prepared(st, LENGTH_SQL, "motions", NULL, NULL, &motion, &res, err)) {
-		goto unlock;
+	int rc = query_rows(st, RANGE_SQL, "motions", NULL, 0, range, 2, want, 2, motions_sink, &ctx, err);
+	pthread_mutex_unlock(&st->lock);
+	if (rc) {
+		mdb_motions_free(out);
 	}
-	duckdb_data_chunk chunk = duckdb_column_type(&res, 0) == DUCKDB_TYPE_INTEGER ? duckdb_fetch_chunk(res) : NULL;
-	if (chunk && duckdb_data_chunk_get_size(chunk) > 0) {
-		duckdb_vector v = duckdb_data_chunk_get_vector(chunk, 0);
-		if (duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), 0)) {
-			n_frames = ((int32_t *)duckdb_vector_get_data(v))[0];
+	return rc;
+}
+
+int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, const int64_t *n_frames,
+                   const size_t *off, size_t n_want, uint64_t *words, mdb_error *err) {
+	words_ctx c = {want, n_frames, off, n_want, 0, calloc(n_want ? n_want : 1, sizeof(size_t)), words, 0};
+	int32_t range[2] = {lo, hi};
+	duckdb_type cols[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT};
+	if (!c.count) {
+		return out_of_memory(err, "motions");
+	}
+	pthread_mutex_lock(&st->lock);
+	int rc = query_rows(st, WORDS_SQL, "features", NULL, 0, range, 2, cols, 3, words_sink, &c, err);
+	pthread_mutex_unlock(&st->lock);
+	for (size_t k = 0; k < n_want && !c.bad; k++) {
+		if ((int64_t)c.count[k] != n_frames[k]) {
+			c.bad = want[k];
 		}
-		duckdb_vector vn = duckdb_data_chunk_get_vector(chunk, 1);
-		if (duckdb_column_type(&res, 1) == DUCKDB_TYPE_VARCHAR &&
-		    duckdb_validity_row_is_valid(duckdb_vector_get_validity(vn), 0)) {
-			duckdb_string_t *x = duckdb_vector_get_data(vn);
-			uint32_t len = duckdb_string_t_length(x[0]);
-			len = len < sizeof name - 1 ? len : (uint32_t)sizeof name - 1;
-			memcpy(name, duckdb_string_t_data(&x[0]), len);
-			name[len] = 0;
-		}
-		*known = 1;
 	}
-	if (chunk) {
-		duckdb_destroy_data_chunk(&chunk);
-	}
-	duckdb_destroy_result(&res);
-	if (!*known) {
-		rc = 0;
-		goto unlock;
-	}
-	if (n_frames < 0) {
-		n_frames = 0; /* NOT NULL in the schema; never trusted */
-	}
-	if (run_prepared(st, WORDS_SQL, "features", NULL, NULL, &motion, &res, err)) {
-		goto unlock;
-	}
-	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT};
-	size_t rows = 0;
-	int in_order = column_types_ok(&res, want, 2);
-	uint64_t *w = n_frames > 0 ? malloc((size_t)n_frames * sizeof *w) : NULL;
-	if (n_frames > 0 && !w) {
-		snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading motion %d", motion);
-		duckdb_destroy_result(&res);
-		goto unlock;
-	}
-	while (in_order && (chunk = duckdb_fetch_chunk(res)) != NULL) {
-		idx_t m = duckdb_data_chunk_get_size(chunk);
-		duckdb_vector vf = duckdb_data_chunk_get_vector(chunk, 0), vb = duckdb_data_chunk_get_vector(chunk, 1);
-		int32_t *frame = duckdb_vector_get_data(vf);
-		uint64_t *bits = duckdb_vector_get_data(vb);
-		for (idx_t i = 0; i < m && in_order; i++) {
-			in_order = rows < (size_t)n_frames && frame[i] == (int64_t)rows + 1 &&
-			           duckdb_validity_row_is_valid(duckdb_vector_get_validity(vf), i) &&
-			           duckdb_validity_row_is_valid(duckdb_vector_get_validity(vb), i);
-			if (in_order) {
-				w[rows] = bits[i];
-			}
-			rows++;
-		}
-		duckdb_destroy_data_chunk(&chunk);
-	}
-	duckdb_destroy_result(&res);
-	if (!in_order || rows != (size_t)n_frames) {
+	if (c.bad) {
 		/* the words of mocapdb.storage.motions.incomplete_reason */
 		snprintf(err->text, sizeof err->text,
-		         "motion %d (%s) has feature rows that are not its frames 1…%lld: ingest or import it again to "
+		         "motion %d has feature rows that are not its frames 1…n_frames: ingest or import it again to "
 		         "repair it",
-		         motion, name, (long long)n_frames);
-		free(w);
-		goto unlock;
+		         c.bad);
+		rc = -1;
 	}
-	*words = w;
-	*n = rows;
-	rc = 0;
-unlock:
-	pthread_mutex_unlock(&st->lock);
+	free(c.count);
 	return rc;
 }

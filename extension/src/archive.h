@@ -53,7 +53,6 @@ typedef struct {
 	char text[512];
 } mdb_error;
 
-int mdb_read_motions(mdb_state *st, mdb_motions *out, mdb_error *err);
 void mdb_motions_free(mdb_motions *m);
 /* The runs of motions lo .. hi (ids, inclusive) of the 'full' part of the index, in (motion,
  * run) order: from the cache while the index version is the same (a bounded number of bytes,
@@ -66,8 +65,12 @@ void mdb_runs_free(mdb_runs *r);
 /* A class's quantized template of a model, prepared for mdb_mt_distance. An unknown model or
  * class is an error naming it and what the database has. */
 int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_template *out, mdb_error *err);
-/* A motion's packed 30 Hz words (frames 1 .. n); *known = 0 for a motion id the archive lacks.
- * A motion whose features are not its frames 1 .. n is an error naming it. */
-int mdb_read_words(mdb_state *st, int32_t motion, uint64_t **words, size_t *n, int *known, mdb_error *err);
+/* The stored motions with ids lo .. hi, ascending, with their frame counts. */
+int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *out, mdb_error *err);
+/* The packed 30 Hz words of the motions want[0 .. n_want) (ascending ids within lo .. hi, each of
+ * n_frames[i] frames) into words + off[i]. A motion whose features are not its frames 1 .. n is an
+ * error naming it. */
+int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, const int64_t *n_frames,
+                   const size_t *off, size_t n_want, uint64_t *words, mdb_error *err);
 
 #endif

@@ -19,8 +19,6 @@
 DUCKDB_EXTENSION_EXTERN
 
 #define WHAT "keyframe_search_words"
-/* as mocapdb.storage.motions.BATCH_FRAMES: frames of runs read per batch of motions */
-#define BATCH_FRAMES 1000000
 #define FULL_BITS ((((uint64_t)1) << 40) - 1)
 
 typedef struct {
@@ -258,7 +256,7 @@ static int keyframe_intervals(const mdb_runs *r, size_t a, size_t b, uint64_t ma
 static int search_batch(mdb_state *st, const query_bind *q, query_scan *s, mdb_error *err) {
 	size_t first = s->next_motion, last = first;
 	int64_t frames = 0;
-	while (last < s->motions.n && (last == first || frames + s->motions.n_frames[last] <= BATCH_FRAMES)) {
+	while (last < s->motions.n && (last == first || frames + s->motions.n_frames[last] <= MDB_BATCH_FRAMES)) {
 		frames += s->motions.n_frames[last++];
 	}
 	s->next_motion = last;
@@ -327,7 +325,7 @@ static void query_fn(duckdb_function_info info, duckdb_data_chunk output) {
 	query_scan *s = duckdb_function_get_init_data(info);
 	mdb_error err = {{0}};
 	if (!s->loaded) {
-		if (mdb_read_motions(st, &s->motions, &err)) {
+		if (mdb_read_motion_range(st, INT32_MIN, INT32_MAX, &s->motions, &err)) {
 			duckdb_function_set_error(info, err.text);
 			return;
 		}
