@@ -123,6 +123,30 @@ def test_keyframe_search_words_equals_the_python_udf(archive, native):
 
 
 @pytest.mark.shared
+def test_keyframe_search_equals_the_python_udf(archive, native):
+    """Every class of the shipped default model with a keyframe query, with and without the
+    annotation margins, and the toolbox's classes, which have none (an error naming the class)."""
+    with mocapdb.connect(archive, read_only=True) as con:
+        classes = [c for c, in con.execute("SELECT class FROM keyframe_queries WHERE model = 'default' "
+                                           "ORDER BY class").fetchall()]
+        queries = [f"SELECT * FROM keyframe_search('{c}', extend := {e}) ORDER BY ALL"
+                   for c in classes for e in ("false", "true")]
+        want = [[list(r) for r in con.execute(q).fetchall()] for q in queries]
+    got = plain_client(archive, native, queries + [
+        "SELECT * FROM keyframe_search('squat1Reps', model := 'toolbox')",
+        "SELECT * FROM keyframe_search('nope')", "SELECT * FROM keyframe_search(NULL)",
+        "SELECT * FROM keyframe_search('squat1Reps', model := NULL)",
+        "SELECT count(*) FROM keyframe_search('squat1Reps', extend := NULL)"])
+    assert len(classes) > 30 and [g.get("error") for g in got[:len(queries)]] == [None] * len(queries)
+    assert [g["rows"] for g in got[:len(queries)]] == want
+    assert sum(map(bool, want)) > 20  # most classes hit something
+    assert "class 'squat1Reps' of model 'toolbox' has no keyframe query" in got[-5]["error"]
+    assert "model 'default' has no class 'nope'" in got[-4]["error"]
+    assert "class is NULL" in got[-3]["error"] and "model is NULL" in got[-2]["error"]
+    assert got[-1]["rows"] == [[len(want[classes.index("squat1Reps") * 2])]]  # NULL extend: none
+
+
+@pytest.mark.shared
 def test_mt_distance_equals_the_python_udf_bit_for_bit(archive, native):
     """Δ of every class of both shipped models on every motion: the same doubles, bit for bit (the
     C kernel does numba's operations in numba's order, without fused multiply-add), inf included."""
@@ -237,7 +261,8 @@ def test_the_duckdb_cli_loads_it(archive, native, tmp_path):
     """PyPI's duckdb-cli (1.5.x): LOAD with -unsigned, the same rows as in Python duckdb 2.0; without
     -unsigned DuckDB refuses the unsigned binary cleanly. The CLI reads storage up to v1.5, so the
     archive is copied into a file of that storage version first."""
-    cli = shutil.which("duckdb")
+    beside = Path(sys.executable).with_name("duckdb")  # the venv's, when it is not on PATH
+    cli = shutil.which("duckdb") or (str(beside) if beside.is_file() else None)
     assert cli, "the [test] extra installs duckdb-cli (a `duckdb` executable)"
     old = tmp_path / "v15.duckdb"
     copy = ("import duckdb, sys; c = duckdb.connect(); c.execute(f\"ATTACH '{sys.argv[1]}' AS src (READ_ONLY)\"); "
@@ -323,6 +348,11 @@ for i in range(n):
         model = rng.choice([[], ["'default'"], ["'toolbox'"], ["NULL"], ["'nomodel'"], ["''"]])
         q = (f"SELECT count(*), sum(len(d)) FROM (SELECT mt_distance({', '.join([motion, cls] + model)}) AS d "
              "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
+        if rng.random() < 0.3:  # keyframe_search: a class's stored query, or none
+            named = [f"{k} := {rng.choice(v)}" for k, v in (("model", ["'default'", "'toolbox'", "NULL", "'x'"]),
+                                                             ("extend", ["true", "false", "NULL"]))
+                     if rng.random() < 0.5]
+            q = f"SELECT count(*) FROM keyframe_search({', '.join([cls.replace(' || motion_id', '')] + named)})"
     try:
         con.execute(q).fetchall()
         n_rows += 1

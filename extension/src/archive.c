@@ -19,6 +19,10 @@ DUCKDB_EXTENSION_EXTERN
 #define TEMPLATE_SQL "SELECT mask, value, weight FROM templates WHERE model = $1 AND class = $2 ORDER BY col"
 #define CLASSES_SQL "SELECT string_agg(class, ', ' ORDER BY class_id) FROM classes WHERE model = $1"
 #define MODELS_SQL "SELECT string_agg(model, ', ' ORDER BY model) FROM models"
+#define QUERY_SQL                                                                                                      \
+	"SELECT k.mask, k.value, k.position, k.d_min, k.d_max, q.template_length FROM keyframes k "                        \
+	"JOIN keyframe_queries q USING (model, class) WHERE k.model = $1 AND k.class = $2 ORDER BY k.k"
+#define HAS_CLASS_SQL "SELECT count(*) FROM classes WHERE model = $1 AND class = $2"
 #define RANGE_SQL "SELECT motion_id, n_frames FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
 #define WORDS_SQL                                                                                                      \
 	"SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id, frame"
@@ -590,5 +594,107 @@ int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, c
 		rc = -1;
 	}
 	free(c.count);
+	return rc;
+}
+
+typedef struct {
+	mdb_query *q;
+	int64_t first_pos, last_pos, length;
+	size_t rows;
+	int bad;
+} query_ctx;
+
+static int query_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	query_ctx *c = p;
+	(void)err;
+	COLUMN(chunk, 0, uint64_t, mask, v0);
+	COLUMN(chunk, 1, uint64_t, value, v1);
+	COLUMN(chunk, 2, int32_t, pos, v2);
+	COLUMN(chunk, 3, int32_t, d_min, v3);
+	COLUMN(chunk, 4, int32_t, d_max, v4);
+	COLUMN(chunk, 5, int32_t, length, v5);
+	for (idx_t i = 0; i < n; i++, c->rows++) {
+		if (c->rows >= MDB_MAX_KEYFRAMES || !duckdb_validity_row_is_valid(v0, i) ||
+		    !duckdb_validity_row_is_valid(v1, i) || !duckdb_validity_row_is_valid(v2, i) ||
+		    !duckdb_validity_row_is_valid(v5, i) || (mask[i] & ~FEATURE_BITS) || (value[i] & ~mask[i])) {
+			c->bad = 1;
+			return 1;
+		}
+		size_t k = c->rows;
+		c->q->mask[k] = mask[i];
+		c->q->value[k] = value[i];
+		/* the gap to the next keyframe (the last row's bounds are NULL): NULL d_min is 0, NULL d_max
+		 * unbounded, as mocapdb.storage.model_store reads them */
+		c->q->d_min[k] = duckdb_validity_row_is_valid(v3, i) ? d_min[i] : 0;
+		c->q->d_max[k] = duckdb_validity_row_is_valid(v4, i) ? d_max[i] : MDB_UNBOUNDED;
+		if (k == 0) {
+			c->first_pos = pos[i];
+		}
+		c->last_pos = pos[i];
+		c->length = length[i];
+	}
+	return 0;
+}
+
+static int count_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	(void)err;
+	COLUMN(chunk, 0, int64_t, x, valid);
+	if (n > 0 && duckdb_validity_row_is_valid(valid, 0)) {
+		*(int64_t *)p = x[0];
+	}
+	return 0;
+}
+
+int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, int extend, mdb_query *out,
+                            mdb_error *err) {
+	query_ctx c = {out, 0, 0, 0, 0, 0};
+	const char *key[2] = {model, cls};
+	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER,
+	                      DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
+	duckdb_type count_type[] = {DUCKDB_TYPE_BIGINT};
+	int64_t has_class = 0;
+	int rc = -1;
+	memset(out, 0, sizeof *out);
+	pthread_mutex_lock(&st->lock);
+	if (query_rows(st, QUERY_SQL, "keyframes", key, 2, NULL, 0, want, 6, query_sink, &c, err) && !c.bad) {
+		goto done;
+	}
+	if (c.bad || c.first_pos < 1 || c.last_pos < c.first_pos || c.length < c.last_pos) {
+		if (c.rows == 0) {
+			if (query_rows(st, HAS_CLASS_SQL, "classes", key, 2, NULL, 0, count_type, 1, count_sink, &has_class,
+			               err)) {
+				goto done;
+			}
+			if (has_class) {
+				snprintf(err->text, sizeof err->text,
+				         "class '%s' of model '%s' has no keyframe query; learn one with `mocapdb learn-keyframes`", cls,
+				         model);
+			} else {
+				unknown_class(st, model, cls, err);
+			}
+		} else {
+			snprintf(err->text, sizeof err->text,
+			         "model '%s', class '%s': the stored keyframe query is damaged (NULLs, more than %d keyframes, "
+			         "words past feature 41 or positions outside the template); learn or install it again",
+			         model, cls, MDB_MAX_KEYFRAMES);
+		}
+		goto done;
+	}
+	out->K = c.rows;
+	for (size_t g = 0; g + 1 < out->K; g++) {
+		if (out->d_min[g] < 0 || out->d_max[g] < out->d_min[g]) {
+			snprintf(err->text, sizeof err->text,
+			         "model '%s', class '%s': gap %zu of the stored keyframe query has d_max < d_min or d_min < 0", model,
+			         cls, g + 1);
+			goto done;
+		}
+	}
+	if (extend) { /* mocapdb.keyframes.annot_margins, positions 1-based here */
+		out->ext_l = 2 * (c.first_pos - 1);
+		out->ext_r = 2 * (c.length - c.last_pos);
+	}
+	rc = 0;
+done:
+	pthread_mutex_unlock(&st->lock);
 	return rc;
 }

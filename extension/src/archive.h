@@ -6,6 +6,7 @@
 #include <pthread.h>
 #include <stdint.h>
 
+#include "chain.h"
 #include "distance.h"
 #include "duckdb_extension.h"
 
@@ -65,6 +66,11 @@ void mdb_runs_free(mdb_runs *r);
 /* A class's quantized template of a model, prepared for mdb_mt_distance. An unknown model or
  * class is an error naming it and what the database has. */
 int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_template *out, mdb_error *err);
+/* A class's stored keyframe query (keyframes, keyframe_queries), widened by the annotation margins
+ * 2·(pos_1 - 1) and 2·(L - pos_K) when extend. An unknown model or class, or a class without a
+ * query, is an error naming it. */
+int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, int extend, mdb_query *out,
+                            mdb_error *err);
 /* The stored motions with ids lo .. hi, ascending, with their frame counts. */
 int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *out, mdb_error *err);
 /* The packed 30 Hz words of the motions want[0 .. n_want) (ascending ids within lo .. hi, each of

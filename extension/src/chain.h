@@ -10,6 +10,18 @@
  * frame ± bound never overflows int64 */
 #define MDB_UNBOUNDED ((int64_t)1 << 62)
 
+/* most keyframes of a query (as mocapdb.extension.udfs.MAX_KEYFRAMES): bounds a search's memory */
+#define MDB_MAX_KEYFRAMES 32
+
+/* A keyframe query: K (mask, value) 40-bit keyframes (a frame matches iff word & mask == value),
+ * the K-1 gap bounds, and the margins every hit is widened by. */
+typedef struct {
+	size_t K;
+	uint64_t mask[MDB_MAX_KEYFRAMES], value[MDB_MAX_KEYFRAMES];
+	int64_t d_min[MDB_MAX_KEYFRAMES], d_max[MDB_MAX_KEYFRAMES];
+	int64_t ext_l, ext_r;
+} mdb_query;
+
 /* A growing list of (start, end) pairs. */
 typedef struct {
 	int64_t *start;

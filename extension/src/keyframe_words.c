@@ -21,12 +21,7 @@ DUCKDB_EXTENSION_EXTERN
 #define WHAT "keyframe_search_words"
 #define FULL_BITS ((((uint64_t)1) << 40) - 1)
 
-typedef struct {
-	size_t K;
-	uint64_t mask[MDB_MAX_KEYFRAMES], value[MDB_MAX_KEYFRAMES];
-	int64_t d_min[MDB_MAX_KEYFRAMES], d_max[MDB_MAX_KEYFRAMES];
-	int64_t ext_l, ext_r;
-} query_bind;
+typedef mdb_query query_bind;
 
 typedef struct {
 	mdb_motions motions;
@@ -112,6 +107,15 @@ done:
 		duckdb_bind_set_error(info, msg);
 	}
 	return rc;
+}
+
+/* the rows of both searches: (motion_id, start_frame, end_frame) */
+static void add_hit_columns(duckdb_bind_info info) {
+	duckdb_logical_type t = duckdb_create_logical_type(DUCKDB_TYPE_INTEGER);
+	duckdb_bind_add_result_column(info, "motion_id", t);
+	duckdb_bind_add_result_column(info, "start_frame", t);
+	duckdb_bind_add_result_column(info, "end_frame", t);
+	duckdb_destroy_logical_type(&t);
 }
 
 static void bind_fail(duckdb_bind_info info, const char *msg) {
@@ -210,15 +214,47 @@ static void query_bind_fn(duckdb_bind_info info) {
 	if (bind_margin(info, "extend_left", &q->ext_l) || bind_margin(info, "extend_right", &q->ext_r)) {
 		goto fail;
 	}
-	duckdb_logical_type t = duckdb_create_logical_type(DUCKDB_TYPE_INTEGER);
-	duckdb_bind_add_result_column(info, "motion_id", t);
-	duckdb_bind_add_result_column(info, "start_frame", t);
-	duckdb_bind_add_result_column(info, "end_frame", t);
-	duckdb_destroy_logical_type(&t);
+	add_hit_columns(info);
 	duckdb_bind_set_bind_data(info, q, bind_destroy);
 	return;
 fail:
 	free(q);
+}
+
+/* keyframe_search(class [, model := 'default'] [, extend := false]): a class's stored query */
+static void class_bind_fn(duckdb_bind_info info) {
+	mdb_state *st = duckdb_bind_get_extra_info(info);
+	duckdb_value v_cls = duckdb_bind_get_parameter(info, 0);
+	duckdb_value v_model = duckdb_bind_get_named_parameter(info, "model");
+	duckdb_value v_extend = duckdb_bind_get_named_parameter(info, "extend");
+	char *cls = v_cls && !duckdb_is_null_value(v_cls) ? duckdb_get_varchar(v_cls) : NULL;
+	int model_null = v_model && duckdb_is_null_value(v_model);
+	char *model = v_model && !model_null ? duckdb_get_varchar(v_model) : NULL;
+	int extend = v_extend && !duckdb_is_null_value(v_extend) && duckdb_get_bool(v_extend);
+	const char *model_name = model ? model : "default";
+	query_bind *q = calloc(1, sizeof *q);
+	mdb_error err = {{0}};
+	if (!q) {
+		snprintf(err.text, sizeof err.text, "keyframe_search: out of memory");
+	} else if (model_null) {
+		snprintf(err.text, sizeof err.text, "keyframe_search: model is NULL; give a model name (default: 'default')");
+	} else if (!cls) {
+		snprintf(err.text, sizeof err.text, "keyframe_search: class is NULL; give one of model '%s''s classes",
+		         model_name);
+	} else if (mdb_read_keyframe_query(st, model_name, cls, extend, q, &err) == 0) {
+		add_hit_columns(info);
+		duckdb_bind_set_bind_data(info, q, bind_destroy);
+		q = NULL;
+	}
+	if (q) {
+		duckdb_bind_set_error(info, err.text);
+		free(q);
+	}
+	duckdb_free(cls);
+	duckdb_free(model);
+	duckdb_destroy_value(&v_cls);
+	duckdb_destroy_value(&v_model);
+	duckdb_destroy_value(&v_extend);
 }
 
 static void query_init_fn(duckdb_init_info info) {
@@ -369,6 +405,25 @@ int mdb_register_keyframe_words(duckdb_connection con, mdb_state *st) {
 	duckdb_destroy_logical_type(&i64);
 	duckdb_table_function_set_extra_info(f, st, NULL);
 	duckdb_table_function_set_bind(f, query_bind_fn);
+	duckdb_table_function_set_init(f, query_init_fn);
+	duckdb_table_function_set_function(f, query_fn);
+	duckdb_state rc = duckdb_register_table_function(con, f);
+	duckdb_destroy_table_function(&f);
+	return rc == DuckDBSuccess ? 0 : -1;
+}
+
+int mdb_register_keyframe_search(duckdb_connection con, mdb_state *st) {
+	duckdb_table_function f = duckdb_create_table_function();
+	duckdb_table_function_set_name(f, "keyframe_search");
+	duckdb_logical_type text = duckdb_create_logical_type(DUCKDB_TYPE_VARCHAR);
+	duckdb_logical_type flag = duckdb_create_logical_type(DUCKDB_TYPE_BOOLEAN);
+	duckdb_table_function_add_parameter(f, text);
+	duckdb_table_function_add_named_parameter(f, "model", text);
+	duckdb_table_function_add_named_parameter(f, "extend", flag);
+	duckdb_destroy_logical_type(&text);
+	duckdb_destroy_logical_type(&flag);
+	duckdb_table_function_set_extra_info(f, st, NULL);
+	duckdb_table_function_set_bind(f, class_bind_fn);
 	duckdb_table_function_set_init(f, query_init_fn);
 	duckdb_table_function_set_function(f, query_fn);
 	duckdb_state rc = duckdb_register_table_function(con, f);

@@ -27,7 +27,8 @@ DUCKDB_EXTENSION_ENTRYPOINT_CUSTOM(duckdb_extension_info info, struct duckdb_ext
 		access->set_error(info, "mocapdb: could not open a connection to the database");
 		return false;
 	}
-	int failed = mdb_register_keyframe_words(reg, st) || mdb_register_mt_distance(reg, st);
+	int failed = mdb_register_keyframe_words(reg, st) || mdb_register_keyframe_search(reg, st) ||
+	             mdb_register_mt_distance(reg, st);
 	duckdb_disconnect(&reg);
 	if (failed) {
 		access->set_error(info, "mocapdb: registering the SQL functions failed (are they loaded already?)");
