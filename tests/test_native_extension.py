@@ -257,22 +257,34 @@ def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, nati
     assert "table motions does not exist" in err and "`mocapdb ingest` creates it" in err
 
 
-def test_the_duckdb_cli_loads_it(archive, native, tmp_path):
-    """PyPI's duckdb-cli (1.5.x): LOAD with -unsigned, the same rows as in Python duckdb 2.0; without
-    -unsigned DuckDB refuses the unsigned binary cleanly. The CLI reads storage up to v1.5, so the
-    archive is copied into a file of that storage version first."""
-    beside = Path(sys.executable).with_name("duckdb")  # the venv's, when it is not on PATH
-    cli = shutil.which("duckdb") or (str(beside) if beside.is_file() else None)
-    assert cli, "the [test] extra installs duckdb-cli (a `duckdb` executable)"
-    old = tmp_path / "v15.duckdb"
+@pytest.fixture(scope="module")
+def archive_v15(archive, tmp_path_factory):
+    """The archive copied into a file of storage version v1.5, which DuckDB 1.5 clients (the CLI,
+    Node's @duckdb/node-api) read; Python duckdb 2.0 writes v2.0 storage, which they cannot."""
+    old = tmp_path_factory.mktemp("v15") / "v15.duckdb"
     copy = ("import duckdb, sys; c = duckdb.connect(); c.execute(f\"ATTACH '{sys.argv[1]}' AS src (READ_ONLY)\"); "
             "c.execute(f\"ATTACH '{sys.argv[2]}' AS dst (STORAGE_VERSION 'v1.5.0')\"); "
             "c.execute('COPY FROM DATABASE src TO dst')")
     subprocess.run([sys.executable, "-c", copy, str(archive), str(old)], check=True, timeout=300)
-    queries = ["SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_right := 5) ORDER BY ALL",
-               "SELECT motion_id, len(d), list_sum(list_filter(d, lambda x: isfinite(x))) * 1e6 // 1 "
-               "FROM (SELECT motion_id, mt_distance(motion_id, 'squat1Reps') AS d FROM motions) ORDER BY ALL"]
-    for query, want in zip(queries, plain_client(archive, native, queries)):
+    return old
+
+
+#: what the Node test runs: keyframe hits, Δ's length and its finite sum (in millionths), a class's hits
+CLIENT_QUERIES = [
+    "SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_right := 5) ORDER BY ALL",
+    "SELECT motion_id, len(d), list_sum(list_filter(d, lambda x: isfinite(x))) * 1e6 // 1 "
+    "FROM (SELECT motion_id, mt_distance(motion_id, 'squat1Reps') AS d FROM motions) ORDER BY ALL",
+    "SELECT * FROM keyframe_search('squat1Reps', extend := true) ORDER BY ALL"]
+
+
+def test_the_duckdb_cli_loads_it(archive, archive_v15, native):
+    """PyPI's duckdb-cli (1.5.x): LOAD with -unsigned, the same rows as in Python duckdb 2.0; without
+    -unsigned DuckDB refuses the unsigned binary cleanly."""
+    beside = Path(sys.executable).with_name("duckdb")  # the venv's, when it is not on PATH
+    cli = shutil.which("duckdb") or (str(beside) if beside.is_file() else None)
+    assert cli, "the [test] extra installs duckdb-cli (a `duckdb` executable)"
+    old = archive_v15
+    for query, want in zip(CLIENT_QUERIES, plain_client(archive, native, CLIENT_QUERIES)):
         run = subprocess.run([cli, "-unsigned", "-csv", "-noheader", str(old), "-c", f"LOAD '{native}'; {query}"],
                              capture_output=True, text=True, timeout=300)
         assert run.returncode == 0, run.stderr
@@ -280,6 +292,38 @@ def test_the_duckdb_cli_loads_it(archive, native, tmp_path):
         assert got and got == [[int(x) for x in row] for row in want["rows"]]
     refused = subprocess.run([cli, str(old), "-c", f"LOAD '{native}'"], capture_output=True, text=True, timeout=300)
     assert refused.returncode != 0 and "unsigned" in refused.stderr + refused.stdout
+
+
+#: Node's DuckDB client (DuckDB 1.5.6 inside), installed from the npm registry into the test's folder
+NODE_API = "@duckdb/node-api@1.5.6-r.1"
+NODE_CLIENT = r"""
+import { DuckDBInstance } from '@duckdb/node-api';
+const [db, ext, queries] = [process.argv[2], process.argv[3], JSON.parse(process.argv[4])];
+const instance = await DuckDBInstance.create(db, { allow_unsigned_extensions: 'true', access_mode: 'READ_ONLY' });
+const con = await instance.connect();
+await con.run(`LOAD '${ext}'`);
+const out = [];
+for (const q of queries) out.push((await con.runAndReadAll(q)).getRowsJson());
+console.log(JSON.stringify(out));
+"""
+
+
+def test_node_loads_it(archive, archive_v15, native, tmp_path):
+    """@duckdb/node-api (a third client, JavaScript): LOAD, the same rows as Python duckdb 2.0."""
+    node, npm = shutil.which("node"), shutil.which("npm")
+    assert node and npm, "the Node client test needs node and npm (Debian: nodejs, npm)"
+    subprocess.run([npm, "install", "--silent", "--no-audit", "--no-fund", "--prefix", str(tmp_path), NODE_API],
+                   check=True, timeout=600, capture_output=True)
+    script = tmp_path / "client.mjs"
+    script.write_text(NODE_CLIENT)
+    run = subprocess.run([node, str(script), str(archive_v15), str(native), json.dumps(CLIENT_QUERIES)],
+                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-3000:]
+    got = json.loads(run.stdout)
+    want = plain_client(archive, native, CLIENT_QUERIES)
+    assert [[[int(float(x)) for x in row] for row in rows] for rows in got] == \
+        [[[int(x) for x in row] for row in w["rows"]] for w in want]
+    assert all(got)
 
 
 def test_mocapdb_extension_path_names_the_binary(native, tmp_path):
