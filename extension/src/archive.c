@@ -196,20 +196,21 @@ static int runs_reserve(mdb_runs *r, size_t need) {
 	return 0;
 }
 
-/* (motion, run) order of rows i and j of the runs read, for the rare table not in that order */
-static const mdb_runs *sort_runs;
-static const int32_t *sort_seg;
+/* A run's place in (motion, run) order, for the rare table not stored in that order. */
+typedef struct {
+	int32_t motion, seg;
+	size_t row;
+} run_key;
 
 static int run_order(const void *a, const void *b) {
-	size_t i = *(const size_t *)a, j = *(const size_t *)b;
-	if (sort_runs->motion[i] != sort_runs->motion[j]) {
-		return sort_runs->motion[i] < sort_runs->motion[j] ? -1 : 1;
+	const run_key *x = a, *y = b;
+	if (x->motion != y->motion) {
+		return x->motion < y->motion ? -1 : 1;
 	}
-	return (sort_seg[i] > sort_seg[j]) - (sort_seg[i] < sort_seg[j]);
+	return (x->seg > y->seg) - (x->seg < y->seg);
 }
 
-/* Put the runs into (motion, run) order (called under the state's lock: the comparison's
- * statics are shared). */
+/* Put the runs into (motion, run) order. */
 static int order_runs(mdb_runs *r, const int32_t *seg) {
 	int sorted = 1;
 	for (size_t i = 1; i < r->n && sorted; i++) {
@@ -218,27 +219,26 @@ static int order_runs(mdb_runs *r, const int32_t *seg) {
 	if (sorted) {
 		return 0;
 	}
-	size_t *idx = malloc(r->n * sizeof *idx);
+	run_key *key = malloc(r->n * sizeof *key);
 	mdb_runs out = {0};
-	if (!idx || runs_reserve(&out, r->n)) {
-		free(idx);
+	if (!key || runs_reserve(&out, r->n)) {
+		free(key);
 		mdb_runs_free(&out);
 		return -1;
 	}
 	for (size_t i = 0; i < r->n; i++) {
-		idx[i] = i;
+		key[i] = (run_key){r->motion[i], seg[i], i};
 	}
-	sort_runs = r;
-	sort_seg = seg;
-	qsort(idx, r->n, sizeof *idx, run_order);
+	qsort(key, r->n, sizeof *key, run_order);
 	for (size_t i = 0; i < r->n; i++) {
-		out.motion[i] = r->motion[idx[i]];
-		out.word[i] = r->word[idx[i]];
-		out.start[i] = r->start[idx[i]];
-		out.len[i] = r->len[idx[i]];
+		size_t j = key[i].row;
+		out.motion[i] = r->motion[j];
+		out.word[i] = r->word[j];
+		out.start[i] = r->start[j];
+		out.len[i] = r->len[j];
 	}
 	out.n = r->n;
-	free(idx);
+	free(key);
 	mdb_runs_free(r);
 	*r = out;
 	return 0;
