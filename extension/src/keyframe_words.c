@@ -391,20 +391,24 @@ static void query_fn(duckdb_function_info info, duckdb_data_chunk output) {
 	duckdb_data_chunk_set_size(output, n);
 }
 
-int mdb_register_keyframe_words(duckdb_connection con, mdb_state *st) {
+/* A search table function: positional parameters of the types `positional` (n_positional of them),
+ * named ones `names` of the types `named`; the rows of query_fn from the query `bind` makes. */
+static int register_search(duckdb_connection con, mdb_state *st, const char *name, duckdb_table_function_bind_t bind,
+                           const duckdb_type *positional, int n_positional, const char *const *names,
+                           const duckdb_type *named, int n_named) {
 	duckdb_table_function f = duckdb_create_table_function();
-	duckdb_table_function_set_name(f, "keyframe_search_words");
-	duckdb_logical_type any = duckdb_create_logical_type(DUCKDB_TYPE_ANY);
-	duckdb_logical_type i64 = duckdb_create_logical_type(DUCKDB_TYPE_BIGINT);
-	for (int i = 0; i < 4; i++) {
-		duckdb_table_function_add_parameter(f, any);
+	duckdb_table_function_set_name(f, name);
+	for (int i = 0; i < n_positional + n_named; i++) {
+		duckdb_logical_type t = duckdb_create_logical_type(i < n_positional ? positional[i] : named[i - n_positional]);
+		if (i < n_positional) {
+			duckdb_table_function_add_parameter(f, t);
+		} else {
+			duckdb_table_function_add_named_parameter(f, names[i - n_positional], t);
+		}
+		duckdb_destroy_logical_type(&t);
 	}
-	duckdb_table_function_add_named_parameter(f, "extend_left", i64);
-	duckdb_table_function_add_named_parameter(f, "extend_right", i64);
-	duckdb_destroy_logical_type(&any);
-	duckdb_destroy_logical_type(&i64);
 	duckdb_table_function_set_extra_info(f, st, NULL);
-	duckdb_table_function_set_bind(f, query_bind_fn);
+	duckdb_table_function_set_bind(f, bind);
 	duckdb_table_function_set_init(f, query_init_fn);
 	duckdb_table_function_set_function(f, query_fn);
 	duckdb_state rc = duckdb_register_table_function(con, f);
@@ -412,21 +416,17 @@ int mdb_register_keyframe_words(duckdb_connection con, mdb_state *st) {
 	return rc == DuckDBSuccess ? 0 : -1;
 }
 
+int mdb_register_keyframe_words(duckdb_connection con, mdb_state *st) {
+	/* the lists are ANY: integer lists of every type bind (list_values reads them) */
+	static const duckdb_type lists[] = {DUCKDB_TYPE_ANY, DUCKDB_TYPE_ANY, DUCKDB_TYPE_ANY, DUCKDB_TYPE_ANY};
+	static const char *const names[] = {"extend_left", "extend_right"};
+	static const duckdb_type margins[] = {DUCKDB_TYPE_BIGINT, DUCKDB_TYPE_BIGINT};
+	return register_search(con, st, "keyframe_search_words", query_bind_fn, lists, 4, names, margins, 2);
+}
+
 int mdb_register_keyframe_search(duckdb_connection con, mdb_state *st) {
-	duckdb_table_function f = duckdb_create_table_function();
-	duckdb_table_function_set_name(f, "keyframe_search");
-	duckdb_logical_type text = duckdb_create_logical_type(DUCKDB_TYPE_VARCHAR);
-	duckdb_logical_type flag = duckdb_create_logical_type(DUCKDB_TYPE_BOOLEAN);
-	duckdb_table_function_add_parameter(f, text);
-	duckdb_table_function_add_named_parameter(f, "model", text);
-	duckdb_table_function_add_named_parameter(f, "extend", flag);
-	duckdb_destroy_logical_type(&text);
-	duckdb_destroy_logical_type(&flag);
-	duckdb_table_function_set_extra_info(f, st, NULL);
-	duckdb_table_function_set_bind(f, class_bind_fn);
-	duckdb_table_function_set_init(f, query_init_fn);
-	duckdb_table_function_set_function(f, query_fn);
-	duckdb_state rc = duckdb_register_table_function(con, f);
-	duckdb_destroy_table_function(&f);
-	return rc == DuckDBSuccess ? 0 : -1;
+	static const duckdb_type cls[] = {DUCKDB_TYPE_VARCHAR};
+	static const char *const names[] = {"model", "extend"};
+	static const duckdb_type options[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_BOOLEAN};
+	return register_search(con, st, "keyframe_search", class_bind_fn, cls, 1, names, options, 2);
 }
