@@ -420,7 +420,7 @@ def test_files_without_points_are_refused(tmp_path):
 
 
 def test_the_readme_marker_map_example_is_a_valid_map():
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    readme = (REPO / "docs" / "READING_FILES.md").read_text(encoding="utf-8")
     section = readme[readme.index("**C3D marker maps**"):]
     block = section[section.index("```toml") + len("```toml"):]
     mapping = load_mapping(tomllib.loads(block[:block.index("```")]), what="marker_map")

@@ -145,10 +145,10 @@ def test_sql_file(path, tmp_path):
 
 
 def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path, open_db):
-    """Each ```sql block of the README, statement by statement, on a new database with one motion."""
-    from conftest import REPO
+    """Each ```sql block of the README and docs, statement by statement, on a new database with one motion."""
+    from conftest import user_docs_text
 
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    readme = user_docs_text()
     blocks = re.findall(r"```sql\n(.*?)```", readme, flags=re.S)
     statements = [s.strip() for b in blocks for s in re.sub(r"(?m)^--.*$", "", b).split(";") if s.strip()]
     assert len(statements) >= 3
