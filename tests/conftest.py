@@ -64,6 +64,11 @@ def pytest_report_header(config):
 def pytest_configure(config):
     config.addinivalue_line("markers", "shared: needs ../shared beside the checkout (skipped in a bare "
                                        "clone; MOCAPDB_REQUIRE_SHARED=1 makes its absence an error)")
+    # the fast lane, `pytest -m "not slow"` (README): what takes seconds on its own (a Ray cluster, a
+    # browser, a killed process, whole commands in subprocesses, long real takes) is marked slow; every
+    # kernel's brute-force twin, the readers' bad-input cases and the SQL functions stay in the lane
+    config.addinivalue_line("markers", "slow: seconds or more on its own; left out of the fast lane "
+                                       "(pytest -m 'not slow'), run by CI")
     if REQUIRE_SHARED and not HAVE_SHARED:
         raise pytest.UsageError(f"MOCAPDB_REQUIRE_SHARED is set but {NO_SHARED}")
 

@@ -82,6 +82,7 @@ def set_points(c, fn):
 # ----------------------------------------------------------------------------
 # 1. the toolbox oracle (three files)
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("stem", list(ORACLE_FILES))
 def test_joints_match_the_toolbox_before_and_after_the_fit(stem):
@@ -94,6 +95,7 @@ def test_joints_match_the_toolbox_before_and_after_the_fit(stem):
     assert motion.root_rotation is None and motion.skeleton == "c3d:toolbox"
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("stem", list(ORACLE_FILES))
 def test_features_1_to_39_bit_for_bit_at_120_and_30_hz(stem):

@@ -124,6 +124,7 @@ def _class_folder(tmp_path, classes):
     return root
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_train_then_annotate(cli, tmp_path):
     root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps"])
@@ -160,6 +161,7 @@ def test_annotate_unknown_model(cli):
     assert len(r.output.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_a_locked_database_is_one_line_naming_the_process(tmp_path):
     """Another process writing the file: `Error: … in use by another process (PID …)`, exit 1."""
     import subprocess
@@ -229,6 +231,7 @@ def test_eval_counts_a_missing_segment(tmp_path):
     assert r1 == round(1 - frames[longest] / frames.sum(), 3)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_learn_keyframes_is_reproducible_and_searchable(cli, tmp_path):
     root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps", "rotateArmsBothBackward1Reps"])
@@ -259,6 +262,7 @@ def test_index_drop_and_rebuild(cli):
     assert r.exit_code == 0 and f"{before.splitlines()[1]} postings" in r.output
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_report_figures(cli, tmp_path):
     import matplotlib  # noqa: F401  (the test extra installs it)
@@ -336,6 +340,7 @@ def test_annotate_on_an_empty_database_says_ingest_first(cli):
     assert r.exit_code == 1 and "holds no motions: ingest recordings first" in r.output
 
 
+@pytest.mark.slow
 def test_annotate_csv_given_back_as_truth_scores_one(cli, tmp_path):
     """The annotation CSV carries its frame grid (fps): as --truth it reads onto exactly its own frames
     (F1 = 1, not the 0.375 of reading 30 Hz frames as 120 Hz ones), and as --labels it trains."""
@@ -352,6 +357,7 @@ def test_annotate_csv_given_back_as_truth_scores_one(cli, tmp_path):
     assert {s["fps"] for s in js} == {30} and all(round(s["start_s"], 4) == s["start_s"] for s in js)
 
 
+@pytest.mark.slow
 def test_the_compile_messages_say_what_happens_and_how_long(cli, tmp_path, monkeypatch):
     """First run (an empty kernel cache): the command says it compiles and, at its end, how long it took;
     a command that waits for the background warm-up says so and for how long."""

@@ -32,7 +32,7 @@ from mocapdb.storage.parquet import table_schemas
 from conftest import DATA, REPO, SAMPLE_86_09, run
 
 #: Ray Data's own DataContext warns about its deprecated fields whenever it copies itself
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context")
+pytestmark = [pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context"), pytest.mark.slow]
 
 SOURCES = [DATA / "hdm05_cut", DATA / "cmu" / "02"]
 #: small batches and buckets, so that batches cross bucket borders (100 is not a multiple of 16)

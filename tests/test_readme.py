@@ -21,7 +21,7 @@ from mocapdb.cli import main
 
 from conftest import SHARED, run, user_docs_text
 
-pytestmark = pytest.mark.shared
+pytestmark = [pytest.mark.shared, pytest.mark.slow]
 
 README = user_docs_text()
 

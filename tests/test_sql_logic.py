@@ -138,6 +138,7 @@ def _needs_shared(path):
     return any(not a.startswith("sample/") for _, head, _ in records(path) if head[0] == "ingest" for a in head[1:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", [pytest.param(p, id=p.stem, marks=[pytest.mark.shared] if _needs_shared(p) else [])
                                   for p in TESTS])
 def test_sql_file(path, tmp_path):

@@ -57,6 +57,7 @@ def test_numba_options_live_in_one_place(path):
     assert not re.search(r"\b(njit|numba\.jit|numba\.njit|nopython\s*=|fastmath\s*=)", text), path.name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_the_library_never_prints(path):
     """Only the CLI writes to the terminal (through click)."""
@@ -66,6 +67,7 @@ def test_the_library_never_prints(path):
     assert not calls, f"{path.name}: print() at lines {calls}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_public_functions_have_docstrings(path):
     tree = ast.parse(path.read_text(encoding="utf-8"))
@@ -75,6 +77,7 @@ def test_public_functions_have_docstrings(path):
     assert not missing, f"{path.name}: no docstring for {missing}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_imports_follow_the_pipeline(path):
     """A module imports only from its own sub-package and those before it (no cycles possible),

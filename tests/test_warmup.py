@@ -50,6 +50,7 @@ def _seed_from_the_build(cache: Path) -> int:
     return copied
 
 
+@pytest.mark.slow
 def test_the_compile_parts_cover_the_main_job(tmp_path):
     cache = tmp_path / "numba"
     cache.mkdir()
@@ -115,6 +116,7 @@ def test_the_installed_package_carries_the_compiled_kernels():
     assert "data saved to" not in r.stdout, "the main job's calls compiled kernels the build did not cache"
 
 
+@pytest.mark.slow
 def test_a_stale_cache_is_cold_and_the_first_command_says_it_compiles(tmp_path, monkeypatch):
     """Issue 27 item 9: any cache index counted as a warm cache, but numba uses one only if this numba
     version wrote it for the source as it is (numba before 0.68 stamps a source by its mtime, which pip

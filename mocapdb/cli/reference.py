@@ -23,7 +23,10 @@ def _help(command: click.Command, name: str, parent: click.Context) -> str:
 
 def cli_reference() -> str:
     """The Markdown reference of ``mocapdb`` and each of its commands, in alphabetical order."""
-    root = click.Context(main, info_name="mocapdb", terminal_width=WIDTH, max_content_width=WIDTH)
+    # the group's own settings (-h as well as --help): click keeps the help option it first made on the
+    # command, so a context without them would print what an earlier invocation happened to leave
+    root = click.Context(main, info_name="mocapdb", terminal_width=WIDTH, max_content_width=WIDTH,
+                         **main.context_settings)
     out = ["# Command-line reference", "",
            "Generated from `mocapdb --help` and each command's `--help` by `python -m mocapdb.cli.reference`",
            "(a test keeps it current). The [user guide](USER_GUIDE.md) says what the commands are for.", "",
