@@ -1,4 +1,4 @@
-// mocapdb serve, the archive page: every motion with its format, rate, duration, labels and label strip;
+// mocapdb serve, the archive page: every motion with its folder, format, rate, duration, labels and label strip;
 // filters, sort and pages through /api/motions. The filters live in the address (?label=…&q=…), so a
 // filtered view is a link. When the rows are shown, <body data-ready> holds the request it answers.
 (function () {
@@ -30,12 +30,16 @@
       tr.dataset.motion = String(m.motion_id);
       tr.dataset.name = m.name;
       cell(tr, null).appendChild(link(`/motion/${m.motion_id}`, m.name));
+      // the folder's last parts tell sessions apart; the whole path on hover
+      const parts = (m.folder || "").split(/[\\/]/).filter((x) => x);
+      const folder = cell(tr, parts.length > 2 ? `…/${parts.slice(-2).join("/")}` : m.folder, "folder");
+      folder.title = m.source_path;
       cell(tr, m.format);
       cell(tr, Number(m.source_fps).toFixed(0), "num");
       cell(tr, duration(m.seconds), "num").dataset.seconds = String(m.seconds);
       const labs = cell(tr, null);
       for (const lab of m.labels) labs.appendChild(chip(lab, colors));
-      cell(tr, null, "strip").appendChild(strip(m.strip, page.strip_bins, colors));
+      cell(tr, null, "strip").appendChild(strip(m.strip, page.strip_bins, colors, m.strip_rows));
       body.appendChild(tr);
     }
     shown = page.rows.length;

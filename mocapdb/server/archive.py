@@ -19,6 +19,17 @@ the connection of every request. Its entries are keyed by the model's
 fingerprint and the index version, which every write changes, so what it
 keeps is never stale; a new file at the path (another inode) starts a fresh
 cache.
+
+A request is bounded (:meth:`Archive.run`): it runs in a worker thread for
+at most :data:`REQUEST_TIMEOUT` seconds, and when the time runs out or its
+client hangs up, its DuckDB work is interrupted (``interrupt()`` on its
+connection and every cursor of it; a query not yet started is refused), so
+the file is let go of instead of being held for a request nobody waits
+for. At most :data:`HEAVY_REQUESTS` heavy requests (query by example, a
+motion's page, which re-reads its source) run at once; another answers
+"busy" at once and the page asks again. What a request may ask is bounded
+too: :data:`MAX_QUERY_S` seconds of query stretch, pages of at most
+:data:`mocapdb.api.MAX_LIMIT` rows.
 """
 from __future__ import annotations
 
@@ -28,17 +39,93 @@ import threading
 import time
 from pathlib import Path
 
-from mocapdb.errors import SchemaError
+import anyio
+import anyio.to_thread
+import duckdb
+
+from mocapdb.errors import MocapdbError, SchemaError
 from mocapdb.storage.cache import ConnectionCache, share_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.schema import DatabaseLockedError, open_database
 
-__all__ = ["Archive", "BUSY_WAIT", "DatabaseLockedError"]
+__all__ = ["Archive", "BUSY_WAIT", "REQUEST_TIMEOUT", "HEAVY_REQUESTS", "MAX_QUERY_S", "DatabaseLockedError",
+           "RequestCancelled", "Overloaded"]
 
 #: seconds a request waits for another process's lock on the file before it answers "busy"
 BUSY_WAIT = 1.0
-#: seconds between two tries to open a locked file
-_POLL = 0.05
+#: seconds a request may take before its work is interrupted and it answers "busy" (find-similar on a
+#: large archive takes a few seconds; the archive's pages tens of milliseconds)
+REQUEST_TIMEOUT = 30.0
+#: heavy requests (query by example, a motion's page) answered at once; more answer "busy" at once
+#: (each keeps a core busy and a long take's poses in memory)
+HEAVY_REQUESTS = 2
+#: the longest query stretch of find-similar, in seconds: its work grows with the stretch times the
+#: archive (the CLI's ``similar`` takes any stretch; a web request is bounded)
+MAX_QUERY_S = 60.0
+#: seconds between two looks at the clock and the client while a request runs
+_WATCH = 0.1
+
+
+class RequestCancelled(MocapdbError):
+    """The request ran out of time (or its client left) and its work was interrupted."""
+
+
+class Overloaded(MocapdbError):
+    """As many heavy requests as allowed are running."""
+
+
+class _Request:
+    """One request's connections (its own and each cursor of it): interrupted together."""
+
+    def __init__(self):
+        self.reason = None
+        self._cons = []
+        self._lock = threading.Lock()
+
+    def track(self, con):
+        with self._lock:
+            self._cons.append(con)
+            cancelled = self.reason is not None
+        if cancelled:
+            con.interrupt()
+
+    def cancel(self, reason):
+        with self._lock:
+            if self.reason is None:
+                self.reason = reason
+            cons = list(self._cons)
+        for con in cons:
+            with contextlib.suppress(duckdb.Error):  # closed already
+                con.interrupt()
+
+    def check(self):
+        if self.reason is not None:
+            raise RequestCancelled(self.reason)
+
+
+class _Interruptible:
+    """A request's DuckDB connection (or cursor): every method forwarded, its cursors tracked, and no
+    query started once the request is cancelled (an ``interrupt()`` reaches only a running query)."""
+
+    def __init__(self, con, request):
+        self._con = con
+        self._request = request
+        request.track(con)
+
+    def __getattr__(self, name):
+        return getattr(self._con, name)
+
+    def execute(self, *args, **kwargs):
+        self._request.check()
+        return self._con.execute(*args, **kwargs)
+
+    def sql(self, *args, **kwargs):
+        self._request.check()
+        return self._con.sql(*args, **kwargs)
+
+    def cursor(self):
+        self._request.check()
+        return _Interruptible(self._con.cursor(), self._request)
 
 
 class _RequestConnection:
@@ -67,29 +154,30 @@ class Archive:
         Seconds a request waits for a writer's lock (:data:`BUSY_WAIT`).
     memory_limit : str, optional, keyword-only
         DuckDB's memory limit of each request's connection.
+    timeout : float, keyword-only
+        Seconds a request may take (:data:`REQUEST_TIMEOUT`).
+    heavy_requests : int, keyword-only
+        Heavy requests answered at once (:data:`HEAVY_REQUESTS`).
+    max_query_s : float, keyword-only
+        The longest query stretch of find-similar (:data:`MAX_QUERY_S`).
     """
 
-    def __init__(self, path, *, model=DEFAULT_MODEL, busy_wait=BUSY_WAIT, memory_limit=None):
+    def __init__(self, path, *, model=DEFAULT_MODEL, busy_wait=BUSY_WAIT, memory_limit=None,
+                 timeout=REQUEST_TIMEOUT, heavy_requests=HEAVY_REQUESTS, max_query_s=MAX_QUERY_S):
         self.path = Path(path)
         if not self.path.is_file():
             raise SchemaError(f"{self.path}: no such database file (a mistyped --db?)")
         self.model = model
         self.busy_wait = float(busy_wait)
         self.memory_limit = memory_limit
+        self.timeout = float(timeout)
+        self.heavy_requests = int(heavy_requests)
+        self.max_query_s = float(max_query_s)
+        self._heavy = threading.BoundedSemaphore(self.heavy_requests)
         self._reader = _RequestConnection()
         self._lock = threading.Lock()
         self._cache = None
         self._identity = None
-
-    def _open(self):
-        deadline = time.monotonic() + self.busy_wait
-        while True:
-            try:
-                return open_database(self.path, read_only=True, memory_limit=self.memory_limit)
-            except DatabaseLockedError:
-                if time.monotonic() >= deadline:
-                    raise
-                time.sleep(_POLL)
 
     def _shared_cache(self):
         st = os.stat(self.path)
@@ -100,19 +188,84 @@ class Archive:
             return self._cache
 
     @contextlib.contextmanager
-    def reading(self):
-        """A read-only connection for the ``with`` block, closed after it.
+    def reading(self, request=None):
+        """A read-only connection for the ``with`` block, closed after it (interrupted with ``request``).
 
         Raises
         ------
         DatabaseLockedError
             Another process has held the file for longer than ``busy_wait``.
         """
-        con = self._open()
+        request = request or _Request()
+        request.check()
+        raw = open_database(self.path, read_only=True, memory_limit=self.memory_limit, wait=self.busy_wait)
+        con = _Interruptible(raw, request)
         try:
             share_cache(con, self._shared_cache())
             self._reader.local.con = con
             yield con
         finally:
             self._reader.local.con = None
-            con.close()
+            raw.close()
+
+    async def run(self, work, *, heavy=False, disconnected=None):
+        """``work(con)`` in a worker thread with a read-only connection of its own, bounded.
+
+        Parameters
+        ----------
+        work : callable
+            ``work(con)`` → the answer.
+        heavy : bool, keyword-only
+            Counts against :attr:`heavy_requests`.
+        disconnected : async callable, optional, keyword-only
+            True once the client has left (Starlette's ``request.is_disconnected``).
+
+        Raises
+        ------
+        Overloaded
+            ``heavy`` and as many heavy requests are running.
+        RequestCancelled
+            The time ran out (or the client left) and the work was interrupted.
+        """
+        if heavy and not self._heavy.acquire(blocking=False):
+            raise Overloaded(f"{self.heavy_requests} heavy request(s) (find similar, a motion's page) are running, "
+                             "the most mocapdb serve answers at once")
+        request = _Request()
+
+        def call():
+            with self.reading(request) as con:
+                return work(con)
+
+        async def watch():
+            deadline = time.monotonic() + self.timeout
+            while True:
+                await anyio.sleep(_WATCH)
+                if time.monotonic() >= deadline:
+                    request.cancel(f"the request took longer than {self.timeout:g} s, mocapdb serve's limit per "
+                                   "request; its work was stopped")
+                    return
+                if disconnected is not None and await disconnected():
+                    request.cancel("the client left")
+                    return
+
+        outcome = {}
+        try:
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(watch)
+                try:
+                    outcome["answer"] = await anyio.to_thread.run_sync(call)
+                except Exception as exc:  # raised below, outside the task group (which would wrap it)
+                    outcome["error"] = exc
+                finally:
+                    tg.cancel_scope.cancel()
+        finally:
+            if heavy:
+                self._heavy.release()
+        error = outcome.get("error")
+        if error is None:
+            return outcome["answer"]
+        if request.reason is not None and not isinstance(error, MocapdbError) or isinstance(
+                error, duckdb.InterruptException):
+            # the interruption itself, or whatever it broke on its way out
+            raise RequestCancelled(request.reason or "interrupted") from None
+        raise error
