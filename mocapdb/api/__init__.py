@@ -43,6 +43,7 @@ from mocapdb.api.kernels import (background_compile_running, kernels_cold, start
 from mocapdb.api.learning import define_class, learn_keyframes, train
 from mocapdb.api.annotating import BATCH_FILES, BUCKET_MOTIONS, annotate, evaluate, ray_annotate
 from mocapdb.api.outputs import FIGURES, SIMILAR_FORMATS, report, serve, similar, stats, view
+from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.api.browsing import (MAX_LIMIT, MOTION_COLUMNS, SORTS, STRIP_BINS, label_colors, label_segments, labels,
                                   motion_info, motions)
 

@@ -18,7 +18,7 @@ import socket
 
 from mocapdb.errors import ParameterError
 from mocapdb.server.archive import BUSY_WAIT, REQUEST_TIMEOUT, Archive
-from mocapdb.storage.model_store import DEFAULT_MODEL
+from mocapdb.api import DEFAULT_MODEL
 
 __all__ = ["Archive", "BUSY_WAIT", "REQUEST_TIMEOUT", "create_app", "serve", "bind"]
 

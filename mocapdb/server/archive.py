@@ -1,24 +1,15 @@
 """The database as ``mocapdb serve`` reads it: opened read-only for each request, never held between requests.
 
-DuckDB lets one process write a database file, and no other process open it
-meanwhile, not even read-only. A server that kept the file open would
-therefore lock every ``ingest``, ``annotate`` or ``delete`` out for as long
-as it runs. So :class:`Archive` opens the file read-only when a request
-comes and closes it when the answer is ready (a page of the archive holds it
-for tens of milliseconds); between requests the file is free. While a writer
+:class:`Archive` is a :class:`mocapdb.api.reading.SharedReader`: the file is
+opened read-only when a request comes and closed when the answer is ready (a
+page of the archive holds it for tens of milliseconds); between requests the
+file is free, so ``ingest``, ``annotate`` or ``delete`` work beside the
+server. While a writer
 holds it, a request waits up to :data:`BUSY_WAIT` seconds for it, then
 answers "busy" (:class:`~mocapdb.storage.schema.DatabaseLockedError`, HTTP
 503: the pages say so and ask again); the first request after the writer
 finished sees what it wrote. A writer that starts while a request is being
 answered waits for it (``mocapdb.api.connect``'s ``lock_wait``).
-
-What is worth keeping between requests is kept in the server's memory, not
-in a connection: one :class:`~mocapdb.storage.cache.ConnectionCache` (parsed
-models, the keyframe index batches that query by example reads) is shared by
-the connection of every request. Its entries are keyed by the model's
-fingerprint and the index version, which every write changes, so what it
-keeps is never stale; a new file at the path (another inode) starts a fresh
-cache.
 
 A request is bounded (:meth:`Archive.run`): it runs in a worker thread for
 at most :data:`REQUEST_TIMEOUT` seconds, and when the time runs out or its
@@ -33,20 +24,16 @@ too: :data:`MAX_QUERY_S` seconds of query stretch, pages of at most
 """
 from __future__ import annotations
 
-import contextlib
-import os
 import threading
 import time
-from pathlib import Path
 
 import anyio
 import anyio.to_thread
 import duckdb
 
-from mocapdb.errors import MocapdbError, SchemaError
-from mocapdb.storage.cache import ConnectionCache, share_cache
-from mocapdb.storage.model_store import DEFAULT_MODEL
-from mocapdb.storage.schema import DatabaseLockedError, open_database
+from mocapdb.api import DEFAULT_MODEL
+from mocapdb.api.reading import DatabaseLockedError, Request, RequestCancelled, SharedReader
+from mocapdb.errors import MocapdbError
 
 __all__ = ["Archive", "BUSY_WAIT", "REQUEST_TIMEOUT", "HEAVY_REQUESTS", "MAX_QUERY_S", "DatabaseLockedError",
            "RequestCancelled", "Overloaded"]
@@ -66,82 +53,11 @@ MAX_QUERY_S = 60.0
 _WATCH = 0.1
 
 
-class RequestCancelled(MocapdbError):
-    """The request ran out of time (or its client left) and its work was interrupted."""
-
-
 class Overloaded(MocapdbError):
     """As many heavy requests as allowed are running."""
 
 
-class _Request:
-    """One request's connections (its own and each cursor of it): interrupted together."""
-
-    def __init__(self):
-        self.reason = None
-        self._cons = []
-        self._lock = threading.Lock()
-
-    def track(self, con):
-        with self._lock:
-            self._cons.append(con)
-            cancelled = self.reason is not None
-        if cancelled:
-            con.interrupt()
-
-    def cancel(self, reason):
-        with self._lock:
-            if self.reason is None:
-                self.reason = reason
-            cons = list(self._cons)
-        for con in cons:
-            with contextlib.suppress(duckdb.Error):  # closed already
-                con.interrupt()
-
-    def check(self):
-        if self.reason is not None:
-            raise RequestCancelled(self.reason)
-
-
-class _Interruptible:
-    """A request's DuckDB connection (or cursor): every method forwarded, its cursors tracked, and no
-    query started once the request is cancelled (an ``interrupt()`` reaches only a running query)."""
-
-    def __init__(self, con, request):
-        self._con = con
-        self._request = request
-        request.track(con)
-
-    def __getattr__(self, name):
-        return getattr(self._con, name)
-
-    def execute(self, *args, **kwargs):
-        self._request.check()
-        return self._con.execute(*args, **kwargs)
-
-    def sql(self, *args, **kwargs):
-        self._request.check()
-        return self._con.sql(*args, **kwargs)
-
-    def cursor(self):
-        self._request.check()
-        return _Interruptible(self._con.cursor(), self._request)
-
-
-class _RequestConnection:
-    """What the shared cache reads through: the connection of the request the calling thread answers."""
-
-    def __init__(self):
-        self.local = threading.local()
-
-    def cursor(self):
-        con = getattr(self.local, "con", None)
-        if con is None:
-            raise SchemaError("no request is reading the archive in this thread")
-        return con.cursor()
-
-
-class Archive:
+class Archive(SharedReader):
     """A database file served read-only, opened per request (see the module docstring).
 
     Parameters
@@ -164,49 +80,12 @@ class Archive:
 
     def __init__(self, path, *, model=DEFAULT_MODEL, busy_wait=BUSY_WAIT, memory_limit=None,
                  timeout=REQUEST_TIMEOUT, heavy_requests=HEAVY_REQUESTS, max_query_s=MAX_QUERY_S):
-        self.path = Path(path)
-        if not self.path.is_file():
-            raise SchemaError(f"{self.path}: no such database file (a mistyped --db?)")
+        super().__init__(path, wait=busy_wait, memory_limit=memory_limit)
         self.model = model
-        self.busy_wait = float(busy_wait)
-        self.memory_limit = memory_limit
         self.timeout = float(timeout)
         self.heavy_requests = int(heavy_requests)
         self.max_query_s = float(max_query_s)
         self._heavy = threading.BoundedSemaphore(self.heavy_requests)
-        self._reader = _RequestConnection()
-        self._lock = threading.Lock()
-        self._cache = None
-        self._identity = None
-
-    def _shared_cache(self):
-        st = os.stat(self.path)
-        with self._lock:
-            if self._cache is None or self._identity != (st.st_dev, st.st_ino):
-                self._cache = ConnectionCache(self._reader)
-                self._identity = (st.st_dev, st.st_ino)
-            return self._cache
-
-    @contextlib.contextmanager
-    def reading(self, request=None):
-        """A read-only connection for the ``with`` block, closed after it (interrupted with ``request``).
-
-        Raises
-        ------
-        DatabaseLockedError
-            Another process has held the file for longer than ``busy_wait``.
-        """
-        request = request or _Request()
-        request.check()
-        raw = open_database(self.path, read_only=True, memory_limit=self.memory_limit, wait=self.busy_wait)
-        con = _Interruptible(raw, request)
-        try:
-            share_cache(con, self._shared_cache())
-            self._reader.local.con = con
-            yield con
-        finally:
-            self._reader.local.con = None
-            raw.close()
 
     async def run(self, work, *, heavy=False, disconnected=None):
         """``work(con)`` in a worker thread with a read-only connection of its own, bounded.
@@ -230,7 +109,7 @@ class Archive:
         if heavy and not self._heavy.acquire(blocking=False):
             raise Overloaded(f"{self.heavy_requests} heavy request(s) (find similar, a motion's page) are running, "
                              "the most mocapdb serve answers at once")
-        request = _Request()
+        request = Request()
 
         def call():
             with self.reading(request) as con:
