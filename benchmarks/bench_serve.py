@@ -164,7 +164,7 @@ def measure(db, out):
             ("/api/stats (the page's facets and totals)", "/api/stats"),
             ("/api/motions: first page (50 rows, strips)", "/api/motions"),
             ("filter: label=kick", "/api/motions?label=kick"),
-            ("filter: format=bvh, sort=-name", "/api/motions?format=bvh&sort=-name"),
+            ("filter: source_format=bvh, sort=-name", "/api/motions?source_format=bvh&sort=-name"),
             ("filter: q=take_0012 (name contains)", "/api/motions?q=take_0012"),
             ("filter: label=jump, 50 s ≤ duration ≤ 70 s, sort=-seconds",
              "/api/motions?label=jump&min_s=50&max_s=70&sort=-seconds"),

@@ -43,13 +43,13 @@ def test_filters_keep_what_sql_keeps(server, sample_db):
         want = [n for (n,) in _sql(sample_db, "SELECT name FROM motions WHERE motion_id IN (SELECT motion_id FROM "
                                               "annotations WHERE label = ?) ORDER BY motion_id", [label])]
         assert _names(server, label=label)[0] == want, label
-    assert _names(server, format="bvh")[0] == ["pymo_AV_8Walk_Meredith_HVHA_Rep1"]
+    assert _names(server, source_format="bvh")[0] == ["pymo_AV_8Walk_Meredith_HVHA_Rep1"]
     assert _names(server, q="PyMo")[0] == ["pymo_AV_8Walk_Meredith_HVHA_Rep1"]  # a substring, any case
     assert _names(server, q="_0")[0] == ["86_09", "HDM_mm_01-02_03_120"]
     assert _names(server, min_s=30)[0] == ["86_09", "HDM_mm_01-02_03_120"]  # 40.0 s and 33.3 s; the walk 8.9 s
     assert _names(server, max_s=35, min_s=10)[0] == ["HDM_mm_01-02_03_120"]
-    assert _names(server, label="move", format="amc", q="86")[0] == ["86_09"]
-    assert _names(server, format="c3d")[0] == ["HDM_mm_01-02_03_120"] and _names(server, format="fbx")[0] == []
+    assert _names(server, label="move", source_format="amc", q="86")[0] == ["86_09"]
+    assert _names(server, source_format="c3d")[0] == ["HDM_mm_01-02_03_120"] and _names(server, source_format="fbx")[0] == []
 
 
 def test_q_matches_the_source_path_and_rows_name_their_folder(server, sample_db):
@@ -125,7 +125,7 @@ def test_one_motion_and_its_segments(server, sample_db):
 def test_the_server_and_the_command_line_give_the_same_rows(server, sample_db):
     """/api/motions is ``mocapdb motions --format json``, filters and fields alike (issue 34)."""
     for params, args in [({}, []), ({"label": "move", "sort": "-seconds"}, ["--label", "move", "--sort", "-seconds"]),
-                         ({"q": "hdm", "format": "c3d"}, ["--q", "hdm", "--source-format", "c3d"]),
+                         ({"q": "hdm", "source_format": "c3d"}, ["--q", "hdm", "--source-format", "c3d"]),
                          ({"limit": 1, "offset": 1}, ["--limit", "1", "--offset", "1"])]:
         _, page = _names(server, **params)
         cli = json.loads(run(sample_db, "motions", "--format", "json", *args).output)

@@ -16,7 +16,7 @@ MOTION_COLUMNS = ("motion_id", "name", "format", "source_fps", "fps", "n_frames"
                   "source_path", "labels")
 
 
-def motions(con, *, label=None, format=None, q=None, min_s=None, max_s=None, sort="id", limit=50, offset=0,
+def motions(con, *, label=None, source_format=None, q=None, min_s=None, max_s=None, sort="id", limit=50, offset=0,
             model=DEFAULT_MODEL) -> browse.MotionPage:
     """A page of the archive's motions, filtered and sorted (the archive page of ``mocapdb serve``).
 
@@ -26,7 +26,7 @@ def motions(con, *, label=None, format=None, q=None, min_s=None, max_s=None, sor
     label : str, optional, keyword-only
         Keep motions with a stored segment of this label (of ``model``); a
         label the model does not know is an error listing its labels.
-    format : str, optional, keyword-only
+    source_format : str, optional, keyword-only
         Keep motions of this source format (``amc``, ``bvh``, ``c3d``, …).
     q : str, optional, keyword-only
         Keep motions whose name or source path contains this (ignoring
@@ -48,7 +48,7 @@ def motions(con, *, label=None, format=None, q=None, min_s=None, max_s=None, sor
         ``rows`` (:data:`MOTION_COLUMNS`, ``strip``, ``strip_rows``) and
         ``total``, the motions the filters keep over all pages.
     """
-    return browse.motion_page(con, label=label, format=format, q=q, min_s=min_s, max_s=max_s, sort=sort,
+    return browse.motion_page(con, label=label, format=source_format, q=q, min_s=min_s, max_s=max_s, sort=sort,
                               limit=limit, offset=offset, model=model)
 
 

@@ -277,7 +277,8 @@ def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, timeout=None,
     timeout : float, optional, keyword-only
         Seconds a request may take before its work is stopped and it answers
         "busy" (default :data:`mocapdb.server.archive.REQUEST_TIMEOUT`, 30 s).
-        Requests are bounded besides (docs/SERVE.md): a query stretch of at
+        Requests are bounded besides (docs/ARCHITECTURE.md, "The archive in a
+        browser"): a query stretch of at
         most 60 s, pages of at most 500 rows, two heavy requests at once.
     ready : callable, optional, keyword-only
         ``ready(url)`` once the server listens. On ``0.0.0.0`` or ``::`` the

@@ -13,7 +13,7 @@ from mocapdb.cli.output import write_rows
 
 @command()
 @click.option("--label", help="Motions with a stored segment of this label (of --model).")
-@click.option("--source-format", "source_format", help="Motions of this source format (amc, bvh, c3d, npz, …).")
+@click.option("--source-format", help="Motions of this source format (amc, bvh, c3d, npz, …).")
 @click.option("--q", help="Motions whose name or source path contains this, ignoring case (a folder, a session).")
 @click.option("--min-s", type=float, help="Motions lasting at least this many seconds.")
 @click.option("--max-s", type=float, help="Motions lasting at most this many seconds.")
@@ -27,7 +27,7 @@ from mocapdb.cli.output import write_rows
 def motions(ctx, label, source_format, q, min_s, max_s, sort, limit, offset, model, fmt):
     """List the archive's motions with their folder and stored labels, filtered and sorted, a page at a
     time: what the archive page of `mocapdb serve` shows (/api/motions takes the same filters:
-    label, format, q, min_s, max_s, sort, limit, offset; its JSON is --format json).
+    label, source_format, q, min_s, max_s, sort, limit, offset; its JSON is --format json).
 
     \b
     Examples:
@@ -35,7 +35,7 @@ def motions(ctx, label, source_format, q, min_s, max_s, sort, limit, offset, mod
       mocapdb --db a.duckdb motions --q session3/ --format csv
     """
 
-    page = api.motions(open_db(ctx, read_only=True), label=label, format=source_format, q=q, min_s=min_s,
+    page = api.motions(open_db(ctx, read_only=True), label=label, source_format=source_format, q=q, min_s=min_s,
                        max_s=max_s, sort=sort, limit=limit, offset=offset, model=model)
     if fmt == "json":
         click.echo(json.dumps({"model": model, "total": page.total, "limit": limit, "offset": offset,

@@ -6,7 +6,7 @@ route                      answers
 ``/``                      the archive page: motions with labels and label strips; filters, sort, pages
 ``/stats``                 the summary: hours per format and rate, per label; refused files
 ``/motion/<motion>``       the motion's (id or name) viewer page with find-similar and a label's segments
-``/api/motions``           :func:`mocapdb.api.motions` (``mocapdb motions``): ``label``, ``format``, ``q``,
+``/api/motions``           :func:`mocapdb.api.motions` (``mocapdb motions``): ``label``, ``source_format``, ``q``,
                            ``min_s``, ``max_s``, ``sort``, ``limit``, ``offset``
 ``/api/motions/<motion>``  :func:`mocapdb.api.motion_info`: one motion, its row and its stored segments
 ``/api/similar``           :func:`mocapdb.api.similar` (``mocapdb similar``): ``motion`` (id or name),
@@ -154,7 +154,7 @@ class _Handlers:
     def api_motions(self, request, con):
         p, model = request.query_params, self._model(request)
         limit, offset = _int(p, "limit", 50), _int(p, "offset", 0)
-        page = api.motions(con, label=p.get("label"), format=p.get("format"), q=p.get("q"),
+        page = api.motions(con, label=p.get("label"), source_format=p.get("source_format"), q=p.get("q"),
                            min_s=p.get("min_s") or None, max_s=p.get("max_s") or None, sort=p.get("sort") or "id",
                            limit=limit, offset=offset, model=model)
         colors = api.label_colors(con, [lab for r in page.rows for lab in r["labels"]], model=model)

@@ -3,7 +3,7 @@
 // filtered view is a link. When the rows are shown, <body data-ready> holds the request it answers.
 (function () {
   const { $, api, el, cell, link, duration, strip, chip } = serve;
-  const form = $("filters"), FIELDS = ["q", "label", "format", "min_s", "max_s", "sort", "limit"];
+  const form = $("filters"), FIELDS = ["q", "label", "source_format", "min_s", "max_s", "sort", "limit"];
   let offset = 0, total = 0, colors = {}, shown = 0, ticket = 0;
 
   function params() {
@@ -44,7 +44,7 @@
     }
     shown = page.rows.length;
     const limit = page.limit;
-    $("count").textContent = total ? `${total} motion(s)${p.has("q") || p.has("label") || p.has("format") ||
+    $("count").textContent = total ? `${total} motion(s)${p.has("q") || p.has("label") || p.has("source_format") ||
       p.has("min_s") || p.has("max_s") ? " match" : ""}; showing ${offset + 1}–${offset + shown}` : "no motion matches";
     $("page").textContent = total ? `page ${Math.floor(offset / limit) + 1} of ${Math.max(1, Math.ceil(total / limit))}` : "";
     $("prev").disabled = offset === 0;
@@ -60,7 +60,7 @@
       for (const v of values) if (![...select.options].some((o) => o.value === v)) select.appendChild(new Option(v, v));
     };
     fill(form.elements.label, s.labels.map((r) => r.label));
-    fill(form.elements.format, [...new Set(s.formats.map((r) => r.format))]);
+    fill(form.elements.source_format, [...new Set(s.formats.map((r) => r.format))]);
   }
 
   async function main() {
