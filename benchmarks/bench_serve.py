@@ -84,11 +84,11 @@ def serve_archive(path, hours):
 
 
 class Server:
-    """``mocapdb --db DB serve --port 0`` in a process of its own."""
+    """``mocapdb --db DB serve --port 0 ARGS…`` in a process of its own."""
 
-    def __init__(self, db):
+    def __init__(self, db, *args):
         self.proc = subprocess.Popen([sys.executable, "-P", "-m", "mocapdb.cli", "--db", str(db), "serve", "--port",
-                                      "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                      "0", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         line = self.proc.stdout.readline()
         if "Serving" not in line:
             raise RuntimeError(line + self.proc.stderr.read())

@@ -24,26 +24,19 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_annotate import machine_header  # noqa: E402
-from bench_serve import serve_archive  # noqa: E402
+import bench_serve  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
 
-class Server:
-    """``mocapdb --db DB serve --port 0 ARGS…`` in a process of its own."""
-
-    def __init__(self, db, *args):
-        self.proc = subprocess.Popen([sys.executable, "-P", "-m", "mocapdb.cli", "--db", str(db), "serve", "--port",
-                                      "0", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        line = self.proc.stdout.readline()
-        if "Serving" not in line:
-            raise RuntimeError(line + self.proc.stderr.read())
-        self.port = int(line.split(" at ", 1)[1].split()[0].rstrip("/").rsplit(":", 1)[1])
+class Server(bench_serve.Server):
+    """``bench_serve``'s server, asked with a connection that may hang up, and its CPU time."""
 
     def get(self, path, *, hang_up=None):
         """(seconds, status) of a GET; ``hang_up``: close the connection after that many seconds instead."""
         t = time.perf_counter()
-        con = http.client.HTTPConnection("127.0.0.1", self.port, timeout=hang_up or 600)
+        port = int(self.url.rsplit(":", 1)[1])
+        con = http.client.HTTPConnection("127.0.0.1", port, timeout=hang_up or 600)
         con.request("GET", path)
         try:
             r = con.getresponse()
@@ -58,10 +51,6 @@ class Server:
         """The server process's CPU seconds so far (user + system)."""
         fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-    def stop(self):
-        self.proc.terminate()
-        self.proc.wait(30)
 
 
 def _writer_waits(db):
@@ -124,7 +113,7 @@ def main():
     args = ap.parse_args()
     db = args.db or HERE / "out" / f"serve_{args.hours:g}h.duckdb"
     db.parent.mkdir(parents=True, exist_ok=True)
-    built = serve_archive(db, args.hours)
+    built = bench_serve.serve_archive(db, args.hours)
     machine_header("mocapdb serve: the bounds of a request")
     if built:
         print(f"archive built in {built:.0f} s")
