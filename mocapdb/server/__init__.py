@@ -3,13 +3,15 @@
 The ``serve`` extra (``pip install "mocapdb[serve]"``) brings the web stack:
 Starlette (routes, responses) and uvicorn (the HTTP server).
 :mod:`~mocapdb.server.archive` reads the database read-only, one connection
-per request, so a writer can use the file between requests;
+per request, so a writer can use the file between requests, and bounds each
+request (time, heavy requests at once, the query stretch);
 :mod:`~mocapdb.server.app` holds the routes and the JSON API under ``/api/``;
 :mod:`~mocapdb.server.pages` the HTML (the archive page and the summary,
 and each motion's viewer page of :mod:`mocapdb.viewer` with a panel under
-it). The queries are :mod:`mocapdb.storage.browse`,
-:mod:`mocapdb.storage.stats` and query by example
-(:mod:`mocapdb.storage.retrieval`, what ``mocapdb similar`` runs).
+it). The server is a face on :mod:`mocapdb.api`, as the command line is:
+every route is an API function (``api.motions``, ``api.motion_info``,
+``api.label_segments``, ``api.similar``, ``api.stats``) with the command
+line's arguments and fields.
 """
 from __future__ import annotations
 
