@@ -15,8 +15,9 @@ A request is bounded (:meth:`Archive.run`): it runs in a worker thread for
 at most :data:`REQUEST_TIMEOUT` seconds, and when the time runs out or its
 client hangs up, its DuckDB work is interrupted (``interrupt()`` on its
 connection and every cursor of it; a query not yet started is refused), so
-the file is let go of instead of being held for a request nobody waits
-for. At most :data:`HEAVY_REQUESTS` heavy requests (query by example, a
+the file is let go of at the request's next DuckDB step instead of being
+held for a request nobody waits for (a numba kernel running then finishes
+its batch first). At most :data:`HEAVY_REQUESTS` heavy requests (query by example, a
 motion's page, which re-reads its source) run at once; another answers
 "busy" at once and the page asks again. What a request may ask is bounded
 too: :data:`MAX_QUERY_S` seconds of query stretch, pages of at most
@@ -143,8 +144,7 @@ class Archive(SharedReader):
         error = outcome.get("error")
         if error is None:
             return outcome["answer"]
-        if request.reason is not None and not isinstance(error, MocapdbError) or isinstance(
-                error, duckdb.InterruptException):
-            # the interruption itself, or whatever it broke on its way out
+        if request.reason is not None or isinstance(error, duckdb.InterruptException):
+            # the interruption itself, or whatever it broke on its way out (a reader's error wrapping it)
             raise RequestCancelled(request.reason or "interrupted") from None
         raise error
