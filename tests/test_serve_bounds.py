@@ -149,3 +149,33 @@ def test_a_server_open_to_the_network_says_so_and_keeps_its_host_check(sample_db
     assert "open to every machine that reaches this one" in server.err and "--host 127.0.0.1" in server.err
     assert socket.gethostname() in allowed_hosts("0.0.0.0") and "0.0.0.0" not in allowed_hosts("0.0.0.0")
     assert allowed_hosts("127.0.0.1") == sorted(["127.0.0.1", "localhost", "::1", "[::1]"])
+
+
+def test_query_by_example_stops_between_two_batches_once_cancelled(db, monkeypatch):
+    """DuckDB's interrupt cannot reach a numba kernel: a cancelled request's find-similar stops at the next batch
+    of the archive instead of ranking the rest (the time limit fires during the first batch here, and the
+    index batches are in the server's cache already, so no DuckDB call comes between)."""
+    import mocapdb.storage.retrieval as retrieval
+    from mocapdb.api.reading import Request, SharedReader
+    from mocapdb.storage.cache import connection_cache
+
+    reader, calls, words = SharedReader(db), [], retrieval.index_words
+    monkeypatch.setattr(retrieval, "index_words", lambda *a: calls.append(a[1:]) or words(*a))
+    with reader.reading() as con:  # uncancelled, the query ranks every batch (and the cache keeps them)
+        connection_cache(con).batch_frames = 1300  # 86_09 (1,200 frames), then the others: two batches
+        assert mocapdb.api.similar(con, "86_09", start_frame=1, end_frame=300, keyframes=False).num_rows > 0
+    assert len(calls) >= 2
+    calls.clear()
+    request = Request()
+
+    def first_batch_then_cancelled(*args):
+        calls.append(args[1:])
+        request.cancel("the request took longer than its limit")  # as the watcher does, from another thread
+        return words(*args)
+
+    monkeypatch.setattr(retrieval, "index_words", first_batch_then_cancelled)
+    with reader.reading(request) as con:
+        connection_cache(con).batch_frames = 1300
+        with pytest.raises(RequestCancelled, match="longer than its limit"):
+            mocapdb.api.similar(con, "86_09", start_frame=1, end_frame=300, keyframes=False)
+    assert len(calls) == 1

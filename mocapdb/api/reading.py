@@ -98,6 +98,10 @@ class _Interruptible:
         self._request.check()
         return _Interruptible(self._con.cursor(), self._request)
 
+    def check(self):
+        """Raise :class:`RequestCancelled` once the request is cancelled (between two steps of work)."""
+        self._request.check()
+
 
 class _RequestConnection:
     """What the shared cache reads through: the connection of the request the calling thread answers."""
@@ -110,6 +114,11 @@ class _RequestConnection:
         if con is None:
             raise SchemaError("no request is reading the archive in this thread")
         return con.cursor()
+
+    def check(self):
+        con = getattr(self.local, "con", None)
+        if con is not None:
+            con.check()
 
 
 class SharedReader:
