@@ -19,6 +19,9 @@ from mocapdb.server.archive import Archive, Overloaded, RequestCancelled
 from conftest import SHARED, run
 from serving import Served, sample_db  # noqa: F401 (fixture)
 
+#: servers in processes of their own, writers beside them, the shipped sample annotated: seconds each
+pytestmark = pytest.mark.slow
+
 #: minutes of DuckDB work (a count over a generated range), for requests that must be stopped
 SLOW = "SELECT count(*) FROM range(200000000000) t(x) WHERE x % 7 = 3"
 
