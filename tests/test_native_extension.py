@@ -277,6 +277,7 @@ CLIENT_QUERIES = [
     "SELECT * FROM keyframe_search('squat1Reps', extend := true) ORDER BY ALL"]
 
 
+@pytest.mark.slow  # subprocesses: another client, a sanitizer build
 def test_the_duckdb_cli_loads_it(archive, archive_v15, native):
     """PyPI's duckdb-cli (1.5.x): LOAD with -unsigned, the same rows as in Python duckdb 2.0; without
     -unsigned DuckDB refuses the unsigned binary cleanly."""
@@ -308,6 +309,7 @@ console.log(JSON.stringify(out));
 """
 
 
+@pytest.mark.slow  # subprocesses: another client, a sanitizer build
 def test_node_loads_it(archive, archive_v15, native, tmp_path):
     """@duckdb/node-api (a third client, JavaScript): LOAD, the same rows as Python duckdb 2.0."""
     node, npm = shutil.which("node"), shutil.which("npm")
@@ -407,6 +409,7 @@ print(json.dumps([n_rows, n_errors]))
 """
 
 
+@pytest.mark.slow  # subprocesses: another client, a sanitizer build
 def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     """A build with -fsanitize=address,undefined (UBSan aborting on the first finding) LOADed into
     Python duckdb with libasan preloaded: 3,000 seeded random calls, none may crash."""
