@@ -1,28 +1,23 @@
 -- How a plain DuckDB user finds the SQL functions (run on every read-write
 -- open, after schema.sql and views.sql, which recreate the views).
 --
--- annotate() is a Python function that mocapdb.connect registers on each
--- connection (a temporary macro, which takes precedence over this). In a DuckDB
--- client without mocapdb, this persisted stand-in says how to get it, and every
--- table says where it comes from (SELECT table_name, comment FROM duckdb_tables()).
+-- The SQL functions are Python UDFs on connections from mocapdb.connect and native in the
+-- extension (LOAD it in any other DuckDB client); every table says where it comes from
+-- (SELECT table_name, comment FROM duckdb_tables()).
 
-CREATE OR REPLACE MACRO annotate(motion, model := 'default', tau := NULL, keyframes := NULL) AS
-    error('annotate() is a mocapdb SQL function: open this database with mocapdb.connect(''FILE'') in Python '
-          || '(pip install mocapdb), or run: mocapdb --db FILE sql QUERY');
--- mt_distance(), keyframe_search() and keyframe_search_words() are native: the extension that
--- `mocapdb extension-path` names has them (LOAD it; docs/EXTENSION.md). A persisted macro of
--- one of those names would hide it, so the stand-ins that older versions wrote go.
+-- annotate(), mt_distance(), keyframe_search() and keyframe_search_words() are native: the
+-- extension that `mocapdb extension-path` names has them (LOAD it; docs/EXTENSION.md). A persisted
+-- macro of one of those names would hide it, so the stand-ins that older versions wrote go.
+DROP MACRO IF EXISTS annotate;
 DROP MACRO IF EXISTS mt_distance;
 DROP MACRO TABLE IF EXISTS keyframe_search;
 DROP MACRO TABLE IF EXISTS keyframe_search_words;
 
-COMMENT ON MACRO annotate IS 'mocapdb: labelled segments of a motion. Stand-in: the real function exists on connections from mocapdb.connect() (Python) or `mocapdb --db FILE sql`.';
-
-COMMENT ON TABLE motions IS 'mocapdb: one row per recording. The SQL function annotate() needs a connection from mocapdb.connect() (Python) or `mocapdb --db FILE sql`; mt_distance(), keyframe_search(), keyframe_search_words() are in the native extension too (LOAD the file `mocapdb extension-path` prints).';
-COMMENT ON TABLE features IS 'mocapdb: the 40 relational features of every 30 Hz frame, packed (bit k-1 = feature k). annotate() and the other SQL functions: open the file with mocapdb.connect() or `mocapdb --db FILE sql`.';
+COMMENT ON TABLE motions IS 'mocapdb: one row per recording. The SQL functions annotate(), mt_distance(), keyframe_search(), keyframe_search_words() are on connections from mocapdb.connect() (Python) and in the native extension (LOAD the file `mocapdb extension-path` prints).';
+COMMENT ON TABLE features IS 'mocapdb: the 40 relational features of every 30 Hz frame, packed (bit k-1 = feature k). annotate() and the other SQL functions: open the file with mocapdb.connect(), `mocapdb --db FILE sql`, or LOAD the native extension.';
 COMMENT ON VIEW feature_flags IS 'mocapdb: the 40 features as named BOOLEAN columns.';
 COMMENT ON VIEW duplicates IS 'mocapdb: near-duplicate takes: pairs of motions of as many frames whose feature words agree on at least 99 % of them (the same take at another scale or unit, or exported again).';
-COMMENT ON TABLE models IS 'mocapdb: class models (the shipped default and toolbox, and trained ones). annotate(motion_id, model := ...) needs mocapdb.connect() or `mocapdb --db FILE sql`.';
+COMMENT ON TABLE models IS 'mocapdb: class models (the shipped default and toolbox, and trained ones). annotate(motion_id, model := ...) on mocapdb.connect() connections; annotate(motion_id, model) with the native extension.';
 COMMENT ON TABLE classes IS 'mocapdb: the fine classes of each model with label, δ, τ and minimum length.';
 COMMENT ON TABLE templates IS 'mocapdb: motion template columns of each class, quantized as (mask, value) words.';
 COMMENT ON TABLE keyframe_queries IS 'mocapdb: one keyframe query per class and model.';

@@ -23,7 +23,7 @@ DUCKDB_EXTENSION_EXTERN
 	"SELECT k.mask, k.value, k.position, k.d_min, k.d_max, q.template_length FROM keyframes k "                        \
 	"JOIN keyframe_queries q USING (model, class) WHERE k.model = $1 AND k.class = $2 ORDER BY k.k"
 #define HAS_CLASS_SQL "SELECT count(*) FROM classes WHERE model = $1 AND class = $2"
-#define RANGE_SQL "SELECT motion_id, n_frames FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
+#define RANGE_SQL "SELECT motion_id, n_frames, fps FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
 #define WORDS_SQL                                                                                                      \
 	"SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id, frame"
 /* 41 feature bits (40 + the heading feature): a template column may fix no other */
@@ -149,18 +149,21 @@ static int motions_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *er
 	mdb_motions *m = c->m;
 	if (m->n + n > c->cap) {
 		c->cap = 2 * (m->n + n);
-		if (grow(&m->id, sizeof *m->id, c->cap) || grow(&m->n_frames, sizeof *m->n_frames, c->cap)) {
+		if (grow(&m->id, sizeof *m->id, c->cap) || grow(&m->n_frames, sizeof *m->n_frames, c->cap) ||
+		    grow(&m->fps, sizeof *m->fps, c->cap)) {
 			return out_of_memory(err, "motions");
 		}
 	}
 	COLUMN(chunk, 0, int32_t, ids, ok_id);
 	COLUMN(chunk, 1, int32_t, lens, ok_len);
+	COLUMN(chunk, 2, double, fps, ok_fps);
 	for (idx_t i = 0; i < n; i++) {
 		if (!duckdb_validity_row_is_valid(ok_id, i)) {
 			continue; /* NOT NULL in the schema; never trusted */
 		}
 		m->id[m->n] = ids[i];
 		m->n_frames[m->n] = duckdb_validity_row_is_valid(ok_len, i) && lens[i] > 0 ? lens[i] : 0;
+		m->fps[m->n] = duckdb_validity_row_is_valid(ok_fps, i) ? fps[i] : 0.0;
 		m->n++;
 	}
 	return 0;
@@ -169,6 +172,7 @@ static int motions_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *er
 void mdb_motions_free(mdb_motions *m) {
 	free(m->id);
 	free(m->n_frames);
+	free(m->fps);
 	memset(m, 0, sizeof *m);
 }
 
@@ -559,9 +563,9 @@ int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *ou
 	memset(out, 0, sizeof *out);
 	motions_ctx ctx = {out, 0};
 	int32_t range[2] = {lo, hi};
-	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
+	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_DOUBLE};
 	pthread_mutex_lock(&st->lock);
-	int rc = query_rows(st, RANGE_SQL, "motions", NULL, 0, range, 2, want, 2, motions_sink, &ctx, err);
+	int rc = query_rows(st, RANGE_SQL, "motions", NULL, 0, range, 2, want, 3, motions_sink, &ctx, err);
 	pthread_mutex_unlock(&st->lock);
 	if (rc) {
 		mdb_motions_free(out);
@@ -696,5 +700,202 @@ int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, i
 	rc = 0;
 done:
 	pthread_mutex_unlock(&st->lock);
+	return rc;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * a whole model */
+
+/* classes in class_id order with what annotation needs of their label and model (old databases
+ * without min_frames / margin have the defaults the schema upgrade writes) */
+#define MODEL_SQL                                                                                                      \
+	"SELECT c.class, c.label, c.label_id, c.tau, coalesce(c.min_frames, 0), "                                          \
+	"coalesce(list_contains(m.concurrent_labels, c.label), false), coalesce(m.margin, 0.0), "                          \
+	"EXISTS (SELECT 1 FROM keyframe_queries q WHERE q.model = c.model AND q.class = c.class) "                         \
+	"FROM classes c JOIN models m ON m.model = c.model WHERE c.model = $1 ORDER BY c.class_id"
+
+typedef struct {
+	mdb_model *m;
+	char **cls;
+	int32_t *label_id;
+	char *has_query;
+	size_t cap;
+	int bad;
+} model_ctx;
+
+static char *string_at(duckdb_string_t *x, idx_t i) {
+	uint32_t len = duckdb_string_t_length(x[i]);
+	char *s = malloc((size_t)len + 1);
+	if (s) {
+		memcpy(s, duckdb_string_t_data(&x[i]), len);
+		s[len] = 0;
+	}
+	return s;
+}
+
+static int model_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	model_ctx *c = p;
+	mdb_model *m = c->m;
+	if (m->n_classes + n > c->cap) {
+		c->cap = 2 * (m->n_classes + n);
+		if (grow(&c->cls, sizeof *c->cls, c->cap) || grow(&m->label, sizeof *m->label, c->cap) ||
+		    grow(&c->label_id, sizeof *c->label_id, c->cap) || grow(&m->tau, sizeof *m->tau, c->cap) ||
+		    grow(&m->min_frames, sizeof *m->min_frames, c->cap) ||
+		    grow(&m->concurrent, sizeof *m->concurrent, c->cap) || grow(&c->has_query, sizeof *c->has_query, c->cap)) {
+			return out_of_memory(err, "a model");
+		}
+	}
+	COLUMN(chunk, 0, duckdb_string_t, cls, v0);
+	COLUMN(chunk, 1, duckdb_string_t, label, v1);
+	COLUMN(chunk, 2, int32_t, label_id, v2);
+	COLUMN(chunk, 3, double, tau, v3);
+	COLUMN(chunk, 4, int32_t, min_frames, v4);
+	COLUMN(chunk, 5, bool, concurrent, v5);
+	COLUMN(chunk, 6, double, margin, v6);
+	COLUMN(chunk, 7, bool, has_query, v7);
+	for (idx_t i = 0; i < n; i++) {
+		size_t k = m->n_classes;
+		if (!duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
+		    !duckdb_validity_row_is_valid(v2, i) || !duckdb_validity_row_is_valid(v3, i) ||
+		    !duckdb_validity_row_is_valid(v4, i) || !duckdb_validity_row_is_valid(v6, i) || !(tau[i] >= 0) || !(margin[i] >= 0) || min_frames[i] < 0) {
+			c->bad = 1;
+			return 1;
+		}
+		c->cls[k] = string_at(cls, i);
+		m->label[k] = string_at(label, i);
+		m->n_classes++; /* freed with the model from here on */
+		if (!c->cls[k] || !m->label[k]) {
+			return out_of_memory(err, "a model");
+		}
+		c->label_id[k] = label_id[i];
+		m->tau[k] = tau[i];
+		m->min_frames[k] = min_frames[i];
+		m->concurrent[k] = duckdb_validity_row_is_valid(v5, i) && concurrent[i];
+		c->has_query[k] = duckdb_validity_row_is_valid(v7, i) && has_query[i];
+		m->margin = margin[i];
+	}
+	return 0;
+}
+
+void mdb_model_free(mdb_model *m) {
+	for (size_t k = 0; k < m->n_classes; k++) {
+		free(m->label[k]);
+		if (m->tpl) {
+			mdb_template_free(&m->tpl[k]);
+		}
+	}
+	free(m->label);
+	free(m->concurrent);
+	free(m->label_of);
+	free(m->tau);
+	free(m->min_frames);
+	free(m->tpl);
+	free(m->query);
+	memset(m, 0, sizeof *m);
+}
+
+int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *err) {
+	memset(out, 0, sizeof *out);
+	model_ctx c = {out, NULL, NULL, NULL, 0, 0};
+	duckdb_type want[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_DOUBLE,
+	                      DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_BOOLEAN, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_BOOLEAN};
+	int rc = -1;
+	pthread_mutex_lock(&st->lock);
+	int q = query_rows(st, MODEL_SQL, "classes", &name, 1, NULL, 0, want, 8, model_sink, &c, err);
+	if (q == 0 && out->n_classes == 0) {
+		unknown_class(st, name, "", err);
+		q = -1;
+	}
+	pthread_mutex_unlock(&st->lock);
+	if (c.bad) {
+		snprintf(err->text, sizeof err->text,
+		         "model '%s': its classes rows are damaged (NULLs, a negative tau, margin or min_frames); train or "
+		         "install the model again",
+		         name);
+	}
+	size_t n = out->n_classes;
+	if (q || c.bad) {
+		goto done;
+	}
+	/* labels in label_id order, each once; per class the index of its label; a label's rows keep
+	 * what is per label (concurrent) from its first class */
+	char **labels = calloc(n, sizeof *labels);
+	char *concurrent = calloc(n, 1);
+	int32_t *ids = malloc(n * sizeof *ids);
+	out->label_of = malloc(n * sizeof *out->label_of);
+	out->tpl = calloc(n, sizeof *out->tpl);
+	out->query = calloc(n, sizeof *out->query);
+	if (!labels || !concurrent || !ids || !out->label_of || !out->tpl || !out->query) {
+		free(labels);
+		free(concurrent);
+		free(ids);
+		out_of_memory(err, "a model");
+		goto done;
+	}
+	size_t L = 0;
+	for (size_t k = 0; k < n; k++) {
+		size_t p = 0;
+		while (p < L && ids[p] < c.label_id[k]) {
+			p++;
+		}
+		if (p < L && ids[p] == c.label_id[k]) {
+			continue;
+		}
+		memmove(ids + p + 1, ids + p, (L - p) * sizeof *ids);
+		memmove(labels + p + 1, labels + p, (L - p) * sizeof *labels);
+		memmove(concurrent + p + 1, concurrent + p, L - p);
+		ids[p] = c.label_id[k];
+		labels[p] = out->label[k];
+		concurrent[p] = out->concurrent[k];
+		L++;
+	}
+	int disagree = 0;
+	for (size_t k = 0; k < n; k++) {
+		size_t p = 0;
+		while (ids[p] != c.label_id[k]) {
+			p++;
+		}
+		out->label_of[k] = (int64_t)p;
+		disagree |= strcmp(labels[p], out->label[k]) != 0;
+	}
+	/* the model owns the label names in label order from here on */
+	for (size_t k = 0; k < n; k++) {
+		int used = 0;
+		for (size_t p = 0; p < L; p++) {
+			used |= labels[p] == out->label[k];
+		}
+		if (!used) {
+			free(out->label[k]);
+		}
+	}
+	for (size_t p = 0; p < n; p++) {
+		out->label[p] = p < L ? labels[p] : NULL;
+		out->concurrent[p] = p < L ? concurrent[p] : 0;
+	}
+	out->n_labels = L;
+	free(labels);
+	free(concurrent);
+	free(ids);
+	if (disagree) {
+		snprintf(err->text, sizeof err->text, "model '%s': labels and label ids of its classes disagree", name);
+		goto done;
+	}
+	for (size_t k = 0; k < n; k++) {
+		if (mdb_read_template(st, name, c.cls[k], &out->tpl[k], err) ||
+		    (c.has_query[k] && mdb_read_keyframe_query(st, name, c.cls[k], 1, &out->query[k], err))) {
+			goto done;
+		}
+	}
+	rc = 0;
+done:
+	for (size_t k = 0; k < n; k++) {
+		free(c.cls[k]);
+	}
+	free(c.cls);
+	free(c.label_id);
+	free(c.has_query);
+	if (rc) {
+		mdb_model_free(out);
+	}
 	return rc;
 }

@@ -26,6 +26,7 @@ typedef struct {
 typedef struct {
 	int32_t *id;
 	int64_t *n_frames;
+	double *fps; /* the rate of the frames (30) */
 	size_t n;
 } mdb_motions;
 
@@ -78,5 +79,26 @@ int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *ou
  * error naming it. */
 int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, const int64_t *n_frames,
                    const size_t *off, size_t n_want, uint64_t *words, mdb_error *err);
+
+
+/* A stored model as annotation needs it: classes in class_id order with their template, τ,
+ * minimum length and keyframe query (K = 0: none, margins of annotation applied); labels in
+ * label_id order (the Δarg tie order) with whether each is concurrent; the margin. */
+typedef struct {
+	size_t n_classes, n_labels;
+	char **label;         /* per label */
+	char *concurrent;     /* per label */
+	int64_t *label_of;    /* per class: its label's index */
+	double *tau;          /* per class */
+	int64_t *min_frames;  /* per class */
+	mdb_template *tpl;    /* per class */
+	mdb_query *query;     /* per class */
+	double margin;
+} mdb_model;
+
+void mdb_model_free(mdb_model *m);
+/* Model `name` from the tables classes, models, templates, keyframes; an unknown model is an
+ * error naming it and the stored ones. */
+int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *err);
 
 #endif

@@ -80,16 +80,24 @@ int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const doub
 	return 0;
 }
 
-int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta) {
+int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
 	size_t K = t->K;
-	/* columns j-2, j-1, j of D and the frame's costs */
+	/* columns j-2, j-1, j of D and the frame's costs; with starts, columns j-2, j-1, j of the
+	 * start frame of each cell's path (-1: none), following the chosen predecessor */
 	double *buf = malloc(4 * K * sizeof *buf);
-	if (!buf) {
+	int64_t *sbuf = starts ? malloc(3 * K * sizeof *sbuf) : NULL;
+	if (!buf || (starts && !sbuf)) {
+		free(buf);
+		free(sbuf);
 		return -1;
 	}
 	double *d2 = buf, *d1 = buf + K, *d0 = buf + 2 * K, *c = buf + 3 * K;
+	int64_t *s2 = sbuf, *s1 = sbuf ? sbuf + K : NULL, *s0 = sbuf ? sbuf + 2 * K : NULL;
 	for (size_t i = 0; i < 2 * K; i++) {
 		buf[i] = INFINITY;
+		if (sbuf) {
+			sbuf[i] = -1;
+		}
 	}
 	for (size_t j = 0; j < n; j++) {
 		uint64_t w = words[j];
@@ -97,24 +105,42 @@ int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, doub
 			c[i] = t->table[i * MDB_N_COST + __builtin_popcountll((t->value[i] ^ w) & t->mask[i])];
 		}
 		d0[0] = c[0];
+		if (s0) {
+			s0[0] = (int64_t)j; /* row 0: a path starts here */
+		}
 		for (size_t i = 1; i < K; i++) {
 			double v0 = d1[i - 1];                    /* (1, 1), weight 1 */
 			double v1 = d2[i - 1];                    /* (1, 2), weight 1 */
 			double v2 = i >= 2 ? d1[i - 2] : INFINITY; /* (2, 1), weight 2 */
 			int m1 = v1 < v0;
 			double best = m1 ? v1 : v0, bw = 1.0;
-			if (v2 < best) {
+			int m2 = v2 < best;
+			if (m2) {
 				best = v2;
 				bw = 2.0;
 			}
 			d0[i] = best + bw * c[i];
+			if (s0) {
+				int64_t st = m2 ? s1[i - 2] : m1 ? s2[i - 1] : s1[i - 1];
+				s0[i] = d0[i] < INFINITY ? st : -1;
+			}
 		}
 		delta[j] = d0[K - 1];
+		if (starts) {
+			starts[j] = s0[K - 1];
+		}
 		double *old = d2; /* rotate: j-1 becomes j-2, j becomes j-1 */
 		d2 = d1;
 		d1 = d0;
 		d0 = old;
+		if (sbuf) {
+			int64_t *sold = s2;
+			s2 = s1;
+			s1 = s0;
+			s0 = sold;
+		}
 	}
 	free(buf);
+	free(sbuf);
 	return 0;
 }

@@ -23,7 +23,9 @@ int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const doub
                          size_t max_columns, mdb_template *out);
 void mdb_template_free(mdb_template *t);
 
-/* Δ(j) for j = 0..n-1 into delta (+inf where no path ends); 0, or -1 when out of memory. */
-int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta);
+/* Δ(j) for j = 0..n-1 into delta (+inf where no path ends) and, when starts is not NULL, the first
+ * frame of the path ending at j into starts (-1 where none; the predecessor choice of Δ, as
+ * mocapdb.templates.distance with return_starts); 0, or -1 when out of memory. */
+int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts);
 
 #endif

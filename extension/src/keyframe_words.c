@@ -270,7 +270,7 @@ static void query_init_fn(duckdb_init_info info) {
 
 /* Intervals of matching frames of one keyframe in one motion's runs r[a..b): runs of
  * matching words, merged when adjacent (KEYFRAMES.md §3). */
-static int keyframe_intervals(const mdb_runs *r, size_t a, size_t b, uint64_t mask, uint64_t value, mdb_spans *iv) {
+int mdb_keyframe_intervals(const mdb_runs *r, size_t a, size_t b, uint64_t mask, uint64_t value, mdb_spans *iv) {
 	int open = 0;
 	for (size_t i = a; i < b; i++) {
 		if ((r->word[i] & mask) != value) {
@@ -324,7 +324,7 @@ static int search_batch(mdb_state *st, const query_bind *q, query_scan *s, mdb_e
 		off[0] = 0;
 		int absent = 0; /* a keyframe that never matches here: no chain, the other keyframes unread */
 		for (size_t k = 0; k < q->K && rc == 0 && !absent; k++) {
-			rc = keyframe_intervals(runs, a, r, q->mask[k], q->value[k], &iv);
+			rc = mdb_keyframe_intervals(runs, a, r, q->mask[k], q->value[k], &iv);
 			off[k + 1] = iv.n;
 			absent = off[k + 1] == off[k];
 		}

@@ -28,7 +28,7 @@ DUCKDB_EXTENSION_ENTRYPOINT_CUSTOM(duckdb_extension_info info, struct duckdb_ext
 		return false;
 	}
 	int failed = mdb_register_keyframe_words(reg, st) || mdb_register_keyframe_search(reg, st) ||
-	             mdb_register_mt_distance(reg, st);
+	             mdb_register_mt_distance(reg, st) || mdb_register_annotate(reg, st);
 	duckdb_disconnect(&reg);
 	if (failed) {
 		access->set_error(info, "mocapdb: registering the SQL functions failed (are they loaded already?)");

@@ -219,7 +219,7 @@ static void mt_distance_fn(duckdb_function_info info, duckdb_data_chunk input, d
 				goto done;
 			}
 			double *delta = (double *)duckdb_vector_get_data(child) + total;
-			if (len && mdb_mt_distance(&ts.at[items[i].tpl].t, words + off[k], len, delta)) {
+			if (len && mdb_mt_distance(&ts.at[items[i].tpl].t, words + off[k], len, delta, NULL)) {
 				snprintf(err.text, sizeof err.text, "mt_distance: out of memory");
 				goto done;
 			}

@@ -1,0 +1,477 @@
+/* annotate(motion [, model [, tau [, keyframes]]]): the segments of a stored motion under a stored
+ * model, LIST(STRUCT(label, start_frame, end_frame, cost, start_s, end_s, confidence)), as the Python
+ * UDF (mocapdb.storage.annotations.annotate_motions → mocapdb.annotation.results.segment_table)
+ * returns them: Δ per class on the whole motion or, with keyframe preselection, on the slices its
+ * stored keyframe query finds (widened by the annotation margins), Δ̄^τ, the label rows and the
+ * segmenter of annotation.c. A NULL or unknown motion gives NULL; a NULL or unknown model, or a
+ * negative or NaN tau, is an error. tau NULL: each class's τ; keyframes NULL: preselection when the
+ * model has keyframe queries. Motions are annotated one at a time (motions are independent). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "annotation.h"
+#include "archive.h"
+#include "functions.h"
+
+DUCKDB_EXTENSION_EXTERN
+
+#define WHAT "annotate"
+
+/* as mocapdb.annotation.postprocess.WON_FRACTION */
+#define WON_FRACTION (1.0 / 3.0)
+
+/* The models of one call, read once each. */
+typedef struct {
+	char *name;
+	mdb_model m;
+	int64_t *min_frames, *min_won; /* per label */
+	int64_t *name_rank;            /* per label: its place in the labels sorted by name */
+	int any_query;
+} named_model;
+
+typedef struct {
+	named_model *at;
+	size_t n;
+} models;
+
+static void models_free(models *ms) {
+	for (size_t i = 0; i < ms->n; i++) {
+		free(ms->at[i].name);
+		free(ms->at[i].min_frames);
+		free(ms->at[i].min_won);
+		free(ms->at[i].name_rank);
+		mdb_model_free(&ms->at[i].m);
+	}
+	free(ms->at);
+}
+
+static named_model *model_of(mdb_state *st, models *ms, const char *name, mdb_error *err) {
+	for (size_t i = 0; i < ms->n; i++) {
+		if (strcmp(ms->at[i].name, name) == 0) {
+			return &ms->at[i];
+		}
+	}
+	named_model *grown = realloc(ms->at, (ms->n + 1) * sizeof *grown);
+	if (!grown) {
+		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
+		return NULL;
+	}
+	ms->at = grown;
+	named_model *x = &ms->at[ms->n];
+	memset(x, 0, sizeof *x);
+	if (mdb_read_model(st, name, &x->m, err)) {
+		return NULL;
+	}
+	ms->n++;
+	size_t L = x->m.n_labels;
+	x->name = strdup(name);
+	x->min_frames = malloc((L ? L : 1) * sizeof *x->min_frames);
+	x->min_won = malloc((L ? L : 1) * sizeof *x->min_won);
+	x->name_rank = malloc((L ? L : 1) * sizeof *x->name_rank);
+	if (!x->name || !x->min_frames || !x->min_won || !x->name_rank) {
+		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
+		return NULL;
+	}
+	/* postprocess.label_min_frames / label_min_won: per label its most lenient class */
+	for (size_t p = 0; p < L; p++) {
+		x->min_frames[p] = INT64_MAX;
+	}
+	for (size_t k = 0; k < x->m.n_classes; k++) {
+		int64_t p = x->m.label_of[k];
+		if (x->m.min_frames[k] < x->min_frames[p]) {
+			x->min_frames[p] = x->m.min_frames[k];
+		}
+		x->any_query |= x->m.query[k].K > 0;
+	}
+	for (size_t p = 0; p < L; p++) {
+		x->name_rank[p] = 0;
+		for (size_t q = 0; q < L; q++) {
+			x->name_rank[p] += strcmp(x->m.label[q], x->m.label[p]) < 0;
+		}
+		x->min_won[p] = (int64_t)ceil((double)x->min_frames[p] * WON_FRACTION - 1e-9);
+	}
+	return x;
+}
+
+/* Per-motion work arrays, grown as motions need. */
+typedef struct {
+	double *label_cd, *label_ratio, *class_cd, *class_ratio, *delta, *cd;
+	int64_t *starts;
+	size_t frames, cells;
+	mdb_spans slices, iv;
+} work;
+
+static void work_free(work *w) {
+	free(w->label_cd);
+	free(w->label_ratio);
+	free(w->class_cd);
+	free(w->class_ratio);
+	free(w->delta);
+	free(w->cd);
+	free(w->starts);
+	mdb_spans_free(&w->slices);
+	mdb_spans_free(&w->iv);
+}
+
+static int work_reserve(work *w, size_t n, size_t L) {
+	n = n ? n : 1;
+	L = L ? L : 1;
+	if (n > w->frames) {
+		double **d[] = {&w->class_cd, &w->class_ratio, &w->delta, &w->cd};
+		for (size_t i = 0; i < 4; i++) {
+			free(*d[i]);
+			*d[i] = malloc(n * sizeof **d[i]);
+		}
+		free(w->starts);
+		w->starts = malloc(n * sizeof *w->starts);
+		w->frames = n;
+		if (!w->class_cd || !w->class_ratio || !w->delta || !w->cd || !w->starts) {
+			w->frames = 0;
+			return -1;
+		}
+	}
+	if (n * L > w->cells) {
+		free(w->label_cd);
+		free(w->label_ratio);
+		w->label_cd = malloc(n * L * sizeof *w->label_cd);
+		w->label_ratio = malloc(n * L * sizeof *w->label_ratio);
+		w->cells = n * L;
+		if (!w->label_cd || !w->label_ratio) {
+			w->cells = 0;
+			return -1;
+		}
+	}
+	return 0;
+}
+
+/* The preselected slices of class k of one motion (its runs r[a..b)), into w->slices. */
+static int class_slices(const mdb_query *q, const mdb_runs *r, size_t a, size_t b, int64_t n, work *w) {
+	size_t off[MDB_MAX_KEYFRAMES + 1];
+	w->slices.n = 0;
+	w->iv.n = 0;
+	off[0] = 0;
+	for (size_t k = 0; k < q->K; k++) {
+		if (mdb_keyframe_intervals(r, a, b, q->mask[k], q->value[k], &w->iv)) {
+			return -1;
+		}
+		off[k + 1] = w->iv.n;
+		if (off[k + 1] == off[k]) {
+			return 0; /* a keyframe that never matches: no chain */
+		}
+	}
+	return mdb_chain_document(q->K, w->iv.start, w->iv.end, off, q->d_min, q->d_max, n, q->ext_l, q->ext_r,
+	                          &w->slices);
+}
+
+/* The segments of one motion of n frames (words), runs its postings (NULL: no preselection). */
+static int annotate_motion(const named_model *nm, const uint64_t *words, size_t n, const mdb_runs *runs, size_t ra,
+                           size_t rb, int tau_given, double tau, work *w, mdb_segments *out, mdb_error *err) {
+	const mdb_model *m = &nm->m;
+	size_t L = m->n_labels;
+	if (work_reserve(w, n, L)) {
+		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
+		return -1;
+	}
+	for (size_t i = 0; i < n * L; i++) {
+		w->label_cd[i] = INFINITY;
+		w->label_ratio[i] = INFINITY;
+	}
+	for (size_t k = 0; k < m->n_classes; k++) {
+		double t = tau_given ? tau : m->tau[k];
+		const double *rows[2] = {w->class_cd, w->class_ratio};
+		int rc = 0;
+		if (runs && m->query[k].K > 0) {
+			rc = class_slices(&m->query[k], runs, ra, rb, (int64_t)n, w);
+		} else {
+			w->slices.n = 0;
+			rc = n ? mdb_spans_push(&w->slices, 0, (int64_t)n - 1) : 0;
+		}
+		if (rc) {
+			snprintf(err->text, sizeof err->text,
+			         rc == -2 ? WHAT ": illegal interval in the reconstruction of a keyframe hit" : WHAT ": out of memory");
+			return -1;
+		}
+		for (size_t f = 0; f < n; f++) {
+			w->class_cd[f] = INFINITY;
+			w->class_ratio[f] = INFINITY;
+		}
+		/* each slice as a document of its own; a later slice overwrites an earlier one */
+		for (size_t q = 0; q < w->slices.n; q++) {
+			size_t a = (size_t)w->slices.start[q], len = (size_t)(w->slices.end[q] - w->slices.start[q] + 1);
+			if (mdb_mt_distance(&m->tpl[k], words + a, len, w->delta, w->starts) ||
+			    mdb_classification_delta(w->delta, w->starts, len, t, w->cd)) {
+				snprintf(err->text, sizeof err->text, WHAT ": out of memory");
+				return -1;
+			}
+			for (size_t j = 0; j < len; j++) {
+				double cd = w->cd[j];
+				w->class_cd[a + j] = cd;
+				/* chain._tau_ratio: at τ = 0 only a perfect match counts, as 0 */
+				w->class_ratio[a + j] = t > 0 ? cd / t : cd <= 0 ? 0.0 : INFINITY;
+			}
+		}
+		/* combine_by_label: the minimum over the label's classes */
+		double *dst[2] = {w->label_cd + (size_t)m->label_of[k] * n, w->label_ratio + (size_t)m->label_of[k] * n};
+		for (size_t r = 0; r < 2; r++) {
+			for (size_t f = 0; f < n; f++) {
+				if (rows[r][f] < dst[r][f]) {
+					dst[r][f] = rows[r][f];
+				}
+			}
+		}
+	}
+	mdb_label_rules rules = {L, m->concurrent, nm->min_frames, nm->min_won, m->margin};
+	if (mdb_label_segments(w->label_cd, w->label_ratio, n, &rules, out)) {
+		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
+		return -1;
+	}
+	return 0;
+}
+
+/* segment_table's order within a motion: start frame, then label name (by its rank) */
+typedef struct {
+	int64_t start, rank;
+	size_t i;
+} sort_key;
+
+static int by_start_label(const void *a, const void *b) {
+	const sort_key *x = a, *y = b;
+	if (x->start != y->start) {
+		return x->start < y->start ? -1 : 1;
+	}
+	if (x->rank != y->rank) {
+		return x->rank < y->rank ? -1 : 1;
+	}
+	return (x->i > y->i) - (x->i < y->i);
+}
+
+/* Sort the segments as segment_table; 0 or -1 (out of memory). */
+static int sort_segments(mdb_segments *s, const int64_t *name_rank) {
+	sort_key *k = malloc((s->n ? s->n : 1) * sizeof *k);
+	mdb_segment *sorted = malloc((s->n ? s->n : 1) * sizeof *sorted);
+	if (!k || !sorted) {
+		free(k);
+		free(sorted);
+		return -1;
+	}
+	for (size_t i = 0; i < s->n; i++) {
+		k[i] = (sort_key){s->at[i].start, name_rank[s->at[i].label], i};
+	}
+	qsort(k, s->n, sizeof *k, by_start_label);
+	for (size_t i = 0; i < s->n; i++) {
+		sorted[i] = s->at[k[i].i];
+	}
+	memcpy(s->at, sorted, s->n * sizeof *sorted);
+	free(k);
+	free(sorted);
+	return 0;
+}
+
+static char *text_of(duckdb_vector v, idx_t row) {
+	duckdb_string_t *x = duckdb_vector_get_data(v);
+	uint32_t len = duckdb_string_t_length(x[row]);
+	char *s = malloc((size_t)len + 1);
+	if (s) {
+		memcpy(s, duckdb_string_t_data(&x[row]), len);
+		s[len] = 0;
+	}
+	return s;
+}
+
+static int valid(duckdb_vector v, idx_t row) {
+	return duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), row);
+}
+
+/* Append a motion's segments to the list vector; 0 or -1 (out of memory). */
+static int write_segments(duckdb_vector output, const mdb_model *m, const mdb_segments *s, double fps, size_t *total) {
+	if (duckdb_list_vector_reserve(output, *total + s->n) == DuckDBError) {
+		return -1;
+	}
+	duckdb_vector child = duckdb_list_vector_get_child(output);
+	duckdb_vector f_label = duckdb_struct_vector_get_child(child, 0);
+	int32_t *start = duckdb_vector_get_data(duckdb_struct_vector_get_child(child, 1));
+	int32_t *end = duckdb_vector_get_data(duckdb_struct_vector_get_child(child, 2));
+	double *cost = duckdb_vector_get_data(duckdb_struct_vector_get_child(child, 3));
+	double *start_s = duckdb_vector_get_data(duckdb_struct_vector_get_child(child, 4));
+	double *end_s = duckdb_vector_get_data(duckdb_struct_vector_get_child(child, 5));
+	double *conf = duckdb_vector_get_data(duckdb_struct_vector_get_child(child, 6));
+	for (size_t i = 0; i < s->n; i++) {
+		const mdb_segment *x = &s->at[i];
+		size_t o = *total + i;
+		duckdb_vector_assign_string_element(f_label, o, m->label[x->label]);
+		start[o] = (int32_t)(x->start + 1);
+		end[o] = (int32_t)(x->end + 1);
+		cost[o] = x->cost;
+		start_s[o] = (double)x->start / fps;
+		end_s[o] = (double)(x->end + 1) / fps;
+		conf[o] = x->confidence;
+	}
+	*total += s->n;
+	duckdb_list_vector_set_size(output, *total);
+	return 0;
+}
+
+static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duckdb_vector output) {
+	mdb_state *st = duckdb_scalar_function_get_extra_info(info);
+	idx_t n = duckdb_data_chunk_get_size(input);
+	idx_t n_cols = duckdb_data_chunk_get_column_count(input);
+	duckdb_vector v_motion = duckdb_data_chunk_get_vector(input, 0);
+	duckdb_vector v_model = n_cols > 1 ? duckdb_data_chunk_get_vector(input, 1) : NULL;
+	duckdb_vector v_tau = n_cols > 2 ? duckdb_data_chunk_get_vector(input, 2) : NULL;
+	duckdb_vector v_kf = n_cols > 3 ? duckdb_data_chunk_get_vector(input, 3) : NULL;
+	int64_t *motion = duckdb_vector_get_data(v_motion);
+	double *tau = v_tau ? duckdb_vector_get_data(v_tau) : NULL;
+	bool *kf = v_kf ? duckdb_vector_get_data(v_kf) : NULL;
+	duckdb_list_entry *entries = duckdb_vector_get_data(output);
+	duckdb_vector_ensure_validity_writable(output);
+	uint64_t *out_valid = duckdb_vector_get_validity(output);
+	models ms = {0};
+	work w = {0};
+	mdb_segments segs = {0};
+	mdb_motions one = {0};
+	mdb_error err = {{0}};
+	uint64_t *words = NULL;
+	mdb_batch *batch = NULL;
+	size_t total = 0;
+	int failed = 1;
+	for (idx_t row = 0; row < n; row++) {
+		entries[row].offset = 0;
+		entries[row].length = 0;
+	}
+	for (idx_t row = 0; row < n; row++) {
+		char *name = v_model ? (valid(v_model, row) ? text_of(v_model, row) : NULL) : strdup("default");
+		if (!name) {
+			snprintf(err.text, sizeof err.text,
+			         v_model && !valid(v_model, row) ? WHAT ": model is NULL; give a model name (default: 'default')"
+			                                         : WHAT ": out of memory");
+			goto done;
+		}
+		named_model *nm = model_of(st, &ms, name, &err);
+		free(name);
+		if (!nm) {
+			goto done;
+		}
+		int tau_given = v_tau && valid(v_tau, row);
+		if (tau_given && !(tau[row] >= 0)) {
+			snprintf(err.text, sizeof err.text,
+			         WHAT ": tau must be a non-negative number or NULL (each class's tau), got %g", tau[row]);
+			goto done;
+		}
+		int preselect = v_kf && valid(v_kf, row) ? kf[row] : nm->any_query;
+		if (!valid(v_motion, row) || motion[row] < INT32_MIN || motion[row] > INT32_MAX) {
+			duckdb_validity_set_row_invalid(out_valid, row); /* no such motion: NULL */
+			continue;
+		}
+		int32_t id = (int32_t)motion[row];
+		mdb_motions_free(&one);
+		if (mdb_read_motion_range(st, id, id, &one, &err)) {
+			goto done;
+		}
+		if (one.n == 0) {
+			duckdb_validity_set_row_invalid(out_valid, row);
+			continue;
+		}
+		size_t len = (size_t)one.n_frames[0], off[2] = {0, len};
+		free(words);
+		words = malloc((len ? len : 1) * sizeof *words);
+		if (!words) {
+			snprintf(err.text, sizeof err.text, WHAT ": out of memory");
+			goto done;
+		}
+		if (mdb_read_words(st, id, id, &id, one.n_frames, off, 1, words, &err)) {
+			goto done;
+		}
+		const mdb_runs *runs = NULL;
+		size_t ra = 0, rb = 0;
+		mdb_release_runs(st, batch);
+		batch = NULL;
+		if (preselect) {
+			if (!(batch = mdb_acquire_runs(st, id, id, &err))) {
+				goto done;
+			}
+			runs = &batch->runs;
+			while (ra < runs->n && runs->motion[ra] != id) {
+				ra++;
+			}
+			for (rb = ra; rb < runs->n && runs->motion[rb] == id; rb++) {
+			}
+		}
+		segs.n = 0;
+		if (annotate_motion(nm, words, len, runs, ra, rb, tau_given, tau_given ? tau[row] : 0.0, &w, &segs, &err)) {
+			goto done;
+		}
+		if (sort_segments(&segs, nm->name_rank)) {
+			snprintf(err.text, sizeof err.text, WHAT ": out of memory");
+			goto done;
+		}
+		entries[row].offset = total;
+		entries[row].length = segs.n;
+		if (write_segments(output, &nm->m, &segs, one.fps[0], &total)) {
+			snprintf(err.text, sizeof err.text, WHAT ": out of memory");
+			goto done;
+		}
+	}
+	failed = 0;
+done:
+	mdb_release_runs(st, batch);
+	models_free(&ms);
+	work_free(&w);
+	mdb_segments_free(&segs);
+	mdb_motions_free(&one);
+	free(words);
+	if (failed) {
+		duckdb_scalar_function_set_error(info, err.text);
+	}
+}
+
+static duckdb_logical_type segment_type(void) {
+	const char *names[] = {"label", "start_frame", "end_frame", "cost", "start_s", "end_s", "confidence"};
+	duckdb_type ids[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_DOUBLE,
+	                     DUCKDB_TYPE_DOUBLE,  DUCKDB_TYPE_DOUBLE,  DUCKDB_TYPE_DOUBLE};
+	duckdb_logical_type members[7];
+	for (size_t i = 0; i < 7; i++) {
+		members[i] = duckdb_create_logical_type(ids[i]);
+	}
+	duckdb_logical_type s = duckdb_create_struct_type(members, names, 7);
+	for (size_t i = 0; i < 7; i++) {
+		duckdb_destroy_logical_type(&members[i]);
+	}
+	duckdb_logical_type list = duckdb_create_list_type(s);
+	duckdb_destroy_logical_type(&s);
+	return list;
+}
+
+static duckdb_scalar_function annotate_function(mdb_state *st, int n_args) {
+	duckdb_scalar_function f = duckdb_create_scalar_function();
+	duckdb_scalar_function_set_name(f, "annotate");
+	duckdb_type args[] = {DUCKDB_TYPE_BIGINT, DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_BOOLEAN};
+	for (int i = 0; i < n_args; i++) {
+		duckdb_logical_type t = duckdb_create_logical_type(args[i]);
+		duckdb_scalar_function_add_parameter(f, t);
+		duckdb_destroy_logical_type(&t);
+	}
+	duckdb_logical_type ret = segment_type();
+	duckdb_scalar_function_set_return_type(f, ret);
+	duckdb_destroy_logical_type(&ret);
+	/* NULLs come in: a NULL motion is a NULL answer, a NULL tau or keyframes the default */
+	duckdb_scalar_function_set_special_handling(f);
+	duckdb_scalar_function_set_volatile(f);
+	duckdb_scalar_function_set_extra_info(f, st, NULL);
+	duckdb_scalar_function_set_function(f, annotate_fn);
+	return f;
+}
+
+int mdb_register_annotate(duckdb_connection con, mdb_state *st) {
+	duckdb_scalar_function_set set = duckdb_create_scalar_function_set("annotate");
+	int rc = 0;
+	for (int n_args = 1; n_args <= 4; n_args++) {
+		duckdb_scalar_function f = annotate_function(st, n_args);
+		rc |= duckdb_add_scalar_function_to_set(set, f) == DuckDBError;
+		duckdb_destroy_scalar_function(&f);
+	}
+	rc |= duckdb_register_scalar_function_set(con, set) == DuckDBError;
+	duckdb_destroy_scalar_function_set(&set);
+	return rc ? -1 : 0;
+}

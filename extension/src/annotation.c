@@ -1,0 +1,266 @@
+/* The annotation chain after Δ, per motion (see annotation.h). Python twins:
+ * _extract_hits_kernel, _segments_kernel, _merge_kernel, _margin_kernel, _won_kernel,
+ * _segment_min_kernel (mocapdb.annotation.chain_kernels) and their callers in chain.py and
+ * postprocess.py. */
+#include "annotation.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void mdb_segments_free(mdb_segments *s) {
+	free(s->at);
+	memset(s, 0, sizeof *s);
+}
+
+static int push(mdb_segments *s, mdb_segment x) {
+	if (s->n == s->cap) {
+		size_t cap = s->cap ? 2 * s->cap : 32;
+		mdb_segment *a = realloc(s->at, cap * sizeof *a);
+		if (!a) {
+			return -1;
+		}
+		s->at = a;
+		s->cap = cap;
+	}
+	s->at[s->n++] = x;
+	return 0;
+}
+
+typedef struct {
+	double d;
+	size_t j;
+} candidate;
+
+/* (Δ, frame): the order of the kernel's stable sort by Δ */
+static int by_delta(const void *a, const void *b) {
+	const candidate *x = a, *y = b;
+	if (x->d != y->d) {
+		return x->d < y->d ? -1 : 1;
+	}
+	return (x->j > y->j) - (x->j < y->j);
+}
+
+int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd) {
+	size_t m = 0;
+	for (size_t j = 0; j < n; j++) {
+		cd[j] = INFINITY;
+		m += delta[j] <= tau;
+	}
+	if (m == 0) {
+		return 0;
+	}
+	candidate *c = malloc(m * sizeof *c);
+	if (!c) {
+		return -1;
+	}
+	m = 0;
+	for (size_t j = 0; j < n; j++) {
+		if (delta[j] <= tau) {
+			c[m++] = (candidate){delta[j], j};
+		}
+	}
+	qsort(c, m, sizeof *c, by_delta);
+	for (size_t k = 0; k < m; k++) {
+		size_t e = c[k].j;
+		if (cd[e] < INFINITY) {
+			continue; /* a hit covers it already */
+		}
+		double cost = delta[e];
+		int64_t s = starts[e] < 0 ? 0 : starts[e]; /* finite Δ always has its start */
+		for (size_t f = (size_t)s; f <= e; f++) {
+			if (cd[f] == INFINITY) {
+				cd[f] = cost;
+			}
+		}
+	}
+	free(c);
+	return 0;
+}
+
+/* Δarg at frame f over rows[0 .. L): the first row with the minimal value, -1 where all are +inf. */
+static long best_row(const double *const *rows, size_t L, size_t f) {
+	long lab = -1;
+	double best = INFINITY;
+	for (size_t p = 0; p < L; p++) {
+		if (rows[p][f] < best) {
+			best = rows[p][f];
+			lab = (long)p;
+		}
+	}
+	return lab;
+}
+
+static int by_label_start(const void *a, const void *b) {
+	const mdb_segment *x = a, *y = b;
+	if (x->label != y->label) {
+		return x->label < y->label ? -1 : 1;
+	}
+	return (x->start > y->start) - (x->start < y->start);
+}
+
+/* form_segments of one document: runs of Δarg over rows, extended along their row while it does
+ * not increase, sorted by (label, start) and merged; row p is label label_of[p]. */
+static int form_segments(const double *const *rows, const int64_t *label_of, size_t L, size_t n, mdb_segments *out) {
+	mdb_segments runs = {0};
+	long prev = -1;
+	size_t run_start = 0;
+	for (size_t f = 0; f <= n; f++) {
+		long lab = f < n ? best_row(rows, L, f) : -1;
+		if (f != n && lab == prev) {
+			continue;
+		}
+		if (prev >= 0 && f > 0) {
+			const double *r = rows[prev];
+			size_t s = run_start, e = f - 1;
+			double s_cost = r[s], e_cost = r[e];
+			while (s >= 1 && r[s - 1] <= s_cost) {
+				s_cost = r[--s];
+			}
+			while (e + 1 < n && r[e + 1] <= e_cost) {
+				e_cost = r[++e];
+			}
+			mdb_segment x = {prev, (int64_t)s, (int64_t)e, s_cost < e_cost ? s_cost : e_cost, 0.0};
+			if (push(&runs, x)) {
+				mdb_segments_free(&runs);
+				return -1;
+			}
+		}
+		prev = lab;
+		run_start = f;
+	}
+	/* equal (label, start) pairs merge into the same union whatever their order */
+	qsort(runs.at, runs.n, sizeof *runs.at, by_label_start);
+	int rc = 0;
+	for (size_t i = 0; i < runs.n && rc == 0; i++) {
+		mdb_segment x = runs.at[i];
+		x.label = label_of[x.label];
+		mdb_segment *last = out->n ? &out->at[out->n - 1] : NULL;
+		if (i > 0 && last->label == x.label && x.start <= last->end) {
+			last->end = last->end > x.end ? last->end : x.end;
+			last->cost = last->cost < x.cost ? last->cost : x.cost;
+		} else {
+			rc = push(out, x);
+		}
+	}
+	mdb_segments_free(&runs);
+	return rc;
+}
+
+static int by_label(const void *a, const void *b) {
+	const mdb_segment *x = a, *y = b;
+	if (x->label != y->label) {
+		return x->label < y->label ? -1 : 1;
+	}
+	/* stable: the position before sorting, kept in confidence until it is computed */
+	return (x->confidence > y->confidence) - (x->confidence < y->confidence);
+}
+
+int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, const mdb_label_rules *rules,
+                       mdb_segments *out) {
+	size_t L = rules->n_labels;
+	int rc = -1;
+	const double **rows = malloc((L ? L : 1) * sizeof *rows);
+	int64_t *ident = malloc((L ? L : 1) * sizeof *ident);
+	double *own = NULL;
+	size_t n_own = 0;
+	for (size_t p = 0; p < L; p++) {
+		n_own += rules->concurrent[p] != 0;
+	}
+	if (n_own) {
+		own = malloc(n_own * (n ? n : 1) * sizeof *own);
+	}
+	mdb_segments segs = {0};
+	if (!rows || !ident || (n_own && !own)) {
+		goto done;
+	}
+	/* a concurrent label's row leaves the competition: its segments are its own runs */
+	for (size_t p = 0, k = 0; p < L; p++) {
+		rows[p] = label_cd + p * n;
+		ident[p] = (int64_t)p;
+		if (rules->concurrent[p]) {
+			memcpy(own + k++ * n, label_cd + p * n, n * sizeof *own);
+			for (size_t f = 0; f < n; f++) {
+				label_cd[p * n + f] = INFINITY;
+			}
+		}
+	}
+	if (rules->margin > 0) { /* _margin_kernel */
+		for (size_t f = 0; f < n; f++) {
+			double best = INFINITY, second = INFINITY;
+			for (size_t p = 0; p < L; p++) {
+				double v = label_cd[p * n + f];
+				if (v < best) {
+					second = best;
+					best = v;
+				} else if (v < second) {
+					second = v;
+				}
+			}
+			if (best < INFINITY && second - best < rules->margin) {
+				for (size_t p = 0; p < L; p++) {
+					label_cd[p * n + f] = INFINITY;
+				}
+			}
+		}
+	}
+	if (form_segments(rows, ident, L, n, &segs)) {
+		goto done;
+	}
+	/* drop_unwon_segments: the label must be Δarg on min_won of its frames */
+	size_t kept = 0;
+	for (size_t i = 0; i < segs.n; i++) {
+		mdb_segment x = segs.at[i];
+		int64_t want = rules->min_won[x.label];
+		if (want > 0) {
+			int64_t won = 0;
+			for (int64_t f = x.start; f <= x.end; f++) {
+				won += best_row(rows, L, (size_t)f) == (long)x.label;
+			}
+			if (won < want) {
+				continue;
+			}
+		}
+		segs.at[kept++] = x;
+	}
+	segs.n = kept;
+	for (size_t p = 0, k = 0; p < L; p++) {
+		if (rules->concurrent[p]) {
+			const double *row = own + k++ * n;
+			int64_t lab = (int64_t)p;
+			if (form_segments(&row, &lab, 1, n, &segs)) {
+				goto done;
+			}
+		}
+	}
+	if (n_own) { /* _sort_by_label: stable by label order */
+		for (size_t i = 0; i < segs.n; i++) {
+			segs.at[i].confidence = (double)i;
+		}
+		qsort(segs.at, segs.n, sizeof *segs.at, by_label);
+	}
+	for (size_t i = 0; i < segs.n; i++) {
+		mdb_segment x = segs.at[i];
+		/* segment_confidence: 1 − the smallest Δ̄^τ/τ of the label over the segment, in [0, 1] */
+		double best = INFINITY;
+		for (int64_t f = x.start; f <= x.end; f++) {
+			double v = label_ratio[(size_t)x.label * n + (size_t)f];
+			if (v < best) {
+				best = v;
+			}
+		}
+		double conf = 1.0 - best;
+		x.confidence = conf < 0.0 ? 0.0 : conf > 1.0 ? 1.0 : conf;
+		/* drop_short_segments */
+		if (x.end - x.start + 1 >= rules->min_frames[x.label] && push(out, x)) {
+			goto done;
+		}
+	}
+	rc = 0;
+done:
+	mdb_segments_free(&segs);
+	free(rows);
+	free(ident);
+	free(own);
+	return rc;
+}

@@ -1,0 +1,47 @@
+/* The annotation chain of one motion after Δ (TEMPLATES.md §9.1, §10; issue 11's segment
+ * filters): hit extraction into Δ̄^τ, the segmenter over per-label rows, the filters and the
+ * confidence. Pure C over arrays, the twin of mocapdb.annotation.chain / postprocess, with the
+ * same comparisons in the same order, so the segments and their doubles are the same. */
+#ifndef MOCAPDB_ANNOTATION_H
+#define MOCAPDB_ANNOTATION_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* A segment: label index, 0-based inclusive frames, cost (Δ̄^τ at its ends) and confidence. */
+typedef struct {
+	int64_t label, start, end;
+	double cost, confidence;
+} mdb_segment;
+
+typedef struct {
+	mdb_segment *at;
+	size_t n, cap;
+} mdb_segments;
+
+void mdb_segments_free(mdb_segments *s);
+
+/* How a model turns per-label rows into segments: per label whether it is concurrent
+ * (annotated on its own beside the others), its minimum length and the frames it must win
+ * (0: none); the margin (0: none). */
+typedef struct {
+	size_t n_labels;
+	const char *concurrent;
+	const int64_t *min_frames;
+	const int64_t *min_won;
+	double margin;
+} mdb_label_rules;
+
+/* Δ̄^τ of one slice (as _extract_hits_kernel without the hits): repeatedly the first minimum of Δ
+ * over the frames no hit covers yet, while <= tau; its frames back to the path's start (starts,
+ * relative to the slice) that have no value get its cost; +inf elsewhere. 0, or -1 when out of
+ * memory. */
+int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd);
+
+/* Segments of one motion of n frames (chain._segment_labels, then drop_short_segments):
+ * label_cd (n_labels rows of n, the label's Δ̄^τ; overwritten) and label_ratio (Δ̄^τ / τ, for the
+ * confidence). Appended to out sorted by (label, start). 0, or -1 when out of memory. */
+int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, const mdb_label_rules *rules,
+                       mdb_segments *out);
+
+#endif
