@@ -184,6 +184,53 @@ def test_mt_distance_arguments(archive, native):
     assert "model 'toolbox' has no class 'standStill'" in got[6]["error"]  # a class of the default model only
 
 
+ANNOTATE_SETTINGS = [(model, tau, keyframes) for model in ("default", "toolbox") for tau in ("NULL", "0.1")
+                     for keyframes in ("NULL", "true", "false")]
+
+
+@pytest.mark.shared
+@pytest.mark.slow  # another client annotates every motion twelve times
+def test_annotate_equals_the_python_udf(archive, native):
+    """Every motion (the sample, an HDM05 document, the squat clips) under both shipped models, with
+    each class's τ and a given one, keyframe preselection by default, on and off: the native
+    segments are the Python UDF's — labels, frames, and cost, seconds and confidence as the same
+    doubles (the C chain does numba's comparisons and float operations in the same order)."""
+    native_q = [f"SELECT motion_id, annotate(motion_id, '{m}', {t}, {k}) FROM motions ORDER BY motion_id"
+                for m, t, k in ANNOTATE_SETTINGS]
+    with mocapdb.connect(archive, read_only=True) as con:
+        want = [[[mid, segs] for mid, segs in con.execute(
+            f"SELECT motion_id, annotate(motion_id, model := '{m}', tau := {t}, keyframes := {k}) FROM motions "
+            "ORDER BY motion_id").fetchall()] for m, t, k in ANNOTATE_SETTINGS]
+    got = plain_client(archive, native, native_q)
+    assert [g.get("error") for g in got] == [None] * len(native_q)
+    labels = set()
+    for setting, w, g in zip(ANNOTATE_SETTINGS, want, got):
+        assert g["rows"] == w, setting
+        labels |= {(setting[0], s["label"]) for _, segs in w for s in segs}
+    # real work was compared: several labels of both models, the concurrent `turn` among them
+    assert len({lab for m, lab in labels if m == "default"}) >= 4, labels
+    assert len({lab for m, lab in labels if m == "toolbox"}) >= 3, labels
+    assert ("default", "turn") in labels and want[0] != want[2]  # preselection changes something
+
+
+def test_annotate_arguments(archive, native):
+    """A NULL or unknown motion is NULL; a NULL or unknown model, a negative or NaN tau an error naming
+    it; NULL tau / keyframes are the model's; the model is the second argument, 'default' without it."""
+    got = plain_client(archive, native, [
+        "SELECT annotate(NULL), annotate(1000000), annotate(-1, 'toolbox', 0.2, true)",
+        "SELECT annotate(1) = annotate(1, 'default') AND annotate(1) = annotate(1, 'default', NULL, NULL)",
+        "SELECT annotate(1, 'nomodel')", "SELECT annotate(1, NULL)",
+        "SELECT annotate(1, 'default', -0.5)", "SELECT annotate(1, 'default', 'nan'::DOUBLE)",
+        "SELECT annotate(1, 'default', 0.0) IS NOT NULL"])
+    assert got[0]["rows"] == [[None, None, None]]
+    assert got[1]["rows"] == [[True]]
+    assert "no model 'nomodel' in the database (stored models: default, toolbox" in got[2]["error"]
+    assert "model is NULL" in got[3]["error"]
+    assert "tau must be a non-negative number" in got[4]["error"] and "got -0.5" in got[4]["error"]
+    assert "tau must be a non-negative number" in got[5]["error"] and "nan" in got[5]["error"]
+    assert got[6]["rows"] == [[True]]
+
+
 def test_bad_arguments_are_errors_that_name_them(archive, native):
     cases = {
         "keyframe_search_words([], [], [], [])": "a query has 1..32 keyframes, got 0",
@@ -400,6 +447,17 @@ for i in range(n):
                                                              ("extend", ["true", "false", "NULL"]))
                      if rng.random() < 0.5]
             q = f"SELECT count(*) FROM keyframe_search({', '.join([cls.replace(' || motion_id', '')] + named)})"
+    if rng.random() < 0.02:  # annotate: motions, models, taus and keyframe settings good and bad
+        args = [rng.choice(["NULL", "1", "0", "-1", "2147483648", "motion_id", "'1'"])]
+        for choices in (["'default'", "'toolbox'", "NULL", "'nomodel'", "''"],
+                        ["NULL", "0", "0.13", "1e308", "-1", "'nan'::DOUBLE", "'inf'::DOUBLE", "'x'"],
+                        ["NULL", "true", "false", "3"]):
+            if rng.random() < 0.7:
+                args.append(rng.choice(choices))
+            else:
+                break
+        q = (f"SELECT count(*), sum(len(s)) FROM (SELECT annotate({', '.join(args)}) AS s "
+             "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
     try:
         con.execute(q).fetchall()
         n_rows += 1

@@ -249,6 +249,9 @@ static int by_start_label(const void *a, const void *b) {
 
 /* Sort the segments as segment_table; 0 or -1 (out of memory). */
 static int sort_segments(mdb_segments *s, const int64_t *name_rank) {
+	if (s->n < 2) {
+		return 0;
+	}
 	sort_key *k = malloc((s->n ? s->n : 1) * sizeof *k);
 	mdb_segment *sorted = malloc((s->n ? s->n : 1) * sizeof *sorted);
 	if (!k || !sorted) {

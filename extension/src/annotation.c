@@ -130,7 +130,9 @@ static int form_segments(const double *const *rows, const int64_t *label_of, siz
 		run_start = f;
 	}
 	/* equal (label, start) pairs merge into the same union whatever their order */
-	qsort(runs.at, runs.n, sizeof *runs.at, by_label_start);
+	if (runs.n > 1) {
+		qsort(runs.at, runs.n, sizeof *runs.at, by_label_start);
+	}
 	int rc = 0;
 	for (size_t i = 0; i < runs.n && rc == 0; i++) {
 		mdb_segment x = runs.at[i];
@@ -233,7 +235,7 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 			}
 		}
 	}
-	if (n_own) { /* _sort_by_label: stable by label order */
+	if (n_own && segs.n > 1) { /* _sort_by_label: stable by label order */
 		for (size_t i = 0; i < segs.n; i++) {
 			segs.at[i].confidence = (double)i;
 		}
