@@ -342,6 +342,34 @@ def test_the_duckdb_cli_loads_it(archive, archive_v15, native):
     assert refused.returncode != 0 and "unsigned" in refused.stderr + refused.stdout
 
 
+@pytest.mark.slow  # another client annotates every motion
+def test_the_duckdb_cli_annotates_as_mocapdb_annotate(archive, archive_v15, native):
+    """Issue 31's "done when": `duckdb -unsigned archive -c "LOAD …; SELECT m.name, unnest(annotate(
+    m.motion_id), recursive := true) FROM motions m"` prints the segments of `mocapdb annotate`
+    (mocapdb.api.annotate): the same names, labels and frames, the doubles to the CLI's printing."""
+    import csv
+    import io
+
+    import mocapdb.api
+
+    beside = Path(sys.executable).with_name("duckdb")
+    cli = shutil.which("duckdb") or (str(beside) if beside.is_file() else None)
+    assert cli, "the [test] extra installs duckdb-cli (a `duckdb` executable)"
+    query = "SELECT m.name, unnest(annotate(m.motion_id), recursive := true) FROM motions m"
+    run = subprocess.run([cli, "-unsigned", "-csv", str(archive_v15), "-c", f"LOAD '{native}'; {query}"],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    rows = list(csv.DictReader(io.StringIO(run.stdout)))
+    with mocapdb.connect(archive, read_only=True) as con:
+        want = mocapdb.api.annotate(con, store=False).to_pylist()
+    got = sorted((r["name"], r["label"], int(r["start_frame"]), int(r["end_frame"]), r) for r in rows)
+    want = sorted((w["document"], w["label"], w["start_frame"], w["end_frame"], w) for w in want)
+    assert len(got) > 20 and [g[:4] for g in got] == [w[:4] for w in want]
+    for (*_, g), (*_, w) in zip(got, want):
+        for col in ("cost", "start_s", "end_s", "confidence"):
+            assert float(g[col]) == pytest.approx(w[col], rel=1e-12, abs=1e-15), (w, col)
+
+
 #: Node's DuckDB client (DuckDB 1.5.6 inside), installed from the npm registry into the test's folder
 NODE_API = "@duckdb/node-api@1.5.6-r.1"
 NODE_CLIENT = r"""
