@@ -66,7 +66,18 @@ def words_sql(masks, vals, gap_min, gap_max):
             f"{lst(gap_min or [])}::BIGINT[], {lst(gap_max or [])}::BIGINT[]) ORDER BY ALL")
 
 
+def annotate_sql(keyframes):
+    """annotate() of every motion under the default model: the Python macro takes named arguments, a
+    native scalar function positional ones."""
+    kf = "true" if keyframes == "on" else "false"
+    return {"python": [f"SELECT motion_id, annotate(motion_id, keyframes := {kf}) FROM motions ORDER BY motion_id"],
+            "native": [f"SELECT motion_id, annotate(motion_id, 'default', NULL, {kf}) FROM motions "
+                       "ORDER BY motion_id"]}
+
+
 def side(name, db, ext, queries, passes):
+    """One side's figures; ``queries`` is a list, or a dict of lists by side (SQL that differs)."""
+    queries = queries[name] if isinstance(queries, dict) else queries
     run = subprocess.run([sys.executable, "-c", SIDE, name, str(db), str(ext), str(passes)],
                          input=json.dumps(queries), capture_output=True, text=True, check=True)
     return json.loads(run.stdout)
@@ -78,6 +89,8 @@ def main():
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="74 minutes only, fewer passes")
+    ap.add_argument("--only", choices=("keyframe_search_words", "mt_distance", "annotate"),
+                    help="one function only")
     args = ap.parse_args()
     machine_header("bench_native" + (" --quick" if args.quick else ""))
     ext = mocapdb.api.extension_path()
@@ -99,8 +112,13 @@ def main():
             con, _ = synthetic_db(path, w, lens)
             create_index(con)
             con.close()
-            for what, qs in ((f"keyframe_search_words ×{len(queries)}", queries),
-                             (f"mt_distance ×{len(delta)} classes", delta)):
+            functions = [(f"keyframe_search_words ×{len(queries)}", queries),
+                         (f"mt_distance ×{len(delta)} classes", delta)]
+            if n_frames == PAPER_FRAMES:
+                functions += [(f"annotate, keyframes {k}", annotate_sql(k)) for k in ("on", "off")]
+            for what, qs in functions:
+                if args.only and not what.startswith(args.only):
+                    continue
                 got = {s: side(s, path, ext, qs, passes) for s in ("python", "native")}
                 assert got["python"]["digest"] == got["native"]["digest"], got  # the same rows, Δ bit for bit
                 for s, r in got.items():

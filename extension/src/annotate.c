@@ -5,7 +5,8 @@
  * stored keyframe query finds (widened by the annotation margins), Δ̄^τ, the label rows and the
  * segmenter of annotation.c. A NULL or unknown motion gives NULL; a NULL or unknown model, or a
  * negative or NaN tau, is an error. tau NULL: each class's τ; keyframes NULL: preselection when the
- * model has keyframe queries. Motions are annotated one at a time (motions are independent). */
+ * model has keyframe queries. Motions are read a batch at a time and annotated one at a time
+ * (every step of the chain is per motion). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -272,17 +273,6 @@ static int sort_segments(mdb_segments *s, const int64_t *name_rank) {
 	return 0;
 }
 
-static char *text_of(duckdb_vector v, idx_t row) {
-	duckdb_string_t *x = duckdb_vector_get_data(v);
-	uint32_t len = duckdb_string_t_length(x[row]);
-	char *s = malloc((size_t)len + 1);
-	if (s) {
-		memcpy(s, duckdb_string_t_data(&x[row]), len);
-		s[len] = 0;
-	}
-	return s;
-}
-
 static int valid(duckdb_vector v, idx_t row) {
 	return duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), row);
 }
@@ -316,9 +306,27 @@ static int write_segments(duckdb_vector output, const mdb_model *m, const mdb_se
 	return 0;
 }
 
-static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duckdb_vector output) {
-	mdb_state *st = duckdb_scalar_function_get_extra_info(info);
-	idx_t n = duckdb_data_chunk_get_size(input);
+/* A row with a motion to annotate and its settings. */
+typedef struct {
+	int32_t motion;
+	idx_t row;
+	size_t model;
+	int tau_given, preselect;
+	double tau;
+} item;
+
+static int by_motion(const void *a, const void *b) {
+	const item *x = a, *y = b;
+	if (x->motion != y->motion) {
+		return x->motion < y->motion ? -1 : 1;
+	}
+	return (x->row > y->row) - (x->row < y->row);
+}
+
+/* Check every row's arguments and read its model (errors before any work); the rows with a
+ * motion into items, NULL for the others. */
+static int collect(mdb_state *st, duckdb_data_chunk input, idx_t n, models *ms, item *items, size_t *n_items,
+                   uint64_t *out_valid, mdb_error *err) {
 	idx_t n_cols = duckdb_data_chunk_get_column_count(input);
 	duckdb_vector v_motion = duckdb_data_chunk_get_vector(input, 0);
 	duckdb_vector v_model = n_cols > 1 ? duckdb_data_chunk_get_vector(input, 1) : NULL;
@@ -327,93 +335,125 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 	int64_t *motion = duckdb_vector_get_data(v_motion);
 	double *tau = v_tau ? duckdb_vector_get_data(v_tau) : NULL;
 	bool *kf = v_kf ? duckdb_vector_get_data(v_kf) : NULL;
+	*n_items = 0;
+	for (idx_t row = 0; row < n; row++) {
+		char *name = v_model ? (valid(v_model, row) ? mdb_string_at(v_model, row) : NULL) : strdup("default");
+		if (!name) {
+			snprintf(err->text, sizeof err->text,
+			         v_model && !valid(v_model, row) ? WHAT ": model is NULL; give a model name (default: 'default')"
+			                                         : WHAT ": out of memory");
+			return -1;
+		}
+		named_model *nm = model_of(st, ms, name, err);
+		free(name);
+		if (!nm) {
+			return -1;
+		}
+		item it = {0, row, (size_t)(nm - ms->at), v_tau && valid(v_tau, row), 0, 0.0};
+		if (it.tau_given && !(tau[row] >= 0)) {
+			snprintf(err->text, sizeof err->text,
+			         WHAT ": tau must be a non-negative number or NULL (each class's tau), got %g", tau[row]);
+			return -1;
+		}
+		it.tau = it.tau_given ? tau[row] : 0.0;
+		it.preselect = v_kf && valid(v_kf, row) ? kf[row] : nm->any_query;
+		if (!valid(v_motion, row) || motion[row] < INT32_MIN || motion[row] > INT32_MAX) {
+			duckdb_validity_set_row_invalid(out_valid, row); /* no such motion: NULL */
+			continue;
+		}
+		it.motion = (int32_t)motion[row];
+		items[(*n_items)++] = it;
+	}
+	return 0;
+}
+
+/* Rows' motions a batch at a time (mdb_read_batch: one query for the words, one for the postings
+ * when a row preselects), then each row's segments into the list vector. */
+static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duckdb_vector output) {
+	mdb_state *st = duckdb_scalar_function_get_extra_info(info);
+	idx_t n = duckdb_data_chunk_get_size(input);
 	duckdb_list_entry *entries = duckdb_vector_get_data(output);
 	duckdb_vector_ensure_validity_writable(output);
 	uint64_t *out_valid = duckdb_vector_get_validity(output);
 	models ms = {0};
 	work w = {0};
 	mdb_segments segs = {0};
-	mdb_motions one = {0};
+	mdb_motions range = {0};
+	mdb_words_batch b = {0};
 	mdb_error err = {{0}};
-	uint64_t *words = NULL;
 	mdb_batch *batch = NULL;
-	size_t total = 0;
+	item *items = malloc((n ? n : 1) * sizeof *items);
+	int32_t *ids = malloc((n ? n : 1) * sizeof *ids);
+	size_t n_items = 0, total = 0;
 	int failed = 1;
 	for (idx_t row = 0; row < n; row++) {
 		entries[row].offset = 0;
 		entries[row].length = 0;
 	}
-	for (idx_t row = 0; row < n; row++) {
-		char *name = v_model ? (valid(v_model, row) ? text_of(v_model, row) : NULL) : strdup("default");
-		if (!name) {
-			snprintf(err.text, sizeof err.text,
-			         v_model && !valid(v_model, row) ? WHAT ": model is NULL; give a model name (default: 'default')"
-			                                         : WHAT ": out of memory");
+	if (!items || !ids) {
+		snprintf(err.text, sizeof err.text, WHAT ": out of memory");
+		goto done;
+	}
+	if (collect(st, input, n, &ms, items, &n_items, out_valid, &err)) {
+		goto done;
+	}
+	qsort(items, n_items, sizeof *items, by_motion);
+	for (size_t k = 0; k < n_items; k++) {
+		ids[k] = items[k].motion;
+	}
+	if (n_items && mdb_read_motion_range(st, ids[0], ids[n_items - 1], &range, &err)) {
+		goto done;
+	}
+	size_t i = 0, m = 0; /* next item; next stored motion of the range */
+	while (i < n_items) {
+		size_t first = i, k = 0, r = 0;
+		if (mdb_read_batch(st, &range, &m, ids, n_items, &i, MDB_BATCH_FRAMES, &b, &err)) {
 			goto done;
 		}
-		named_model *nm = model_of(st, &ms, name, &err);
-		free(name);
-		if (!nm) {
-			goto done;
+		int preselect = 0;
+		for (size_t q = first; q < i; q++) {
+			preselect |= items[q].preselect;
 		}
-		int tau_given = v_tau && valid(v_tau, row);
-		if (tau_given && !(tau[row] >= 0)) {
-			snprintf(err.text, sizeof err.text,
-			         WHAT ": tau must be a non-negative number or NULL (each class's tau), got %g", tau[row]);
-			goto done;
-		}
-		int preselect = v_kf && valid(v_kf, row) ? kf[row] : nm->any_query;
-		if (!valid(v_motion, row) || motion[row] < INT32_MIN || motion[row] > INT32_MAX) {
-			duckdb_validity_set_row_invalid(out_valid, row); /* no such motion: NULL */
-			continue;
-		}
-		int32_t id = (int32_t)motion[row];
-		mdb_motions_free(&one);
-		if (mdb_read_motion_range(st, id, id, &one, &err)) {
-			goto done;
-		}
-		if (one.n == 0) {
-			duckdb_validity_set_row_invalid(out_valid, row);
-			continue;
-		}
-		size_t len = (size_t)one.n_frames[0], off[2] = {0, len};
-		free(words);
-		words = malloc((len ? len : 1) * sizeof *words);
-		if (!words) {
-			snprintf(err.text, sizeof err.text, WHAT ": out of memory");
-			goto done;
-		}
-		if (mdb_read_words(st, id, id, &id, one.n_frames, off, 1, words, &err)) {
-			goto done;
-		}
-		const mdb_runs *runs = NULL;
-		size_t ra = 0, rb = 0;
 		mdb_release_runs(st, batch);
 		batch = NULL;
-		if (preselect) {
-			if (!(batch = mdb_acquire_runs(st, id, id, &err))) {
+		if (preselect && b.n && !(batch = mdb_acquire_runs(st, b.id[0], b.id[b.n - 1], &err))) {
+			goto done;
+		}
+		for (size_t q = first; q < i; q++) {
+			const item *it = &items[q];
+			while (k < b.n && b.id[k] < it->motion) {
+				k++;
+			}
+			if (k == b.n || b.id[k] != it->motion) {
+				duckdb_validity_set_row_invalid(out_valid, it->row); /* not stored: NULL */
+				continue;
+			}
+			/* the motion's runs: ra .. rb of the batch's (motion, run) order */
+			const mdb_runs *runs = it->preselect ? &batch->runs : NULL;
+			size_t ra = 0, rb = 0;
+			if (runs) {
+				while (r < runs->n && runs->motion[r] < it->motion) {
+					r++;
+				}
+				for (ra = rb = r; rb < runs->n && runs->motion[rb] == it->motion; rb++) {
+				}
+			}
+			const named_model *nm = &ms.at[it->model];
+			segs.n = 0;
+			if (annotate_motion(nm, b.words + b.off[k], (size_t)b.n_frames[k], runs, ra, rb, it->tau_given, it->tau, &w,
+			                    &segs, &err)) {
 				goto done;
 			}
-			runs = &batch->runs;
-			while (ra < runs->n && runs->motion[ra] != id) {
-				ra++;
+			if (sort_segments(&segs, nm->name_rank)) {
+				snprintf(err.text, sizeof err.text, WHAT ": out of memory");
+				goto done;
 			}
-			for (rb = ra; rb < runs->n && runs->motion[rb] == id; rb++) {
+			entries[it->row].offset = total;
+			entries[it->row].length = segs.n;
+			if (write_segments(output, &nm->m, &segs, b.fps[k], &total)) {
+				snprintf(err.text, sizeof err.text, WHAT ": out of memory");
+				goto done;
 			}
-		}
-		segs.n = 0;
-		if (annotate_motion(nm, words, len, runs, ra, rb, tau_given, tau_given ? tau[row] : 0.0, &w, &segs, &err)) {
-			goto done;
-		}
-		if (sort_segments(&segs, nm->name_rank)) {
-			snprintf(err.text, sizeof err.text, WHAT ": out of memory");
-			goto done;
-		}
-		entries[row].offset = total;
-		entries[row].length = segs.n;
-		if (write_segments(output, &nm->m, &segs, one.fps[0], &total)) {
-			snprintf(err.text, sizeof err.text, WHAT ": out of memory");
-			goto done;
 		}
 	}
 	failed = 0;
@@ -422,8 +462,10 @@ done:
 	models_free(&ms);
 	work_free(&w);
 	mdb_segments_free(&segs);
-	mdb_motions_free(&one);
-	free(words);
+	mdb_motions_free(&range);
+	mdb_words_batch_free(&b);
+	free(items);
+	free(ids);
 	if (failed) {
 		duckdb_scalar_function_set_error(info, err.text);
 	}

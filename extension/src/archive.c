@@ -57,6 +57,17 @@ static int column_types_ok(duckdb_result *res, const duckdb_type *want, idx_t n)
 	return 1;
 }
 
+char *mdb_string_at(duckdb_vector v, idx_t row) {
+	duckdb_string_t *x = duckdb_vector_get_data(v);
+	uint32_t len = duckdb_string_t_length(x[row]);
+	char *s = malloc((size_t)len + 1);
+	if (s) {
+		memcpy(s, duckdb_string_t_data(&x[row]), len);
+		s[len] = 0;
+	}
+	return s;
+}
+
 /* Grow the array *pp to cap elements of elem bytes; 0, or -1 leaving it as it was. */
 static int grow(void *pp, size_t elem, size_t cap) {
 	void **p = pp;
@@ -601,6 +612,61 @@ int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, c
 	return rc;
 }
 
+void mdb_words_batch_free(mdb_words_batch *b) {
+	free(b->id);
+	free(b->n_frames);
+	free(b->fps);
+	free(b->off);
+	free(b->words);
+	memset(b, 0, sizeof *b);
+}
+
+int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items,
+                   size_t *i, int64_t max_frames, mdb_words_batch *b, mdb_error *err) {
+	if (b->cap < n_items) {
+		if (grow(&b->id, sizeof *b->id, n_items) || grow(&b->n_frames, sizeof *b->n_frames, n_items) ||
+		    grow(&b->fps, sizeof *b->fps, n_items) || grow(&b->off, sizeof *b->off, n_items + 1)) {
+			return out_of_memory(err, "motions");
+		}
+		b->cap = n_items;
+	}
+	size_t j = *i, e = *m;
+	int64_t frames = 0;
+	b->n = 0;
+	while (j < n_items) {
+		size_t e2 = e;
+		int64_t more = 0;
+		while (e2 < range->n && range->id[e2] <= motion[j]) {
+			more += range->n_frames[e2++];
+		}
+		if (j > *i && frames + more > max_frames) {
+			break;
+		}
+		frames += more;
+		e = e2;
+		int32_t id = motion[j];
+		if (e > 0 && range->id[e - 1] == id && (b->n == 0 || b->id[b->n - 1] != id)) {
+			b->id[b->n] = id;
+			b->n_frames[b->n] = range->n_frames[e - 1];
+			b->fps[b->n++] = range->fps[e - 1];
+		}
+		for (; j < n_items && motion[j] == id; j++) {
+		}
+	}
+	*i = j;
+	*m = e;
+	b->off[0] = 0;
+	for (size_t k = 0; k < b->n; k++) {
+		b->off[k + 1] = b->off[k] + (size_t)b->n_frames[k];
+	}
+	free(b->words);
+	b->words = malloc((b->off[b->n] ? b->off[b->n] : 1) * sizeof *b->words);
+	if (!b->words) {
+		return out_of_memory(err, "features");
+	}
+	return b->n ? mdb_read_words(st, b->id[0], b->id[b->n - 1], b->id, b->n_frames, b->off, b->n, b->words, err) : 0;
+}
+
 typedef struct {
 	mdb_query *q;
 	int64_t first_pos, last_pos, length;
@@ -723,15 +789,6 @@ typedef struct {
 	int bad;
 } model_ctx;
 
-static char *string_at(duckdb_string_t *x, idx_t i) {
-	uint32_t len = duckdb_string_t_length(x[i]);
-	char *s = malloc((size_t)len + 1);
-	if (s) {
-		memcpy(s, duckdb_string_t_data(&x[i]), len);
-		s[len] = 0;
-	}
-	return s;
-}
 
 static int model_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
 	model_ctx *c = p;
@@ -745,8 +802,8 @@ static int model_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err)
 			return out_of_memory(err, "a model");
 		}
 	}
-	COLUMN(chunk, 0, duckdb_string_t, cls, v0);
-	COLUMN(chunk, 1, duckdb_string_t, label, v1);
+	duckdb_vector cls_v = duckdb_data_chunk_get_vector(chunk, 0), label_v = duckdb_data_chunk_get_vector(chunk, 1);
+	uint64_t *v0 = duckdb_vector_get_validity(cls_v), *v1 = duckdb_vector_get_validity(label_v);
 	COLUMN(chunk, 2, int32_t, label_id, v2);
 	COLUMN(chunk, 3, double, tau, v3);
 	COLUMN(chunk, 4, int32_t, min_frames, v4);
@@ -761,8 +818,8 @@ static int model_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err)
 			c->bad = 1;
 			return 1;
 		}
-		c->cls[k] = string_at(cls, i);
-		m->label[k] = string_at(label, i);
+		c->cls[k] = mdb_string_at(cls_v, i);
+		m->label[k] = mdb_string_at(label_v, i);
 		m->n_classes++; /* freed with the model from here on */
 		if (!c->cls[k] || !m->label[k]) {
 			return out_of_memory(err, "a model");

@@ -55,6 +55,9 @@ typedef struct {
 	char text[512];
 } mdb_error;
 
+/* A VARCHAR of a flat vector's row as a NUL-terminated copy (NULL when out of memory). */
+char *mdb_string_at(duckdb_vector v, idx_t row);
+
 void mdb_motions_free(mdb_motions *m);
 /* The runs of motions lo .. hi (ids, inclusive) of the 'full' part of the index, in (motion,
  * run) order: from the cache while the index version is the same (a bounded number of bytes,
@@ -80,6 +83,24 @@ int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *ou
 int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, const int64_t *n_frames,
                    const size_t *off, size_t n_want, uint64_t *words, mdb_error *err);
 
+
+/* The words of a batch of stored motions, read with one query. */
+typedef struct {
+	int32_t *id; /* ascending */
+	int64_t *n_frames;
+	double *fps;
+	size_t *off; /* motion k's words at words + off[k], off[n] words in all */
+	size_t n, cap;
+	uint64_t *words;
+} mdb_words_batch;
+
+void mdb_words_batch_free(mdb_words_batch *b);
+/* The next batch of the ascending motion ids motion[*i .. n_items) (repeats allowed): consecutive
+ * ids of at most max_frames frames in all, counting the stored motions between them (one id at
+ * least), and the words of those that are stored. range: the stored motions from motion[0] to
+ * motion[n_items - 1]; *m its first motion not yet passed. Advances *i and *m past the batch. */
+int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items,
+                   size_t *i, int64_t max_frames, mdb_words_batch *b, mdb_error *err);
 
 /* A stored model as annotation needs it: classes in class_id order with their template, τ,
  * minimum length and keyframe query (K = 0: none, margins of annotation applied); labels in

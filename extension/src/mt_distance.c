@@ -18,14 +18,7 @@ static char *text_of(duckdb_vector v, idx_t row) {
 	if (!duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), row)) {
 		return NULL;
 	}
-	duckdb_string_t *x = duckdb_vector_get_data(v);
-	uint32_t len = duckdb_string_t_length(x[row]);
-	char *s = malloc((size_t)len + 1);
-	if (s) {
-		memcpy(s, duckdb_string_t_data(&x[row]), len);
-		s[len] = 0;
-	}
-	return s;
+	return mdb_string_at(v, row);
 }
 
 static int same(const char *a, const char *b) {
@@ -131,8 +124,7 @@ static int collect(mdb_state *st, duckdb_data_chunk input, idx_t n, templates *t
 	return 0;
 }
 
-/* Rows' motions a batch at a time (consecutive motion ids of at most MDB_BATCH_FRAMES frames in
- * all, counting the motions between them): read the batch's words with one query, then Δ of
+/* Rows' motions a batch at a time (mdb_read_batch: one query per batch of motions), then Δ of
  * every row of it into the list vector. */
 static void mt_distance_fn(duckdb_function_info info, duckdb_data_chunk input, duckdb_vector output) {
 	mdb_state *st = duckdb_scalar_function_get_extra_info(info);
@@ -145,17 +137,15 @@ static void mt_distance_fn(duckdb_function_info info, duckdb_data_chunk input, d
 	mdb_motions range = {0};
 	mdb_error err = {{0}};
 	item *items = malloc((n ? n : 1) * sizeof *items);
-	int32_t *want = malloc((n ? n : 1) * sizeof *want);
-	int64_t *frames = malloc((n ? n : 1) * sizeof *frames);
-	size_t *off = malloc((n + 1) * sizeof *off);
-	uint64_t *words = NULL;
+	int32_t *ids = malloc((n ? n : 1) * sizeof *ids);
+	mdb_words_batch b = {0};
 	size_t n_items = 0, total = 0;
 	int failed = 1;
 	for (idx_t row = 0; row < n; row++) {
 		entries[row].offset = 0;
 		entries[row].length = 0;
 	}
-	if (!items || !want || !frames || !off) {
+	if (!items || !ids) {
 		snprintf(err.text, sizeof err.text, "mt_distance: out of memory");
 		goto done;
 	}
@@ -166,60 +156,31 @@ static void mt_distance_fn(duckdb_function_info info, duckdb_data_chunk input, d
 	if (n_items && mdb_read_motion_range(st, items[0].motion, items[n_items - 1].motion, &range, &err)) {
 		goto done;
 	}
+	for (size_t k = 0; k < n_items; k++) {
+		ids[k] = items[k].motion;
+	}
 	size_t i = 0, m = 0; /* next item; next stored motion of the range */
 	while (i < n_items) {
-		/* the batch: items i .. j-1, stored motions m .. e-1 */
-		int64_t batch = 0;
-		size_t j = i, e = m, n_want = 0;
-		while (j < n_items) {
-			size_t e2 = e;
-			int64_t more = 0;
-			while (e2 < range.n && range.id[e2] <= items[j].motion) {
-				more += range.n_frames[e2++];
-			}
-			if (j > i && batch + more > MDB_BATCH_FRAMES) {
-				break;
-			}
-			batch += more;
-			e = e2;
-			int32_t id = items[j].motion;
-			if (e > m && range.id[e - 1] == id && (n_want == 0 || want[n_want - 1] != id)) {
-				want[n_want] = id;
-				frames[n_want++] = range.n_frames[e - 1];
-			}
-			for (; j < n_items && items[j].motion == id; j++) {
-			}
-		}
-		off[0] = 0;
-		for (size_t k = 0; k < n_want; k++) {
-			off[k + 1] = off[k] + (size_t)frames[k];
-		}
-		free(words);
-		words = malloc((off[n_want] ? off[n_want] : 1) * sizeof *words);
-		if (!words) {
-			snprintf(err.text, sizeof err.text, "mt_distance: out of memory");
+		size_t first = i, k = 0;
+		if (mdb_read_batch(st, &range, &m, ids, n_items, &i, MDB_BATCH_FRAMES, &b, &err)) {
 			goto done;
 		}
-		if (n_want && mdb_read_words(st, want[0], want[n_want - 1], want, frames, off, n_want, words, &err)) {
-			goto done;
-		}
-		size_t k = 0;
-		for (; i < j; i++) {
-			while (k < n_want && want[k] < items[i].motion) {
+		for (size_t q = first; q < i; q++) {
+			while (k < b.n && b.id[k] < items[q].motion) {
 				k++;
 			}
-			idx_t row = items[i].row;
-			if (k == n_want || want[k] != items[i].motion) {
+			idx_t row = items[q].row;
+			if (k == b.n || b.id[k] != items[q].motion) {
 				duckdb_validity_set_row_invalid(out_valid, row); /* not stored: NULL */
 				continue;
 			}
-			size_t len = (size_t)frames[k];
+			size_t len = (size_t)b.n_frames[k];
 			if (duckdb_list_vector_reserve(output, total + len) == DuckDBError) {
 				snprintf(err.text, sizeof err.text, "mt_distance: out of memory");
 				goto done;
 			}
 			double *delta = (double *)duckdb_vector_get_data(child) + total;
-			if (len && mdb_mt_distance(&ts.at[items[i].tpl].t, words + off[k], len, delta, NULL)) {
+			if (len && mdb_mt_distance(&ts.at[items[q].tpl].t, b.words + b.off[k], len, delta, NULL)) {
 				snprintf(err.text, sizeof err.text, "mt_distance: out of memory");
 				goto done;
 			}
@@ -228,17 +189,14 @@ static void mt_distance_fn(duckdb_function_info info, duckdb_data_chunk input, d
 			total += len;
 			duckdb_list_vector_set_size(output, total);
 		}
-		m = e;
 	}
 	failed = 0;
 done:
 	templates_free(&ts);
 	mdb_motions_free(&range);
 	free(items);
-	free(want);
-	free(frames);
-	free(off);
-	free(words);
+	free(ids);
+	mdb_words_batch_free(&b);
 	if (failed) {
 		duckdb_scalar_function_set_error(info, err.text);
 	}
