@@ -5,12 +5,14 @@
  * stored keyframe query finds (widened by the annotation margins), Δ̄^τ, the label rows and the
  * segmenter of annotation.c. A NULL or unknown motion gives NULL; a NULL or unknown model, or a
  * negative or NaN tau, is an error. tau NULL: each class's τ; keyframes NULL: preselection when the
- * model has keyframe queries. Motions are read a batch at a time and annotated one at a time
- * (every step of the chain is per motion). */
+ * model has keyframe queries. Motions are read a batch at a time and annotated each on its own
+ * (every step of the chain is per motion), a batch's motions shared by up to one thread per CPU. */
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "annotation.h"
 #include "archive.h"
@@ -367,6 +369,114 @@ static int collect(mdb_state *st, duckdb_data_chunk input, idx_t n, models *ms, 
 	return 0;
 }
 
+/* most threads one call annotates with (motions are independent) */
+#define MAX_THREADS 8
+
+/* The threads of a batch take its items first .. last-1 one at a time (motions differ in length by
+ * orders of magnitude), each motion's segments into out[q - first] (stored[q - first] = 0: the
+ * motion is not stored). */
+typedef struct {
+	const item *items;
+	size_t first, last, next; /* next: the next item to take (atomic) */
+	const models *ms;
+	const mdb_words_batch *wb;
+	const mdb_runs *runs; /* the batch's postings, or NULL */
+	mdb_segments *out;
+	char *stored;
+	double *fps; /* per item: the rate of its motion's frames */
+	int failed;   /* atomic: one thread failed, the others stop */
+} batch_work;
+
+typedef struct {
+	batch_work *bw;
+	work w;
+	mdb_error err;
+	int failed;
+} job;
+
+/* the first index of the ascending a[0 .. n) that is >= x */
+static size_t lower_bound(const int32_t *a, size_t n, int32_t x) {
+	size_t lo = 0, hi = n;
+	while (lo < hi) {
+		size_t mid = lo + (hi - lo) / 2;
+		if (a[mid] < x) {
+			lo = mid + 1;
+		} else {
+			hi = mid;
+		}
+	}
+	return lo;
+}
+
+static void *run_job(void *p) {
+	job *j = p;
+	batch_work *bw = j->bw;
+	for (;;) {
+		size_t q = __atomic_fetch_add(&bw->next, 1, __ATOMIC_RELAXED);
+		if (q >= bw->last || __atomic_load_n(&bw->failed, __ATOMIC_RELAXED)) {
+			break;
+		}
+		const item *it = &bw->items[q];
+		size_t k = lower_bound(bw->wb->id, bw->wb->n, it->motion);
+		if (k == bw->wb->n || bw->wb->id[k] != it->motion) {
+			continue; /* not stored: NULL */
+		}
+		bw->stored[q - bw->first] = 1;
+		bw->fps[q - bw->first] = bw->wb->fps[k];
+		/* the motion's runs: ra .. rb of the batch's (motion, run) order */
+		const mdb_runs *runs = it->preselect ? bw->runs : NULL;
+		size_t ra = 0, rb = 0;
+		if (runs) {
+			ra = lower_bound(runs->motion, runs->n, it->motion);
+			for (rb = ra; rb < runs->n && runs->motion[rb] == it->motion; rb++) {
+			}
+		}
+		const named_model *nm = &bw->ms->at[it->model];
+		mdb_segments *segs = &bw->out[q - bw->first];
+		int rc = annotate_motion(nm, bw->wb->words + bw->wb->off[k], (size_t)bw->wb->n_frames[k], runs, ra, rb,
+		                         it->tau_given, it->tau, &j->w, segs, &j->err);
+		if (!rc && sort_segments(segs, nm->name_rank)) {
+			snprintf(j->err.text, sizeof j->err.text, WHAT ": out of memory");
+			rc = -1;
+		}
+		if (rc) {
+			j->failed = 1;
+			__atomic_store_n(&bw->failed, 1, __ATOMIC_RELAXED);
+		}
+	}
+	return NULL;
+}
+
+/* Run the batch's items on up to n_jobs threads (the calling one included); 0, or -1 with err set. */
+static int annotate_batch(batch_work *bw, job *jobs, size_t n_jobs, mdb_error *err) {
+	size_t n = bw->last - bw->first;
+	if (n_jobs > n) {
+		n_jobs = n ? n : 1;
+	}
+	pthread_t tid[MAX_THREADS];
+	int started[MAX_THREADS] = {0};
+	bw->next = bw->first;
+	bw->failed = 0;
+	for (size_t t = 0; t < n_jobs; t++) {
+		jobs[t].bw = bw;
+		jobs[t].failed = 0;
+		/* the calling thread runs job 0; a thread that cannot start leaves the items to the others */
+		started[t] = t > 0 && pthread_create(&tid[t], NULL, run_job, &jobs[t]) == 0;
+	}
+	run_job(&jobs[0]);
+	int rc = 0;
+	for (size_t t = 0; t < n_jobs; t++) {
+		if (started[t]) {
+			pthread_join(tid[t], NULL);
+		}
+		if (jobs[t].failed && rc == 0) {
+			*err = jobs[t].err;
+			rc = -1;
+		}
+	}
+	return rc;
+}
+
 /* Rows' motions a batch at a time (mdb_read_batch: one query for the words, one for the postings
  * when a row preselects), then each row's segments into the list vector. */
 static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duckdb_vector output) {
@@ -376,21 +486,26 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 	duckdb_vector_ensure_validity_writable(output);
 	uint64_t *out_valid = duckdb_vector_get_validity(output);
 	models ms = {0};
-	work w = {0};
-	mdb_segments segs = {0};
 	mdb_motions range = {0};
 	mdb_words_batch b = {0};
 	mdb_error err = {{0}};
 	mdb_batch *batch = NULL;
+	job jobs[MAX_THREADS];
+	long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+	size_t n_jobs = cpus < 1 ? 1 : cpus > MAX_THREADS ? MAX_THREADS : (size_t)cpus;
 	item *items = malloc((n ? n : 1) * sizeof *items);
 	int32_t *ids = malloc((n ? n : 1) * sizeof *ids);
+	mdb_segments *out = calloc(n ? n : 1, sizeof *out);
+	char *stored = malloc(n ? n : 1);
+	double *fps = malloc((n ? n : 1) * sizeof *fps);
 	size_t n_items = 0, total = 0;
 	int failed = 1;
+	memset(jobs, 0, sizeof jobs);
 	for (idx_t row = 0; row < n; row++) {
 		entries[row].offset = 0;
 		entries[row].length = 0;
 	}
-	if (!items || !ids) {
+	if (!items || !ids || !out || !stored || !fps) {
 		snprintf(err.text, sizeof err.text, WHAT ": out of memory");
 		goto done;
 	}
@@ -406,7 +521,7 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 	}
 	size_t i = 0, m = 0; /* next item; next stored motion of the range */
 	while (i < n_items) {
-		size_t first = i, k = 0, r = 0;
+		size_t first = i;
 		if (mdb_read_batch(st, &range, &m, ids, n_items, &i, MDB_BATCH_FRAMES, &b, &err)) {
 			goto done;
 		}
@@ -419,38 +534,23 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 		if (preselect && b.n && !(batch = mdb_acquire_runs(st, b.id[0], b.id[b.n - 1], &err))) {
 			goto done;
 		}
+		for (size_t q = 0; q < i - first; q++) {
+			out[q].n = 0;
+			stored[q] = 0;
+		}
+		batch_work bw = {items, first, i, first, &ms, &b, batch ? &batch->runs : NULL, out, stored, fps, 0};
+		if (annotate_batch(&bw, jobs, n_jobs, &err)) {
+			goto done;
+		}
 		for (size_t q = first; q < i; q++) {
 			const item *it = &items[q];
-			while (k < b.n && b.id[k] < it->motion) {
-				k++;
-			}
-			if (k == b.n || b.id[k] != it->motion) {
+			if (!stored[q - first]) {
 				duckdb_validity_set_row_invalid(out_valid, it->row); /* not stored: NULL */
 				continue;
 			}
-			/* the motion's runs: ra .. rb of the batch's (motion, run) order */
-			const mdb_runs *runs = it->preselect ? &batch->runs : NULL;
-			size_t ra = 0, rb = 0;
-			if (runs) {
-				while (r < runs->n && runs->motion[r] < it->motion) {
-					r++;
-				}
-				for (ra = rb = r; rb < runs->n && runs->motion[rb] == it->motion; rb++) {
-				}
-			}
-			const named_model *nm = &ms.at[it->model];
-			segs.n = 0;
-			if (annotate_motion(nm, b.words + b.off[k], (size_t)b.n_frames[k], runs, ra, rb, it->tau_given, it->tau, &w,
-			                    &segs, &err)) {
-				goto done;
-			}
-			if (sort_segments(&segs, nm->name_rank)) {
-				snprintf(err.text, sizeof err.text, WHAT ": out of memory");
-				goto done;
-			}
 			entries[it->row].offset = total;
-			entries[it->row].length = segs.n;
-			if (write_segments(output, &nm->m, &segs, b.fps[k], &total)) {
+			entries[it->row].length = out[q - first].n;
+			if (write_segments(output, &ms.at[it->model].m, &out[q - first], fps[q - first], &total)) {
 				snprintf(err.text, sizeof err.text, WHAT ": out of memory");
 				goto done;
 			}
@@ -460,12 +560,19 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 done:
 	mdb_release_runs(st, batch);
 	models_free(&ms);
-	work_free(&w);
-	mdb_segments_free(&segs);
+	for (size_t t = 0; t < MAX_THREADS; t++) {
+		work_free(&jobs[t].w);
+	}
+	for (size_t q = 0; out && q < n; q++) {
+		mdb_segments_free(&out[q]);
+	}
 	mdb_motions_free(&range);
 	mdb_words_batch_free(&b);
 	free(items);
 	free(ids);
+	free(out);
+	free(stored);
+	free(fps);
 	if (failed) {
 		duckdb_scalar_function_set_error(info, err.text);
 	}
