@@ -1,0 +1,167 @@
+"""Where ingest's per-file work runs: worker processes on every core for an archive, threads for a few files.
+
+Reading a take is a few numba kernels wrapped in per-file Python (paths,
+headers, the skeleton lookup, the ``Motion``), and that Python holds the GIL:
+on threads, two cores ran ingest little faster than one. Worker processes run
+all of it side by side; the parent only decides what to store and stores it
+(benchmarks/RESULTS.md, issue 35).
+
+The workers are plain subprocesses (``python -m mocapdb.storage.ingest_worker``, :func:`serve`)
+fed pickled tasks over a pipe, one per thread of a thread pool — not
+``multiprocessing``, whose spawn and fork-server children re-run the caller's
+main script (a user's script without a ``__main__`` guard would run again in
+every worker) and whose fork would copy DuckDB's threads. A worker that dies
+(a crash in a native library on one file) costs that file only: its task
+comes back as :class:`WorkerDied`, and the thread starts a new worker.
+
+A process costs about a second to start (imports, numba's cached kernels), so
+a handful of files stays on threads (:func:`use_processes`). Results come
+back in the order of the inputs with at most ``window`` tasks in flight, so
+memory is bounded by the window, not by the archive.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+import threading
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+
+#: files whose bytes add up to less than this are read on threads (starting processes would cost more)
+PROCESS_MIN_BYTES = 128 << 20
+#: tasks in flight per worker: enough to keep a worker busy while the parent stores
+_WINDOW_PER_WORKER = 4
+
+
+class WorkerDied:
+    """The result of a task whose worker process died while running it."""
+
+    def __init__(self, reason: str):
+        self.reason = reason
+
+    def __str__(self):
+        return self.reason
+
+
+def use_processes(n_files: int, n_bytes: int, workers: int) -> bool:
+    """Whether a run of ``n_files`` files of ``n_bytes`` in all is worth worker processes."""
+    return workers > 1 and n_files >= 2 * workers and n_bytes >= PROCESS_MIN_BYTES
+
+
+class _Worker:
+    """One worker process: ``call(fn, arg)`` runs ``fn(arg)`` there (``fn`` a module-level function)."""
+
+    def __init__(self):
+        env = dict(os.environ, NUMBA_NUM_THREADS="1")   # the parallelism is the workers themselves
+        self.proc = subprocess.Popen([sys.executable, "-m", "mocapdb.storage.ingest_worker"], stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, env=env)
+
+    def call(self, fn, arg):
+        try:
+            pickle.dump((fn, arg), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self.proc.stdin.flush()
+            return pickle.load(self.proc.stdout)
+        except (EOFError, OSError, pickle.UnpicklingError):
+            code = self.proc.wait()
+            how = f"signal {-code}" if code < 0 else f"exit status {code}"
+            return WorkerDied(f"the worker process reading it died ({how}); please report it")
+
+    @property
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def close(self):
+        # end of input ends the worker; its exit (interpreter teardown) is not waited for here
+        try:
+            self.proc.stdin.close()
+        except OSError:
+            pass
+        threading.Thread(target=self.proc.wait, daemon=True).start()
+
+
+class _ProcessPool:
+    """``submit(fn, arg)`` as a thread pool's, each thread handing its tasks to a worker process of its own.
+
+    The workers start at once: their imports overlap the parent's look at the database."""
+
+    def __init__(self, workers: int):
+        self._idle = deque(_Worker() for _ in range(workers))
+        self._workers = list(self._idle)
+        self._threads = ThreadPoolExecutor(max_workers=workers)
+        self._local = threading.local()
+        self._lock = threading.Lock()
+
+    def _run(self, fn, arg):
+        w = getattr(self._local, "worker", None)
+        if w is None or not w.alive:
+            with self._lock:
+                w = self._idle.popleft() if self._idle else None
+            if w is None or not w.alive:   # a worker died on a file: a new one for the next
+                w = _Worker()
+                with self._lock:
+                    self._workers.append(w)
+            self._local.worker = w
+        return w.call(fn, arg)
+
+    def submit(self, fn, arg):
+        return self._threads.submit(self._run, fn, arg)
+
+    def shutdown(self):
+        self._threads.shutdown(wait=True, cancel_futures=True)
+        for w in self._workers:
+            w.close()
+
+
+@contextmanager
+def executor(workers: int, processes: bool):
+    """A pool of ``workers`` worker processes, or of threads; ``submit(fn, arg)`` returns a future."""
+    workers = max(1, int(workers))
+    if not processes:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            yield pool
+        return
+    pool = _ProcessPool(workers)
+    try:
+        yield pool
+    finally:
+        pool.shutdown()
+
+
+def ordered(pool, fn, items, *, window: int):
+    """``fn(item)`` for every item, yielded in order, at most ``window`` submitted ahead of the consumer."""
+    pending = deque()
+    it = iter(items)
+    for item in it:
+        pending.append(pool.submit(fn, item))
+        if len(pending) >= window:
+            break
+    while pending:
+        result = pending.popleft().result()
+        for item in it:
+            pending.append(pool.submit(fn, item))
+            break
+        yield result
+
+
+def window_for(workers: int) -> int:
+    return max(1, int(workers)) * _WINDOW_PER_WORKER
+
+
+def serve() -> None:
+    """A worker's loop: pickled ``(fn, arg)`` in on stdin, pickled ``fn(arg)`` out on stdout, until stdin ends."""
+    inp, out = sys.stdin.buffer, sys.stdout.buffer
+    sys.stdout = sys.stderr   # whatever a library prints must not land in the result stream
+    while True:
+        try:
+            fn, arg = pickle.load(inp)
+        except EOFError:
+            return
+        pickle.dump(fn(arg), out, protocol=pickle.HIGHEST_PROTOCOL)
+        out.flush()
+
+
+
+__all__ = ["PROCESS_MIN_BYTES", "WorkerDied", "use_processes", "executor", "ordered", "window_for", "serve"]
