@@ -22,7 +22,7 @@ from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
 from mocapdb.readers import ReaderOptions, find_skeleton, motion_files, read_motion, skeleton_note
 from mocapdb.readers.sources import motion_stem, motion_suffix, sha256, special_kind, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
-from mocapdb.storage.ingest_pool import WorkerDied, executor, ordered, use_processes, window_for
+from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
@@ -388,7 +388,8 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
     processes = use_processes(len(files), sum(_size(f) for f in files), workers)
     with executor(workers, processes) as pool:
         # hashing and the skeleton lookup run in the pool; the decisions below stay in file order
-        fingerprints = ordered(pool, _prepare_or_error, [(f, options) for f in files], window=window_for(workers))
+        fingerprints = ordered(pool, _prepare_or_error, [(f, options) for f in files], window=window_for(workers),
+                               chunk=chunk_for(processes))
         for path, prep in zip(files, fingerprints):
             if isinstance(prep, (str, WorkerDied)):   # a compression bomb stops here, while it is hashed
                 report.failed.append((str(path), prep if isinstance(prep, str) else f"{path}: {prep}"))
@@ -403,7 +404,7 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
                 first_of[key] = str(path)
                 todo.append(prep)
         _decide_stored(con, report, already, stored, first_of, duplicates, todo, replace, tick)
-        _compute_and_store(con, pool, report, log, todo, workers, tick)
+        _compute_and_store(con, pool, report, log, todo, workers, chunk_for(processes), tick)
     # a copy of a stored file is skipped; a copy of a broken one is as broken
     failed = dict(report.failed)
     for path, key in duplicates:
@@ -440,7 +441,7 @@ def _decide_stored(con, report, already, stored, first_of, duplicates, todo, rep
 
 
 
-def _compute_and_store(con, pool, report, log, todo, workers, tick):
+def _compute_and_store(con, pool, report, log, todo, workers, chunk, tick):
     """Compute the files to store in the pool, in order, and store them a batch (one transaction) at a time."""
     batch = []
 
@@ -470,7 +471,7 @@ def _compute_and_store(con, pool, report, log, todo, workers, tick):
         log.flush()
 
     frames = 0
-    for sent, prep in zip(todo, ordered(pool, _compute_slim, todo, window=window_for(workers))):
+    for sent, prep in zip(todo, ordered(pool, _compute_slim, todo, window=window_for(workers), chunk=chunk)):
         if isinstance(prep, WorkerDied):
             prep, sent.error = sent, f"{sent.path}: {prep}"
         if prep.error is not None:
