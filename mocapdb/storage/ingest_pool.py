@@ -144,17 +144,20 @@ def ordered(pool, fn, items, *, window: int, chunk: int = 1):
     def submit():
         part = list(itertools.islice(it, chunk))
         if part:
-            pending.append((len(part), pool.submit(apply_all, (fn, part))))
+            pending.append((part, pool.submit(apply_all, (fn, part))))
         return bool(part)
 
     while len(pending) < window and submit():
         pass
     while pending:
-        n, future = pending.popleft()
+        part, future = pending.popleft()
         results = future.result()
         submit()
         if isinstance(results, WorkerDied):
-            results = [results] * n
+            # one file took its worker down: the chunk's files again, one task each, so only it fails
+            results = [results] if len(part) == 1 else [
+                r if isinstance(r, WorkerDied) else r[0]
+                for r in (pool.submit(apply_all, (fn, [x])).result() for x in part)]
         yield from results
 
 
@@ -182,7 +185,11 @@ def serve() -> None:
             fn, arg = pickle.load(inp)
         except EOFError:
             return
-        pickle.dump(fn(arg), out, protocol=pickle.HIGHEST_PROTOCOL)
+        try:
+            result = fn(arg)
+        except Exception as exc:  # noqa: BLE001 - a bug costs its task (its files, reported), not the worker
+            result = WorkerDied(f"internal error while reading it ({type(exc).__name__}: {exc}); please report it")
+        pickle.dump(result, out, protocol=pickle.HIGHEST_PROTOCOL)
         out.flush()
 
 
