@@ -180,13 +180,17 @@ def main():
     ap.add_argument("--base", type=Path, help="a checkout to compare with (e.g. of d3b3f07)")
     ap.add_argument("--formats", default="amc,bvh,amass,c3d")
     ap.add_argument("--stages", action="store_true", help="time each step on one copy first")
+    ap.add_argument("--stages-only", action="store_true",
+                    help="only the steps (of the mocapdb first on sys.path: PYTHONPATH=DIR for another checkout)")
     args = ap.parse_args()
 
     formats = args.formats.split(",")
     for fmt in formats:
         ingest_archive.build(args.archive, args.hours, fmt)
     print(f"machine load (1/5/15 min): {' '.join(f'{x:.1f}' for x in os.getloadavg())}; {os.cpu_count()} cores")
-    if args.stages:
+    if args.stages or args.stages_only:
+        import mocapdb
+        print(f"steps of {Path(mocapdb.__file__).parents[1]}")
         for fmt in formats:
             n, nf, st = stages(ingest_archive.copy_folders(args.archive, 0, fmt)[0])
             print(f"\n{fmt}: {nf} files, {n:,} source frames, one process, one thread")
@@ -195,6 +199,8 @@ def main():
                 print(f"{name:44s} {t:8.3f} {n / t:11,.0f}")
             tot = sum(st.values())
             print(f"{'sum':44s} {tot:8.3f} {n / tot:11,.0f}")
+    if args.stages_only:
+        return
     versions = [("this", REPO)] + ([("base", args.base.resolve())] if args.base else [])
     print(f"\n{'format':6s} {'version':7s} {'files':>6s} {'frames':>11s} {'hours':>6s} {'wall s':>8s} "
           f"{'CPU s':>8s} {'frames/s':>10s} {'peak GB':>8s}")

@@ -297,9 +297,10 @@ def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: 
 
 
 #: computed files are stored in batches, one transaction per batch, once a batch
-#: holds this many files or source frames (a commit costs milliseconds, a file
-#: of the HDM05 cut ~2 ms of compute)
-BATCH_FILES = 64
+#: holds this many files or source frames (a commit and a batch's inserts cost
+#: milliseconds whatever its size, and the parent that stores shares the cores
+#: with the workers: fewer, larger batches; 10⁶ frames keep a batch's words at 2 MB)
+BATCH_FILES = 256
 BATCH_FRAMES = 1_000_000
 
 
@@ -324,7 +325,9 @@ def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, r
         Called as ``progress(n_files_done, n_files, path)`` once per file (the
         ``progress(n_done, n_total, …)`` of every long command).
     workers : int, keyword-only
-        Threads that read and compute features (the kernels release the GIL).
+        How many files are hashed, read and turned into features at once:
+        worker processes for an archive (:mod:`mocapdb.storage.ingest_pool`),
+        threads for a few files.
     replace : bool, keyword-only
         Read files whose bytes are already stored again and replace those
         motions (a new id; their annotations go), e.g. with a corrected
