@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import signal
 import subprocess
 import sys
 import itertools
@@ -180,6 +181,8 @@ def serve() -> None:
     """A worker's loop: pickled ``(fn, arg)`` in on stdin, pickled ``fn(arg)`` out on stdout, until stdin ends."""
     inp, out = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr   # whatever a library prints must not land in the result stream
+    # Ctrl-C reaches the whole process group: the parent handles it (and ends its workers), no traceback here
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     while True:
         try:
             fn, arg = pickle.load(inp)
@@ -189,9 +192,12 @@ def serve() -> None:
             result = fn(arg)
         except Exception as exc:  # noqa: BLE001 - a bug costs its task (its files, reported), not the worker
             result = WorkerDied(f"internal error while reading it ({type(exc).__name__}: {exc}); please report it")
-        pickle.dump(result, out, protocol=pickle.HIGHEST_PROTOCOL)
-        out.flush()
+        try:
+            pickle.dump(result, out, protocol=pickle.HIGHEST_PROTOCOL)
+            out.flush()
+        except OSError:   # the parent is gone (killed mid-ingest): nothing to answer, no traceback
+            return
 
 
-
-__all__ = ["PROCESS_MIN_BYTES", "WorkerDied", "use_processes", "executor", "ordered", "window_for", "chunk_for", "apply_all", "serve"]
+__all__ = ["PROCESS_MIN_BYTES", "WorkerDied", "use_processes", "executor", "ordered", "window_for", "chunk_for",
+           "apply_all", "serve"]
