@@ -25,13 +25,19 @@ from feature_digests import DIGESTS, ingest_digests
 
 @pytest.fixture
 def on_processes(monkeypatch):
-    """Every ingest of the test on worker processes, however few its files."""
+    """Every ingest of the test on worker processes, however few its files and busy the machine."""
     monkeypatch.setattr(ingest_pool, "PROCESS_MIN_BYTES", 0)
+    monkeypatch.setattr(ingest_pool, "_idle_cores", lambda: 2.0)
 
 
-@pytest.fixture
-def on_threads(monkeypatch):
-    monkeypatch.setattr(ingest_pool, "PROCESS_MIN_BYTES", 1 << 62)
+def test_processes_only_for_enough_work_and_a_free_core(monkeypatch):
+    monkeypatch.setattr(ingest_pool, "_idle_cores", lambda: 1.5)
+    assert ingest_pool.use_processes(100, 1 << 30, 2)
+    assert not ingest_pool.use_processes(100, 1 << 20, 2)     # a few MB: threads
+    assert not ingest_pool.use_processes(3, 1 << 30, 2)       # fewer files than two per worker
+    assert not ingest_pool.use_processes(100, 1 << 30, 1)
+    monkeypatch.setattr(ingest_pool, "_idle_cores", lambda: 0.2)
+    assert not ingest_pool.use_processes(100, 1 << 30, 2)     # every core busy: threads
 
 
 def test_the_pool_answers_in_order_and_a_bad_item_costs_only_itself():
@@ -84,6 +90,10 @@ def _outcome(con, report):
 def test_processes_store_what_threads_store_and_refuse_what_they_refuse(tmp_path, monkeypatch, open_db):
     root = _archive(tmp_path)
     results = {}
+    monkeypatch.setattr(ingest_pool, "_idle_cores", lambda: 2.0)
+    started = []
+    worker = ingest_pool._Worker
+    monkeypatch.setattr(ingest_pool, "_Worker", lambda: started.append(1) or worker())
     for mode, threshold in (("threads", 1 << 62), ("processes", 0)):
         monkeypatch.setattr(ingest_pool, "PROCESS_MIN_BYTES", threshold)
         con = open_db(tmp_path / f"{mode}.duckdb")
@@ -93,6 +103,7 @@ def test_processes_store_what_threads_store_and_refuse_what_they_refuse(tmp_path
         assert ticks[-1][0] == ticks[-1][1] == len(report.ingested) + len(report.failed) + len(report.skipped)
         again = mocapdb.ingest(con, [root])   # re-ingest: a no-op, decided by the workers' hashes
         assert not again.ingested and len(again.skipped) == len(report.ingested) + 1
+        assert len(started) == (0 if mode == "threads" else 4)   # two workers per ingest, the re-ingest's too
     ingested, failed, skipped, notes, words, log = results["processes"]
     assert results["threads"][:4] == results["processes"][:4]
     assert results["threads"][5] == log

@@ -21,19 +21,21 @@ memory is bounded by the window, not by the archive.
 """
 from __future__ import annotations
 
+import itertools
 import os
 import pickle
 import signal
 import subprocess
 import sys
-import itertools
 import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
-#: files whose bytes add up to less than this are read on threads (starting processes would cost more)
-PROCESS_MIN_BYTES = 128 << 20
+#: files whose bytes add up to less than this are read on threads: a worker costs ~1.7 CPU-s to start
+#: (importing mocapdb, loading numba's cached kernels), which two free cores repay after about 6
+#: CPU-s of work (~0.6 M frames, ~450 MB of AMC text)
+PROCESS_MIN_BYTES = 512 << 20
 #: tasks in flight per worker: enough to keep a worker busy while the parent stores
 _WINDOW_PER_WORKER = 3
 #: files per task sent to a worker process
@@ -51,8 +53,20 @@ class WorkerDied:
 
 
 def use_processes(n_files: int, n_bytes: int, workers: int) -> bool:
-    """Whether a run of ``n_files`` files of ``n_bytes`` in all is worth worker processes."""
-    return workers > 1 and n_files >= 2 * workers and n_bytes >= PROCESS_MIN_BYTES
+    """Whether a run of ``n_files`` files of ``n_bytes`` in all is worth worker processes: enough work,
+    and a core free for a second worker (on a machine whose cores are busy the workers get no more CPU
+    than threads do and only add their start; measured: 1.5× the CPU seconds, slower; RESULTS.md)."""
+    if workers < 2 or n_files < 2 * workers or n_bytes < PROCESS_MIN_BYTES:
+        return False
+    return _idle_cores() >= 1.0
+
+
+def _idle_cores() -> float:
+    """Cores the last minute left idle (cores − the load average)."""
+    try:
+        return (os.cpu_count() or 1) - os.getloadavg()[0]
+    except OSError:
+        return 0.0
 
 
 class _Worker:
