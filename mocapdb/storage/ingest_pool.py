@@ -188,6 +188,7 @@ def chunk_for(processes: bool) -> int:
 
 
 def window_for(workers: int) -> int:
+    """Tasks in flight for ``workers`` workers (what :func:`ordered` may hold beyond the consumer)."""
     return max(1, int(workers)) * _WINDOW_PER_WORKER
 
 
