@@ -130,3 +130,20 @@ def test_every_shared_recording_stores_the_words_d3b3f07_stored(tmp_path, on_pro
     assert not differ, differ[:10]
     stored = [v for v in want.values() if v != "failed"]
     assert len(stored) > 500 and sum(v["n_source_frames"] for v in stored) > 150_000
+
+
+@pytest.mark.shared
+def test_the_folder_listing_behind_the_skeleton_rule_sees_new_entries(tmp_path):
+    """The folder's only ASF (the rule for takes that follow no name pattern) is listed once per folder,
+    and listed again when the folder changes: a second ASF makes it ambiguous, removing it finds it again."""
+    from mocapdb.readers import find_skeleton
+
+    take = tmp_path / "walk_take.amc"
+    shutil.copyfile(DATA / "cmu" / "02" / "02_01.amc", take)
+    assert find_skeleton(take) is None
+    shutil.copyfile(DATA / "cmu" / "02" / "02.asf", tmp_path / "subject.asf")
+    assert find_skeleton(take) == tmp_path / "subject.asf"
+    shutil.copyfile(DATA / "cmu" / "86" / "86.asf", tmp_path / "other.asf")
+    assert find_skeleton(take) is None
+    (tmp_path / "subject.asf").unlink()
+    assert find_skeleton(take) == tmp_path / "other.asf"

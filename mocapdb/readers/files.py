@@ -11,8 +11,8 @@ DESIGN.md §1, §6; READERS.md §5, §7, §9.
 """
 from __future__ import annotations
 
+import os
 import re
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -28,8 +28,8 @@ from mocapdb.readers.humanoid import MappingError
 from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
 from mocapdb.readers.motion import Motion, check_finite_motion
 from mocapdb.readers.options import ReaderOptions
-from mocapdb.readers.sources import (COMPRESSED, FileCache, identity, is_file, list_dir, motion_stem,
-                                     motion_suffix, special_kind)
+from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix,
+                                     special_kind, split_archive)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
            "load_skeleton", "SUPPORTED_EXTENSIONS"]
@@ -81,9 +81,10 @@ def _folder_asf(folder):
     """The folder's only ASF (plain or compressed), or None (listed once per folder and version: an
     archive's folder of thousands of takes is not listed again for each take)."""
     try:
-        key = (str(folder), identity(folder))
-    except (OSError, KeyError, zipfile.BadZipFile):   # a folder inside a zip archive has no entry of its own
-        key = None
+        st = os.stat(split_archive(folder)[0])   # the folder, or the zip archive it lies in
+    except OSError:
+        st = None
+    key = None if st is None else (str(folder), st.st_size, st.st_mtime_ns)
     if key is None or key not in _FOLDER_ASF:
         own = [q for q in list_dir(folder) if motion_suffix(q) == ".asf" and is_file(q)]
         own = own[0] if len(own) == 1 else None
@@ -95,7 +96,8 @@ def _folder_asf(folder):
     return _FOLDER_ASF[key]
 
 
-#: folder -> its only ASF or None, keyed with the folder's identity (its mtime changes when entries do)
+#: folder -> its only ASF or None, keyed with the folder's (or its zip archive's) size and mtime, which
+#: change when entries come or go
 _FOLDER_ASF = {}
 
 
