@@ -1,10 +1,10 @@
-"""Where ingest's per-file work runs: worker processes on every core for an archive, threads for a few files.
+"""Where ingest's per-file work runs: worker processes on both cores for an archive, threads otherwise.
 
 Reading a take is a few numba kernels wrapped in per-file Python (paths,
-headers, the skeleton lookup, the ``Motion``), and that Python holds the GIL:
-on threads, two cores ran ingest little faster than one. Worker processes run
-all of it side by side; the parent only decides what to store and stores it
-(benchmarks/RESULTS.md, issue 35).
+headers, the skeleton lookup, the ``Motion``) — about half of a short take's
+CPU — and that Python holds the GIL, so threads run it one at a time. Worker
+processes run all of it side by side; the parent only decides what to store
+and stores it (benchmarks/RESULTS.md, issue 35).
 
 The workers are plain subprocesses (``python -m mocapdb.storage.ingest_worker``, :func:`serve`)
 fed pickled tasks over a pipe, one per thread of a thread pool — not
@@ -14,8 +14,9 @@ every worker) and whose fork would copy DuckDB's threads. A worker that dies
 (a crash in a native library on one file) costs that file only: its task
 comes back as :class:`WorkerDied`, and the thread starts a new worker.
 
-A process costs about a second to start (imports, numba's cached kernels), so
-a handful of files stays on threads (:func:`use_processes`). Results come
+A process costs about 1.5 CPU-s to start (imports, numba's cached kernels),
+and on a machine whose cores are all busy it gets no more CPU than a thread,
+so small ingests and busy machines stay on threads (:func:`use_processes`). Results come
 back in the order of the inputs with at most ``window`` tasks in flight, so
 memory is bounded by the window, not by the archive.
 """
@@ -32,8 +33,8 @@ from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
-#: files whose bytes add up to less than this are read on threads: a worker costs ~1.7 CPU-s to start
-#: (importing mocapdb, loading numba's cached kernels), which two free cores repay after about 6
+#: files whose bytes add up to less than this are read on threads: a worker costs ~1.5 CPU-s to start
+#: (importing the readers and features, loading numba's cached kernels), which two free cores repay after about 6
 #: CPU-s of work (~0.6 M frames, ~450 MB of AMC text)
 PROCESS_MIN_BYTES = 512 << 20
 #: tasks in flight per worker: enough to keep a worker busy while the parent stores
