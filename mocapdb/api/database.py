@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import time
 from pathlib import Path
 
 from mocapdb.annotation import write_labels
@@ -18,7 +17,7 @@ from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.joint_export import JointsExport
 from mocapdb.storage.joint_export import export_joints as storage_export_joints
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
-from mocapdb.storage.schema import DatabaseLockedError, require_own_tables
+from mocapdb.storage.schema import require_own_tables
 from mocapdb.warmup import sample_files
 
 
@@ -95,14 +94,8 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
     if not create and str(path) != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (a mistyped --db? `mocapdb ingest` or "
                           "`mocapdb import-features` create one)")
-    deadline = time.monotonic() + _lock_wait(lock_wait, read_only)
-    while True:
-        try:
-            return connect_database(path, read_only=read_only, memory_limit=memory_limit)
-        except DatabaseLockedError:
-            if time.monotonic() >= deadline:
-                raise
-            time.sleep(0.05)
+    return connect_database(path, read_only=read_only, memory_limit=memory_limit,
+                            wait=_lock_wait(lock_wait, read_only))
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
