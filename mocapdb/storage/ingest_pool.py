@@ -66,7 +66,7 @@ def _idle_cores() -> float:
     """Cores the last minute left idle (cores − the load average)."""
     try:
         return (os.cpu_count() or 1) - os.getloadavg()[0]
-    except OSError:
+    except (OSError, AttributeError):   # no load average (not a Unix): assume the cores are busy
         return 0.0
 
 
