@@ -7,6 +7,7 @@ refused with the same reason, and a worker that dies costs its own file only.
 The words of every recording of ``../shared/data`` are checked against
 digests made by d3b3f07, the code before this work (``tests/feature_digests.py``).
 """
+import importlib.util
 import json
 import math
 import os
@@ -52,6 +53,9 @@ def test_the_pool_answers_in_order_and_a_bad_item_costs_only_itself():
         died = list(ordered(pool, os._exit, [3], window=1))
         assert isinstance(died[0], WorkerDied) and "exit status 3" in str(died[0])
         assert list(ordered(pool, abs, [-2, -3, 5], window=2, chunk=2)) == [2, 3, 5]
+        # the workers run this very mocapdb (a checkout on sys.path as much as an install)
+        spec, = ordered(pool, importlib.util.find_spec, ["mocapdb"], window=1)
+        assert spec.origin == mocapdb.__file__
 
 
 def _archive(tmp_path):

@@ -37,6 +37,8 @@ from contextlib import contextmanager
 #: (importing the readers and features, loading numba's cached kernels), which two free cores repay after about 6
 #: CPU-s of work (~0.6 M frames, ~450 MB of AMC text)
 PROCESS_MIN_BYTES = 512 << 20
+#: the folder holding the mocapdb package that runs here
+_PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 #: tasks in flight per worker: enough to keep a worker busy while the parent stores
 _WINDOW_PER_WORKER = 3
 #: files per task sent to a worker process
@@ -75,6 +77,8 @@ class _Worker:
 
     def __init__(self):
         env = dict(os.environ, NUMBA_NUM_THREADS="1")   # the parallelism is the workers themselves
+        # the worker imports this very mocapdb, however the caller found it (an install, a checkout on sys.path)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [_PACKAGE_ROOT, env.get("PYTHONPATH")]))
         self.proc = subprocess.Popen([sys.executable, "-m", "mocapdb.storage.ingest_worker"], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, env=env)
 
