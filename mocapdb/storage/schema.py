@@ -87,8 +87,9 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
     if read_only and path != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (read_only=True cannot create it)")
     deadline = time.monotonic() + wait
-    new = path != ":memory:" and not Path(path).exists()
-    config = {"storage_compatibility_version": STORAGE_VERSION} if new else {}
+    # on every open, not only the first: DuckDB refuses a second connection to a file of this process
+    # with other settings, and on a file of a newer format the setting changes nothing
+    config = {"storage_compatibility_version": STORAGE_VERSION}
     while True:
         try:
             con = duckdb.connect(path, read_only=read_only, config=config)
