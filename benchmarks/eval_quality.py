@@ -22,6 +22,17 @@ The studio block gives what a user of another studio's library checks:
 locomotion frames labelled ``move`` (per content), turning clips with a
 ``turn``, straight clips with one, gesture frames under a label.
 
+The third lab's clips (accad_dev, never trained on) are annotated by each
+recipe's model of all the other data and scored per clip (every expected
+label found, nothing wrong; locomotion under ``move``, turns, silence on
+motions of no class, hops).
+
+**Leave-one-lab-out** (``--lolo``, on by default): the new recipe trained
+without each lab in turn (HDM05, CMU, bandai2_dev, accad_dev) annotates that
+lab — what a stranger with another lab's recordings sees —, with and
+without keyframes; per fold its figures, inside the fold per actor / document
+/ style, and the spread (min–max) across folds.
+
 ``--shipped`` also scores the shipped models themselves (the previous one
 from git, the new one from the package) on every set — the figures the
 quality guard keeps (``tests/quality_records.json``); ``--record`` raises
@@ -29,6 +40,7 @@ those records to the new model's figures where they are better (never
 lowers them) and stamps them with its fingerprint.
 
 Usage: python benchmarks/eval_quality.py [--previous REV] [--shipped] [--record] [--json FILE] [--seed 0]
+       [--only lolo,shipped]   (development: only these sections; the table in RESULTS.md runs them all)
 """
 import argparse
 import dataclasses
@@ -41,9 +53,11 @@ import time
 from pathlib import Path
 
 import numba
+import numpy as np
 
-from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_by_label, guard,
-                                headline_figures, raised_records, read_records, write_records)
+from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_annotation,
+                                evaluate_by_label, guard, headline_figures, raised_records, read_records,
+                                write_records)
 from mocapdb.learning.default_model import train_recipe
 from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
 from mocapdb.storage.model_store import fingerprint
@@ -134,6 +148,84 @@ def print_studio(columns):
                   + ", ".join(f"{k} {v:.3f}" for k, v in r.studio.wrong_by_label.items()))
 
 
+def print_lab(columns):
+    print("\naccad_dev (a third lab's clips, never trained on; per clip: every expected label, nothing wrong)")
+    rows = [("clips entirely right", lambda L: f"{L.clips_right}/{L.clips}"),
+            ("clips needing move with move", lambda L: f"{L.move_found}/{L.move_clips}"),
+            ("locomotion frames labelled move", lambda L: f"{L.move_share:.3f}"),
+            ("turning clips with a turn", lambda L: f"{L.turning_with_turn}/{L.turning_clips}"),
+            ("straight clips with a turn", lambda L: f"{L.straight_with_turn}/{L.straight_clips}"),
+            ("clips of no class left silent", lambda L: f"{L.silent_right}/{L.silent_clips}"),
+            ("hops/leaps in locomotion found", lambda L: f"{L.hops_found}/{L.hop_clips}")]
+    print(f"{'':<34s}" + "".join(f"{n:>14s}" for n in columns))
+    for name, fn in rows:
+        print(f"{name:<34s}" + "".join(f"{(fn(r.lab) if r.lab else '-'):>14s}" for r in columns.values()))
+    for n, r in columns.items():
+        if r.lab and r.lab.failures:
+            print(f"  failing clips, {n}: " + "; ".join(f"{k.removeprefix('Male1_')} ({v})"
+                                                      for k, v in r.lab.failures.items()))
+
+
+def _group_f1(res, s, group):
+    """F1 per group of a setting's documents (``group(document)`` → its actor, document, style)."""
+    docs = res.documents[s].names
+    out = {}
+    for g in dict.fromkeys(group(d) for d in docs):
+        mine = [d for d in docs if group(d) == g]
+        t, a = res.truth[s], res.auto[s]
+        out[g] = evaluate_annotation(t[np.isin(t["document"], mine)], a[np.isin(a["document"], mine)],
+                                     labels=res.vocabulary[s]).f1
+    return out
+
+
+def lolo_folds(res):
+    """Per lab (fold): its figures and the figures of the groups inside it."""
+    fig = headline_figures(res)
+    out = {}
+    if "loao" in res.scores:
+        out["hdm05"] = {"f1": fig["loao"]["f1"], "f1 mirrored": fig.get("loao_mirrored", {}).get("f1"),
+                        "move": fig["loao"].get("move_recall"),
+                        "per actor": _group_f1(res, "loao", lambda d: d.split("_")[1])}
+    if "cmu" in res.scores:
+        out["cmu"] = {"f1": fig["cmu"]["f1"], "f1 86_09": fig["cmu86_09"]["f1"], "f1 mocap6": fig["mocap6"]["f1"],
+                      "move": fig["cmu"].get("move_recall"),
+                      "per document": _group_f1(res, "cmu", lambda d: d)}
+    if res.studio is not None:
+        st = res.studio
+        out["bandai2"] = {"f1": fig["bandai2"]["f1"], "move": st.move_share,
+                          "turning with turn": fig["bandai2"]["turning_with_turn"],
+                          "straight with turn": fig["bandai2"]["straight_with_turn"],
+                          "gesture frames labelled": st.gesture_wrong,
+                          "per style": _group_f1(res, "bandai2", lambda d: d.split("_")[2])}
+    if res.lab is not None:
+        a = fig["accad"]
+        out["accad"] = {"clips right": a["clips_right"], "move": a["move_share"],
+                        "turning with turn": a["turning_with_turn"], "straight with turn": a["straight_with_turn"],
+                        "silent on no class": a["silent_right"], "hops found": a["hops_found"]}
+    return out
+
+
+def print_lolo(folds_by_mode):
+    print("\nLeave-one-lab-out (the new recipe trained on none of the annotated lab's clips)")
+    for mode, folds in folds_by_mode.items():
+        print(f"  {mode}")
+        for lab, figs in folds.items():
+            parts = []
+            for k, v in figs.items():
+                if isinstance(v, dict):
+                    vals = list(v.values())
+                    parts.append(f"{k} {min(vals):.3f}–{max(vals):.3f} (" + ", ".join(f"{g} {x:.3f}"
+                                                                                     for g, x in v.items()) + ")")
+                elif v is not None:
+                    parts.append(f"{k} {v:.3f}")
+            print(f"    {lab:<8s} " + "; ".join(parts))
+        for k in ("f1", "move"):
+            vals = {lab: f[k] for lab, f in folds.items() if f.get(k) is not None}
+            if vals:
+                print(f"    spread of {k} across labs: {min(vals.values()):.3f}–{max(vals.values()):.3f} "
+                      f"(sd {np.std(list(vals.values())):.3f})")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--previous", default="a7c2d94", help="git revision of the previous default (its recipe)")
@@ -142,40 +234,58 @@ def main():
     ap.add_argument("--record", action="store_true", help="raise tests/quality_records.json to the new shipped "
                                                           "model's figures (implies --shipped)")
     ap.add_argument("--json", type=Path, default=REPO / "benchmarks" / "eval_quality.json")
+    ap.add_argument("--only", default=None, help="comma-separated sections to run (folds, lolo, shipped); "
+                                                  "default folds and lolo, and shipped with --shipped/--record")
     args = ap.parse_args()
     args.shipped = args.shipped or args.record
+    sections = set(args.only.split(",")) if args.only else {"folds", "lolo"} | ({"shipped"} if args.shipped else set())
+    args.shipped = "shipped" in sections
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, numba threads "
           f"{numba.config.NUMBA_NUM_THREADS}; data {DATA}; previous {args.previous}\n")
     t0 = time.perf_counter()
     data = development_data(DATA)
     # the previous recipe knew nothing of the studio's clips
-    old_data = dataclasses.replace(data, studio_clips={})
+    old_data = dataclasses.replace(data, studio_trains=False)
     common = dict(vocabulary=PAPER_LABELS, mirrored=True, seed=args.seed)
     timings, results = {}, {}
-    t = time.perf_counter()
-    results["reference"] = development_evaluation(DATA, data=old_data, cmu_training=False, tau=0.13,
-                                                  modes={"no keyframes": {"keyframes": False}}, **common)
-    timings["reference"] = time.perf_counter() - t
-    for name, recipe, d in (("previous", previous_recipe(args.previous), old_data), ("new", default_recipe(), data)):
+    out = {"parameters": {"previous": args.previous, "seed": args.seed, "sections": sorted(sections)}}
+    if "folds" in sections:
         t = time.perf_counter()
-        results[name] = development_evaluation(DATA, data=d, build=builder(recipe, args.seed), modes=MODES, **common)
-        timings[name] = time.perf_counter() - t
-    columns = {"reference": results["reference"]["no keyframes"]}
-    for name in ("previous", "new"):
-        columns[f"{name} kf"] = results[name]["keyframes"]
-        columns[f"{name} no-kf"] = results[name]["no keyframes"]
+        results["reference"] = development_evaluation(DATA, data=old_data, cmu_training=False, tau=0.13,
+                                                      modes={"no keyframes": {"keyframes": False}}, **common)
+        timings["reference"] = time.perf_counter() - t
+        for name, recipe, d in (("previous", previous_recipe(args.previous), old_data),
+                                ("new", default_recipe(), data)):
+            t = time.perf_counter()
+            results[name] = development_evaluation(DATA, data=d, build=builder(recipe, args.seed), modes=MODES,
+                                                   **common)
+            timings[name] = time.perf_counter() - t
+        columns = {"reference": results["reference"]["no keyframes"]}
+        for name in ("previous", "new"):
+            columns[f"{name} kf"] = results[name]["keyframes"]
+            columns[f"{name} no-kf"] = results[name]["no keyframes"]
 
-    print(f"Development evaluation over the paper's 15 labels, every set held out (seed {args.seed}); F1/F2\n")
-    print_table(columns)
-    print_studio({k: v for k, v in columns.items() if k != "reference"})
-    print()
-    for k, (f1, f2) in PAPER.items():
-        print(f"paper {k:<34s} {f1:.2f}/{f2:.2f}")
-
-    out = {"columns": {n: {s: {"f1": sc.f1, "f2": sc.f2, "p1": sc.p1, "r1": sc.r1} for s, sc in r.scores.items()}
-                       for n, r in columns.items()},
-           "studio": {n: dataclasses.asdict(r.studio) | {"scores": None} for n, r in columns.items() if r.studio},
-           "parameters": {"previous": args.previous, "seed": args.seed}}
+        print(f"Development evaluation over the paper's 15 labels, every set held out (seed {args.seed}); F1/F2\n")
+        print_table(columns)
+        print_studio({k: v for k, v in columns.items() if k != "reference"})
+        print_lab(columns)
+        print()
+        for k, (f1, f2) in PAPER.items():
+            print(f"paper {k:<34s} {f1:.2f}/{f2:.2f}")
+        out |= {"columns": {n: {s: {"f1": sc.f1, "f2": sc.f2, "p1": sc.p1, "r1": sc.r1}
+                                for s, sc in r.scores.items()} for n, r in columns.items()},
+                "studio": {n: dataclasses.asdict(r.studio) | {"scores": None} for n, r in columns.items()
+                           if r.studio},
+                "lab": {n: dataclasses.asdict(r.lab) for n, r in columns.items() if r.lab}}
+    if "lolo" in sections:
+        t = time.perf_counter()
+        lolo = development_evaluation(DATA, data=data, build=builder(default_recipe(), args.seed), modes=MODES,
+                                      leave_out_lab=True, **common)
+        timings["leave-one-lab-out"] = time.perf_counter() - t
+        folds = {m: lolo_folds(r) for m, r in lolo.items()}
+        print_lolo(folds)
+        print_lab({f"lolo {m}": r for m, r in lolo.items()})
+        out["lolo"] = folds
     if args.shipped:
         t = time.perf_counter()
         shipped = {"previous shipped": model_at(args.previous),

@@ -10,13 +10,18 @@ Also: the studio's clips as the evaluation reads them, and the guard's
 rules on figures made by hand.
 """
 import dataclasses
+from importlib import resources
 
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
 import mocapdb
 from conftest import REPO
 from mocapdb.annotation.labels import LABEL_DTYPE, label_rows
+from mocapdb.errors import ParameterError
+from mocapdb.evaluation.lab_clips import lab_measures, parse_expected
+from mocapdb.evaluation.records import CLASSES
 from mocapdb.evaluation.studio import STUDIO_GROUP, studio_style
 from mocapdb.evaluation import (STUDIO_CONTENTS, development_data, guard, model_figures, raised_records,
                                 read_records, studio_measures)
@@ -24,6 +29,9 @@ from mocapdb.learning.recipe import OTHERS
 from mocapdb.storage.model_store import fingerprint, load_model
 
 RECORDS = REPO / "tests" / "quality_records.json"
+#: the shipped default model's classes, read from the package at collection (a test deletes each)
+SHIPPED_CLASSES = pq.read_table(resources.files("mocapdb.shipped_models") / "default" / "classes.parquet",
+                                columns=["class"]).column("class").to_pylist()
 
 
 # -- the rules, on figures made by hand ------------------------------------------------------
@@ -52,6 +60,20 @@ def test_the_guard_wants_every_recorded_figure_and_keyframes_that_keep_move():
     fails = guard(fig, REC)
     assert any("bandai2: f1 was not measured" in f for f in fails)
     assert any("move recall with keyframes 0.945 is below 0.960 without" in f for f in fails)
+
+
+def test_label_caps_and_class_hits():
+    rec = {"keyframes": {"accad": {"share_kick": 0.02}, CLASSES: {"kickLFront1Reps": 400, "cartwheel": 0}}}
+    ok = {"keyframes": {"accad": {"share_kick": 0.029}, CLASSES: {"kickLFront1Reps": 201, "cartwheel": 0}}}
+    assert guard(ok, rec) == []                           # a cap allows 0.01; a class half its hits
+    bad = {"keyframes": {"accad": {"share_kick": 0.031}, CLASSES: {"kickLFront1Reps": 199}}}
+    fails = guard(bad, rec)
+    assert any("accad: share_kick 0.031 is above" in f for f in fails)
+    assert any("kickLFront1Reps's hits cover 199 frames" in f for f in fails)
+    assert any("classes: cartwheel was not measured" in f for f in fails)
+    # a class's hits follow the model; a cap only moves down
+    r = raised_records(rec, {"keyframes": {"accad": {"share_kick": 0.05}, CLASSES: {"kickLFront1Reps": 300}}})
+    assert r["keyframes"]["accad"]["share_kick"] == 0.02 and r["keyframes"][CLASSES]["kickLFront1Reps"] == 300
 
 
 def test_records_only_move_up():
@@ -109,6 +131,54 @@ def test_studio_measures_of_a_perfect_and_a_spoilt_annotation(data):
     assert m.straight_with_turn == 1 and m.scores.p1 < 1.0
 
 
+# -- the third lab's clips: per-clip truth --------------------------------------------------------
+
+def test_expected_labels_parse():
+    t = parse_expected("move+jump|hopOneLeg+?neutral")
+    assert t.required == (frozenset({"move"}), frozenset({"jump", "hopOneLeg"}))
+    assert t.acceptable == {"neutral"} and t.locomotion is False          # standing is not locomotion
+    assert parse_expected("move+?turn").locomotion and parse_expected("move+jump|hopOneLeg").locomotion
+    assert t.verdict({"move", "hopOneLeg", "neutral"}) == ((), ())
+    assert t.verdict({"move", "kick"}) == (("hopOneLeg|jump",), ("kick",))
+    none = parse_expected("none+?standUp")
+    assert none.required == () and none.verdict({"standUp", "neutral"}) == ((), ())   # neutral is silence
+    for bad in ("move++turn", "none+move", "?"):
+        with pytest.raises(ParameterError, match="line 7"):
+            parse_expected(bad, where="truth.csv, line 7")
+
+
+@pytest.mark.shared
+def test_the_third_labs_clips_are_read_with_their_truth(data):
+    lab = data.lab
+    assert len(lab.docs.names) + len(lab.refused) == 69
+    # crawling on all fours, and a crouch that ends lying, are no upright human to the reader (it never
+    # stands upright and is not in its rest pose): refused, scored as a clip that gets no label
+    assert {n for n, _, _ in lab.refused} == {"Male1_A11_CrawlForward", "Male1_A12_CrawlBackward",
+                                              "Male1_A8_CrouchToLie"}
+    k = lab.docs.names.index("Male1_B11_WalkTurnLeft135")
+    assert lab.truth[k].requires == {"move", "turn"} and lab.docs.doc_lengths[k] > 30
+
+
+@pytest.mark.shared
+def test_lab_measures_of_a_perfect_and_a_spoilt_annotation(data):
+    lab = data.lab
+    n = dict(zip(lab.docs.names, lab.docs.doc_lengths.tolist()))
+    # every required label over the whole clip (one of alternatives)
+    rows = [(name, sorted(r)[0], 0, n[name] - 1) for name, t in zip(lab.docs.names, lab.truth) for r in t.required]
+    perfect = label_rows(*zip(*rows))
+    m = lab_measures(lab, perfect)
+    assert m.clips == 69 and m.clips_right == 68 and m.failures == {"Male1_A8_CrouchToLie": "missing sitLieDown"}
+    assert m.move_share == 1.0 and m.turning_with_turn == m.turning_clips >= 14
+    assert m.straight_with_turn == 0 and m.straight_clips >= 10 and m.hops_found == m.hop_clips == 4
+    walk = "Male1_B3_Walk"
+    spoilt = np.concatenate([perfect[perfect["document"] != walk], label_rows([walk] * 2, ["move", "turn"], 0, 9),
+                             label_rows("Male1_A2_Sway", "kick", 3, 5)]).astype(LABEL_DTYPE)
+    m = lab_measures(lab, spoilt)
+    assert m.clips_right == 66 and m.straight_with_turn == 1 and m.silent_right == m.silent_clips - 1
+    assert m.failures == {walk: "wrong turn", "Male1_A2_Sway": "wrong kick", "Male1_A8_CrouchToLie": "missing sitLieDown"}
+    assert m.wrong_by_label == {"turn": 1, "kick": 1} and m.move_share < 1.0
+
+
 # -- the guard on the shipped model -----------------------------------------------------------
 
 @pytest.fixture(scope="module")
@@ -135,3 +205,13 @@ def test_the_guard_fails_a_worse_model(shipped, data, data_dir):
     fails = guard(model_figures(worse, data_dir, data=data), read_records(RECORDS)["figures"])
     assert any("bandai2: move_share" in f for f in fails)
     assert any("bandai2: gesture_wrong" in f for f in fails)
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("name", SHIPPED_CLASSES)
+def test_the_guard_fails_a_model_with_a_class_deleted(shipped, data, data_dir, name):
+    """Every class is watched: deleted, its hits are not measured (and its label's figures may fall)."""
+    fewer = dataclasses.replace(shipped, classes=tuple(c for c in shipped.classes if c.name != name))
+    rec = read_records(RECORDS)["figures"]
+    fails = guard(model_figures(fewer, data_dir, data=data, modes={"keyframes": {}}), {"keyframes": rec["keyframes"]})
+    assert any(f"classes: {name} was not measured" in f for f in fails)

@@ -240,6 +240,9 @@ class DevelopmentEvaluation:
         The studio measures of the bandai2 setting (:func:`mocapdb.evaluation.studio.studio_measures`).
     lab : LabScores or None
         The per-clip measures of the accad setting (:func:`mocapdb.evaluation.lab_clips.lab_measures`).
+    hit_frames : dict of str to int
+        Class → 30 Hz frames its hits (Δ below its τ) cover over every setting annotated: a class
+        that finds nothing anywhere shows 0 (the quality guard keeps these).
     """
 
     scores: dict
@@ -253,6 +256,7 @@ class DevelopmentEvaluation:
     vocabulary: dict = field(default_factory=dict)
     studio: object = None
     lab: object = None
+    hit_frames: dict = field(default_factory=dict)
 
 
 def _preselect(preselection, model, docs, keyframes):
@@ -301,9 +305,11 @@ def _annotate_modes(docs, model, modes, preselection):
         if key not in cache:
             cache[key] = _preselect(preselection, model, docs, kf)
         pre = cache[key]
-        ann = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre, keep_hits=False,
-                       **opts)
-        out[mode] = (segments_to_rows(ann.segments, docs.names), _preselected_rows(model, docs, pre))
+        ann = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre, **opts)
+        lengths = np.bincount(ann.hits["class_id"], weights=ann.hits["end"] - ann.hits["start"] + 1,
+                              minlength=len(ann.class_names))
+        out[mode] = (segments_to_rows(ann.segments, docs.names), _preselected_rows(model, docs, pre),
+                     dict(zip(ann.class_names, lengths.astype(np.int64).tolist())))
     return out
 
 
@@ -434,10 +440,14 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
     parts = {m: {} for m in modes}       # mode -> setting -> list of (truth, auto, preselected)
     sweep_parts = []
 
+    hit_frames = {m: {} for m in modes}  # mode -> class -> frames its hits cover, over every setting
+
     def add(setting, docs, model):
         t = time.perf_counter()
-        for m, (rows, pre) in _annotate_modes(docs, model, modes, preselection).items():
+        for m, (rows, pre, hits) in _annotate_modes(docs, model, modes, preselection).items():
             parts[m].setdefault(setting, []).append((docs.truth, rows, pre, model.labels))
+            for c, n in hits.items():
+                hit_frames[m][c] = hit_frames[m].get(c, 0) + n
         timings["annotate"] += time.perf_counter() - t
 
     def lab_model(lab):
@@ -532,6 +542,7 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
         if "bandai2" in results[m].auto:
             object.__setattr__(results[m], "studio", studio_measures(data.studio, results[m].auto["bandai2"],
                                                                       vocabulary=results[m].vocabulary["bandai2"]))
+        object.__setattr__(results[m], "hit_frames", hit_frames[m])
         if "accad" in results[m].auto:
             object.__setattr__(results[m], "lab", lab_measures(data.lab, results[m].auto["accad"]))
     timings["total"] = time.perf_counter() - t_start

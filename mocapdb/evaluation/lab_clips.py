@@ -28,6 +28,7 @@ have one, clips of no class left silent, and which clips failed and why.
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +48,7 @@ LAB_FOLDER = "accad_dev"
 #: labels that may go with ``move`` in a clip that is locomotion throughout (a walker who turns or
 #: hops is still moving); a clip that also stands, crouches or handles a box is not
 LOCOMOTION_EXTRAS = frozenset({"turn", "jump", "hopOneLeg"})
+_LABEL = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 #: never a wrong label: silence is no label or ``neutral``
 SILENT = "neutral"
 
@@ -101,12 +103,12 @@ def parse_expected(text, *, where="expected_labels") -> ClipTruth:
         tok = tok.strip()
         if tok == "none":
             none = True
-        elif tok.startswith("?") and tok[1:]:
+        elif tok.startswith("?") and _LABEL.match(tok[1:]):
             acceptable.add(tok[1:])
-        elif tok and all(tok.split("|")):
+        elif all(_LABEL.match(x) for x in tok.split("|")):
             required.append(frozenset(tok.split("|")))
         else:
-            raise ParameterError(f"{where}: empty label token in {text!r}")
+            raise ParameterError(f"{where}: {tok!r} is no label token (x, a|b, ?x or none) in {text!r}")
     if none and required:
         raise ParameterError(f"{where}: 'none' beside required labels in {text!r}")
     return ClipTruth(tuple(required), frozenset(acceptable))
@@ -197,6 +199,9 @@ class LabScores:
         Clips with each wrong label.
     failures : dict of str to str
         Clip → what is missing and what is wrong.
+    expected : frozenset of str
+        Every label some clip's truth requires or accepts (with ``neutral``): a label outside it is
+        wrong wherever it appears.
     """
 
     clips_right: int
@@ -215,6 +220,7 @@ class LabScores:
     neutral_unlisted: int
     wrong_by_label: dict
     failures: dict
+    expected: frozenset = frozenset()
 
 
 def lab_measures(lab: LabDocuments, auto) -> LabScores:
@@ -267,4 +273,4 @@ def lab_measures(lab: LabDocuments, auto) -> LabScores:
         straight_with_turn=c["straight_turn"], straight_clips=c["straight"],
         silent_right=c["silent_right"], silent_clips=c["silent"], hops_found=c["hops_found"], hop_clips=c["hops"],
         neutral_unlisted=c["neutral"], wrong_by_label=dict(sorted(wrong_by.items(), key=lambda kv: -kv[1])),
-        failures=failures)
+        failures=failures, expected=frozenset().union(*(t.allowed for _, t, _ in clips)))
