@@ -55,6 +55,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from mocapdb.evaluation.calibration import confidence_calibration, segment_verdicts
 from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_annotation,
                                 evaluate_by_label, guard, headline_figures, raised_records, read_records,
                                 write_records)
@@ -73,6 +74,8 @@ RECORDS = REPO / "tests" / "quality_records.json"
 PAPER = {"total, without keyframes": (0.60, 0.70), "total, with keyframes": (0.74, 0.82),
          "CMU, with keyframes": (0.70, 0.76)}
 MODES = {"keyframes": {}, "no keyframes": {"keyframes": False}}
+#: the sets whose segments' confidence is judged (each annotated as such, not joined from others)
+CALIBRATED = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "bandai2", "accad")
 
 
 def previous_recipe(rev):
@@ -157,9 +160,9 @@ def print_lab(columns):
             ("straight clips with a turn", lambda L: f"{L.straight_with_turn}/{L.straight_clips}"),
             ("clips of no class left silent", lambda L: f"{L.silent_right}/{L.silent_clips}"),
             ("hops/leaps in locomotion found", lambda L: f"{L.hops_found}/{L.hop_clips}")]
-    print(f"{'':<34s}" + "".join(f"{n:>14s}" for n in columns))
+    print(f"{'':<34s}" + "".join(f"{n:>18s}" for n in columns))
     for name, fn in rows:
-        print(f"{name:<34s}" + "".join(f"{(fn(r.lab) if r.lab else '-'):>14s}" for r in columns.values()))
+        print(f"{name:<34s}" + "".join(f"{(fn(r.lab) if r.lab else '-'):>18s}" for r in columns.values()))
     for n, r in columns.items():
         if r.lab and r.lab.failures:
             print(f"  failing clips, {n}: " + "; ".join(f"{k.removeprefix('Male1_')} ({v})"
@@ -226,6 +229,23 @@ def print_lolo(folds_by_mode):
                       f"(sd {np.std(list(vals.values())):.3f})")
 
 
+def calibration_rows(res):
+    """Per judged set and pooled: the confidence's calibration (segments ≥ 0.5 right, AUC)."""
+    parts = {s: segment_verdicts(res, s) for s in CALIBRATED if s in res.auto}
+    out = {s: confidence_calibration(*v) for s, v in parts.items()}
+    if parts:
+        out["pooled"] = confidence_calibration(np.concatenate([c for c, _ in parts.values()]),
+                                               np.concatenate([r for _, r in parts.values()]))
+    return out
+
+
+def print_calibration(title, by_mode):
+    print(f"\n{title}: segments with confidence >= 0.5 that are right; AUC of right over wrong (target 0.90; 0.85)")
+    for mode, rows in by_mode.items():
+        print(f"  {mode}: " + "; ".join(f"{s} {c.confident_right:.3f} of {c.confident}/{c.segments}, "
+                                        f"AUC {c.auc:.3f}" for s, c in rows.items()))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--previous", default="a7c2d94", help="git revision of the previous default (its recipe)")
@@ -269,6 +289,8 @@ def main():
         print_table(columns)
         print_studio({k: v for k, v in columns.items() if k != "reference"})
         print_lab(columns)
+        print_calibration("Confidence, the new recipe's folds", {m: calibration_rows(results["new"][m])
+                                                                   for m in MODES})
         print()
         for k, (f1, f2) in PAPER.items():
             print(f"paper {k:<34s} {f1:.2f}/{f2:.2f}")
@@ -285,7 +307,11 @@ def main():
         folds = {m: lolo_folds(r) for m, r in lolo.items()}
         print_lolo(folds)
         print_lab({f"lolo {m}": r for m, r in lolo.items()})
+        calibration = {m: calibration_rows(r) for m, r in lolo.items()}
+        print_calibration("Confidence, leave-one-lab-out", calibration)
         out["lolo"] = folds
+        out["lolo_calibration"] = {m: {s: dataclasses.asdict(c) for s, c in rows.items()}
+                                   for m, rows in calibration.items()}
     if args.shipped:
         t = time.perf_counter()
         shipped = {"previous shipped": model_at(args.previous),

@@ -75,7 +75,7 @@ from mocapdb.readers import read_motion
 
 __all__ = ["DocumentSet", "DevelopmentEvaluation", "DevelopmentData", "concatenate_motions", "loao_documents",
            "cmu86_documents", "mocap6_documents", "development_evaluation", "development_data",
-           "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS", "UNSCORED"]
+           "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS", "UNSCORED", "LABS", "LAB_SETTINGS"]
 
 log = logging.getLogger("mocapdb")
 
@@ -243,6 +243,9 @@ class DevelopmentEvaluation:
     hit_frames : dict of str to int
         Class → 30 Hz frames its hits (Δ below its τ) cover over every setting annotated: a class
         that finds nothing anywhere shows 0 (the quality guard keeps these).
+    confidence : dict of str to ndarray of float64
+        Per setting, each annotation segment's confidence, row for row with ``auto``
+        (:func:`mocapdb.evaluation.calibration.confidence_calibration` scores it).
     """
 
     scores: dict
@@ -257,6 +260,7 @@ class DevelopmentEvaluation:
     studio: object = None
     lab: object = None
     hit_frames: dict = field(default_factory=dict)
+    confidence: dict = field(default_factory=dict)
 
 
 def _preselect(preselection, model, docs, keyframes):
@@ -309,7 +313,8 @@ def _annotate_modes(docs, model, modes, preselection):
         lengths = np.bincount(ann.hits["class_id"], weights=ann.hits["end"] - ann.hits["start"] + 1,
                               minlength=len(ann.class_names))
         out[mode] = (segments_to_rows(ann.segments, docs.names), _preselected_rows(model, docs, pre),
-                     dict(zip(ann.class_names, lengths.astype(np.int64).tolist())))
+                     dict(zip(ann.class_names, lengths.astype(np.int64).tolist())),
+                     np.asarray(ann.segments["confidence"], dtype=np.float64))
     return out
 
 
@@ -444,8 +449,8 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
 
     def add(setting, docs, model):
         t = time.perf_counter()
-        for m, (rows, pre, hits) in _annotate_modes(docs, model, modes, preselection).items():
-            parts[m].setdefault(setting, []).append((docs.truth, rows, pre, model.labels))
+        for m, (rows, pre, hits, conf) in _annotate_modes(docs, model, modes, preselection).items():
+            parts[m].setdefault(setting, []).append((docs.truth, rows, pre, model.labels, conf))
             for c, n in hits.items():
                 hit_frames[m][c] = hit_frames[m].get(c, 0) + n
         timings["annotate"] += time.perf_counter() - t
@@ -560,18 +565,20 @@ def _subset(ds, k, off):
 
 def _scores(parts, vocabulary, models, documents, timings, sweep_parts, sweep_taus):
     """Concatenate the folds of each setting, build cmu and all, score."""
-    truth, auto, pre, vocab = {}, {}, {}, {}
+    truth, auto, pre, vocab, conf = {}, {}, {}, {}, {}
     for s, items in parts.items():
-        truth[s] = np.concatenate([t for t, _, _, _ in items])
-        auto[s] = np.concatenate([a for _, a, _, _ in items])
-        pre[s] = np.concatenate([p for _, _, p, _ in items])
-        vocab[s] = tuple(dict.fromkeys(lab for _, _, _, labs in items for lab in labs))
+        truth[s] = np.concatenate([t for t, _, _, _, _ in items])
+        auto[s] = np.concatenate([a for _, a, _, _, _ in items])
+        pre[s] = np.concatenate([p for _, _, p, _, _ in items])
+        vocab[s] = tuple(dict.fromkeys(lab for _, _, _, labs, _ in items for lab in labs))
+        conf[s] = np.concatenate([c for _, _, _, _, c in items])
     for s, members in (("cmu", ("cmu86_09", "mocap6")), ("all", ("loao", "cmu86_09", "mocap6"))):
         have = [x for x in members if x in truth]
         if have and (s != "cmu" or len(have) == 2):
             truth[s] = np.concatenate([truth[x] for x in have])
             auto[s] = np.concatenate([auto[x] for x in have])
             pre[s] = np.concatenate([pre[x] for x in have])
+            conf[s] = np.concatenate([conf[x] for x in have])
             vocab[s] = tuple(dict.fromkeys(lab for x in have for lab in vocab[x]))
     if vocabulary is not None:
         vocab = {s: tuple(vocabulary) for s in vocab}
@@ -586,4 +593,5 @@ def _scores(parts, vocabulary, models, documents, timings, sweep_parts, sweep_ta
         sweep = [(float(t), evaluate_annotation(tr, np.concatenate([p[i] for _, p, _ in sweep_parts]), labels=lv))
                  for i, t in enumerate(np.atleast_1d(sweep_taus))]
         timings["sweep"] += time.perf_counter() - t0
-    return DevelopmentEvaluation(scores, truth, auto, models, documents, sweep, timings, pre, vocab)
+    return DevelopmentEvaluation(scores, truth, auto, models, documents, sweep, timings, pre, vocab,
+                                 confidence=conf)

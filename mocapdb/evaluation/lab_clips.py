@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import csv
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -202,6 +202,8 @@ class LabScores:
     expected : frozenset of str
         Every label some clip's truth requires or accepts (with ``neutral``): a label outside it is
         wrong wherever it appears.
+    clip_truth : dict of str to ClipTruth
+        Clip → its truth (refused clips included).
     """
 
     clips_right: int
@@ -221,6 +223,7 @@ class LabScores:
     wrong_by_label: dict
     failures: dict
     expected: frozenset = frozenset()
+    clip_truth: dict = field(default_factory=dict, repr=False)
 
 
 def lab_measures(lab: LabDocuments, auto) -> LabScores:
@@ -273,4 +276,5 @@ def lab_measures(lab: LabDocuments, auto) -> LabScores:
         straight_with_turn=c["straight_turn"], straight_clips=c["straight"],
         silent_right=c["silent_right"], silent_clips=c["silent"], hops_found=c["hops_found"], hop_clips=c["hops"],
         neutral_unlisted=c["neutral"], wrong_by_label=dict(sorted(wrong_by.items(), key=lambda kv: -kv[1])),
-        failures=failures, expected=frozenset().union(*(t.allowed for _, t, _ in clips)))
+        failures=failures, expected=frozenset().union(*(t.allowed for _, t, _ in clips)),
+        clip_truth={name: t for name, t, _ in clips})
