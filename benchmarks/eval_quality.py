@@ -134,6 +134,15 @@ def print_table(columns):
                 print(f"{'  ' + lab:<24s}" + "".join(f"{c:>12s}" for c in cells))
 
 
+def _print_rows(rows, columns, attr):
+    """A row per (name, fn): fn of each column's measures (its attribute ``attr``), '-' where it has none."""
+    width = max(14, *(len(n) + 2 for n in columns))
+    print(f"{'':<34s}" + "".join(f"{n:>{width}s}" for n in columns))
+    for name, fn in rows:
+        print(f"{name:<34s}" + "".join(f"{(fn(getattr(r, attr)) if getattr(r, attr) else '-'):>{width}s}"
+                                       for r in columns.values()))
+
+
 def print_studio(columns):
     print("\nbandai2 (another studio's clips, leave-one-style-out where a recipe trains on them)")
     rows = [("locomotion frames labelled move", lambda st: f"{st.move_share:.3f}")]
@@ -142,9 +151,7 @@ def print_studio(columns):
     rows += [("turning clips with a turn", lambda st: f"{st.turning_with_turn}/{st.turning_clips}"),
              ("straight clips with a turn", lambda st: f"{st.straight_with_turn}/{st.straight_clips}"),
              ("gesture frames labelled", lambda st: f"{st.gesture_wrong:.3f}")]
-    print(f"{'':<34s}" + "".join(f"{n:>14s}" for n in columns))
-    for name, fn in rows:
-        print(f"{name:<34s}" + "".join(f"{(fn(r.studio) if r.studio else '-'):>14s}" for r in columns.values()))
+    _print_rows(rows, columns, "studio")
     for n, r in columns.items():
         if r.studio and r.studio.wrong_by_label:
             print(f"  gesture frames by label, {n}: "
@@ -160,9 +167,7 @@ def print_lab(columns):
             ("straight clips with a turn", lambda L: f"{L.straight_with_turn}/{L.straight_clips}"),
             ("clips of no class left silent", lambda L: f"{L.silent_right}/{L.silent_clips}"),
             ("hops/leaps in locomotion found", lambda L: f"{L.hops_found}/{L.hop_clips}")]
-    print(f"{'':<34s}" + "".join(f"{n:>18s}" for n in columns))
-    for name, fn in rows:
-        print(f"{name:<34s}" + "".join(f"{(fn(r.lab) if r.lab else '-'):>18s}" for r in columns.values()))
+    _print_rows(rows, columns, "lab")
     for n, r in columns.items():
         if r.lab and r.lab.failures:
             print(f"  failing clips, {n}: " + "; ".join(f"{k.removeprefix('Male1_')} ({v})"
