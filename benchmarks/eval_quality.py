@@ -58,7 +58,7 @@ import numpy as np
 from mocapdb.evaluation.calibration import confidence_calibration, segment_verdicts
 from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_annotation,
                                 evaluate_by_label, guard, headline_figures, raised_records, read_records,
-                                write_records)
+                                studio_measures, write_records)
 from mocapdb.learning.default_model import train_recipe
 from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
 from mocapdb.storage.model_store import fingerprint
@@ -186,8 +186,8 @@ def _group_f1(res, s, group):
     return out
 
 
-def lolo_folds(res):
-    """Per lab (fold): its figures and the figures of the groups inside it."""
+def lolo_folds(res, studio):
+    """Per lab (fold): its figures and the figures of the groups inside it (``studio``: the studio's documents)."""
     fig = headline_figures(res)
     out = {}
     if "loao" in res.scores:
@@ -205,6 +205,10 @@ def lolo_folds(res):
                           "straight with turn": fig["bandai2"]["straight_with_turn"],
                           "gesture frames labelled": st.gesture_wrong,
                           "per style": _group_f1(res, "bandai2", lambda d: d.split("_")[2])}
+        by_style = {style: studio_measures(studio.subset(np.array(studio.styles) == style), res.auto["bandai2"])
+                    for style in sorted(set(studio.styles))}
+        out["bandai2"]["move per style"] = {k: v.move_share for k, v in by_style.items()}
+        out["bandai2"]["gesture frames labelled per style"] = {k: v.gesture_wrong for k, v in by_style.items()}
     if res.lab is not None:
         a = fig["accad"]
         out["accad"] = {"clips right": a["clips_right"], "move": a["move_share"],
@@ -273,7 +277,10 @@ def main():
     old_data = dataclasses.replace(data, studio_trains=False)
     common = dict(vocabulary=PAPER_LABELS, mirrored=True, seed=args.seed)
     timings, results = {}, {}
-    out = {"parameters": {"previous": args.previous, "seed": args.seed, "sections": sorted(sections)}}
+    # the figures are tied to the shipped model they were measured beside (a test compares)
+    shipped_fp = fingerprint(model_dir(REPO / "mocapdb" / "shipped_models" / "default"))
+    out = {"parameters": {"previous": args.previous, "seed": args.seed, "sections": sorted(sections),
+                          "fingerprint": shipped_fp}}
     if "folds" in sections:
         t = time.perf_counter()
         results["reference"] = development_evaluation(DATA, data=old_data, cmu_training=False, tau=0.13,
@@ -309,7 +316,7 @@ def main():
         lolo = development_evaluation(DATA, data=data, build=builder(default_recipe(), args.seed), modes=MODES,
                                       leave_out_lab=True, **common)
         timings["leave-one-lab-out"] = time.perf_counter() - t
-        folds = {m: lolo_folds(r) for m, r in lolo.items()}
+        folds = {m: lolo_folds(r, data.studio) for m, r in lolo.items()}
         print_lolo(folds)
         print_lab({f"lolo {m}": r for m, r in lolo.items()})
         calibration = {m: calibration_rows(r) for m, r in lolo.items()}

@@ -71,7 +71,7 @@ def test_label_caps_and_class_hits():
     bad = {"keyframes": {"accad": {"share_kick": 0.031}, CLASSES: {"kickLFront1Reps": 199}}}
     fails = guard(bad, rec)
     assert any("accad: share_kick 0.031 is above" in f for f in fails)
-    assert any("kickLFront1Reps's hits cover 199 frames" in f for f in fails)
+    assert any("kickLFront1Reps's hits span 199 frames" in f for f in fails)
     assert any("classes: cartwheel was not measured" in f for f in fails)
     # a class's hits follow the model; a cap only moves down
     r = raised_records(rec, {"keyframes": {"accad": {"share_kick": 0.05}, CLASSES: {"kickLFront1Reps": 300}}})

@@ -241,7 +241,8 @@ class DevelopmentEvaluation:
     lab : LabScores or None
         The per-clip measures of the accad setting (:func:`mocapdb.evaluation.lab_clips.lab_measures`).
     hit_frames : dict of str to int
-        Class → 30 Hz frames its hits (Δ below its τ) cover over every setting annotated: a class
+        Class → the lengths of its hits (Δ below its τ) summed over every setting annotated, in 30 Hz
+        frames (hits of one class may share frames, which then count once per hit): a class
         that finds nothing anywhere shows 0 (the quality guard keeps these).
     confidence : dict of str to ndarray of float64
         Per setting, each annotation segment's confidence, row for row with ``auto``
@@ -445,7 +446,7 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
     parts = {m: {} for m in modes}       # mode -> setting -> list of (truth, auto, preselected)
     sweep_parts = []
 
-    hit_frames = {m: {} for m in modes}  # mode -> class -> frames its hits cover, over every setting
+    hit_frames = {m: {} for m in modes}  # mode -> class -> its hits' lengths summed, over every setting
 
     def add(setting, docs, model):
         t = time.perf_counter()

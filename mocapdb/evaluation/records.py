@@ -12,7 +12,7 @@ and wrong, clips of no class left silent, hops found; per set the recall of
 each set whose truth lacks a label, the share of its frames under that label
 is capped at its record (``share_<label>``, lower is better), so a label
 cannot spread unseen where no truth would score it; and every class's hits
-(the frames where its Δ falls below its τ, over every set) are kept under
+(their lengths summed over every set: where its Δ falls below its τ) are kept under
 :data:`CLASSES`, so a model with a class deleted fails (its figure is not
 measured) and one whose class stops finding what it found (below
 :data:`CLASS_FLOOR` of its record) fails too. :func:`guard` lists every
@@ -46,7 +46,7 @@ HEADLINE = {
 CAPPED_SETS = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "bandai2", "accad")
 #: figure name of a label's frame share on a set whose truth lacks the label (lower is better)
 SHARE = "share_"
-#: the pseudo-set of the frames each class's hits cover over every set: a class deleted is not measured,
+#: the pseudo-set of each class's hits (their lengths summed over every set): a class deleted is not measured,
 #: one that stops finding what it found fails when it keeps less than :data:`CLASS_FLOOR` of its record
 CLASSES = "classes"
 CLASS_FLOOR = 0.5
@@ -150,7 +150,7 @@ def guard(figures, records, *, tolerance=TOLERANCE) -> list:
                     fails.append(f"{mode}, {s}: {name} was not measured (record {rec:.3f})")
                 elif s == CLASSES:
                     if got < CLASS_FLOOR * rec:
-                        fails.append(f"{mode}: class {name}'s hits cover {got} frames, less than {CLASS_FLOOR:g} "
+                        fails.append(f"{mode}: class {name}'s hits span {got} frames, less than {CLASS_FLOOR:g} "
                                      f"of its record {rec}")
                 elif sign * (got - rec) < -tolerance:
                     fails.append(f"{mode}, {s}: {name} {got:.3f} is {'below' if sign > 0 else 'above'} its record "
