@@ -104,6 +104,7 @@ def test_the_tour_names_every_command():
     assert sorted(name for name, _, _ in TOUR) == sorted(main.commands)
 
 
+@pytest.mark.slow
 def test_every_command_runs_on_real_recordings(tmp_path, monkeypatch):
     takes = tmp_path / "takes"
     takes.mkdir()

@@ -28,6 +28,7 @@ def _names(server, **params):
     return [r["name"] for r in page["rows"]], page
 
 
+@pytest.mark.slow
 def test_the_archive_lists_every_motion_with_its_facts(server, sample_db):
     names, page = _names(server)
     want = _sql(sample_db, "SELECT motion_id, name, format, source_fps, n_frames / fps FROM motions ORDER BY motion_id")
@@ -102,6 +103,7 @@ def test_label_segments_across_the_archive(server, sample_db):
     assert [(r["motion_id"], r["start_frame"], r["end_frame"]) for r in rest["rows"]] == [tuple(w) for w in want[2:]]
 
 
+@pytest.mark.slow
 def test_find_similar_is_mocapdb_similar(server, sample_db):
     status, body = server.json("/api/similar?motion=1&start_frame=550&end_frame=700&limit=5")
     assert status == 200, body
@@ -224,6 +226,7 @@ con.close()
 """
 
 
+@pytest.mark.slow
 def test_the_server_lives_beside_a_writing_process(sample_db, tmp_path):
     """A second process writes: it gets in although the server answered requests before (the server
     holds nothing between requests); while it holds the file the server answers busy (503, naming
@@ -266,6 +269,7 @@ con.close()
 """
 
 
+@pytest.mark.slow
 def test_a_writer_waits_for_a_reader_to_finish_its_request(sample_db, tmp_path):
     """A writer that starts while a reader (a server's request) holds the file waits for it
     (``lock_wait``) instead of failing; without the wait it fails naming the reader."""

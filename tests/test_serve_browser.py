@@ -42,6 +42,7 @@ def _sql(db, query, params=()):
         return [r[0] for r in con.execute(query, list(params)).fetchall()]
 
 
+@pytest.mark.slow
 def test_the_archive_page_lists_the_sample_and_filters_it(page, server, sample_db):
     page.goto(server.url)
     assert _rows(page) == _sql(sample_db, "SELECT name FROM motions ORDER BY motion_id")
@@ -68,6 +69,7 @@ def test_the_archive_page_lists_the_sample_and_filters_it(page, server, sample_d
     _no_errors(page)
 
 
+@pytest.mark.slow
 def test_a_motion_page_plays(page, server):
     page.goto(server.url + "motion/1")
     assert page.evaluate("document.getElementById('scrubber').value") == "0"

@@ -123,11 +123,11 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         How files are read: the fields of one :class:`mocapdb.readers.ReaderOptions`
         value, checked here, before any file is read — the ASF of every AMC
         (default: found by the dataset conventions), a BVH joint map and a C3D
-        marker map (TOML/JSON file or dict; README "Mapping files", "C3D marker
+        marker map (TOML/JSON file or dict; docs/READING_FILES.md "Mapping files", "C3D marker
         maps"), the C3D marker rules (``"toolbox"``, the reference, or
         ``"anatomical"``), the SMPL-H/SMPL-X body model of AMASS ``.npz`` takes
         (a model file or a folder of them, chosen by family and gender;
-        default: the generic rest skeleton shipped with mocapdb; README
+        default: the generic rest skeleton shipped with mocapdb; docs/READING_FILES.md
         "AMASS"), the bytes a compressed file or zip member may decompress to
         (``"2GiB"``; default ``MOCAPDB_MAX_DECOMPRESSED``, else 512 MiB).
         ``ray_annotate`` takes the same and reads the same.

@@ -156,7 +156,7 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
     30 Hz words; Δ, its subsequence DTW with every feature weighted by its
     information in the archive, finds where it matches, the non-overlapping
     local minima are the hits, cheapest first; keyframes taken from the
-    stretch preselect (README "Finding similar motions";
+    stretch preselect (docs/USER_GUIDE.md "Finding similar motions";
     :mod:`mocapdb.retrieval`). With ``examples``, a template is learned from
     all the stretches ("more like these").
 

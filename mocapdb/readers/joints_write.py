@@ -23,7 +23,7 @@ centimetres, millimetres or inches that gives the legs a human length.
 
 References
 ----------
-README "Joints out"; READERS.md §2, §9; FEATURES.md §2.1.
+docs/USER_GUIDE.md "Joints out"; READERS.md §2, §9; FEATURES.md §2.1.
 """
 from __future__ import annotations
 
