@@ -78,6 +78,8 @@ TOUR = [
      lambda r, t: json.loads((t["archive"] / "manifest.json").read_text())["motions"] == 3),
     ("attach", ["--db", "{views}", "attach", "{archive}"], lambda r, t: "3 motion(s)" in r.output),
     ("stats", ["stats", "--table", "formats", "--format", "csv"], lambda r, t: r.output.count("\n") >= 3),
+    ("motions", ["motions", "--q", "86_", "--format", "csv"],
+     lambda r, t: r.output.startswith("motion_id,name,format,") and "86_09" in r.output),
     ("serve", None, lambda r, t: '"motions"' in r.output or "<html" in r.output.lower()),
     ("warmup", ["warmup", "ingest"], lambda r, t: r.output.startswith("compiled in ")),
 ]

@@ -11,7 +11,10 @@ LIBRARY = sorted([*(REPO / "mocapdb").rglob("*.py"), *(REPO / "extension").glob(
 
 #: the sub-packages in pipeline order (docs/ARCHITECTURE.md): each imports only from those before it
 LAYERS = ("errors", "_numba", "readers", "features", "templates", "keyframes", "annotation", "learning",
-          "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "server", "api", "cli")
+          "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "api", "server", "cli")
+#: the one import against the pipeline: ``mocapdb.api.serve`` starts the web server (every command is an api
+#: function), importing it only when called, as the ``serve`` extra may be missing
+UPWARD = {("mocapdb.api.outputs", "mocapdb.server")}
 
 
 def _module(path):
@@ -92,6 +95,8 @@ def test_imports_follow_the_pipeline(path):
         other = _layer(target)
         if other is None:
             pytest.fail(f"{mod}:{line} imports the top-level package mocapdb (import the sub-package)")
+        if (mod, target) in UPWARD:
+            continue
         assert LAYERS.index(other) <= LAYERS.index(own), \
             f"{mod}:{line} imports {target}: {other} comes after {own} in the pipeline"
         if other != own:
@@ -108,6 +113,17 @@ def test_the_cli_imports_only_the_api_and_the_errors(path):
         if target.startswith("mocapdb"):
             assert target.split(".")[:2] in (["mocapdb", "api"], ["mocapdb", "errors"], ["mocapdb", "cli"]), \
                 f"{_module(path)}:{line} imports {target}; the CLI calls mocapdb.api"
+
+
+@pytest.mark.parametrize("path", [p for p in LIBRARY if "server" in p.relative_to(REPO).parts],
+                         ids=lambda p: str(p.relative_to(REPO)))
+def test_the_server_is_a_face_on_the_api(path):
+    """The web app reads the archive through mocapdb.api as the command line does (issue 34): from the library
+    it imports only mocapdb.api, mocapdb.errors, the viewer (its pages' HTML) and its own modules."""
+    for line, target, _ in _imports(path):
+        if target.startswith("mocapdb"):
+            assert target.split(".")[1] in ("api", "errors", "viewer", "server"), \
+                f"{_module(path)}:{line} imports {target}; the server calls mocapdb.api"
 
 
 _SQL_FSTRING = re.compile(r"\.(execute|sql|executemany)\(\s*f[\"']")

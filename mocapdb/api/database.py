@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import time
 from pathlib import Path
 
 from mocapdb.annotation import write_labels
@@ -13,12 +12,13 @@ from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import ReaderOptions
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
+from mocapdb.extension.native import extension_path as native_extension_path
 from mocapdb.storage import attached, parquet, postings
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.joint_export import JointsExport
 from mocapdb.storage.joint_export import export_joints as storage_export_joints
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
-from mocapdb.storage.schema import DatabaseLockedError, require_own_tables
+from mocapdb.storage.schema import require_own_tables
 from mocapdb.warmup import sample_files
 
 
@@ -95,14 +95,8 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
     if not create and str(path) != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (a mistyped --db? `mocapdb ingest` or "
                           "`mocapdb import-features` create one)")
-    deadline = time.monotonic() + _lock_wait(lock_wait, read_only)
-    while True:
-        try:
-            return connect_database(path, read_only=read_only, memory_limit=memory_limit)
-        except DatabaseLockedError:
-            if time.monotonic() >= deadline:
-                raise
-            time.sleep(0.05)
+    return connect_database(path, read_only=read_only, memory_limit=memory_limit,
+                            wait=_lock_wait(lock_wait, read_only))
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
@@ -155,6 +149,18 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
                             body_model=body_model, max_decompressed=max_decompressed)
     return ingest_files(con, paths, options=options, progress=progress, replace=replace, log_csv=report)
+
+
+def extension_path() -> Path:
+    """The absolute path of the native DuckDB extension ``mocapdb.duckdb_extension``, which any DuckDB
+    client loads with ``LOAD 'PATH'`` (unsigned: ``duckdb -unsigned``; docs/EXTENSION.md).
+
+    Raises
+    ------
+    mocapdb.errors.MocapdbError
+        When this install has no native extension, saying why (no C compiler at install time, …).
+    """
+    return native_extension_path()
 
 
 def joint_map_template(path) -> str:

@@ -40,4 +40,4 @@ def cli_reference() -> str:
 
 
 if __name__ == "__main__":
-    print(cli_reference(), end="")
+    click.echo(cli_reference(), nl=False)

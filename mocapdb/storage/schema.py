@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import re
+import time
 from pathlib import Path
 
 import duckdb
@@ -45,9 +46,17 @@ class DatabaseLockedError(SchemaError):
 #: the environment variable MOCAPDB_MEMORY_LIMIT, or later with ``SET memory_limit``.
 DEFAULT_MEMORY_LIMIT = "512MB"
 MEMORY_LIMIT_ENV = "MOCAPDB_MEMORY_LIMIT"
+#: the storage format of the files mocapdb creates: DuckDB 1.5's, which DuckDB 1.5 and later read, so
+#: an archive opens in the clients that load the native extension (the DuckDB CLI, Node and JDBC
+#: at 1.5: docs/EXTENSION.md), not only in the Python duckdb that wrote it (2.0 writes a newer format
+#: by default, which 1.5 refuses). A file keeps the format it was created with.
+STORAGE_VERSION = "v1.5.0"
+#: seconds between two tries to open a file another process holds (``open_database(wait=…)``)
+LOCK_POLL = 0.05
 
 
-def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None) -> duckdb.DuckDBPyConnection:
+def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None,
+                  wait: float = 0.0) -> duckdb.DuckDBPyConnection:
     """Open (or create) a DuckDB database with the mocapdb schema, without the SQL functions.
 
     Parameters
@@ -61,26 +70,39 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
         DuckDB's memory limit (``"512MB"``, ``"4GB"``); default
         ``$MOCAPDB_MEMORY_LIMIT`` or :data:`DEFAULT_MEMORY_LIMIT`. It applies to
         the whole database instance (every connection to the file in this process).
+    wait : float, keyword-only, default 0
+        Seconds to keep trying while another process holds the file (DuckDB
+        lets one process write it and none open it meanwhile): the one
+        lock-wait of mocapdb, for ``mocapdb.connect(lock_wait=…)`` and each
+        request of ``mocapdb serve`` alike.
 
     Raises
     ------
     DatabaseLockedError
-        Another process holds the file (the message names it).
+        Another process still holds the file after ``wait`` seconds (the message names it).
     SchemaError
         ``read_only`` and the file does not exist.
     """
     path = str(path)
     if read_only and path != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (read_only=True cannot create it)")
-    try:
-        con = duckdb.connect(path, read_only=read_only)
-    except duckdb.IOException as exc:
-        m = _LOCK.search(str(exc))
-        if m is None:
-            raise SchemaError(f"{path}: cannot open the database: {str(exc).splitlines()[0]}") from None
-        raise DatabaseLockedError(
-            f"{path} is in use by another process (PID {m['pid']}, {m['program']}); DuckDB allows one "
-            "writer at a time: wait for it to finish or stop it") from None
+    deadline = time.monotonic() + wait
+    new = path != ":memory:" and not Path(path).exists()
+    config = {"storage_compatibility_version": STORAGE_VERSION} if new else {}
+    while True:
+        try:
+            con = duckdb.connect(path, read_only=read_only, config=config)
+            break
+        except duckdb.IOException as exc:
+            m = _LOCK.search(str(exc))
+            if m is None:
+                raise SchemaError(f"{path}: cannot open the database: {str(exc).splitlines()[0]}") from None
+            if time.monotonic() < deadline:
+                time.sleep(LOCK_POLL)
+                continue
+            raise DatabaseLockedError(
+                f"{path} is in use by another process (PID {m['pid']}, {m['program']}); DuckDB allows one "
+                "writer at a time: wait for it to finish or stop it") from None
     try:
         limit = memory_limit or os.environ.get(MEMORY_LIMIT_ENV) or DEFAULT_MEMORY_LIMIT
         try:
