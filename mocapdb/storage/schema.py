@@ -9,8 +9,9 @@ shipped models then come from the package.
 
 The SQL functions themselves are registered by :mod:`mocapdb.extension`
 (``mocapdb.connect`` does both). In a DuckDB client without mocapdb, the
-tables' comments and persisted stand-ins of the functions
-(``sql/comments.sql``) say how to get them.
+tables' comments (``sql/comments.sql``) say how to get them (the native
+extension); that file also drops the persisted stand-ins older versions wrote,
+which would hide the native functions.
 """
 from __future__ import annotations
 
