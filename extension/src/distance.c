@@ -80,7 +80,16 @@ int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const doub
 	return 0;
 }
 
-int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
+#if defined(__x86_64__)
+/* The hardware popcount where the CPU has it (every x86-64 since 2008), chosen when the binary
+ * loads: without it gcc calls libgcc's software popcount for every template column and frame,
+ * a third of annotate's time. */
+#define MDB_POPCNT __attribute__((target_clones("popcnt", "default")))
+#else
+#define MDB_POPCNT
+#endif
+
+MDB_POPCNT int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
 	size_t K = t->K;
 	/* columns j-2, j-1, j of D and the frame's costs; with starts, columns j-2, j-1, j of the
 	 * start frame of each cell's path (-1: none), following the chosen predecessor */
