@@ -8,7 +8,7 @@ import click
 
 import mocapdb.api as api
 from mocapdb.errors import escape_control
-from mocapdb.cli.options import format_option, reader_options, silent_option
+from mocapdb.cli.options import UNIT_NAMES, format_option, model_option, reader_options, silent_option
 from mocapdb.cli.group import bar_progress, command, open_db, progress_bar
 from mocapdb.cli.output import write_rows, echo_report
 
@@ -167,32 +167,50 @@ def export_features(ctx, directory, overwrite):
 
 
 @command("export-joints")
-@click.argument("motions", nargs=-1, required=True)
+@click.argument("motions", nargs=-1)
+@click.option("--all", "all_motions", is_flag=True, help="Every motion (that --where and --label keep).")
+@click.option("--where", metavar="SQL", help="Motions a SQL condition over the motions table holds for, e.g. "
+                                             "\"format = 'bvh' AND source_path LIKE '%/session1/%'\".")
+@click.option("--label", help="Motions with a stored segment of this label (run annotate first; --model's).")
+@model_option("Model whose stored segments --label reads (default: the shipped default model).")
 @click.option("--format", "fmt", type=click.Choice(("npz", "csv", "bvh")), default="npz", show_default=True,
-              help="npz: joints (frames × 24 × 3), fps, joint_names; csv: a row per frame (frame, time, "
-                   "<joint>_x/_y/_z); bvh: a skeleton of the canonical joints.")
+              help="npz: joints (frames × 24 × 3), fps, joint_names, source_unit; csv: a row per frame (frame, "
+                   "time, <joint>_x/_y/_z); bvh: a skeleton of the canonical joints.")
 @click.option("--out", required=True, type=click.Path(path_type=Path),
-              help="The file for one motion (ending in .npz, .csv or .bvh), else a directory of files named by "
-                   "motion.")
+              help="The file for one motion (ending in .npz, .csv or .bvh), else a directory (created) of files "
+                   "named by motion, with units.json.")
+@click.option("--unit", type=click.Choice(UNIT_NAMES),
+              help="The unit of BVH sources (default: decided from the legs' length and the bone names; cmu: "
+                   "CMU's 1/0.45 inch).")
+@click.option("--scale", type=float, help="Or: metres per unit of BVH sources.")
 @silent_option
 @click.pass_context
-def export_joints(ctx, motions, fmt, out, silent):
-    """Write the 24 canonical joints of motions (ids or names) for other tools.
+def export_joints(ctx, motions, all_motions, where, label, model, fmt, out, unit, scale, silent):
+    """Write the 24 canonical joints of motions (ids or names, --all, --where, --label) for other tools.
 
     Each motion's source file is read again as it was ingested: its joints
     at the recording's own rate, in metres, Y up, in JOINT_NAMES order. A
+    BVH file declares no unit: it is the one giving the legs an adult's
+    length (each line says which and why; --unit or --scale overrides). A
     motion that cannot be exported (its source moved) is named; the others
     are written, and the exit status is 1.
 
     \b
-    Example:
+    Examples:
       mocapdb --db demo.duckdb export-joints 86_09 --format bvh --out 86_09.bvh
+      mocapdb --db demo.duckdb export-joints --where "format = 'bvh'" --out joints/
+      mocapdb --db demo.duckdb export-joints --label jump --format csv --out jumps/
     """
+    if not motions and not (all_motions or where or label):
+        raise click.UsageError("give motion ids or names, --all, --where SQL or --label LABEL")
+    if motions and all_motions:
+        raise click.UsageError("give motion ids or names, or --all, not both")
     con = open_db(ctx, read_only=True)
     with progress_bar(None, "export-joints", silent, unit="motion") as bar:
-        report = api.export_joints(con, motions, out, format=fmt, progress=bar_progress(bar))
-    for mid, name, path in report.written:   # a name is data: never its control characters raw
-        click.echo(escape_control(f"wrote {path} (motion {mid} {name})"))
+        report = api.export_joints(con, list(motions) or None, out, format=fmt, where=where, label=label,
+                                   model=model, unit=unit, scale=scale, progress=bar_progress(bar))
+    for mid, name, path, how in report.written:   # a name is data: never its control characters raw
+        click.echo(escape_control(f"wrote {path} (motion {mid} {name}; source unit {how})"))
     for mid, name, reason in report.failed:
         click.echo(escape_control(f"failed  {reason}"), err=True)
     if report.failed:

@@ -63,6 +63,7 @@ from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.sources import max_decompressed, motion_stem, open_stream, read_bytes, stream_size
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
+from mocapdb.readers.units import bvh_unit
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
            "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
@@ -845,6 +846,8 @@ def _motion(joints, rot, jm, hier, frame_time, path, joint_map, skip_rest_frame,
         if problem:
             raise ParseError(path, None, f"not a human skeleton: {problem}")
     meta["frames"] = (start + 1, stop)
-    meta["notes"] = notes
+    # BVH declares no unit: decided once here, so ingest_log's notes and every export say the same
+    meta["unit"], meta["unit_reason"] = bvh_unit(joints, [j.name for j in hier.joints])
+    meta["notes"] = notes + [f"unit {meta['unit_reason']}"]
     return Motion(joints=np.ascontiguousarray(joints), root_rotation=rot if asf_axes else None,
                   fps=fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)
