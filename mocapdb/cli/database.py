@@ -201,7 +201,7 @@ def export_joints(ctx, motions, all_motions, where, label, model, fmt, out, unit
       mocapdb --db demo.duckdb export-joints --where "format = 'bvh'" --out joints/
       mocapdb --db demo.duckdb export-joints --label jump --format csv --out jumps/
     """
-    if not motions and not (all_motions or where or label):
+    if not motions and not (all_motions or where is not None or label is not None):
         raise click.UsageError("give motion ids or names, --all, --where SQL or --label LABEL")
     if motions and all_motions:
         raise click.UsageError("give motion ids or names, or --all, not both")
