@@ -9,8 +9,6 @@ twins scaled to metres, millimetres, inches and CMU units (within 1 %).
 """
 import gzip
 import json
-import re
-
 import numpy as np
 import pytest
 
@@ -18,11 +16,11 @@ import mocapdb
 from mocapdb.cli.options import UNIT_NAMES
 from mocapdb.errors import ParameterError
 from mocapdb.readers import read_motion
-from mocapdb.readers.bvh import parse_bvh
 from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.joints_write import _write_bvh
 from mocapdb.readers.units import UNITS, bvh_unit, leg_length, metres_per_unit
 
+from bvh_edit import edit_bvh
 from conftest import DATA, run
 
 pytestmark = pytest.mark.shared
@@ -38,19 +36,8 @@ KNOWN = {DATA / "foreign" / "bvh" / "mixamo_freebvh.bvh": "cm",
 
 
 def scaled_bvh(data: bytes, factor: float) -> bytes:
-    """A BVH file's bytes with every length times ``factor``: OFFSETs, End Sites and the position channels
-    (the take in another unit, rotations untouched)."""
-    hier = parse_bvh(data).hierarchy
-    text = data.decode("latin-1")
-    head, motion = re.split(r"(?m)^\s*MOTION\s*$", text, maxsplit=1)
-    head = re.sub(r"(OFFSET)((?:\s+\S+){3})",
-                  lambda m: m.group(1) + "".join(f" {float(x) * factor:.9g}" for x in m.group(2).split()), head)
-    lines = motion.strip().splitlines()
-    values = np.array([[float(x) for x in ln.split()] for ln in lines[2:] if ln.strip()])
-    kinds = np.array([name.lower().endswith("position") for j in hier.joints for name in j.channels])
-    values[:, kinds] *= factor
-    rows = "\n".join(" ".join(f"{v:.9g}" for v in row) for row in values)
-    return (head + "MOTION\n" + "\n".join(lines[:2]) + "\n" + rows + "\n").encode("latin-1")
+    """A BVH file's bytes with every length times ``factor`` (the take in another unit)."""
+    return edit_bvh(data, factor=factor)
 
 
 def cmu_unit_bvh(path):

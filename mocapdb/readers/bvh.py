@@ -844,7 +844,7 @@ def _motion(joints, rot, jm, hier, frame_time, path, joint_map, skip_rest_frame,
         rest = jm.weights @ hier.tree().rest
         problem = humanoid_problem(joints, rest @ up.T if up is not None else rest)
         if problem:
-            raise ParseError(path, None, f"not a human skeleton: {problem}")
+            raise ParseError(path, None, "not a human {}: {}".format(*problem))
     meta["frames"] = (start + 1, stop)
     # BVH declares no unit: decided once here, so ingest_log's notes and every export say the same
     meta["unit"], meta["unit_reason"] = bvh_unit(joints, [j.name for j in hier.joints])

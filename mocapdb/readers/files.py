@@ -151,7 +151,8 @@ def read_asf_amc(amc_path, asf) -> Motion:
             raise ParseError(asf_path, None, f"the skeleton of {amc_path.name} lacks the CMU bone names "
                              f"and is not a humanoid mocapdb can map: {exc}") from None
         if problem:
-            raise ParseError(amc_path, None, f"not a human skeleton ({Path(asf_path).name}): {problem}")
+            what, why = problem
+            raise ParseError(amc_path, None, f"not a human {what} ({Path(asf_path).name}): {why}")
         notes.append(f"skeleton {Path(asf_path).name} read by its shape and bone names (not the CMU names)")
         how = "humanoid mapper"
     # an absurd root translation or ASF unit overflows to inf in FK
