@@ -8,7 +8,8 @@ import click
 
 import mocapdb.api as api
 from mocapdb.errors import escape_control
-from mocapdb.cli.options import UNIT_NAMES, format_option, model_option, reader_options, silent_option
+from mocapdb.cli.options import (UNIT_NAMES, format_option, make_parent, model_option, reader_options,
+                                 silent_option)
 from mocapdb.cli.group import bar_progress, command, open_db, progress_bar
 from mocapdb.cli.output import write_rows, echo_report
 
@@ -22,7 +23,7 @@ from mocapdb.cli.output import write_rows, echo_report
 @reader_options
 @click.option("--replace", is_flag=True, help="Read files already stored (same bytes) again and replace their "
                                               "motions, e.g. with a corrected --joint-map (default: skip them).")
-@click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="Also write every file's row of the ingest_log table (outcome, reason, the reader's notes, "
                    "motion_id) to this CSV file.")
 @silent_option
@@ -176,7 +177,7 @@ def export_features(ctx, directory, overwrite):
 @click.option("--format", "fmt", type=click.Choice(("npz", "csv", "bvh")), default="npz", show_default=True,
               help="npz: joints (frames × 24 × 3), fps, joint_names, source_unit; csv: a row per frame (frame, "
                    "time, <joint>_x/_y/_z); bvh: a skeleton of the canonical joints.")
-@click.option("--out", required=True, type=click.Path(path_type=Path),
+@click.option("--out", required=True, type=click.Path(path_type=Path), callback=make_parent,
               help="The file for one motion (ending in .npz, .csv or .bvh), else a directory (created) of files "
                    "named by motion, with units.json.")
 @click.option("--unit", type=click.Choice(UNIT_NAMES),
@@ -243,7 +244,7 @@ def import_features(ctx, directory):
 
 @command("convert-labels")
 @click.argument("path", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="The label CSV to write (default: print it).")
 @click.option("--document", help="Per-frame labels: the document (default: the file's stem); a segment table: "
                                  "keep only its rows.")

@@ -7,8 +7,8 @@ from pathlib import Path
 import click
 
 import mocapdb.api as api
-from mocapdb.cli.options import (FORMATS, keyframes_option, map_option, model_option, silent_option, tau_option,
-                                 truth_help)
+from mocapdb.cli.options import (FORMATS, keyframes_option, make_parent, map_option, model_option, silent_option,
+                                 tau_option, truth_help)
 from mocapdb.cli.group import command, open_db, progress_bar, bar_progress
 from mocapdb.cli.output import write_rows
 
@@ -20,7 +20,7 @@ from mocapdb.cli.output import write_rows
                    "functions per class, white above tau (Fig. 3a); template: a class template, real and "
                    "quantized (Fig. 1c/d); tau: P/R/F over tau against --truth (Fig. 8); timeline: a motion's "
                    "labels over time, against --truth if given (Figs. 6/7; 'annotation' is its former name).")
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="Image file (format from the suffix: .png, .pdf, .svg).")
 @model_option()
 @click.option("--motion", help="Motion id or name (delta, timeline).")
@@ -51,7 +51,7 @@ def report(ctx, figure, out, model, motion, class_name, truth, label_map, tau, k
 
 @command()
 @click.argument("motion", required=False)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="The HTML page of MOTION (default: <motion name>.html here).")
 @click.option("--all", "all", type=click.Path(file_okay=False, path_type=Path),
               help="Instead: write one page per motion and index.html into this directory.")
@@ -109,7 +109,8 @@ def _stretch(text):
 @click.option("--format", "fmt", type=click.Choice(FORMATS + ("html",)), default="table", show_default=True,
               help="table/csv/json print (or write --out); html writes --out DIR/index.html listing the results, "
                    "linked to a viewer page per motion at each hit.")
-@click.option("--out", type=click.Path(path_type=Path), help="Write to a file (a directory for html).")
+@click.option("--out", type=click.Path(path_type=Path), callback=make_parent,
+              help="Write to a file (a directory for html).")
 @model_option("Model whose annotation the html pages show.")
 @silent_option
 @click.pass_context
