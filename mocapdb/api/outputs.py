@@ -278,8 +278,14 @@ def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, ready=None):
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise ParameterError(f"port must be an integer from 0 to 65535, got {port!r}")
     try:
+        # the web stack itself, now: mocapdb.server imports it only where it is used, so a missing
+        # uvicorn would otherwise surface mid-start as "No module named 'uvicorn'"
+        import starlette  # noqa: F401
+        import uvicorn  # noqa: F401
+
         from mocapdb.server import serve as run
     except ImportError as exc:
-        raise MocapdbError(f"mocapdb serve needs the serve extra: pip install \"mocapdb[serve]\" (starlette and "
-                           f"uvicorn; {exc})") from None
+        missing = exc.name or "starlette or uvicorn"
+        raise MocapdbError(f"mocapdb serve needs the serve extra, which is not installed ({missing} is missing): "
+                           f"pip install \"mocapdb[serve]\" (Starlette and uvicorn)") from None
     run(db, host=host, port=port, model=model, ready=ready)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import re
+import shutil
 from pathlib import Path
 
 import click
@@ -10,7 +11,7 @@ import mocapdb.api as api
 from mocapdb.cli.options import (FORMATS, keyframes_option, make_parent, map_option, model_option, silent_option,
                                  tau_option, truth_help)
 from mocapdb.cli.group import command, open_db, progress_bar, bar_progress
-from mocapdb.cli.output import write_rows
+from mocapdb.cli.output import duration, write_rows
 
 
 @command()
@@ -190,7 +191,8 @@ def stats(ctx, model, table, fmt):
               "labels": f"annotated hours per label (model {model})",
               "refused": "files refused at their latest ingest"}
     if table is None:
-        click.echo(f"{s.motions} motion(s), {s.hours:.2f} hours")
+        click.echo(f"{s.motions} motion(s), {duration(s.hours * 3600)} in all ({s.hours:.4g} hours)")
+    width = shutil.get_terminal_size().columns - 1   # a line as wide as the terminal wraps on some
     for name in chosen:
         t = tables[name]
         if table is None:
@@ -201,7 +203,12 @@ def stats(ctx, model, table, fmt):
                            f"{', '.join(s.annotated_models) or 'none'})")
                 continue
         cols = list(t.column_names)
-        write_rows(list(zip(*(t.column(c).to_pylist() for c in cols))), cols, fmt)
+        rows = list(zip(*(t.column(c).to_pylist() for c in cols)))
+        if fmt == "table" and "hours" in cols:   # for a reader, as the summary page writes it; csv/json keep hours
+            k = cols.index("hours")
+            rows = [(*r[:k], duration(r[k] * 3600), *r[k + 1:]) for r in rows]
+            cols = [*cols[:k], "duration", *cols[k + 1:]]
+        write_rows(rows, cols, fmt, width=width if fmt == "table" else None)
 
 
 @command()

@@ -1,0 +1,59 @@
+"""What the command line says where it used to say too little or too much (issue 33 items 4, 5, 6).
+
+On the recordings shipped with mocapdb (and ../shared for the stats of a larger archive).
+"""
+import sys
+
+import pytest
+
+from conftest import run
+
+
+@pytest.fixture(scope="module")
+def sample_db(tmp_path_factory):
+    db = tmp_path_factory.mktemp("messages") / "m.duckdb"
+    run(db, "ingest", "--sample", "--silent")
+    return db
+
+
+@pytest.mark.parametrize("hidden", ["uvicorn", "starlette"])
+def test_serve_without_the_extra_names_the_extra(sample_db, monkeypatch, hidden):
+    """Without the [serve] extra, `serve` said "Error: No module named 'uvicorn'"."""
+    monkeypatch.setitem(sys.modules, hidden, None)   # import of it fails, as where it is not installed
+    r = run(sample_db, "serve", "--port", "0", code=1)
+    assert r.output == (f"Error: mocapdb serve needs the serve extra, which is not installed ({hidden} is missing): "
+                        "pip install \"mocapdb[serve]\" (Starlette and uvicorn)\n")
+
+
+def test_duration_reads_as_the_summary_page_writes_it():
+    from mocapdb.cli.output import duration
+
+    assert [duration(s) for s in (8.94, 59.96, 189.0, 3599.4, 12.4 * 3600)] == [
+        "8.9 s", "1 min 00 s", "3 min 09 s", "59 min 59 s", "12 h 24 min"]
+
+
+@pytest.mark.shared
+def test_stats_prints_durations_within_the_terminal(sample_db, tmp_path, monkeypatch):
+    """`stats` printed hours as 0.000314815 and padded its refused-files table to ~560 characters."""
+    from conftest import DATA
+
+    deep = tmp_path / ("a_session_folder_with_a_long_name_" * 4) / "takes"
+    deep.mkdir(parents=True)
+    (deep / "sinusoidal.bvh").write_bytes((DATA / "foreign" / "bvh" / "fairmotion_sinusoidal.bvh").read_bytes())
+    db = tmp_path / "s.duckdb"
+    import shutil
+    shutil.copy(sample_db, db)
+    run(db, "ingest", deep, "--silent", code=1)
+    for columns in (80, 132):
+        monkeypatch.setenv("COLUMNS", str(columns))
+        lines = run(db, "stats").output.splitlines()
+        assert lines[0] == "3 motion(s), 1 min 22 s in all (0.02281 hours)"
+        assert max(map(len, lines)) < columns, max(lines, key=len)
+        formats = lines[lines.index("hours and motions per source format and rate:") + 1:]
+        assert formats[0].split() == ["format", "source_fps", "motions", "duration"]
+        assert formats[2].split() == ["amc", "120", "1", "40.0", "s"]
+        (refused,) = [ln for ln in lines if "failed" in ln]
+        assert "…" in refused and refused.split()[0].endswith("al.bvh")   # the path cut in the middle: its end kept
+    # machine-readable outputs keep the hours
+    assert run(db, "stats", "--table", "formats", "--format", "csv").output.startswith(
+        "format,source_fps,motions,hours\n")
