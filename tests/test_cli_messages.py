@@ -57,3 +57,27 @@ def test_stats_prints_durations_within_the_terminal(sample_db, tmp_path, monkeyp
     # machine-readable outputs keep the hours
     assert run(db, "stats", "--table", "formats", "--format", "csv").output.startswith(
         "format,source_fps,motions,hours\n")
+
+
+@pytest.mark.parametrize("kind", ["csv", "json", "parquet"])
+def test_a_db_that_is_not_a_duckdb_file_is_refused_before_anything_is_read(sample_db, tmp_path, kind):
+    """DuckDB opened `--db archive.csv` as a throw-away database with the file as a view: an ingest into
+    it reported success and was gone when the process exited."""
+    if kind == "parquet":   # the export's own motions.parquet
+        run(sample_db, "export-features", tmp_path / "export")
+        db = tmp_path / "export" / "motions.parquet"
+    else:
+        db = tmp_path / f"archive.{kind}"
+        db.write_text("name,n_frames\n86_09,4794\n" if kind == "csv" else '[{"name": "86_09"}]\n')
+    before = db.read_bytes()
+    from conftest import SAMPLE_86_09
+    for args in (["ingest", SAMPLE_86_09.parent, "--silent"], ["sql", "SELECT 1"], ["stats"],
+                 ["annotate", "--silent"], ["serve", "--port", "0"]):
+        r = run(db, *args, code=1)
+        assert r.output.startswith(f"Error: {db} is not a DuckDB database file (") and r.output.count("\n") == 1
+        assert "give a .duckdb file, or a new path" in r.output
+    assert db.read_bytes() == before
+    # a new path with any suffix is a new database, which keeps what is written into it
+    fresh = tmp_path / "new.csv"
+    run(fresh, "ingest", "--sample", "--silent")
+    assert run(fresh, "sql", "SELECT count(*) AS n FROM motions", "--format", "csv").output == "n\n3\n"

@@ -12,6 +12,7 @@ from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_rows, one_motion
 from mocapdb.storage.names import safe_stem
+from mocapdb.storage.schema import check_database_file
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.stats import archive_stats
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
@@ -275,6 +276,7 @@ def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, ready=None):
     """
     if not Path(db).is_file():
         raise SchemaError(f"{db}: no such database file (a mistyped --db? `mocapdb ingest` creates one)")
+    check_database_file(db)   # a CSV or Parquet named as --db: refused before any request opens it
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise ParameterError(f"port must be an integer from 0 to 65535, got {port!r}")
     try:
