@@ -81,3 +81,41 @@ def test_a_db_that_is_not_a_duckdb_file_is_refused_before_anything_is_read(sampl
     fresh = tmp_path / "new.csv"
     run(fresh, "ingest", "--sample", "--silent")
     assert run(fresh, "sql", "SELECT count(*) AS n FROM motions", "--format", "csv").output == "n\n3\n"
+
+
+def test_what_was_an_internal_error_is_one_line(sample_db, tmp_path, monkeypatch):
+    """The probe's `internal error (…)` cases: each a one-line error saying what is wrong, or an answer."""
+    import gzip
+
+    from conftest import SAMPLE_BVH
+    import lzma
+
+    take = tmp_path / "walk.bvh.gz"
+    take.write_bytes(gzip.compress(lzma.decompress(SAMPLE_BVH.read_bytes())))
+    db = tmp_path / "e.duckdb"
+    r = run(db, "ingest", take, "--max-decompressed", "1e400", code=1)
+    assert r.output == "Error: max_decompressed: '1e400' is not a positive finite size in bytes (e.g. 512MiB)\n"
+    monkeypatch.setenv("MOCAPDB_MAX_DECOMPRESSED", "1e400")
+    r = run(db, "ingest", take, "--silent", code=1)
+    assert "MOCAPDB_MAX_DECOMPRESSED: '1e400' is not a positive finite size" in r.output
+    assert "internal error" not in r.output
+    monkeypatch.delenv("MOCAPDB_MAX_DECOMPRESSED")
+    # a limit beyond any archive: every hit there is
+    r = run(sample_db, "similar", "86_09", "--start-frame", "40", "--end-frame", "110",
+            "--limit", "99999999999999999999", "--format", "csv")
+    assert r.output.startswith("document,motion_id,") and len(r.output.splitlines()) > 3
+    binary = tmp_path / "query.sql"
+    binary.write_bytes(b"SELECT 1; \xd0\x00\xff\xfe binary")
+    r = run(sample_db, "sql", "--file", binary, code=2)
+    assert r.output.splitlines()[-1] == (f"Error: {binary} is not UTF-8 text (byte 0xd0 at offset 10): the query "
+                                         "must be SQL text")
+    # a Ray archive whose manifest is a JSON list
+    archive = tmp_path / "archive"
+    (archive / "motions").mkdir(parents=True)
+    for text in ("[1, 2]", '{"motions": 3, "parts": ["motions/part-0.parquet"]}', '"x"'):
+        (archive / "manifest.json").write_text(text)
+        for args in (["import-features", archive], ["attach", archive]):
+            r = run(tmp_path / "i.duckdb", *args, code=1)
+            assert r.output.startswith(f"Error: {archive / 'manifest.json'}: not a manifest of ray-annotate ("), \
+                r.output
+            assert r.output.count("\n") == 1

@@ -114,11 +114,16 @@ def sql(ctx, query, sql_file, fmt, read_only):
     """
     if (query is None) == (sql_file is None):
         raise click.UsageError("give a QUERY, '-' (stdin) or --file FILE (one of them)")
-    if sql_file is not None:
-        query = sql_file.read()
-    elif query == "-":
-        with click.open_file("-", encoding="utf-8") as stdin:
-            query = stdin.read()
+    try:
+        if sql_file is not None:
+            query = sql_file.read()
+        elif query == "-":
+            with click.open_file("-", encoding="utf-8") as stdin:
+                query = stdin.read()
+    except UnicodeDecodeError as exc:   # a binary file given as the query
+        where = getattr(sql_file, "name", "stdin")
+        raise click.UsageError(f"{where} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
+                               f"{exc.start}): the query must be SQL text") from None
     con = open_db(ctx, read_only=read_only)
     statements = con.extract_statements(query)
     if not statements:

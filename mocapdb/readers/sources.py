@@ -40,6 +40,7 @@ import gzip
 import hashlib
 import io
 import lzma
+import math
 import os
 import re
 import stat
@@ -89,8 +90,8 @@ def parse_size(value, *, what="max_decompressed") -> int:
         if m is None:
             raise ParameterError(f"{what}: {value!r} is not a size in bytes (e.g. 512MiB, 2GiB, 1000000000)")
         n = float(m.group(1)) * (1024 if m.group(3) else 1000) ** " kmgt".index((m.group(2) or " ").lower())
-    if not n >= 1:
-        raise ParameterError(f"{what}: {value!r} is not a positive size in bytes (e.g. 512MiB)")
+    if not (n >= 1 and math.isfinite(n)):   # 1e400 reads as inf: no byte count
+        raise ParameterError(f"{what}: {value!r} is not a positive finite size in bytes (e.g. 512MiB)")
     return int(n)
 
 

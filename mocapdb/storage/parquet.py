@@ -37,7 +37,7 @@ import pyarrow as pa
 import pyarrow.compute  # noqa: F401 - pa.compute
 import pyarrow.parquet as pq
 
-from mocapdb.errors import MocapdbError, ParameterError, SchemaError
+from mocapdb.errors import MocapdbError, ParameterError, SchemaError, shorten
 from mocapdb.storage.ingest import insert_features, remove_motions
 from mocapdb.storage.ingest_log import IngestLog
 from mocapdb.storage.motions import (BATCH_FRAMES, check_frames, frame_batches, incomplete_motions,
@@ -153,9 +153,16 @@ def read_manifest(directory):
     if not f.is_file():
         return None
     try:
-        return json.loads(f.read_text(encoding="utf-8"))
+        manifest = json.loads(f.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise SchemaError(f"{f}: not a readable manifest ({exc})") from None
+    # JSON of another shape (a list, parts that are no table of row counts) is no manifest of ours
+    parts = manifest.get("parts", {}) if isinstance(manifest, dict) else None
+    if not (isinstance(parts, dict) and all(isinstance(k, str) and type(v) is int for k, v in parts.items())
+            and all(type(manifest.get(k, 0)) is int for k in ("motions", "segments"))):
+        raise SchemaError(f"{f}: not a manifest of ray-annotate (an object whose motions, segments and parts "
+                          f"count rows; found {type(manifest).__name__} {shorten(json.dumps(manifest)[:200])})")
+    return manifest
 
 
 def _parts(root: Path) -> list:
