@@ -168,11 +168,15 @@ def motion_suffix(path) -> str:
 
 
 def motion_stem(path) -> str:
-    """The file name without compression and format suffixes: ``walk.bvh.gz`` → ``walk``."""
+    """The file name without compression and format suffixes: ``walk.bvh.gz`` → ``walk``.
+
+    A stem of dots only (``...bvh`` → ``..``) is no name a motion can carry out and back in (a file
+    name, ``import-features``): its dots become ``_``."""
     p = Path(path)
     if p.suffix.lower() in COMPRESSED:
         p = Path(p.stem)
-    return Path(p.name).stem
+    stem = Path(p.name).stem
+    return stem if stem.strip(".") else "_" * max(len(stem), 1)
 
 
 # zip archives stay open between reads of their members (an archive of 2,500 takes is

@@ -44,7 +44,7 @@ class IngestReport:
 
     ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
     replaced: list = field(default_factory=list)     # (path, former motion_id): read again with replace
-    skipped: list = field(default_factory=list)      # (path, reason): already stored
+    skipped: list = field(default_factory=list)      # (path, reason): already stored, or hidden (not read)
     repaired: list = field(default_factory=list)     # (path, reason): stored with incomplete features, replaced
     failed: list = field(default_factory=list)       # (path, reason)
     unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
@@ -375,10 +375,13 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
     for p in paths:
         try:
             files += motion_files([p], unsupported=report.unsupported, unreadable=report.unreadable,
-                                  refused=report.failed)
+                                  refused=report.failed, hidden=report.skipped)
         except ParameterError as exc:   # a path that is not there: logged, and the call fails
             log.add(p, "failed", str(exc))
             raise
+    # what the walk refused (an earlier copy of a zip member) is keyed by a path a later copy may share:
+    # only the files read and failed make a copy of them fail
+    walk_refused = len(report.failed)
     tick = _ticker(progress, len(files))
     stored = _stored_keys(con)
     todo = []
@@ -460,7 +463,7 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
         if batch:
             flush()
     # a copy of a stored file is skipped; a copy of a broken one is as broken
-    failed = dict(report.failed)
+    failed = dict(report.failed[walk_refused:])
     for path, key in duplicates:
         first = first_of[key]
         if first in failed:
