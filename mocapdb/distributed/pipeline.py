@@ -23,6 +23,7 @@ import logging
 import math
 import os
 import re
+import socket
 import warnings
 from dataclasses import dataclass
 from datetime import datetime
@@ -143,6 +144,7 @@ def ray_session(ray, *, address=None, num_cpus=None):
     if started:
         quiet = {"logging_level": logging.WARNING, "log_to_driver": False}
         if address is not None:
+            _check_reachable(address)
             try:
                 ray.init(address=address, **quiet)
             except (ConnectionError, ray.exceptions.AuthenticationError) as exc:
@@ -162,6 +164,39 @@ def ray_session(ray, *, address=None, num_cpus=None):
 #: what a client of a cluster with token authentication needs (Ray ≥ 2.52; README "Archives larger than one machine")
 TOKEN_AUTH = ("a cluster started with token authentication (RAY_AUTH_MODE=token) needs it here too: "
               "RAY_AUTH_MODE=token and its token in RAY_AUTH_TOKEN_PATH=FILE (or RAY_AUTH_TOKEN, or ~/.ray/auth_token)")
+
+
+#: seconds to wait for a cluster's address to answer before Ray is asked to connect (Ray itself retries
+#: an address nobody answers at for minutes)
+CONNECT_TIMEOUT = 5.0
+
+
+def _check_reachable(address) -> None:
+    """Refuse at once a ``host:port`` (or ``ray://host:port``) that no host answers at: a name that does
+    not resolve, a port nothing listens on, or no answer within :data:`CONNECT_TIMEOUT` seconds. Other
+    forms (``auto``, ``local``) are Ray's to resolve.
+
+    Raises
+    ------
+    MocapdbError
+    """
+    text = str(address)
+    hostport = text.split("://", 1)[1] if "://" in text else text
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return
+    host = host.strip("[]")   # an IPv6 address in brackets
+    try:
+        with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT):
+            pass
+    except socket.gaierror as exc:
+        raise MocapdbError(f"cannot connect to the Ray cluster at {address}: no such host {host!r} "
+                           f"({exc.strerror or exc})") from None
+    except (OSError, ValueError, OverflowError) as exc:
+        why = "no answer within {:g} s".format(CONNECT_TIMEOUT) if isinstance(exc, TimeoutError) else \
+            (getattr(exc, "strerror", None) or str(exc))
+        raise MocapdbError(f"cannot connect to the Ray cluster at {address}: {why} (is the cluster's head "
+                           "running, and the address its GCS address, e.g. HOST:6379?)") from None
 
 
 def _cannot_connect(address, exc) -> str:

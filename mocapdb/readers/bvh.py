@@ -61,12 +61,14 @@ from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, 
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
-from mocapdb.readers.sources import max_decompressed, motion_stem, open_stream, read_bytes, stream_size
-from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
+from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
+                                     stream_size)
+from mocapdb.readers.textscan import line_of, longest_line, parse_rows_into, rows_bound
 from mocapdb.readers.units import bvh_unit
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
-           "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
+           "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH",
+           "MAX_HEADER_LINE", "check_bvh_start"]
 
 #: BVH channel names (case-insensitive in files) -> (kind, axis): kind 0 =
 #: position, 1 = rotation; axis 0 = x, 1 = y, 2 = z
@@ -211,20 +213,57 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
     return parse_bvh_stream(io.BytesIO(data), path=path, size=len(data))
 
 
+#: the longest line of a BVH header (HIERARCHY … Frame Time): a few hundred bytes in any file seen; a
+#: "line" of megabytes (a file of NUL bytes) is no BVH, refused at once instead of read to its end
+MAX_HEADER_LINE = 1 << 14
+_WORD = re.compile(rb"[^\s\x00]{1,16}")
+
+
 def _read_head(fh, path):
     """The file's bytes up to the end of the ``Frame Time`` line (or all, if there is none), and
-    whether the stream is exhausted."""
-    head = b""
+    whether the stream is exhausted.
+
+    Decided from the first bytes: a file whose first word is not ``HIERARCHY`` is refused after one
+    block, and a header line longer than :data:`MAX_HEADER_LINE` as soon as it is read, so a
+    hostile file (500 MiB of NUL bytes in a 0.5 MB ``.bvh.gz``) costs one block, not its size.
+    Linear in what it reads: each block is searched once (with the few bytes before it)."""
+    head = bytearray()
+    carry = 0       # the unfinished line's length so far (before MOTION)
+    motion = None   # where MOTION starts, once found
+    decided = False
     while True:
         chunk = fh.read(_READ_BLOCK)
+        start = len(head)
         head += chunk
+        if not decided and (len(head) >= 1024 or not chunk):   # the first word, once there are bytes enough
+            decided = True
+            first = _WORD.search(head.lstrip(b"\xef\xbb\xbf"))
+            if first is not None and first.group().upper() != b"HIERARCHY":
+                raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
         if not chunk:
-            return head, True
-        m = _MOTION.search(head)
-        if m is not None:
-            tm = _FRAME_TIME.search(head, m.end(), m.end() + 4096)
+            return bytes(head), True
+        if motion is None:
+            m = _MOTION.search(head, max(0, start - 64))
+            motion = None if m is None else m.start()
+            longest, carry = longest_line(chunk if motion is None else chunk[:max(0, motion - start)], carry)
+            if longest > MAX_HEADER_LINE:
+                raise ParseError(path, None, f"a header line longer than {MAX_HEADER_LINE:,} bytes (a BVH "
+                                 "header's lines are short: not a BVH file?)")
+        if motion is not None:
+            tm = _FRAME_TIME.search(head, motion, motion + 4096)
             if tm is not None and head.find(b"\n", tm.end()) >= 0:
-                return head, False
+                return bytes(head), False
+
+
+def check_bvh_start(data: bytes, path) -> None:
+    """Refuse what cannot be a BVH file from its first bytes (:func:`_read_head`'s checks: the first word,
+    the header's line lengths).
+
+    Raises
+    ------
+    ParseError
+    """
+    _read_head(io.BytesIO(data), path)
 
 
 class _MotionLines:
@@ -600,10 +639,17 @@ def joint_map_template(path) -> str:
     Raises
     ------
     ParseError
-        The file's hierarchy is malformed.
+        The file's hierarchy is malformed, or it is no regular file (a FIFO).
     """
     path = Path(path)
-    data = read_bytes(path)
+    kind = special_kind(path)
+    if kind is not None:   # reading a FIFO would wait for a writer forever, a device never end
+        raise ParseError(path, None, f"{kind}, not a BVH file")
+    try:
+        with open_stream(path) as fh:   # the header only: the motion lines are not needed
+            data, _ = _read_head(fh, str(path))
+    except OSError as exc:
+        raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
     m = _MOTION.search(data)
     hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
     tree = hier.tree()

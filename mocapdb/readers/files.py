@@ -21,13 +21,14 @@ from mocapdb.readers.amass import read_amass
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.asf_humanoid import asf_humanoid_joints
-from mocapdb.readers.bvh import read_bvh
+from mocapdb.readers.bvh import MAX_HEADER_LINE, check_bvh_start, read_bvh
 from mocapdb.readers.c3d import read_c3d
 from mocapdb.readers.humanoid import MappingError
 from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
 from mocapdb.readers.motion import Motion, check_finite_motion
+from mocapdb.readers.textscan import longest_line
 from mocapdb.readers.options import ReaderOptions
-from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix,
+from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix, open_stream,
                                      special_kind)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
@@ -37,6 +38,39 @@ SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d", ".npz")
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
+
+
+#: bytes of a text recording read to decide whether it can be one, before it is hashed or read whole
+START_BYTES = 1 << 16
+
+
+def check_start(path) -> None:
+    """Refuse a text recording (BVH, AMC, ASF) that cannot be one from its first bytes.
+
+    A file whose first line never ends (500 MiB of NUL bytes as a 0.5 MB ``.bvh.gz``) took minutes and
+    gigabytes to refuse; its first :data:`START_BYTES` say enough: a BVH must start with ``HIERARCHY``,
+    and no line of a BVH header, an AMC or an ASF is longer than :data:`MAX_HEADER_LINE` bytes.
+    ``ingest`` asks this before hashing a file, :func:`read_motion` before reading it.
+
+    Raises
+    ------
+    ParseError
+        Naming the file and what its start shows.
+    """
+    ext = motion_suffix(path)
+    if ext not in (".bvh", ".amc", ".asf"):
+        return
+    try:
+        with open_stream(path) as fh:
+            head = fh.read(START_BYTES)
+    except OSError as exc:
+        raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
+    if ext == ".bvh":
+        check_bvh_start(head, path)
+    elif longest_line(head)[0] > MAX_HEADER_LINE:
+        raise ParseError(path, None, f"a line longer than {MAX_HEADER_LINE:,} bytes within its first "
+                         f"{START_BYTES:,} (an {ext[1:].upper()} file's lines are short: not an {ext[1:].upper()} "
+                         "file?)")
 
 
 def skeleton_candidates(amc_path) -> list:
@@ -227,6 +261,7 @@ def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None
     try:
         # hostile values overflow in FK; the result is checked for finiteness
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"), options.capped():
+            check_start(path)
             return _read(path, options)
     except MocapdbError:
         raise

@@ -21,6 +21,7 @@ import pyarrow as pa
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
 from mocapdb.readers import ReaderOptions, find_skeleton, motion_files, read_motion, skeleton_note
+from mocapdb.readers.files import check_start
 from mocapdb.readers.sources import motion_stem, motion_suffix, sha256, special_kind
 from mocapdb.storage.ingest_log import IngestLog, write_report
 from mocapdb.storage.motions import incomplete_motions
@@ -90,6 +91,7 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     kind = special_kind(path)
     if kind is not None:   # opening a FIFO would block, a device never end
         raise MocapdbError(f"{path}: {kind}, not a motion file")
+    check_start(path)   # what its first bytes refuse is not hashed whole first (a gigabyte of NUL bytes)
     skel = None
     if motion_suffix(path) == ".amc":
         skel = Path(asf) if asf is not None else find_skeleton(path)
