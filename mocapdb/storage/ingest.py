@@ -91,11 +91,11 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     kind = special_kind(path)
     if kind is not None:   # opening a FIFO would block, a device never end
         raise MocapdbError(f"{path}: {kind}, not a motion file")
-    check_start(path)   # what its first bytes refuse is not hashed whole first (a gigabyte of NUL bytes)
     skel = None
     if motion_suffix(path) == ".amc":
         skel = Path(asf) if asf is not None else find_skeleton(path)
     try:
+        check_start(path)   # what its first bytes refuse is not hashed whole first (a gigabyte of NUL bytes)
         digest = sha256(path)
     except OSError as exc:
         raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
