@@ -17,7 +17,7 @@ import pytest
 import mocapdb
 from mocapdb.errors import ParseError
 from mocapdb.readers import read_motion
-from mocapdb.readers.bvh import MAX_HEADER_LINE
+from mocapdb.readers.bvh_head import MAX_HEADER_LINE
 
 from conftest import SAMPLE_BVH
 

@@ -63,12 +63,12 @@ from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
                                      stream_size)
-from mocapdb.readers.textscan import line_of, longest_line, parse_rows_into, rows_bound
+from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, MOTION, READ_BLOCK, read_head
+from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
 from mocapdb.readers.units import bvh_unit
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
-           "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH",
-           "MAX_HEADER_LINE", "check_bvh_start"]
+           "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
 
 #: BVH channel names (case-insensitive in files) -> (kind, axis): kind 0 =
 #: position, 1 = rotation; axis 0 = x, 1 = y, 2 = z
@@ -193,15 +193,6 @@ def fps_from_frame_time(frame_time: float) -> float:
 # parsing
 
 _TOKEN = re.compile(rb"[{}]|[^\s{}]+")
-_FRAMES = re.compile(rb"Frames\s*:?\s*(\S*)", re.IGNORECASE)
-_FRAME_TIME = re.compile(rb"Frame\s*Time\s*:?\s*([^\s]*)", re.IGNORECASE)
-_MOTION = re.compile(rb"(?m)^[ \t]*MOTION\b")
-
-
-#: bytes of a BVH file read and parsed at a time: the text is never held whole
-_READ_BLOCK = 1 << 22
-
-
 def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
     """Parse the bytes of a BVH file into hierarchy and channel values; see :func:`parse_bvh_stream`.
 
@@ -213,59 +204,6 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
     return parse_bvh_stream(io.BytesIO(data), path=path, size=len(data))
 
 
-#: the longest line of a BVH header (HIERARCHY … Frame Time): a few hundred bytes in any file seen; a
-#: "line" of megabytes (a file of NUL bytes) is no BVH, refused at once instead of read to its end
-MAX_HEADER_LINE = 1 << 14
-_WORD = re.compile(rb"[^\s\x00]{1,16}")
-
-
-def _read_head(fh, path):
-    """The file's bytes up to the end of the ``Frame Time`` line (or all, if there is none), and
-    whether the stream is exhausted.
-
-    Decided from the first bytes: a file whose first word is not ``HIERARCHY`` is refused after one
-    block, and a header line longer than :data:`MAX_HEADER_LINE` as soon as it is read, so a
-    hostile file (500 MiB of NUL bytes in a 0.5 MB ``.bvh.gz``) costs one block, not its size.
-    Linear in what it reads: each block is searched once (with the few bytes before it)."""
-    head = bytearray()
-    carry = 0       # the unfinished line's length so far (before MOTION)
-    motion = None   # where MOTION starts, once found
-    decided = False
-    while True:
-        chunk = fh.read(_READ_BLOCK)
-        start = len(head)
-        head += chunk
-        if not decided and (len(head) >= 1024 or not chunk):   # the first word, once there are bytes enough
-            decided = True
-            first = _WORD.search(head.lstrip(b"\xef\xbb\xbf"))
-            if first is not None and first.group().upper() != b"HIERARCHY":
-                raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
-        if not chunk:
-            return bytes(head), True
-        if motion is None:
-            m = _MOTION.search(head, max(0, start - 64))
-            motion = None if m is None else m.start()
-            longest, carry = longest_line(chunk if motion is None else chunk[:max(0, motion - start)], carry)
-            if longest > MAX_HEADER_LINE:
-                raise ParseError(path, None, f"a header line longer than {MAX_HEADER_LINE:,} bytes (a BVH "
-                                 "header's lines are short: not a BVH file?)")
-        if motion is not None:
-            tm = _FRAME_TIME.search(head, motion, motion + 4096)
-            if tm is not None and head.find(b"\n", tm.end()) >= 0:
-                return bytes(head), False
-
-
-def check_bvh_start(data: bytes, path) -> None:
-    """Refuse what cannot be a BVH file from its first bytes (:func:`_read_head`'s checks: the first word,
-    the header's line lengths).
-
-    Raises
-    ------
-    ParseError
-    """
-    _read_head(io.BytesIO(data), path)
-
-
 class _MotionLines:
     """A BVH stream after its header (read whole): the hierarchy, ``n_frames``, ``frame_time``; iterating
     gives the channel values of a 4 MiB block of motion lines at a time ((rows, n_channels) float64), never
@@ -274,14 +212,14 @@ class _MotionLines:
     def __init__(self, fh, path, size):
         self.fh, self.path = fh, str(path)
         path = self.path
-        head, self.eof = _read_head(fh, path)
+        head, self.eof = read_head(fh, path)
         if head.startswith(b"\xef\xbb\xbf"):
             head = head[3:]
             size = None if size is None else size - 3
         if b"\n" not in head and b"\r" in head:
             head = (head + (b"" if self.eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
             self.eof = True
-        m = _MOTION.search(head)
+        m = MOTION.search(head)
         if m is None:
             if not head.lstrip().upper().startswith(b"HIERARCHY"):
                 raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
@@ -303,7 +241,7 @@ class _MotionLines:
         self.rest = None
         while True:
             if not eof:
-                more = self.fh.read(_READ_BLOCK)
+                more = self.fh.read(READ_BLOCK)
                 eof = not more
                 rest += more
             if eof:
@@ -367,7 +305,7 @@ class _LazyLine:
 
 def _parse_motion_header(data, pos, path):
     head = data[pos:pos + 4096]
-    fm = _FRAMES.search(head)
+    fm = FRAMES.search(head)
     if fm is None:
         raise ParseError(path, line_of(data, pos), "expected 'Frames:' after MOTION")
     frames_at = pos + fm.start()
@@ -378,7 +316,7 @@ def _parse_motion_header(data, pos, path):
     n_frames = int(tok)
     if n_frames == 0:
         raise ParseError(path, frames_line, "no frames ('Frames: 0')")
-    tm = _FRAME_TIME.search(head, fm.end())
+    tm = FRAME_TIME.search(head, fm.end())
     if tm is None:
         raise ParseError(path, int(frames_line) + 1, "expected 'Frame Time:' after 'Frames:'")
     line = _LazyLine(data, pos + tm.start())
@@ -647,10 +585,10 @@ def joint_map_template(path) -> str:
         raise ParseError(path, None, f"{kind}, not a BVH file")
     try:
         with open_stream(path) as fh:   # the header only: the motion lines are not needed
-            data, _ = _read_head(fh, str(path))
+            data, _ = read_head(fh, str(path))
     except OSError as exc:
         raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
-    m = _MOTION.search(data)
+    m = MOTION.search(data)
     hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
     tree = hier.tree()
     auto, problem, _ = auto_map(hier, tree)

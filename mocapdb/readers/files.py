@@ -21,7 +21,8 @@ from mocapdb.readers.amass import read_amass
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.asf_humanoid import asf_humanoid_joints
-from mocapdb.readers.bvh import MAX_HEADER_LINE, check_bvh_start, read_bvh
+from mocapdb.readers.bvh import read_bvh
+from mocapdb.readers.bvh_head import MAX_HEADER_LINE, check_bvh_start
 from mocapdb.readers.c3d import read_c3d
 from mocapdb.readers.humanoid import MappingError
 from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
