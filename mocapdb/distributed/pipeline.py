@@ -39,7 +39,7 @@ from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
 from mocapdb.readers import MOTION_SUFFIXES, ReaderOptions, companion_kind, motion_files
 from mocapdb.storage.ingest import IngestReport
 from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
-from mocapdb.storage.parquet import archive_parts, table_schemas, write_manifest
+from mocapdb.storage.parquet import archive_parts, part_digests, table_schemas, write_manifest
 from mocapdb.storage.schema import open_database
 
 log = logging.getLogger("mocapdb")
@@ -337,8 +337,9 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
                          "failed": len(report.failed), "skipped": len(report.skipped),
                          "source_frames": report.source_frames, "segments": report.segments,
                          "batch_files": batch_files, "bucket_motions": bucket_motions,
-                         # every part and its rows: attach and import check the archive against them
-                         "parts": archive_parts(out)})
+                         # every part, its rows and its bytes' SHA-256: attach and import check the archive
+                         # against them (rows rewritten in place keep their count, not their digest)
+                         "parts": (found := archive_parts(out)), "digests": part_digests(out, found)})
     log.info("ray_annotate: %s", report.summary())
     return report
 
