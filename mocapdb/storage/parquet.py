@@ -202,6 +202,8 @@ class Archive:
     kind: str
     motions: pa.Table
     _parts: dict = field(default_factory=dict, repr=False)  # dataset -> its Ray parts, listed once
+    #: an export's feature parts whose bytes differ from digests.json (file -> why): their motions are refused
+    changed: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def open(cls, directory, *, whole=False) -> "Archive":
@@ -247,15 +249,21 @@ class Archive:
                             if n is not None and rows[ds] != n])
             return cls(d, "ray", motions)
         if (d / EXPORT_MOTIONS).is_file():
+            changed = {}
             if (d / EXPORT_DIGESTS).is_file():   # an export of an older mocapdb has none: rows checked only
                 listed = _read_digests(d / EXPORT_DIGESTS)
                 found = {f.relative_to(d).as_posix() for f in (d / "features").rglob("*.parquet")} \
                     if (d / "features").is_dir() else set()
-                _refuse(d, _digest_problems(d, listed, EXPORT_DIGESTS)
+                # the motions table and foreign parts concern every motion: the export is refused whole
+                _refuse(d, _digest_problems(d, {k: v for k, v in listed.items() if k == EXPORT_MOTIONS},
+                                            EXPORT_DIGESTS)
                         + [f"{rel} is not one of its parts (a copy, or a part of another export)"
                            for rel in sorted(found - set(listed)) if not Path(rel).name.startswith(".")],
                         EXPORT_DIGESTS, "export again (--overwrite)")
-            return cls(d, "export", _read_motions(d / EXPORT_MOTIONS))
+                # a changed feature part costs its motion, as a missing or unreadable one does
+                changed = {d / rel: _changed(rel, EXPORT_DIGESTS) for rel in _changed_parts(
+                    d, {k: v for k, v in listed.items() if k != EXPORT_MOTIONS})}
+            return cls(d, "export", _read_motions(d / EXPORT_MOTIONS), changed=changed)
         if (d / "features").is_dir():
             raise ParameterError(f"directory: {str(d)!r} has features/ but no {EXPORT_MOTIONS}, which "
                                  "export-features writes last: the export did not finish; export again (--overwrite)")
@@ -304,17 +312,19 @@ def part_digests(directory, rels) -> dict:
     return {rel: file_digest(d / rel) for rel in sorted(rels)}
 
 
+def _changed_parts(d: Path, listed: dict) -> list:
+    """The parts of ``listed`` (``{rel: digest}``) that are there with other bytes."""
+    return [rel for rel, digest in listed.items() if (d / rel).is_file() and file_digest(d / rel) != digest]
+
+
+def _changed(rel, source) -> str:
+    return f"{rel} is not the file written (its bytes differ from the SHA-256 in {source}: changed since)"
+
+
 def _digest_problems(d: Path, listed: dict, source: str) -> list:
-    """Parts whose bytes are not those ``listed`` (``{rel: digest}`` from ``source``), or are missing."""
-    out = []
-    for rel, digest in listed.items():
-        f = d / rel
-        if not f.is_file():
-            out.append(f"{rel} is missing")
-        elif file_digest(f) != digest:
-            out.append(f"{rel} is not the file written (its bytes differ from the SHA-256 in {source}: "
-                       "changed since)")
-    return out
+    """Parts of ``listed`` (``{rel: digest}`` from ``source``) that are missing or have other bytes."""
+    return ([f"{rel} is missing" for rel in listed if not (d / rel).is_file()]
+            + [_changed(rel, source) for rel in _changed_parts(d, listed)])
 
 
 #: the datasets of a Ray archive: the tables and the files that failed
@@ -570,11 +580,16 @@ def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, repor
         if f in ann_bad:
             for mid in ids[(ids >= first) & (ids <= last)].tolist():
                 unreadable.setdefault(mid, f"{f}: {ann_bad[f]}")
-    ok = complete & ~np.isin(ids, list(unreadable))
+    changed = {mid: why for f, (first, last) in files.items() if f in archive.changed
+               for mid in ids[(ids >= first) & (ids <= last)].tolist() for why in [archive.changed[f]]}
+    ok = complete & ~np.isin(ids, list(unreadable)) & ~np.isin(ids, list(changed))
     for k, mid in enumerate(ids.tolist()):
         if not ok[k]:
             name = names[rows_k[k]]
+            # an unreadable part is named by its cause; a readable one with other bytes, by its digest
             why = (f"archive motion {mid} ({name}): features unreadable: {unreadable[mid]}" if mid in unreadable
+                   else f"archive motion {mid} ({name}): features changed since the export, not imported: "
+                   f"{changed[mid]}" if mid in changed
                    else incomplete_reason(mid, name, n_rows[k], lengths[rows_k[k]], what="archive motion",
                                           remedy="not imported"))
             report.failed.append((name, why))
