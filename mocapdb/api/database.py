@@ -232,8 +232,8 @@ def export_features(con, directory, *, overwrite=False) -> int:
     return parquet.export_features(con, directory, overwrite=overwrite)
 
 
-def export_joints(con, motions, out, *, format="npz", where=None, label=None, model=DEFAULT_MODEL, unit=None,
-                  scale=None, progress=None) -> JointsExport:
+def export_joints(con, motions, out, *, all=False, format="npz", where=None, label=None, model=DEFAULT_MODEL,
+                  unit=None, scale=None, progress=None) -> JointsExport:
     """Write the 24 canonical joints of motions as files for other tools (fairmotion, Blender, aitviewer).
 
     Each motion's source is re-read with the options it was ingested with
@@ -248,7 +248,8 @@ def export_joints(con, motions, out, *, format="npz", where=None, label=None, mo
     ----------
     con : duckdb.DuckDBPyConnection
     motions : iterable of int or str, or None
-        Motion ids or names; None: every motion ``where`` and ``label`` keep.
+        Motion ids or names; None (or empty) with ``all``, ``where`` or
+        ``label``: every motion they keep.
     out : str or Path
         The file (one motion, ``out`` ending in ``.<format>``; its folder is
         created), else a directory (created) of ``<motion name>.<format>``
@@ -258,6 +259,9 @@ def export_joints(con, motions, out, *, format="npz", where=None, label=None, mo
         ``source_unit``, ``metres_per_source_unit``; ``csv``: a row per
         frame (``frame``, ``time``, ``<joint>_x/_y/_z``); ``bvh``: a skeleton
         of the canonical joints that mocapdb (and other tools) read back.
+    all : bool, keyword-only
+        Every motion (that ``where`` and ``label`` keep): said, so that no
+        motions given by mistake never exports a whole archive.
     where : str, optional, keyword-only
         A SQL condition over ``motions``' columns (``"format = 'bvh'"``).
     label : str, optional, keyword-only
@@ -275,6 +279,11 @@ def export_joints(con, motions, out, *, format="npz", where=None, label=None, mo
         ``written`` ``(motion_id, name, path, source unit)``, ``failed``
         ``(motion_id, name, reason)``.
     """
+    motions = list(motions or ()) or None
+    if motions is None and not all and where is None and label is None:
+        raise ParameterError("give motions (ids or names), all=True, where or label")
+    if motions is not None and all:
+        raise ParameterError("give motions or all=True, not both")
     return storage_export_joints(con, motions, out, format=format, where=where, label=label, model=model, unit=unit,
                                  scale=scale, progress=progress)
 

@@ -174,7 +174,7 @@ def export_features(ctx, directory, overwrite):
 
 @command("export-joints")
 @click.argument("motions", nargs=-1)
-@click.option("--all", "all_motions", is_flag=True, help="Every motion (that --where and --label keep).")
+@click.option("--all", "all", is_flag=True, help="Every motion (that --where and --label keep).")
 @click.option("--where", metavar="SQL", help="Motions a SQL condition over the motions table holds for, e.g. "
                                              "\"format = 'bvh' AND source_path LIKE '%/session1/%'\".")
 @click.option("--label", help="Motions with a stored segment of this label (run annotate first; --model's).")
@@ -191,7 +191,7 @@ def export_features(ctx, directory, overwrite):
 @click.option("--scale", type=float, help="Or: metres per unit of BVH sources.")
 @silent_option
 @click.pass_context
-def export_joints(ctx, motions, all_motions, where, label, model, fmt, out, unit, scale, silent):
+def export_joints(ctx, motions, all, where, label, model, fmt, out, unit, scale, silent):
     """Write the 24 canonical joints of motions (ids or names, --all, --where, --label) for other tools.
 
     Each motion's source file is read again as it was ingested: its joints
@@ -207,13 +207,13 @@ def export_joints(ctx, motions, all_motions, where, label, model, fmt, out, unit
       mocapdb --db demo.duckdb export-joints --where "format = 'bvh'" --out joints/
       mocapdb --db demo.duckdb export-joints --label jump --format csv --out jumps/
     """
-    if not motions and not (all_motions or where is not None or label is not None):
+    if not motions and not (all or where is not None or label is not None):
         raise click.UsageError("give motion ids or names, --all, --where SQL or --label LABEL")
-    if motions and all_motions:
+    if motions and all:
         raise click.UsageError("give motion ids or names, or --all, not both")
     con = open_db(ctx, read_only=True)
     with progress_bar(None, "export-joints", silent, unit="motion") as bar:
-        report = api.export_joints(con, list(motions) or None, out, format=fmt, where=where, label=label,
+        report = api.export_joints(con, list(motions) or None, out, all=all, format=fmt, where=where, label=label,
                                    model=model, unit=unit, scale=scale, progress=bar_progress(bar))
     for mid, name, path, how in report.written:   # a name is data: never its control characters raw
         click.echo(escape_control(f"wrote {path} (motion {mid} {name}; source unit {how})"))
