@@ -1,8 +1,10 @@
 """Commands that draw, show and search (:mod:`mocapdb.api.outputs`)."""
 from __future__ import annotations
 
+import os
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import click
@@ -192,7 +194,11 @@ def stats(ctx, model, table, fmt):
               "refused": "files refused at their latest ingest"}
     if table is None:
         click.echo(f"{s.motions} motion(s), {duration(s.hours * 3600)} in all ({s.hours:.4g} hours)")
-    width = shutil.get_terminal_size().columns - 1   # a line as wide as the terminal wraps on some
+    # within the terminal (a line as wide as it wraps on some); piped into a file or grep, whole
+    columns = os.environ.get("COLUMNS", "")
+    width = (int(columns) if columns.isdigit() else shutil.get_terminal_size().columns if sys.stdout.isatty()
+             else None)
+    width = None if width is None else width - 1
     for name in chosen:
         t = tables[name]
         if table is None:
