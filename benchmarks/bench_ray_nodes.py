@@ -7,7 +7,7 @@ two nodes, a second ``ray start --address`` on this machine, each node with
 ``--num-cpus 1`` (tests/ray_cluster.py: folders of their own, stopped by
 process id). ``mocapdb ray-annotate SOURCES --out DIR --address HEAD`` then
 runs in a fresh process (cluster and client with token authentication, as
-README "Archives larger than one machine" describes). Data: the ASF/AMC takes of hdm05_cut, cmu/02 and
+docs/CLUSTER.md "Archives larger than one machine" describes). Data: the ASF/AMC takes of hdm05_cut, cmu/02 and
 cmu/86 copied ``--copies`` times with a comment line of their own
 (bench_ray.make_copies: 242 files and 72,488 source frames per copy). Printed:
 wall seconds of the run (best of ``--repeat``), source frames per second,

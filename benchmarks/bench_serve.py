@@ -84,11 +84,11 @@ def serve_archive(path, hours):
 
 
 class Server:
-    """``mocapdb --db DB serve --port 0`` in a process of its own."""
+    """``mocapdb --db DB serve --port 0 ARGS…`` in a process of its own."""
 
-    def __init__(self, db):
+    def __init__(self, db, *args):
         self.proc = subprocess.Popen([sys.executable, "-P", "-m", "mocapdb.cli", "--db", str(db), "serve", "--port",
-                                      "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                      "0", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         line = self.proc.stdout.readline()
         if "Serving" not in line:
             raise RuntimeError(line + self.proc.stderr.read())
@@ -164,7 +164,7 @@ def measure(db, out):
             ("/api/stats (the page's facets and totals)", "/api/stats"),
             ("/api/motions: first page (50 rows, strips)", "/api/motions"),
             ("filter: label=kick", "/api/motions?label=kick"),
-            ("filter: format=bvh, sort=-name", "/api/motions?format=bvh&sort=-name"),
+            ("filter: source_format=bvh, sort=-name", "/api/motions?source_format=bvh&sort=-name"),
             ("filter: q=take_0012 (name contains)", "/api/motions?q=take_0012"),
             ("filter: label=jump, 50 s ≤ duration ≤ 70 s, sort=-seconds",
              "/api/motions?label=jump&min_s=50&max_s=70&sort=-seconds"),

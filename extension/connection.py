@@ -147,14 +147,14 @@ class Connection:
         return f"<mocapdb.Connection of {self._con!r}>"
 
 
-def connect(path=":memory:", *, read_only: bool = False, memory_limit=None) -> Connection:
+def connect(path=":memory:", *, read_only: bool = False, memory_limit=None, wait: float = 0.0) -> Connection:
     """Open a database (:func:`mocapdb.storage.schema.open_database`) with the SQL functions.
 
     Any number of connections to one file may be open in one process (a
     notebook cell run again); each, and each of their cursors, has the
     functions. See :func:`mocapdb.api.connect`.
     """
-    con = open_database(path, read_only=read_only, memory_limit=memory_limit)
+    con = open_database(path, read_only=read_only, memory_limit=memory_limit, wait=wait)
     try:
         return Connection(con, _attach(con))
     except BaseException:

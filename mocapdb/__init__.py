@@ -27,10 +27,32 @@ if not _os.path.isdir(_os.path.join(__path__[0], "extension")):
     if _os.path.isfile(_os.path.join(_root, "extension", "__init__.py")):
         __path__.append(_root)
 
-from mocapdb.api import annotate, connect, delete, evaluate, export_joints, ingest, similar, train, view  # noqa: E402
-from mocapdb.errors import MocapdbError, ParameterError, ParseError, SchemaError  # noqa: E402
-from mocapdb.features import motion_features, relational_features  # noqa: E402
-from mocapdb.readers import read_motion  # noqa: E402
+#: the public names and the modules that hold them, imported on first use (PEP 562): ``import mocapdb``
+#: stays light (a client that only wants ``read_motion`` or the errors does not load the database, the
+#: SQL functions and the annotation kernels), as scipy and scikit-image load their parts lazily
+_LAZY = {
+    **dict.fromkeys(["annotate", "connect", "delete", "evaluate", "export_joints", "ingest", "similar", "train",
+                     "view"], "mocapdb.api"),
+    **dict.fromkeys(["MocapdbError", "ParameterError", "ParseError", "SchemaError"], "mocapdb.errors"),
+    **dict.fromkeys(["motion_features", "relational_features"], "mocapdb.features"),
+    "read_motion": "mocapdb.readers",
+}
+
+
+def __getattr__(name):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'mocapdb' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # once: later lookups do not come here
+    return value
+
+
+def __dir__():
+    return sorted({*globals(), *_LAZY})
+
 
 __version__ = "0.3.0"
 

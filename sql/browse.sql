@@ -1,14 +1,15 @@
 -- Statements of mocapdb.storage.browse: the archive as `mocapdb serve` shows it (read only).
 
 -- name: motion_page
--- one page of the archive: the filters, one of a fixed set of orders (a parameter, as a column name
+-- one page of the archive: the filters (`q` a substring of the name or of the source path, so a session's
+-- folder is a filter too), one of a fixed set of orders (a parameter, as a column name
 -- cannot be one), LIMIT/OFFSET; `total` counts every motion the filters keep (the window runs before
 -- LIMIT). The label filter is a semi-join on the label's segments of the model.
 SELECT motion_id, name, format, source_fps, fps, n_frames, n_frames / fps AS seconds, source_path,
-       count(*) OVER () AS total
+       regexp_extract(source_path, '^(.*)[/\\]', 1) AS folder, count(*) OVER () AS total
 FROM motions
 WHERE ($format IS NULL OR format = $format)
-  AND ($q IS NULL OR contains(lower(name), lower($q)))
+  AND ($q IS NULL OR contains(lower(name), lower($q)) OR contains(lower(source_path), lower($q)))
   AND ($min_s IS NULL OR n_frames / fps >= $min_s)
   AND ($max_s IS NULL OR n_frames / fps <= $max_s)
   AND ($label IS NULL OR motion_id IN (SELECT motion_id FROM annotations WHERE model = $model AND label = $label))
@@ -28,7 +29,7 @@ LIMIT $limit OFFSET $offset;
 -- the motions the filters keep (asked only when a page comes back empty, so `total` is unknown)
 SELECT count(*) FROM motions
 WHERE ($format IS NULL OR format = $format)
-  AND ($q IS NULL OR contains(lower(name), lower($q)))
+  AND ($q IS NULL OR contains(lower(name), lower($q)) OR contains(lower(source_path), lower($q)))
   AND ($min_s IS NULL OR n_frames / fps >= $min_s)
   AND ($max_s IS NULL OR n_frames / fps <= $max_s)
   AND ($label IS NULL OR motion_id IN (SELECT motion_id FROM annotations WHERE model = $model AND label = $label));
@@ -41,12 +42,13 @@ ORDER BY motion_id, start_frame, label;
 
 -- name: motion_row
 SELECT motion_id, name, format, source_fps, fps, n_frames, n_frames / fps AS seconds, source_path,
-       n_source_frames, skeleton, reader_options, ingested_at
+       regexp_extract(source_path, '^(.*)[/\\]', 1) AS folder, n_source_frames, skeleton, reader_options, ingested_at
 FROM motions WHERE motion_id = $id;
 
 -- name: label_segments
 -- every stored segment of a label across the archive, a page at a time
-SELECT a.motion_id, m.name, a.start_frame, a.end_frame, a.start_s, a.end_s, a.cost, count(*) OVER () AS total
+SELECT a.motion_id, m.name, a.start_frame, a.end_frame, a.start_s, a.end_s, a.cost, a.confidence,
+       count(*) OVER () AS total
 FROM annotations a JOIN motions m USING (motion_id)
 WHERE a.model = $model AND a.label = $label
 ORDER BY a.end_s - a.start_s DESC, a.motion_id, a.start_frame
@@ -58,5 +60,9 @@ SELECT label FROM classes WHERE model = $model GROUP BY label ORDER BY min(label
 
 -- name: motion_segments
 -- one motion's stored segments (of a model), in time order
-SELECT label, start_frame, end_frame, start_s, end_s, cost FROM annotations
+SELECT label, start_frame, end_frame, start_s, end_s, cost, confidence FROM annotations
 WHERE model = $model AND motion_id = $id ORDER BY start_frame, label;
+
+-- name: stored_labels
+-- the labels a model's stored segments hold (a label filter's choices besides the model's own labels)
+SELECT DISTINCT label FROM annotations WHERE model = $model ORDER BY label;

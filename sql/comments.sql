@@ -30,6 +30,7 @@ COMMENT ON MACRO TABLE keyframe_search_words IS 'mocapdb: segments holding an in
 COMMENT ON TABLE motions IS 'mocapdb: one row per recording. The SQL functions annotate(), mt_distance(), keyframe_search() need a connection from mocapdb.connect() (Python) or `mocapdb --db FILE sql`.';
 COMMENT ON TABLE features IS 'mocapdb: the 40 relational features of every 30 Hz frame, packed (bit k-1 = feature k). annotate() and the other SQL functions: open the file with mocapdb.connect() or `mocapdb --db FILE sql`.';
 COMMENT ON VIEW feature_flags IS 'mocapdb: the 40 features as named BOOLEAN columns.';
+COMMENT ON VIEW duplicates IS 'mocapdb: near-duplicate takes: pairs of motions of as many frames whose feature words agree on at least 99 % of them (the same take at another scale or unit, or exported again).';
 COMMENT ON TABLE models IS 'mocapdb: class models (the shipped default and toolbox, and trained ones). annotate(motion_id, model := ...) needs mocapdb.connect() or `mocapdb --db FILE sql`.';
 COMMENT ON TABLE classes IS 'mocapdb: the fine classes of each model with label, δ, τ and minimum length.';
 COMMENT ON TABLE templates IS 'mocapdb: motion template columns of each class, quantized as (mask, value) words.';

@@ -45,7 +45,7 @@ SELECT unnest(mocap_keyframe_search(
 
 -- The same for an inline query: keyframes as 40-bit (mask, value) words (a
 -- frame matches iff bits & mask = value), gap bounds between consecutive
--- keyframes in 30 Hz frames (a NULL d_max is unbounded). Limits: see README.
+-- keyframes in 30 Hz frames (a NULL d_max is unbounded). Limits: see docs/USER_GUIDE.md (SQL).
 CREATE OR REPLACE TEMP MACRO keyframe_search_words(masks, vals, gap_min, gap_max,
                                                    extend_left := 0, extend_right := 0) AS TABLE
 SELECT unnest(mocap_keyframe_search_words(

@@ -28,7 +28,7 @@ WHERE m.motion_id IN (SELECT unnest($ids))
 ORDER BY m.motion_id;
 
 -- name: source
-SELECT source_path, skeleton_path, reader_options FROM motions WHERE motion_id = $id;
+SELECT source_path, skeleton_path, reader_options, sha256, skeleton_sha256 FROM motions WHERE motion_id = $id;
 
 -- name: by_file_name
 -- a document named by its file (86_09.amc) where the stem names several motions

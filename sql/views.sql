@@ -49,3 +49,40 @@ FROM features;
 -- `model` cannot read a column named `model` (DuckDB rejects the clash).
 CREATE OR REPLACE VIEW model_fingerprints AS
 SELECT m.model AS model_name, m.fingerprint FROM models m;
+
+-- Near-duplicate takes (issue 33): pairs of motions of as many 30 Hz frames whose feature words agree on
+-- at least 99 % of them — the same take at another scale or unit (the features do not depend on either),
+-- or exported again. Set-based: a pair is a candidate when its words agree at 16 frames spread over the
+-- take (at least 14 of them: a 1 % disagreement rarely falls there twice), then every frame of the
+-- candidates is compared, their words as lists. Motions of one length only are paired.
+CREATE OR REPLACE VIEW duplicates AS
+WITH sketch AS (
+    SELECT m.motion_id, m.n_frames, list(f.bits ORDER BY r.k) AS words
+    FROM motions m CROSS JOIN range(16) r(k)
+    JOIN features f ON f.motion_id = m.motion_id AND f.frame = 1 + (r.k * (m.n_frames - 1)) // 15
+    WHERE m.n_frames >= 16
+    GROUP BY m.motion_id, m.n_frames
+),
+candidates AS (
+    SELECT a.motion_id AS a, b.motion_id AS b, a.n_frames
+    FROM sketch a JOIN sketch b ON a.n_frames = b.n_frames AND a.motion_id < b.motion_id
+    WHERE len(a.words) = 16 AND len(b.words) = 16
+      AND list_sum(list_transform(range(1, 17), lambda i: (a.words[i] = b.words[i])::INTEGER)) >= 14
+),
+words AS (
+    SELECT motion_id, list(bits ORDER BY frame) AS w FROM features
+    WHERE motion_id IN (SELECT a FROM candidates UNION SELECT b FROM candidates)
+    GROUP BY motion_id
+),
+agreement AS (
+    -- keyed by motion only (a join on frames would let the planner pair every motion's frame k first)
+    SELECT c.a, c.b, c.n_frames,
+           list_sum(list_transform(range(1, c.n_frames + 1), lambda i: (wa.w[i] = wb.w[i])::INTEGER)) AS same
+    FROM candidates c JOIN words wa ON wa.motion_id = c.a JOIN words wb ON wb.motion_id = c.b
+    WHERE len(wa.w) = c.n_frames AND len(wb.w) = c.n_frames
+)
+SELECT g.a AS motion_id, ma.name, g.b AS duplicate_id, mb.name AS duplicate_name, g.n_frames,
+       g.same / g.n_frames AS agreement, ma.source_path, mb.source_path AS duplicate_source_path
+FROM agreement g JOIN motions ma ON ma.motion_id = g.a JOIN motions mb ON mb.motion_id = g.b
+WHERE g.same >= 0.99 * g.n_frames
+ORDER BY g.a, g.b;

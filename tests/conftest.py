@@ -39,6 +39,18 @@ SAMPLE_C3D = SAMPLE / "HDM_mm_01-02_03_120.c3d.xz"
 SAMPLE_BVH = SAMPLE / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh.xz"
 
 
+#: the documents a user reads, in reading order: the README, the guides it links, then the other docs.
+#: Their examples run in this order (test_readme), so a guide may use what an earlier one made.
+USER_DOCS = [REPO / "README.md", *(REPO / "docs" / f"{name}.md" for name in ("USER_GUIDE", "READING_FILES", "MODEL",
+                                                                                "CLUSTER"))]
+USER_DOCS += sorted(set((REPO / "docs").glob("*.md")) - set(USER_DOCS))
+
+
+def user_docs_text():
+    """The README and every document of docs/, in reading order, as one text."""
+    return "\n".join(path.read_text(encoding="utf-8") for path in USER_DOCS)
+
+
 HAVE_SHARED = DATA.is_dir() and ORACLE.is_dir()
 REQUIRE_SHARED = os.environ.get("MOCAPDB_REQUIRE_SHARED", "") not in ("", "0")
 NO_SHARED = (f"needs ../shared (real recordings, labels, the toolbox oracle), not found at {SHARED}; "
@@ -52,6 +64,11 @@ def pytest_report_header(config):
 def pytest_configure(config):
     config.addinivalue_line("markers", "shared: needs ../shared beside the checkout (skipped in a bare "
                                        "clone; MOCAPDB_REQUIRE_SHARED=1 makes its absence an error)")
+    # the fast lane, `pytest -m "not slow"` (README): what takes seconds on its own (a Ray cluster, a
+    # browser, a killed process, whole commands in subprocesses, long real takes) is marked slow; every
+    # kernel's brute-force twin, the readers' bad-input cases and the SQL functions stay in the lane
+    config.addinivalue_line("markers", "slow: seconds or more on its own; left out of the fast lane "
+                                       "(pytest -m 'not slow'), run by CI")
     if REQUIRE_SHARED and not HAVE_SHARED:
         raise pytest.UsageError(f"MOCAPDB_REQUIRE_SHARED is set but {NO_SHARED}")
 

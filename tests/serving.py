@@ -42,12 +42,14 @@ class Served:
         return status, json.loads(body)
 
     def stop(self):
+        """Stop the server; what it wrote to stderr is then ``err``."""
         self.proc.terminate()
         try:
             self.proc.wait(15)
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()
+        self.err = self.proc.stderr.read()
         self.proc.stdout.close()
         self.proc.stderr.close()
 

@@ -53,6 +53,7 @@ def agreement(a, b):
 # --------------------------------------------------------------------------
 # forward kinematics: the kernel against its naive twin
 
+@pytest.mark.slow
 def test_the_kernel_agrees_with_its_naive_twin_on_random_poses():
     rng = np.random.default_rng(7)
     rest = generic_rest()
@@ -85,6 +86,7 @@ def test_one_frame_and_the_spine_points():
 # --------------------------------------------------------------------------
 # a real take written as AMASS reads back as its ASF reading
 
+@pytest.mark.slow
 @pytest.mark.parametrize("family", ["smplh", "smplx", "smpl"])
 def test_86_09_as_amass_has_the_features_of_its_asf_reading(take, tmp_path, family):
     skel, amc, ref = take
@@ -283,6 +285,7 @@ def test_a_male_model_for_a_female_take_is_used_as_given_and_noted(small, tmp_pa
 # --------------------------------------------------------------------------
 # ingest: folders, archives, compressed files, the re-read, the CLI
 
+@pytest.mark.slow
 def test_ingest_reads_amass_in_folders_archives_and_compressed(small, tmp_path):
     folder = tmp_path / "AMASS" / "CMU" / "86"
     folder.mkdir(parents=True)

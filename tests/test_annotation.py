@@ -24,6 +24,7 @@ def model():
     return oracle_model()
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("doc", DOCS)
 def test_annotation_reproduces_toolbox(model, doc):
@@ -131,6 +132,7 @@ def test_keep_hits_false_gives_the_same_segments(model):
         annotate(words("86_09"), model, match_num_max=5, keep_hits=False)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_hits_of_many_tasks_equal_one_task_at_a_time(model):
     """annotate extracts the hits of every (class, document) task in one parallel

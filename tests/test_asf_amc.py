@@ -143,6 +143,7 @@ def test_asf_offsets_follow_the_toolbox_rounding():
 # ----------------------------------------------------------------------------
 # AMC: every file, exact numbers
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_every_amc_reads_with_the_right_frame_count():
     frame_line = re.compile(rb"(?m)^[ \t]*\d+[ \t\r]*$")
@@ -172,6 +173,7 @@ def test_frame_counts_match_the_oracle_manifest():
         assert read_amc(DATA / r["amc"], s).n_frames == int(r["frames_120hz"]), r["stem"]
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("amc", shared_cases(SAMPLE), ids=lambda p: p.stem)
 def test_amc_values_equal_python_float(amc):
@@ -185,6 +187,7 @@ def test_amc_values_equal_python_float(amc):
         assert np.array_equal(m.values[:, sl], ref), name  # bit for bit
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_number_parser_equals_float_on_real_tokens():
     toks = set()
@@ -253,6 +256,7 @@ def test_joint_positions_equal_the_toolbox_oracle(oracle):
     assert err <= 1e-12 * unit         # what the kernel achieves (~1e-13 absolute)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("amc", shared_cases(SAMPLE[:5] + SAMPLE[5::3]), ids=lambda p: p.stem)
 def test_fk_kernel_equals_naive_reference(amc):

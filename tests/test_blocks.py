@@ -40,6 +40,7 @@ def decimated(m: Motion, step: int, fps: float, rotation=True) -> Motion:
     return Motion(joints=np.ascontiguousarray(m.joints[::step]), root_rotation=rot, fps=fps, name=m.name)
 
 
+@pytest.mark.slow
 def test_features_by_block_are_the_whole_takes_bit_for_bit(sample_motions, monkeypatch):
     takes = list(sample_motions)
     amc = sample_motions[0]   # 4,794 frames at 120 Hz with a root rotation
@@ -83,6 +84,7 @@ def _whole_reading(path):
     return bvh_module.bvh_to_motion(data, name=motion_stem(path))
 
 
+@pytest.mark.slow
 def test_a_bvh_is_read_a_block_of_lines_at_a_time_as_if_whole(tmp_path, monkeypatch):
     text = lzma.decompress(SAMPLE_BVH.read_bytes())
     head, _, body = text.partition(b"MOTION")
@@ -157,6 +159,7 @@ def dense_c3d(path, extra: int, frames: int, *, unnamed=False):
     return path
 
 
+@pytest.mark.slow
 def test_a_dense_c3d_is_read_a_block_of_frames_at_a_time_holding_the_usable_markers(tmp_path, monkeypatch):
     """ezc3d holds ~200 bytes a point (a 5,000-marker take of 4,000 frames: 4 GB). A large take goes to
     it a block of frames at a time, and only the markers a rule or the map can use stay: the same

@@ -82,6 +82,7 @@ def set_points(c, fn):
 # ----------------------------------------------------------------------------
 # 1. the toolbox oracle (three files)
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("stem", list(ORACLE_FILES))
 def test_joints_match_the_toolbox_before_and_after_the_fit(stem):
@@ -94,6 +95,7 @@ def test_joints_match_the_toolbox_before_and_after_the_fit(stem):
     assert motion.root_rotation is None and motion.skeleton == "c3d:toolbox"
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("stem", list(ORACLE_FILES))
 def test_features_1_to_39_bit_for_bit_at_120_and_30_hz(stem):
@@ -420,7 +422,7 @@ def test_files_without_points_are_refused(tmp_path):
 
 
 def test_the_readme_marker_map_example_is_a_valid_map():
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    readme = (REPO / "docs" / "READING_FILES.md").read_text(encoding="utf-8")
     section = readme[readme.index("**C3D marker maps**"):]
     block = section[section.index("```toml") + len("```toml"):]
     mapping = load_mapping(tomllib.loads(block[:block.index("```")]), what="marker_map")

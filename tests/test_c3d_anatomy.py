@@ -89,6 +89,7 @@ def test_vendor_labels_read_as_landmarks():
     assert SEGMENT_OF["l_knee_lat"] == "l_thigh" and SEGMENT_OF["l_acromion"] is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("src", [DG, MM, CMU], ids=lambda p: p.stem)
 @pytest.mark.parametrize("names, drop, least", [
     (QUALISYS64, (), 0.955), (PLUG_IN_GAIT, (), 0.955), (EVART22, "others", 0.93), ({}, HEAD, 0.98)],
@@ -111,6 +112,7 @@ def test_other_sets_of_the_same_trajectories_read_like_the_toolbox_set(src, name
             assert note in notes
 
 
+@pytest.mark.slow
 def test_a_lost_pelvis_marker_is_rebuilt_from_its_segment(tmp_path):
     """LASI (Plug-in Gait names) missing for 0.42 s: rebuilt from RASI, LPSI, RPSI, the joints stay within a
     millimetre of the full reading; with the whole pelvis gone for 0.83 s the take is cut there."""
@@ -135,6 +137,7 @@ def test_a_lost_pelvis_marker_is_rebuilt_from_its_segment(tmp_path):
     np.testing.assert_allclose(cut.joints, full.joints[:2000], atol=1e-3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["nan", "zeros", "residual"])
 def test_a_gap_nothing_rebuilds_is_cut_or_refused_naming_marker_and_frames(tmp_path, how):
     """LELB lost for 0.33 s (its upper-arm segment has no three other markers): the long take keeps
@@ -167,6 +170,7 @@ def test_a_gap_nothing_rebuilds_is_cut_or_refused_naming_marker_and_frames(tmp_p
         read_c3d(short)
 
 
+@pytest.mark.slow
 def test_a_pelvis_landmark_absent_from_the_take_is_mirrored(tmp_path):
     full = read_c3d(relabel(MM, tmp_path / "full.c3d", PLUG_IN_GAIT))
     motion = read_c3d(relabel(MM, tmp_path / "no_lasi.c3d", PLUG_IN_GAIT, drop={"LFWT"}))

@@ -73,6 +73,7 @@ READ_ALL = textwrap.dedent(r"""
 """)
 
 
+@pytest.mark.slow
 def test_corrupt_copies_are_refused_or_read_never_crash(tmp_path):
     """Run in a child process: a crash of the C++ reader (the layout guard of
     mocapdb.readers.c3dfile exists for this) fails the test instead of killing the run. A refusal
@@ -91,6 +92,7 @@ def test_corrupt_copies_are_refused_or_read_never_crash(tmp_path):
     assert 0 < outcomes.count("motion") < len(files)
 
 
+@pytest.mark.slow
 def test_packed_corrupt_copies_never_crash_the_reader(tmp_path):
     """Corrupt copies packed as .gz/.bz2/.xz or zip members (the packing sometimes damaged too) reach
     ezc3d through an in-memory file: still refused or read, never a crash."""
@@ -178,6 +180,7 @@ def stored_words(con):
                  for i in ids]
 
 
+@pytest.mark.slow
 def test_stored_c3d_words_are_the_files_features(c3d_db):
     for name, path in c3d_db.execute("SELECT name, source_path FROM motions").fetchall():
         words = c3d_db.execute("SELECT bits FROM features JOIN motions USING (motion_id) WHERE name = ? "
@@ -198,6 +201,7 @@ def test_annotate_c3d_documents_in_python_and_sql(c3d_db):
     assert c3d_db.execute("SELECT count(*) FROM annotations").fetchall()[0][0] == len(table)
 
 
+@pytest.mark.slow
 def test_keyframe_search_over_c3d_documents_equals_brute_force(c3d_db):
     ids, docs = stored_words(c3d_db)
     model = load_model(c3d_db, "default")
@@ -216,6 +220,7 @@ def test_keyframe_search_over_c3d_documents_equals_brute_force(c3d_db):
     assert found > 0
 
 
+@pytest.mark.slow
 def test_train_from_a_label_file_over_a_c3d_document(c3d_db, tmp_path):
     """Two stretches of 85_12 (native 120 Hz frames) become a model; annotating 85_12 with it finds
     each stretch where it was cut, at cost 0."""

@@ -98,6 +98,7 @@ def sample_c3d(tmp_path_factory):
     return plain
 
 
+@pytest.mark.slow
 def test_vicon_clinical_manager_takes_its_virtual_joint_centres(sample_c3d, tmp_path):
     """The virtual sacrum and joint centres are read as such (they were refused: "cannot place root,
     lhip, rhip"): hips, knees and ankles are the virtual points, the root the middle of the ASIS and

@@ -252,6 +252,7 @@ def test_cli_define_class_adds_classes_and_errors_in_one_line(tmp_path, data_dir
                                 "root_high_vel, root_high_ang_vel, foot_left_high_vel?")
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_train_with_definitions_adds_the_designed_classes(tmp_path, data_dir, open_db):
     from mocapdb.api import train

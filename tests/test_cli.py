@@ -18,7 +18,7 @@ import mocapdb
 from mocapdb.cli import main
 from mocapdb.learning.recipe import PAPER_LABELS
 
-from conftest import DATA, REPO, SAMPLE_86_09, SAMPLE_86_ASF, amc_frame_count, eval_scores, run, write_truth_86_09
+from conftest import DATA, REPO, SAMPLE_86_09, SAMPLE_86_ASF, amc_frame_count, eval_scores, run, user_docs_text, write_truth_86_09
 
 
 @pytest.fixture
@@ -77,13 +77,13 @@ def test_delete_by_name(cli):
 
 
 def test_every_command_has_help_and_a_readme_entry():
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    readme = (REPO / "docs" / "USER_GUIDE.md").read_text(encoding="utf-8")  # its command table
     runner = CliRunner()
     for name, cmd in main.commands.items():
         assert cmd.help, f"command {name} has no help text"
         r = runner.invoke(main, [name, "--help"])
         assert r.exit_code == 0 and "Usage:" in r.output
-        assert f"`{name}" in readme, f"README.md does not document the command {name!r}"
+        assert f"`{name}" in readme, f"docs/USER_GUIDE.md does not document the command {name!r}"
 
 
 #: CLI parameters that only shape the output or the terminal, with no API counterpart
@@ -124,6 +124,7 @@ def _class_folder(tmp_path, classes):
     return root
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_train_then_annotate(cli, tmp_path):
     root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps"])
@@ -160,6 +161,7 @@ def test_annotate_unknown_model(cli):
     assert len(r.output.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_a_locked_database_is_one_line_naming_the_process(tmp_path):
     """Another process writing the file: `Error: … in use by another process (PID …)`, exit 1."""
     import subprocess
@@ -229,6 +231,7 @@ def test_eval_counts_a_missing_segment(tmp_path):
     assert r1 == round(1 - frames[longest] / frames.sum(), 3)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_learn_keyframes_is_reproducible_and_searchable(cli, tmp_path):
     root = _class_folder(tmp_path, ["squat1Reps", "kickLFront1Reps", "rotateArmsBothBackward1Reps"])
@@ -259,6 +262,7 @@ def test_index_drop_and_rebuild(cli):
     assert r.exit_code == 0 and f"{before.splitlines()[1]} postings" in r.output
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_report_figures(cli, tmp_path):
     import matplotlib  # noqa: F401  (the test extra installs it)
@@ -336,6 +340,7 @@ def test_annotate_on_an_empty_database_says_ingest_first(cli):
     assert r.exit_code == 1 and "holds no motions: ingest recordings first" in r.output
 
 
+@pytest.mark.slow
 def test_annotate_csv_given_back_as_truth_scores_one(cli, tmp_path):
     """The annotation CSV carries its frame grid (fps): as --truth it reads onto exactly its own frames
     (F1 = 1, not the 0.375 of reading 30 Hz frames as 120 Hz ones), and as --labels it trains."""
@@ -352,6 +357,7 @@ def test_annotate_csv_given_back_as_truth_scores_one(cli, tmp_path):
     assert {s["fps"] for s in js} == {30} and all(round(s["start_s"], 4) == s["start_s"] for s in js)
 
 
+@pytest.mark.slow
 def test_the_compile_messages_say_what_happens_and_how_long(cli, tmp_path, monkeypatch):
     """First run (an empty kernel cache): the command says it compiles and, at its end, how long it took;
     a command that waits for the background warm-up says so and for how long."""
@@ -390,9 +396,9 @@ def test_the_compile_messages_say_what_happens_and_how_long(cli, tmp_path, monke
 
 
 def test_the_readme_names_only_options_the_commands_have():
-    """Each command's row of the README's command table names options of that command only
-    (a renamed option, --map → --label-map, cannot linger), and help and README agree on defaults."""
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    """Each command's row of the user guide's command table names options of that command only
+    (a renamed option, --map → --label-map, cannot linger), and help and the docs agree on defaults."""
+    readme = (REPO / "docs" / "USER_GUIDE.md").read_text(encoding="utf-8")
     rows = re.findall(r"^\| `([a-z-]+)[^|]*\|(.*)\|$", readme, flags=re.M)
     checked = 0
     for name, text in rows:
@@ -411,9 +417,10 @@ def test_the_readme_names_only_options_the_commands_have():
     assert margins == {"default": 0.0, "toolbox": 0.0}
     help_text = CliRunner().invoke(main, ["annotate", "--help"]).output
     assert "default: the model's margin, 0 for the shipped models = off" in " ".join(help_text.split())
-    assert "default: the model's margin, which is 0, off, for both shipped models" in " ".join(readme.split())
+    docs = " ".join(user_docs_text().split())
+    assert "default: the model's margin, which is 0, off, for both shipped models" in docs
     joint_help = " ".join(CliRunner().invoke(main, ["ingest", "--help"]).output.split())
-    assert "a list of joints (their mean)" in joint_help and "a list of joints (their mean)" in " ".join(readme.split())
+    assert "a list of joints (their mean)" in joint_help and "a list of joints (their mean)" in docs
 
 
 def test_sql_takes_a_commented_query_of_several_statements_from_an_argument_stdin_or_a_file(cli, tmp_path):

@@ -80,6 +80,7 @@ def test_zip_members_named_twice_damaged_archives_and_attach_leave_nothing_behin
     assert not views.exists() and not list(tmp_path.glob("views.duckdb*"))
 
 
+@pytest.mark.slow
 def test_every_output_format_says_what_it_wrote_and_parquet_has_the_grid(sample_db, tmp_path):
     for fmt in ("csv", "json", "parquet"):
         out = tmp_path / f"segments.{fmt}"
@@ -91,6 +92,7 @@ def test_every_output_format_says_what_it_wrote_and_parquet_has_the_grid(sample_
     assert names[names.index("end_frame") + 1] == "fps" and set(table.column("fps").to_pylist()) == {30.0}
 
 
+@pytest.mark.slow
 def test_a_query_shorter_than_half_a_second_is_refused_with_the_reason(sample_db):
     r = run(sample_db, "similar", "86_09", "--start-frame", "5", "--end-frame", "6", code=1)
     assert r.output.strip() == ("Error: the query stretch 5–6 of motion 1 ('86_09') is 2 frame(s), 0.07 s; a query "

@@ -102,6 +102,7 @@ def sample_db(tmp_path_factory):
     return db
 
 
+@pytest.mark.slow
 def test_confidence_in_sql_csv_and_elan(sample_db, tmp_path):
     with mocapdb.connect(sample_db) as con:
         rows = con.sql("SELECT s.label, s.confidence, s.cost FROM motions m, "

@@ -8,7 +8,7 @@ from crash import WINDOWS, CrashHarness, summary
 
 from conftest import DATA
 
-pytestmark = pytest.mark.shared
+pytestmark = [pytest.mark.shared, pytest.mark.slow]
 
 #: kills per command in the suite (about a minute in all); the benchmark runs more
 TRIALS = {"ingest": 2, "annotate": 2, "import-features": 2, "ray-annotate": 1}

@@ -32,6 +32,7 @@ def archive(tmp_path_factory):
     con.close()
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_whole_data_ingests_with_right_frame_counts(archive):
     con, first, second = archive

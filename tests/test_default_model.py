@@ -38,6 +38,7 @@ def test_the_default_model_knows_the_paper_s_15_labels(shipped):
     assert [c.name for c in model.classes if c.keyframe_query is None] == ["turnHeading"]
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_shipped_templates_are_the_recipe_s(shipped, data_dir):
     """benchmarks/train_default_model.py's templates, rebuilt here (learning is deterministic)."""

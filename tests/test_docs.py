@@ -309,3 +309,20 @@ def test_each_document_cites_the_paper(name):
     if name in ("STYLE",):
         return
     assert re.search(r"\bSect\. \d", text), f"docs/{name}.md cites no section of the paper"
+
+
+def test_the_cli_reference_is_what_the_commands_say():
+    """docs/CLI.md is generated from --help (mocapdb.cli.reference): a changed option changes it."""
+    from mocapdb.cli.reference import cli_reference
+
+    current = (DOCS / "CLI.md").read_text(encoding="utf-8")
+    assert current == cli_reference(), "docs/CLI.md is stale: python -m mocapdb.cli.reference > docs/CLI.md"
+
+
+def test_the_readme_is_a_front_door():
+    """The README stays short: what it is, the two commands, a taste of SQL, a picture, links (issue 34)."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 200
+    assert max(len(line) for line in readme.splitlines() if not line.startswith("python3 -m venv")) <= 400
+    for doc in ("USER_GUIDE", "CLI", "READING_FILES", "MODEL", "CLUSTER"):
+        assert f"(docs/{doc}.md)" in readme, doc

@@ -106,6 +106,7 @@ def test_mocap6_truth_blocks():
     assert "Twist" in set(docs.truth["label"])              # unmapped ("others"): kept, dropped at scoring
 
 
+@pytest.mark.slow
 def test_small_development_evaluation_finds_held_out_squats():
     classes = ["squat1Reps", "hopBothLegs1hops", "jogLeftCircle4StepsRstart", "kickLFront1Reps"]
     calls = []
@@ -151,6 +152,7 @@ def test_real_documents_annotated_with_the_full_model():
                                                 + res.scores["mocap6"].truth_segments)
 
 
+@pytest.mark.slow
 def test_cmu_documents_are_annotated_by_models_that_never_saw_them(data_dir):
     """Leave-one-document-out: a CMU document whose stretches train templates is annotated by a model
     built without them; modes annotate every fold's model several ways; mirrored LOAO documents."""

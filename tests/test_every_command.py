@@ -78,6 +78,8 @@ TOUR = [
      lambda r, t: json.loads((t["archive"] / "manifest.json").read_text())["motions"] == 3),
     ("attach", ["--db", "{views}", "attach", "{archive}"], lambda r, t: "3 motion(s)" in r.output),
     ("stats", ["stats", "--table", "formats", "--format", "csv"], lambda r, t: r.output.count("\n") >= 3),
+    ("motions", ["motions", "--q", "86_", "--format", "csv"],
+     lambda r, t: r.output.startswith("motion_id,name,format,") and "86_09" in r.output),
     ("serve", None, lambda r, t: '"motions"' in r.output or "<html" in r.output.lower()),
     ("warmup", ["warmup", "ingest"], lambda r, t: r.output.startswith("compiled in ")),
 ]
@@ -104,6 +106,7 @@ def test_the_tour_names_every_command():
     assert sorted(name for name, _, _ in TOUR) == sorted(main.commands)
 
 
+@pytest.mark.slow
 def test_every_command_runs_on_real_recordings(tmp_path, monkeypatch):
     takes = tmp_path / "takes"
     takes.mkdir()

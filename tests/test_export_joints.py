@@ -46,6 +46,7 @@ def ids_by_format(con):
     return dict(con.execute("SELECT format, motion_id FROM motions").fetchall())
 
 
+@pytest.mark.slow
 def test_npz_holds_the_joints_in_metres_at_the_source_rate(db, tmp_path):
     path, _ = db
     with mocapdb.connect(path, read_only=True) as con:
@@ -69,6 +70,7 @@ def test_npz_holds_the_joints_in_metres_at_the_source_rate(db, tmp_path):
             assert np.mean(joints[:, JOINT_INDEX["head"], 1] > joints[:, JOINT_INDEX["lankle"], 1]) > 0.9, fmt
 
 
+@pytest.mark.slow
 def test_csv_has_a_row_per_frame_with_its_time(db, tmp_path):
     path, _ = db
     with mocapdb.connect(path, read_only=True) as con:
@@ -89,6 +91,7 @@ def test_csv_has_a_row_per_frame_with_its_time(db, tmp_path):
     assert np.allclose(table[:, 2:], joints.reshape(len(joints), -1), rtol=1e-8, atol=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["amc", "bvh", "c3d", "amass"])
 def test_the_bvh_ingests_back_with_the_same_features(db, tmp_path, fmt):
     path, _ = db
@@ -122,6 +125,7 @@ def test_several_motions_go_to_a_directory_named_by_motion(db, tmp_path):
     assert all(p.parent == tmp_path / "dir" for _, _, p, _ in report.written)
 
 
+@pytest.mark.slow
 def test_errors_name_the_motion_and_the_others_are_written(db, tmp_path):
     path, sample = db
     moved = tmp_path / "copy.duckdb"

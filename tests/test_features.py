@@ -110,6 +110,7 @@ def test_oracle_positions(stem):
     assert_oracle(F.relational_features(pos, None, 120.0), stem, " (hip axis)")
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("stem", shared_cases(sorted(MANIFEST)))
 def test_oracle_reader(stem):
@@ -238,6 +239,7 @@ def _symmetric_limbs(joints):
     return p
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("stem", shared_cases(POSITION_STEMS))
 def test_mirror_symmetry(stem):

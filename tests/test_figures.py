@@ -41,6 +41,7 @@ def drawn(png):
     return img
 
 
+@pytest.mark.slow
 def test_delta_heat_map(db, tmp_path):
     path, truth = db
     out = tmp_path / "fig3.png"
@@ -51,6 +52,7 @@ def test_delta_heat_map(db, tmp_path):
     assert ((img[..., 2] > 0.5) & (img[..., 0] < 0.2) & (img[..., 1] < 0.3)).sum() > 500
 
 
+@pytest.mark.slow
 def test_template_real_and_quantized(db, tmp_path):
     path, _ = db
     out = tmp_path / "fig1.png"
@@ -76,6 +78,7 @@ def test_tau_sweep(db, tmp_path):
     assert "needs ground truth" in r.output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("figure", ["timeline", "annotation"])
 def test_timeline_with_truth(db, tmp_path, figure):
     path, truth = db
@@ -89,6 +92,7 @@ def test_timeline_with_truth(db, tmp_path, figure):
     assert grey.sum() > 1000
 
 
+@pytest.mark.slow
 def test_ga_curve(db, tmp_path):
     """Fig. 5 of a model whose keyframe queries the GA learned (the shipped default's are designed)."""
     from mocapdb.api import learn_keyframes, train

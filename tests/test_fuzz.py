@@ -22,7 +22,7 @@ from mocapdb.errors import MocapdbError
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 
-pytestmark = pytest.mark.shared
+pytestmark = [pytest.mark.shared, pytest.mark.slow]
 
 AMC = DATA / "hdm05_cut/kickLFront1Reps/HDM_bd_kickLFront1Reps_001_120.amc"
 ASF = DATA / "hdm05_cut/HDM_bd.asf"

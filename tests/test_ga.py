@@ -71,6 +71,7 @@ def check_valid(q, L):
 # whole runs
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_reproducible_from_seed(train):
     a = evolve(train, "kickLFront1Reps", seed=7)
@@ -142,6 +143,7 @@ def test_clips_instead_of_index(clips, train):
     assert stats_state(a.statistics) == stats_state(c.statistics)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_learn_queries_progress_seeds_and_jobs(clips):
     calls = []

@@ -41,6 +41,7 @@ def state(con):
             for t in ("motions", "features", "mocap_index.postings", "annotations")]
 
 
+@pytest.mark.slow
 def test_every_file_of_an_ingest_gets_its_row(tmp_path, open_db):
     con = open_db(tmp_path / "a.duckdb")
     report = mocapdb.ingest(con, [SAMPLE])
@@ -113,6 +114,7 @@ def test_a_zip_member_is_named_by_its_archive_and_member(tmp_path, open_db):
                        "USING (motion_id)").fetchall() == [(True,)]
 
 
+@pytest.mark.slow
 def test_a_failed_ingest_leaves_the_database_as_it_was_and_its_log(tmp_path, open_db, monkeypatch):
     """Every file fails: nothing but the log changes. A batch whose storing fails is rolled back with
     its rows (a motion and its row commit together), then retried file by file: the file that cannot
@@ -149,6 +151,7 @@ def test_a_failed_ingest_leaves_the_database_as_it_was_and_its_log(tmp_path, ope
     assert state(con)[0] == before[0] + 1
 
 
+@pytest.mark.slow
 def test_report_writes_the_same_rows_as_csv(tmp_path, open_db):
     db, out = tmp_path / "r.duckdb", tmp_path / "report.csv"
     r = run(db, "ingest", "--sample", SAMPLE / "CREDITS.txt", "--silent", "--report", out, code=1)

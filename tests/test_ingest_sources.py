@@ -93,6 +93,7 @@ def test_a_zip_archive_is_read_in_place_and_re_ingest_is_a_no_op(archive, tmp_pa
                                 f"exist (no such member in {archive})")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix, module", [(".gz", gzip), (".bz2", bz2), (".xz", lzma)])
 def test_compressed_files_read_as_their_content(tmp_path, suffix, module):
     folder = tmp_path / "takes"

@@ -78,6 +78,7 @@ def reference_segments(docs, model):
     return rows
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["default", "mixed"])
 def test_default_keyframe_mode_equals_the_brute_force_reference(db, name):
     """The shipped default (every class preselected by its keyframe query) and a model whose learned

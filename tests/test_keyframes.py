@@ -238,6 +238,7 @@ def _random_case(rng, *, cross_sets):
     return docs, q, int(rng.integers(0, 5)), int(rng.integers(0, 5))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cross_sets", [False, True])
 def test_brute_force_equals_search_random(cross_sets):
     rng = np.random.default_rng(2024 + cross_sets)
@@ -275,6 +276,7 @@ def test_brute_force_equals_search_random(cross_sets):
             assert np.flatnonzero(hit_docs).tolist() == sorted({r[0] for r in got})
 
 
+@pytest.mark.slow
 def test_batch_and_cache_equal_single_searches():
     rng = np.random.default_rng(7)
     docs = []
@@ -409,6 +411,7 @@ def _rare_case(rng):
     return docs, q, int(rng.integers(0, 4)), int(rng.integers(0, 4))
 
 
+@pytest.mark.slow
 def test_document_filter_changes_nothing_random():
     rng = np.random.default_rng(31)
     removed = 0

@@ -40,6 +40,7 @@ def db(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["default", "toolbox"])
 def test_an_hour_long_repetitive_take_annotates_with_the_others(db, model):
     with mocapdb.connect(db) as con:

@@ -30,6 +30,7 @@ def cut_clips(data_dir):
     return clips_from_folders(data_dir / "hdm05_cut")
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_mirrored_templates_equal_templates_learned_on_mirrored_clips(cut_clips):
     for cls, clips in cut_clips.items():
@@ -76,6 +77,7 @@ def test_reversal_turns_directions_and_keeps_poses():
     assert val[1, F["knee_left_bent"]] and fixed[1].sum() == 40 - len(DIRECTION_FEATURES)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_a_reversed_class_is_its_template_backwards(cut_clips):
     t = learn_template([w for _, w in cut_clips["lieDownFloor"]])
@@ -189,6 +191,7 @@ def test_the_toolbox_model_ignores_the_filters(cut_clips, data_dir):
                                                               for x in short["label"]])).all()
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_taus_per_class(cut_clips):
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in v] for c, v in cut_clips.items()
@@ -217,6 +220,7 @@ def test_mirror_class_mirrors_everything(cut_clips):
                                   c.template.real[:, F["foot_left_raised_rel_y_body_min"]])
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
     """Step 4 of learn_taus: a class that moves claims at most max_still_rate of the
@@ -246,6 +250,7 @@ def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
     assert is_static(build_model({}, Recipe(labels={}, definitions=tuple(tpose)), name="t").classes[0])
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
     """The shipped kick keyframe (mocapdb/shipped_models/classes/kick.toml: the raised leg stretched) holds in
@@ -323,6 +328,7 @@ def _held(model, clips, cls):
     return held
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     """The shipped throw keyframes (mocapdb/shipped_models/classes/throw.toml: the ball held up, then the arms
@@ -361,6 +367,7 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     assert specific_queries(model, clips, max_rate=0.0)["kickLFront1Reps"] == (0.0, True)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_lie_down_keyframes_hold_in_every_lie_down_and_its_reverse_starts_lying(cut_clips):
     """mocapdb/shipped_models/classes/lie_down.toml: down on bent knees, then lying (the spine horizontal) holds

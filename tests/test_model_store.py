@@ -22,6 +22,7 @@ def api_segments(con, model):
     return sorted(zip(*(table.column(c).to_pylist() for c in ("motion_id", "label", "start_frame", "end_frame"))))
 
 
+@pytest.mark.slow
 def test_a_read_only_database_without_a_shipped_model_reads_the_package_s(tmp_path):
     path = tmp_path / "old.duckdb"
     con = mocapdb.connect(path)

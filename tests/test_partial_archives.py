@@ -64,6 +64,7 @@ def check_invariants(con):
                            "(SELECT motion_id FROM motions)").fetchall() == [(0,)], table
 
 
+@pytest.mark.slow
 def test_missing_feature_folders_are_refused_by_name_and_the_repair_goes_in(source, tmp_path, open_db):
     _, export = source
     partial = tmp_path / "partial"
@@ -103,6 +104,7 @@ def test_partly_imported_motions_of_an_older_mocapdb_are_repaired(source, db_cop
     assert con.execute("SELECT count(*) FROM (SELECT unnest(annotate(motion_id)) FROM motions)").fetchall()[0][0]
 
 
+@pytest.mark.slow
 def test_a_killed_export_is_refused_never_imported_in_part(source, tmp_path):
     """SIGKILL of `mocapdb export-features` at random points: the folder is either a finished export
     (imports whole) or refused as unfinished; never a silent partial import."""
@@ -138,6 +140,7 @@ def test_a_killed_export_is_refused_never_imported_in_part(source, tmp_path):
     assert "refused" in outcomes, outcomes  # a kill did land inside an export
 
 
+@pytest.mark.slow
 def test_a_killed_import_leaves_whole_motions_and_importing_again_finishes(source, tmp_path):
     """SIGKILL of `mocapdb import-features` at random points: the database holds whole motions (features,
     postings) or none of an unfinished batch, and importing again adds exactly the rest."""
@@ -201,6 +204,7 @@ def test_a_failed_write_reports_its_own_error_not_the_aborted_transaction(source
     assert con.execute("SELECT count(*) FROM features").fetchall() == [(3,)]
 
 
+@pytest.mark.slow
 def test_export_overwrite_leaves_no_stale_partition(db_copy, tmp_path, open_db):
     out = tmp_path / "export"
     con = open_db(db_copy)

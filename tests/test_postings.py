@@ -14,6 +14,7 @@ from conftest import DATA
 POSTINGS = f"SELECT motion_id, feature_set, seg, word, start_frame, n_frames FROM {INDEX_SCHEMA}.postings ORDER BY ALL"
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_index_follows_ingests_and_deletes(tmp_path, open_db):
     """After any sequence of ingests and deletes the index equals one rebuilt from features."""

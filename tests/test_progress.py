@@ -14,7 +14,7 @@ from mocapdb.storage import annotations as stored
 
 from conftest import DATA
 
-pytestmark = pytest.mark.shared
+pytestmark = [pytest.mark.shared, pytest.mark.slow]
 
 HOPS = sorted((DATA / "hdm05_cut" / "hopBothLegs1hops").glob("HDM_bd_*.amc"))[:6]
 

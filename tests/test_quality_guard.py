@@ -70,6 +70,7 @@ def data(data_dir):
     return development_data(data_dir)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_studio_clips_are_read_with_their_truth(data):
     st = data.studio
@@ -117,6 +118,7 @@ def shipped():
         return load_model(con, "default")
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_shipped_model_keeps_every_record(shipped, data, data_dir):
     records = read_records(RECORDS)
@@ -126,6 +128,7 @@ def test_the_shipped_model_keeps_every_record(shipped, data, data_dir):
     assert guard(figures, records["figures"]) == []
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_guard_fails_a_worse_model(shipped, data, data_dir):
     """The shipped model with its studio steps forgotten and its wave-prone arm circles let loose."""

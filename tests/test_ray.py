@@ -32,7 +32,7 @@ from mocapdb.storage.parquet import table_schemas
 from conftest import DATA, REPO, SAMPLE_86_09, run
 
 #: Ray Data's own DataContext warns about its deprecated fields whenever it copies itself
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context")
+pytestmark = [pytest.mark.filterwarnings("ignore::DeprecationWarning:ray.data.context"), pytest.mark.slow]
 
 SOURCES = [DATA / "hdm05_cut", DATA / "cmu" / "02"]
 #: small batches and buckets, so that batches cross bucket borders (100 is not a multiple of 16)
@@ -547,10 +547,9 @@ def test_a_trained_model_from_the_database_with_tau_and_no_keyframes(local_ray, 
 
 @pytest.mark.shared
 def test_the_readme_example_queries_the_parquet_in_place(archive, tmp_path, monkeypatch):
-    """The README section's Python block, run where `archive` is the archive."""
+    """docs/CLUSTER.md's Python block, run where `archive` is the archive."""
     out, report = archive
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
-    section = readme.split("## Archives larger than one machine", 1)[1].split("\n## ", 1)[0]
+    section = (REPO / "docs" / "CLUSTER.md").read_text(encoding="utf-8")
     code = re.findall(r"```python\n(.*?)```", section, flags=re.S)
     assert len(code) == 1
     assert re.search(r"mocapdb ray-annotate .* --out archive", section)

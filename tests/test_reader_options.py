@@ -71,6 +71,7 @@ def test_read_motion_takes_the_value_or_its_keywords():
         read_motion(SAMPLE_86_09, ReaderOptions(), asf=SAMPLE_86_ASF)
 
 
+@pytest.mark.slow
 def test_ingest_stores_and_the_viewer_rereads_with_the_same_value(open_db):
     """The options a motion was stored with come back whole when its source is re-read."""
     con = open_db()

@@ -1,6 +1,7 @@
-"""Every example of README.md runs as printed: its ```bash commands and its ```sql blocks.
+"""Every example of README.md and docs/*.md runs as printed: their ```bash commands and ```sql blocks.
 
-The ``mocapdb`` commands of the ```bash blocks run in README order (a command
+The ``mocapdb`` commands of the ```bash blocks run in reading order (README, then the guides:
+conftest.USER_DOCS) (a command
 chained with ``&&`` after installing is run on its own; installing and the
 test run itself are not), from a folder beside which ``../shared`` is the
 shared data, as from the repository root. Each ```sql block is then pasted
@@ -18,15 +19,15 @@ from click.testing import CliRunner
 
 from mocapdb.cli import main
 
-from conftest import REPO, SHARED, run
+from conftest import SHARED, run, user_docs_text
 
-pytestmark = pytest.mark.shared
+pytestmark = [pytest.mark.shared, pytest.mark.slow]
 
-README = (REPO / "README.md").read_text(encoding="utf-8")
+README = user_docs_text()
 
 
 def blocks(language):
-    """The text of every fenced block of a language, in README order."""
+    """The text of every fenced block of a language, in reading order."""
     return [m.group(1) for m in re.finditer(rf"^```{language}\n(.*?)^```", README, flags=re.S | re.M)]
 
 

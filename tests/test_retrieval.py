@@ -74,6 +74,7 @@ def test_select_hits_bad_input():
         select_hits(np.array([0, np.nan, 1]), s, off, first, tau=1, limit=3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4))
 def test_weighted_delta_equals_naive_dense_dtw(seed):
     rng = np.random.default_rng(seed)
@@ -266,6 +267,7 @@ def test_relevance_counts_each_true_segment_once():
     assert r_precision(rel, 2) == 0.5 and precision_at(rel, 5) == 0.4 and precision_at(rel, 10) == 0.2
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_r_precision_on_held_out_actors(tmp_path):
     """Kicks and arm rotations of one actor find the other three actors' (the LOAO documents)."""

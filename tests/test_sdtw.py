@@ -62,6 +62,7 @@ def _naive(q, w, steps, rule):
     return naive_subsequence_dtw(C, steps, rule)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rule", ["toolbox", "textbook"])
 @pytest.mark.parametrize("steps", [ANNOTATION_STEPS, RETRIEVAL_STEPS,
                                    ((1, 1, 1.0), (2, 3, 0.5), (1, 2, 3.0), (3, 1, 1.5)),
@@ -167,6 +168,7 @@ def test_textbook_is_never_above_toolbox_and_equal_for_equal_weights():
                                   mt_distance(w, q, steps=eq, rule="textbook"))
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_textbook_rule_equals_librosa():
     import librosa

@@ -6,6 +6,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 from urllib.parse import urlencode
 
 import pytest
@@ -28,6 +29,7 @@ def _names(server, **params):
     return [r["name"] for r in page["rows"]], page
 
 
+@pytest.mark.slow
 def test_the_archive_lists_every_motion_with_its_facts(server, sample_db):
     names, page = _names(server)
     want = _sql(sample_db, "SELECT motion_id, name, format, source_fps, n_frames / fps FROM motions ORDER BY motion_id")
@@ -42,14 +44,36 @@ def test_filters_keep_what_sql_keeps(server, sample_db):
         want = [n for (n,) in _sql(sample_db, "SELECT name FROM motions WHERE motion_id IN (SELECT motion_id FROM "
                                               "annotations WHERE label = ?) ORDER BY motion_id", [label])]
         assert _names(server, label=label)[0] == want, label
-    assert _names(server, format="bvh")[0] == ["pymo_AV_8Walk_Meredith_HVHA_Rep1"]
+    assert _names(server, source_format="bvh")[0] == ["pymo_AV_8Walk_Meredith_HVHA_Rep1"]
     assert _names(server, q="PyMo")[0] == ["pymo_AV_8Walk_Meredith_HVHA_Rep1"]  # a substring, any case
     assert _names(server, q="_0")[0] == ["86_09", "HDM_mm_01-02_03_120"]
     assert _names(server, min_s=30)[0] == ["86_09", "HDM_mm_01-02_03_120"]  # 40.0 s and 33.3 s; the walk 8.9 s
     assert _names(server, max_s=35, min_s=10)[0] == ["HDM_mm_01-02_03_120"]
-    assert _names(server, label="move", format="amc", q="86")[0] == ["86_09"]
-    names, page = _names(server, label="no such label")
-    assert names == [] and page["total"] == 0
+    assert _names(server, label="move", source_format="amc", q="86")[0] == ["86_09"]
+    assert _names(server, source_format="c3d")[0] == ["HDM_mm_01-02_03_120"] and _names(server, source_format="fbx")[0] == []
+
+
+def test_q_matches_the_source_path_and_rows_name_their_folder(server, sample_db):
+    """Two takes of one name are told apart by their folder; ``q`` filters a folder (issue 33)."""
+    rows = _sql(sample_db, "SELECT name, source_path FROM motions ORDER BY motion_id")
+    _, page = _names(server)
+    for (name, path), row in zip(rows, page["rows"]):
+        assert row["name"] == name and row["source_path"] == path
+        assert row["folder"] == str(Path(path).parent)
+    folder = Path(rows[0][1]).parent.name + "/"  # the sample's folder: in every path, in no name
+    assert not any(folder.lower() in n.lower() for n, _ in rows)
+    assert _names(server, q=folder.upper())[0] == [n for n, _ in rows]
+    assert _names(server, q=".bvh.xz")[0] == [rows[2][0]]  # the file's suffix, in its path only
+    assert _names(server, q="nowhere/")[0] == []
+
+
+def test_an_unknown_label_is_refused_with_the_labels(server, sample_db):
+    labels = [r[0] for r in _sql(sample_db, "SELECT label FROM classes WHERE model = 'default' GROUP BY label "
+                                            "ORDER BY min(label_id), label")]
+    for path in ("/api/motions?label=walk", "/api/segments?label=walk"):
+        status, body = server.json(path)
+        assert status == 400 and "'walk' is not a label of model 'default'" in body["message"], body
+        assert body["message"].endswith(", ".join(labels))
 
 
 def test_sorts_and_pages(server):
@@ -72,11 +96,15 @@ def test_label_strips_are_the_stored_segments(server, sample_db):
                                            "AND model = 'default'", [row["motion_id"]]):
             cells = range((a - 1) * STRIP_BINS // n, (b - 1) * STRIP_BINS // n + 1)
             want.setdefault(label, set()).update(cells)
-        got = {}
-        for label, first, last in row["strip"]:
-            assert 0 <= first <= last < STRIP_BINS
+        got, rows = {}, {}
+        for label, first, last, k in row["strip"]:
+            assert 0 <= first <= last < STRIP_BINS and 0 <= k < row["strip_rows"]
             assert not got.get(label, set()) & set(range(first, last + 1)), "runs of a label overlap"
             got.setdefault(label, set()).update(range(first, last + 1))
+            # concurrent labels on rows of their own: no cell of a row holds two labels
+            cells = set(range(first, last + 1))
+            assert not rows.get(k, set()) & cells, f"{label} shares a strip row with another label"
+            rows.setdefault(k, set()).update(cells)
         assert got == want and want, row["name"]
         assert set(row["labels"]) == set(want)
         assert all(label in page["colors"] for label in row["labels"])
@@ -85,23 +113,41 @@ def test_label_strips_are_the_stored_segments(server, sample_db):
 def test_one_motion_and_its_segments(server, sample_db):
     status, body = server.json("/api/motions/1")
     assert status == 200 and body["motion"]["name"] == "86_09"
-    want = _sql(sample_db, "SELECT label, start_frame, end_frame FROM annotations WHERE motion_id = 1 "
+    want = _sql(sample_db, "SELECT label, start_frame, end_frame, confidence FROM annotations WHERE motion_id = 1 "
                            "ORDER BY start_frame, label")
-    assert [(s["label"], s["start_frame"], s["end_frame"]) for s in body["segments"]] == [tuple(w) for w in want]
-    status, body = server.json("/api/motions/99")
-    assert status == 404 and "no motion with id 99" in body["message"]
+    got = [(s["label"], s["start_frame"], s["end_frame"], s["confidence"]) for s in body["segments"]]
+    assert got == [tuple(w) for w in want] and all(0 <= w[3] <= 1 for w in want)
+    assert server.json("/api/motions/86_09")[1] == body  # a name, as the CLI takes
+    for missing in ("99", "nosuch", "9223372036854775808"):
+        status, body = server.json(f"/api/motions/{missing}")
+        assert status == 404 and f"no motion '{missing}'" in body["message"]
+
+
+def test_the_server_and_the_command_line_give_the_same_rows(server, sample_db):
+    """/api/motions is ``mocapdb motions --format json``, filters and fields alike (issue 34)."""
+    for params, args in [({}, []), ({"label": "move", "sort": "-seconds"}, ["--label", "move", "--sort", "-seconds"]),
+                         ({"q": "hdm", "source_format": "c3d"}, ["--q", "hdm", "--source-format", "c3d"]),
+                         ({"limit": 1, "offset": 1}, ["--limit", "1", "--offset", "1"])]:
+        _, page = _names(server, **params)
+        cli = json.loads(run(sample_db, "motions", "--format", "json", *args).output)
+        assert cli["rows"] == page["rows"] and cli["total"] == page["total"], params
+    table = run(sample_db, "motions", "--label", "move").output
+    assert "folder" in table.splitlines()[0] and "86_09" in table
+    assert "is not a label of model" in run(sample_db, "motions", "--label", "walk", code=1).output
 
 
 def test_label_segments_across_the_archive(server, sample_db):
     status, body = server.json("/api/segments?label=move&limit=2")
-    want = _sql(sample_db, "SELECT motion_id, start_frame, end_frame FROM annotations WHERE label = 'move' "
+    want = _sql(sample_db, "SELECT motion_id, start_frame, end_frame, confidence FROM annotations WHERE label = 'move' "
                            "ORDER BY end_s - start_s DESC, motion_id, start_frame")
     assert status == 200 and body["total"] == len(want) >= 3
-    assert [(r["motion_id"], r["start_frame"], r["end_frame"]) for r in body["rows"]] == [tuple(w) for w in want[:2]]
+    assert [(r["motion_id"], r["start_frame"], r["end_frame"], r["confidence"]) for r in body["rows"]] == \
+        [tuple(w) for w in want[:2]]
     _, rest = server.json("/api/segments?label=move&limit=50&offset=2")
-    assert [(r["motion_id"], r["start_frame"], r["end_frame"]) for r in rest["rows"]] == [tuple(w) for w in want[2:]]
+    assert [(r["motion_id"], r["start_frame"], r["end_frame"]) for r in rest["rows"]] == [tuple(w[:3]) for w in want[2:]]
 
 
+@pytest.mark.slow
 def test_find_similar_is_mocapdb_similar(server, sample_db):
     status, body = server.json("/api/similar?motion=1&start_frame=550&end_frame=700&limit=5")
     assert status == 200, body
@@ -113,6 +159,8 @@ def test_find_similar_is_mocapdb_similar(server, sample_db):
     with mocapdb.connect(sample_db, read_only=True) as con:
         want = mocapdb.similar(con, 3, features="lower", limit=3).to_pylist()
     assert status == 200 and body["rows"] == want
+    status, by_name = server.json("/api/similar?motion=86_09&start_frame=550&end_frame=700&limit=5")  # as the CLI
+    assert status == 200 and by_name["query"]["motion_id"] == 1 and len(by_name["rows"]) >= 3
 
 
 @pytest.mark.parametrize("path, status, text", [
@@ -120,9 +168,11 @@ def test_find_similar_is_mocapdb_similar(server, sample_db):
     ("/api/motions?limit=0", 400, "limit must be an integer from 1 to 500"),
     ("/api/motions?min_s=long", 400, "min_s must be a number of seconds"),
     ("/api/motions?offset=x", 400, "offset must be an integer"),
-    ("/api/similar", 400, "motion must be a motion id"),
+    ("/api/motions?offset=9223372036854775808", 400, "offset must be an integer from 0 to 2147483647"),
+    ("/api/segments?label=move&offset=-1", 400, "offset must be an integer from 0"),
+    ("/api/similar", 400, "motion must be a motion id or name"),
     ("/api/similar?motion=1&start_frame=5&end_frame=5000", 400, "lies outside motion 1"),
-    ("/api/similar?motion=42", 404, "no motion with id 42"),
+    ("/api/similar?motion=42", 404, "no motion '42'"),
     ("/api/similar?motion=1&limit=100000", 400, "limit must be an integer from 1 to 500"),
     ("/api/segments", 400, "label must be a label name"),
 ])
@@ -140,7 +190,10 @@ def test_pages_are_self_contained(server):
         assert "http://" not in page and "https://" not in page and "<link" not in page
         assert "<script src" not in page
     status, body, _ = server.get("/motion/99")
-    assert status == 404 and b"no motion with id 99" in body
+    assert status == 404 and b"no motion &#x27;99&#x27;" in body
+    assert server.get("/motion/86_09")[0] == 200  # a name, as the CLI takes
+    status, body, headers = server.get("/favicon.ico")
+    assert status == 200 and headers["Content-Type"] == "image/svg+xml" and body.startswith(b"<svg")
 
 
 def test_a_foreign_host_name_is_refused(server):
@@ -224,6 +277,7 @@ con.close()
 """
 
 
+@pytest.mark.slow
 def test_the_server_lives_beside_a_writing_process(sample_db, tmp_path):
     """A second process writes: it gets in although the server answered requests before (the server
     holds nothing between requests); while it holds the file the server answers busy (503, naming
@@ -266,6 +320,7 @@ con.close()
 """
 
 
+@pytest.mark.slow
 def test_a_writer_waits_for_a_reader_to_finish_its_request(sample_db, tmp_path):
     """A writer that starts while a reader (a server's request) holds the file waits for it
     (``lock_wait``) instead of failing; without the wait it fails naming the reader."""
@@ -274,7 +329,7 @@ def test_a_writer_waits_for_a_reader_to_finish_its_request(sample_db, tmp_path):
     reader = subprocess.Popen([sys.executable, "-c", _READER, str(db), "1.5"], stdout=subprocess.PIPE, text=True)
     try:
         assert reader.stdout.readline().strip() == "holding"
-        with pytest.raises(mocapdb.api.database.DatabaseLockedError, match=f"PID {reader.pid}"):
+        with pytest.raises(mocapdb.storage.schema.DatabaseLockedError, match=f"PID {reader.pid}"):
             mocapdb.connect(db, lock_wait=0)
         t = time.monotonic()
         with mocapdb.connect(db, lock_wait=30) as con:

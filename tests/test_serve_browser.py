@@ -42,6 +42,7 @@ def _sql(db, query, params=()):
         return [r[0] for r in con.execute(query, list(params)).fetchall()]
 
 
+@pytest.mark.slow
 def test_the_archive_page_lists_the_sample_and_filters_it(page, server, sample_db):
     page.goto(server.url)
     assert _rows(page) == _sql(sample_db, "SELECT name FROM motions ORDER BY motion_id")
@@ -49,6 +50,15 @@ def test_the_archive_page_lists_the_sample_and_filters_it(page, server, sample_d
                            "[...new Set([...r.querySelectorAll('.strip span')].map(s => s.dataset.label))].sort())")
     assert strips == [sorted(_sql(sample_db, "SELECT DISTINCT label FROM annotations WHERE motion_id = ?", [k]))
                       for k in (1, 2, 3)]
+    # the folder column, and concurrent labels drawn on rows of their own: no two spans of one strip overlap
+    assert page.evaluate("[...document.querySelectorAll('#motions td.folder')].map(td => td.title)") == \
+        _sql(sample_db, "SELECT source_path FROM motions ORDER BY motion_id")
+    boxes = page.evaluate("[...document.querySelectorAll('#motions div.strip')].map(b => [...b.children].map(s => { "
+                          "const r = s.getBoundingClientRect(); return [r.left, r.right, r.top, r.bottom]; }))")
+    overlaps = [(a, b) for spans in boxes for i, a in enumerate(spans) for b in spans[i + 1:]
+                if min(a[1], b[1]) - max(a[0], b[0]) > 0.5 and min(a[3], b[3]) - max(a[2], b[2]) > 0.5]
+    assert overlaps == [] and max(int(r) for r in page.evaluate(
+        "[...document.querySelectorAll('#motions div.strip')].map(b => b.dataset.rows)")) >= 2
     _shot(page, "archive")
     # typed into the name box: the rows follow, and the address keeps the filter
     page.type_into("input[name=q]", "pymo")
@@ -68,6 +78,7 @@ def test_the_archive_page_lists_the_sample_and_filters_it(page, server, sample_d
     _no_errors(page)
 
 
+@pytest.mark.slow
 def test_a_motion_page_plays(page, server):
     page.goto(server.url + "motion/1")
     assert page.evaluate("document.getElementById('scrubber').value") == "0"

@@ -166,6 +166,7 @@ def test_bad_input_on_the_command_line(db):
     assert "--out DIR" in r.output
 
 
+@pytest.mark.slow
 def test_results_page_links_each_hit(db, tmp_path):
     out = tmp_path / "hits"
     r = run(db, "similar", "86_09", "--start-frame", 40, "--end-frame", 110, "--limit", 4, "--format", "html",

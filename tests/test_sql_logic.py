@@ -138,6 +138,7 @@ def _needs_shared(path):
     return any(not a.startswith("sample/") for _, head, _ in records(path) if head[0] == "ingest" for a in head[1:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", [pytest.param(p, id=p.stem, marks=[pytest.mark.shared] if _needs_shared(p) else [])
                                   for p in TESTS])
 def test_sql_file(path, tmp_path):
@@ -145,10 +146,10 @@ def test_sql_file(path, tmp_path):
 
 
 def test_every_readme_sql_example_runs_on_a_fresh_database(tmp_path, open_db):
-    """Each ```sql block of the README, statement by statement, on a new database with one motion."""
-    from conftest import REPO
+    """Each ```sql block of the README and docs, statement by statement, on a new database with one motion."""
+    from conftest import user_docs_text
 
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    readme = user_docs_text()
     blocks = re.findall(r"```sql\n(.*?)```", readme, flags=re.S)
     statements = [s.strip() for b in blocks for s in re.sub(r"(?m)^--.*$", "", b).split(";") if s.strip()]
     assert len(statements) >= 3

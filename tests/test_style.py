@@ -11,7 +11,10 @@ LIBRARY = sorted([*(REPO / "mocapdb").rglob("*.py"), *(REPO / "extension").glob(
 
 #: the sub-packages in pipeline order (docs/ARCHITECTURE.md): each imports only from those before it
 LAYERS = ("errors", "_numba", "readers", "features", "templates", "keyframes", "annotation", "learning",
-          "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "server", "api", "cli")
+          "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "api", "server", "cli")
+#: the one import against the pipeline: ``mocapdb.api.serve`` starts the web server (every command is an api
+#: function), importing it only when called, as the ``serve`` extra may be missing
+UPWARD = {("mocapdb.api.outputs", "mocapdb.server")}
 
 
 def _module(path):
@@ -57,6 +60,7 @@ def test_numba_options_live_in_one_place(path):
     assert not re.search(r"\b(njit|numba\.jit|numba\.njit|nopython\s*=|fastmath\s*=)", text), path.name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_the_library_never_prints(path):
     """Only the CLI writes to the terminal (through click)."""
@@ -66,6 +70,7 @@ def test_the_library_never_prints(path):
     assert not calls, f"{path.name}: print() at lines {calls}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_public_functions_have_docstrings(path):
     tree = ast.parse(path.read_text(encoding="utf-8"))
@@ -75,6 +80,7 @@ def test_public_functions_have_docstrings(path):
     assert not missing, f"{path.name}: no docstring for {missing}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(REPO)))
 def test_imports_follow_the_pipeline(path):
     """A module imports only from its own sub-package and those before it (no cycles possible),
@@ -89,6 +95,8 @@ def test_imports_follow_the_pipeline(path):
         other = _layer(target)
         if other is None:
             pytest.fail(f"{mod}:{line} imports the top-level package mocapdb (import the sub-package)")
+        if (mod, target) in UPWARD:
+            continue
         assert LAYERS.index(other) <= LAYERS.index(own), \
             f"{mod}:{line} imports {target}: {other} comes after {own} in the pipeline"
         if other != own:
@@ -105,6 +113,17 @@ def test_the_cli_imports_only_the_api_and_the_errors(path):
         if target.startswith("mocapdb"):
             assert target.split(".")[:2] in (["mocapdb", "api"], ["mocapdb", "errors"], ["mocapdb", "cli"]), \
                 f"{_module(path)}:{line} imports {target}; the CLI calls mocapdb.api"
+
+
+@pytest.mark.parametrize("path", [p for p in LIBRARY if "server" in p.relative_to(REPO).parts],
+                         ids=lambda p: str(p.relative_to(REPO)))
+def test_the_server_is_a_face_on_the_api(path):
+    """The web app reads the archive through mocapdb.api as the command line does (issue 34): from the library
+    it imports only mocapdb.api, mocapdb.errors, the viewer (its pages' HTML) and its own modules."""
+    for line, target, _ in _imports(path):
+        if target.startswith("mocapdb"):
+            assert target.split(".")[1] in ("api", "errors", "viewer", "server"), \
+                f"{_module(path)}:{line} imports {target}; the server calls mocapdb.api"
 
 
 _SQL_FSTRING = re.compile(r"\.(execute|sql|executemany)\(\s*f[\"']")
@@ -170,3 +189,27 @@ def test_the_tests_run_against_the_installed_package():
     if not editable:
         assert not here.is_relative_to(REPO / "mocapdb"), \
             f"the tests import {here}, the checkout, instead of the installed package; run python -P -m pytest"
+
+
+def test_import_mocapdb_is_light():
+    """``import mocapdb`` loads only the package (its public names load on first use, PEP 562), and
+    reading a file loads the readers and features, not the database, SQL functions or learning
+    (issue 34 item 1: aim ≤ 40 modules). Counted in a fresh interpreter."""
+    import subprocess
+    import sys
+
+    code = ("import sys; before = set(sys.modules); {stmt}; "
+            "print(len([m for m in sys.modules if m not in before and m.startswith('mocapdb')]), "
+            "sorted(m.split('.')[1] for m in sys.modules if m.startswith('mocapdb.') and m.count('.') == 1))")
+
+    def loaded(stmt):
+        out = subprocess.run([sys.executable, "-P", "-c", code.format(stmt=stmt)], capture_output=True, text=True,
+                             check=True).stdout.split(" ", 1)
+        return int(out[0]), out[1]
+
+    n, packages = loaded("import mocapdb")
+    assert n <= 40, packages
+    n, packages = loaded("from mocapdb import read_motion, ParseError")
+    assert n <= 40 and "api" not in packages and "learning" not in packages and "storage" not in packages, packages
+    n, packages = loaded("import mocapdb; mocapdb.connect")  # the API loads on first use
+    assert "api" in packages and "storage" in packages

@@ -50,6 +50,7 @@ def test_squat_template_reproduces_toolbox():
     _assert_quantized(mt.quantize(0.05), SQUAT)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("cls", CLASSES)
 def test_class_templates_reproduce_toolbox(cls):
@@ -135,6 +136,7 @@ def _stop_reason(mt, iter_max, iter_thresh):
     return "iter_max" if mt.iterations == iter_max else "?"
 
 
+@pytest.mark.slow
 def test_stop_when_error_unchanged():
     # Three clips that are not mutually alignable at zero cost: the templates
     # reach a fixed point with a positive error, which then repeats exactly.
@@ -200,6 +202,7 @@ def test_every_reference_of_an_iteration_matches_naive():
             np.testing.assert_array_equal(costs[:, r], cn)
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_average_step_matches_naive_on_real_clips():
     clips = [features(s).astype(float) for s in training_clips("hopBothLegs1hops")[:5]]

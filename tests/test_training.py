@@ -41,6 +41,7 @@ def test_squat_folder_reproduces_the_oracle_template():
     np.testing.assert_array_equal(c.quantized.weights, ref.weights)
 
 
+@pytest.mark.slow
 def test_all_actors_model_annotates_like_the_oracle(all_clips):
     """Files → features → 11 templates → annotation equals the toolbox's segments."""
     for cls, cl in all_clips.items():

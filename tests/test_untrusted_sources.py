@@ -75,6 +75,7 @@ def _bvh_head_and_frame(walk_bvh, frames):
             b" ".join([b"0"] * len(lines[3].split())) + b"\n")
 
 
+@pytest.mark.slow
 def test_compression_bombs_stop_at_the_cap_and_the_other_files_go_in(tmp_path, walk_bvh, monkeypatch):
     """2 GiB bombs of ~2 MB (gzip, bzip2, xz files; zip members with a true and a lying header) among
     the shipped sample: each fails with one line naming the file (and member), read only up to the

@@ -40,6 +40,7 @@ def page(db, tmp_path_factory):
     return out, Elements(dom), log
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_every_segment_is_an_element_with_its_label(db, page):
     path, eaf = db
@@ -74,6 +75,7 @@ def test_the_page_runs_without_javascript_errors(page):
     assert dom.by_id("errors")[2].strip() == ""
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_a_javascript_error_fails_the_check(page, tmp_path):
     """The harness sees a broken page (so the checks above can fail)."""
@@ -107,6 +109,7 @@ def test_dragging_along_the_timeline_offers_a_similar_command(page):
     assert "hidden" not in box[1] and (box[1]["data-first"], box[1]["data-last"]) == (str(first), str(last))
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 @pytest.mark.parametrize("fragment, opened, selected", [("#frame=100-160", "100", ("100", "160")),
                                                        ("#frame=250", "250", None)])
@@ -144,6 +147,7 @@ def test_the_decoded_poses_are_the_source_joints(db, page):
         np.testing.assert_allclose(xyz, joints[t, j], atol=1.01 * unit + 1e-4 * np.abs(joints[t, j]).max())
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_the_screenshot_is_not_blank(page, tmp_path):
     out, _, _ = page
@@ -171,6 +175,7 @@ def test_the_page_is_self_contained(page):
     assert not re.search(r"https?://(?!www\.w3\.org)", text.split('id="mocapdb-data"')[0])
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_all_writes_a_page_per_motion_and_an_index(db, tmp_path):
     path, _ = db
@@ -282,6 +287,7 @@ def _files(root):
     return {p for p in root.rglob("*") if p.is_file()}
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_no_page_lands_outside_the_folder_whatever_the_names(hostile_db, tmp_path):
     """view --all with hostile names: every file inside the folder, one page per motion, and the
@@ -358,6 +364,7 @@ def test_a_motion_named_index_keeps_its_page(hostile_db, tmp_path, open_db):
     assert by_motion["CON"] == "_CON.html"
 
 
+@pytest.mark.slow
 @pytest.mark.shared
 def test_annotate_eaf_files_stay_in_their_folder(hostile_db, tmp_path):
     root, names = hostile_db

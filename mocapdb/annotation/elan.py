@@ -169,6 +169,9 @@ def read_eaf(path, *, fps=None):
     return out
 
 
+#: MIME types of linked media that ELAN plays, by suffix
+_MIME = {".mp4": "video/mp4"}
+
 #: suffix of the tier that holds a label tier's confidences (a symbolic association: readers skip it)
 CONFIDENCE_TIER = " confidence"
 
@@ -183,9 +186,11 @@ def write_eaf(path, labels, start_s, end_s, *, media=None, fps=None, author="moc
     start_s, end_s : (n,) float
         Segment start and end in seconds (end exclusive, as ``annotate``'s
         ``start_s`` / ``end_s``); written as whole milliseconds.
-    media : str or Path, optional
+    media : str or Path, or a sequence of them, optional
         The recording, linked as the file's media (absolute ``file://`` URL
-        and the path relative to ``path``).
+        and the path relative to ``path``); with more files, each is linked
+        in order (the first names the document when the file is read back),
+        an ``.mp4`` as ``video/mp4``, which ELAN plays (``annotate --video``).
     fps : float, optional
         Native frame rate of the recording, stored as the header property
         ``mocapdb:source_fps`` so the file reads back without a database.
@@ -211,14 +216,14 @@ def write_eaf(path, labels, start_s, end_s, *, media=None, fps=None, author="moc
         raise ParameterError("segments must satisfy 0 <= start_s < end_s")
     eaf = pympi.Elan.Eaf(author=author)
     eaf.remove_tier("default")
-    if media is not None:
-        media = Path(media).resolve()
+    for item in [] if media is None else [media] if isinstance(media, (str, os.PathLike)) else media:
+        item = Path(item).resolve()
         try:
-            rel = os.path.relpath(media, Path(path).resolve().parent)
+            rel = os.path.relpath(item, Path(path).resolve().parent)
         except ValueError:  # another drive on Windows
             rel = None
-        # ELAN's MIME type for a file it cannot play (the recording is not audio or video)
-        eaf.add_linked_file(media.as_uri(), relpath=rel, mimetype="unknown")
+        # ELAN's MIME type for a file it cannot play (a recording is not audio or video), or a video it plays
+        eaf.add_linked_file(item.as_uri(), relpath=rel, mimetype=_MIME.get(item.suffix.lower(), "unknown"))
     if fps is not None:
         eaf.add_property(EAF_FPS_PROPERTY, repr(float(fps)))
     for lab in dict.fromkeys(labels):

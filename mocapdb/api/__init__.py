@@ -19,6 +19,7 @@ CLI                           API
 ``mocapdb view``               :func:`view`
 ``mocapdb similar``            :func:`similar`
 ``mocapdb stats``              :func:`stats`
+``mocapdb motions``            :func:`motions`
 ``mocapdb serve``              :func:`serve`
 ``mocapdb create-index``       :func:`create_index`
 ``mocapdb drop-index``         :func:`drop_index`
@@ -42,10 +43,13 @@ from mocapdb.api.kernels import (background_compile_running, kernels_cold, start
 from mocapdb.api.learning import define_class, learn_keyframes, train
 from mocapdb.api.annotating import BATCH_FILES, BUCKET_MOTIONS, annotate, evaluate, ray_annotate
 from mocapdb.api.outputs import FIGURES, SIMILAR_FORMATS, report, serve, similar, stats, view
+from mocapdb.storage.model_store import DEFAULT_MODEL
+from mocapdb.api.browsing import (MAX_LIMIT, MOTION_COLUMNS, SORTS, STRIP_BINS, label_colors, label_segments, labels,
+                                  motion_info, motions)
 
 #: exactly the commands: ``mocapdb COMMAND`` calls the function of that name (``sql`` is
 #: ``connect(...).sql``); the other names here are what the command line needs besides
 __all__ = ["connect", "ingest", "delete", "train", "learn_keyframes", "define_class", "annotate", "evaluate",
-           "report", "view", "similar", "stats", "serve", "create_index", "drop_index", "export_features",
+           "report", "view", "similar", "stats", "motions", "serve", "create_index", "drop_index", "export_features",
            "import_features", "export_joints", "attach", "ray_annotate", "convert_labels", "relocate",
            "joint_map_template", "warmup"]

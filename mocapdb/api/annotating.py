@@ -19,10 +19,12 @@ from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import documents_by_name, motion_ids, source_rates
 from mocapdb.storage.schema import require_own_tables
 from mocapdb.storage.sqltext import statement
+from mocapdb.viewer import motion_poses
+from mocapdb.viewer.video import ffmpeg_path, write_video
 
 
 def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None, store=True, format=None, out=None,
-             progress=None, min_length=None, min_won=None, margin=None):
+             progress=None, min_length=None, min_won=None, margin=None, video=False):
     """Annotate motions of the database with a model.
 
     Parameters
@@ -57,6 +59,11 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     margin : float, optional, keyword-only
         Leave frames unlabelled where the best label wins by less than this;
         default the model's margin.
+    video : bool, keyword-only
+        With ``format="eaf"``: also write each motion's stick figure as an MP4
+        beside its ``.eaf`` (``<stem>.mp4``, 30 frames a second, re-read from
+        the source) and link it as media, so ELAN plays it in step with the
+        tiers (:func:`mocapdb.viewer.video.write_video`; needs ``ffmpeg``).
 
     Returns
     -------
@@ -73,6 +80,10 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     if (format is None) != (out is None) or (format is not None and format not in EXPORT_FORMATS):
         raise ParameterError(f"format and out go together, format one of {', '.join(EXPORT_FORMATS)}; "
                              f"got format={format!r}, out={out!r}")
+    if video:
+        if format != "eaf":
+            raise ParameterError(f"video goes with ELAN files (format='eaf'), got format={format!r}")
+        ffmpeg_path()  # before annotating: a missing ffmpeg is said at once
     if store:
         require_own_tables(con, "annotate with store=True (--store)")
     cache = connection_cache(con)
@@ -100,7 +111,9 @@ def annotate(con, motions=None, *, model=DEFAULT_MODEL, tau=None, keyframes=None
     table = pa.concat_tables(tables) if tables else segment_table(
         np.empty(0, SEGMENT_DTYPE), motion_ids=np.zeros(0, np.int64), names=[], fps=np.zeros(0))
     if out is not None:
-        export_segments(con, table, out, format=format, motion_ids=done)
+        export_segments(con, table, out, format=format, motion_ids=done,
+                        video=(lambda motion_id, path: write_video(path, motion_poses(con, motion_id))) if video
+                        else None)
     if failed:
         raise PartialAnnotationError(failed, table, n_motions, store)
     return table

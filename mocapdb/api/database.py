@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import time
 from pathlib import Path
 
 from mocapdb.annotation import write_labels
@@ -19,7 +18,7 @@ from mocapdb.storage.joint_export import JointsExport
 from mocapdb.storage.joint_export import export_joints as storage_export_joints
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
 from mocapdb.storage.model_store import DEFAULT_MODEL
-from mocapdb.storage.schema import DatabaseLockedError, require_own_tables
+from mocapdb.storage.schema import require_own_tables
 from mocapdb.warmup import sample_files
 
 
@@ -96,14 +95,8 @@ def connect(path=":memory:", *, read_only: bool = False, create: bool = True, me
     if not create and str(path) != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (a mistyped --db? `mocapdb ingest` or "
                           "`mocapdb import-features` create one)")
-    deadline = time.monotonic() + _lock_wait(lock_wait, read_only)
-    while True:
-        try:
-            return connect_database(path, read_only=read_only, memory_limit=memory_limit)
-        except DatabaseLockedError:
-            if time.monotonic() >= deadline:
-                raise
-            time.sleep(0.05)
+    return connect_database(path, read_only=read_only, memory_limit=memory_limit,
+                            wait=_lock_wait(lock_wait, read_only))
 
 
 def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=None, marker_rules=None,
@@ -124,11 +117,11 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
         How files are read: the fields of one :class:`mocapdb.readers.ReaderOptions`
         value, checked here, before any file is read — the ASF of every AMC
         (default: found by the dataset conventions), a BVH joint map and a C3D
-        marker map (TOML/JSON file or dict; README "Mapping files", "C3D marker
+        marker map (TOML/JSON file or dict; docs/READING_FILES.md "Mapping files", "C3D marker
         maps"), the C3D marker rules (``"toolbox"``, the reference, or
         ``"anatomical"``), the SMPL-H/SMPL-X body model of AMASS ``.npz`` takes
         (a model file or a folder of them, chosen by family and gender;
-        default: the generic rest skeleton shipped with mocapdb; README
+        default: the generic rest skeleton shipped with mocapdb; docs/READING_FILES.md
         "AMASS"), the bytes a compressed file or zip member may decompress to
         (``"2GiB"``; default ``MOCAPDB_MAX_DECOMPRESSED``, else 512 MiB).
         ``ray_annotate`` takes the same and reads the same.

@@ -73,7 +73,7 @@ def train(con, *, model, folder=None, labels=None, class_labels=None, delta=0.05
         ``progress(n_done, n_total, what)`` while reading clips and learning.
     definitions : str, Path or sequence of them, optional, keyword-only
         Class definition files (or folders of ``*.toml``) whose hand-designed
-        classes join the learned ones (README "Class definitions").
+        classes join the learned ones (docs/MODEL.md "Class definitions").
 
     Returns
     -------
@@ -120,7 +120,7 @@ def define_class(con, definitions, *, model=DEFAULT_MODEL, replace=False, descri
     ----------
     con : duckdb.DuckDBPyConnection
     definitions : str, Path or sequence of them
-        TOML class definition files, or folders of ``*.toml`` (README
+        TOML class definition files, or folders of ``*.toml`` (docs/MODEL.md
         "Class definitions"); each class compiles to a quantized template
         and a keyframe query (:mod:`mocapdb.learning.class_definitions`);
         a ``[[keyframes]]`` table gives a class of the model a designed

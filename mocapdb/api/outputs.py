@@ -8,6 +8,7 @@ import numpy as np
 
 from mocapdb.api.annotating import evaluate
 from mocapdb.errors import MocapdbError, ParameterError, SchemaError
+from mocapdb.storage.browse import MAX_LIMIT
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_rows, one_motion
@@ -157,7 +158,7 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
     30 Hz words; Δ, its subsequence DTW with every feature weighted by its
     information in the archive, finds where it matches, the non-overlapping
     local minima are the hits, cheapest first; keyframes taken from the
-    stretch preselect (README "Finding similar motions";
+    stretch preselect (docs/USER_GUIDE.md "Finding similar motions";
     :mod:`mocapdb.retrieval`). With ``examples``, a template is learned from
     all the stretches ("more like these").
 
@@ -174,7 +175,7 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
         Further example stretches: a motion (id or name, the whole of it) or
         ``(motion, start_frame, end_frame)``.
     limit : int, keyword-only, default 10
-        The number of results.
+        The number of results (1 … :data:`mocapdb.storage.browse.MAX_LIMIT`).
     features : str or sequence of str, keyword-only, default "all"
         ``all``, ``upper`` (features 1–14), ``lower`` (15–26) or feature names
         (comma-separated or a sequence; those of the ``feature_flags`` view).
@@ -206,6 +207,9 @@ def similar(con, motion, start=None, end=None, *, start_frame=None, end_frame=No
     ParameterError
         An empty range or one outside the motion, or bad options.
     """
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or not 1 <= limit <= MAX_LIMIT:
+        # a page of results, as every listing of mocapdb (``mocapdb serve`` too): each one ranked costs work
+        raise ParameterError(f"limit must be an integer from 1 to {MAX_LIMIT}, got {limit!r}")
     if (format is None) != (out is None) or (format is not None and format not in SIMILAR_FORMATS):
         raise ParameterError(f"format and out go together, format one of {', '.join(SIMILAR_FORMATS)}; "
                              f"got format={format!r}, out={out!r}")
@@ -245,7 +249,7 @@ def stats(con, *, model=DEFAULT_MODEL):
     return archive_stats(con, model=model)
 
 
-def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, ready=None):
+def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, timeout=None, ready=None):
     """Serve the archive in ``db`` to a web browser until interrupted (needs the ``serve`` extra).
 
     Pages: ``/`` every motion with name, format, rate, duration, stored labels
@@ -271,9 +275,19 @@ def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, ready=None):
         0 takes any free port.
     model : str, keyword-only
         The model whose stored annotations the pages show.
+    timeout : float, optional, keyword-only
+        Seconds a request may take before its work is stopped and it answers
+        "busy" (default :data:`mocapdb.server.archive.REQUEST_TIMEOUT`, 30 s).
+        Requests are bounded besides (docs/ARCHITECTURE.md, "The archive in a
+        browser"): a query stretch of at
+        most 60 s, pages of at most 500 rows, two heavy requests at once.
     ready : callable, optional, keyword-only
-        ``ready(url)`` once the server listens.
+        ``ready(url)`` once the server listens. On ``0.0.0.0`` or ``::`` the
+        server warns that the archive is open to the network.
     """
+    if timeout is not None and (isinstance(timeout, bool) or not isinstance(timeout, (int, float))
+                                or not 0 < timeout < float("inf")):
+        raise ParameterError(f"timeout must be a number of seconds > 0, got {timeout!r}")
     if not Path(db).is_file():
         raise SchemaError(f"{db}: no such database file (a mistyped --db? `mocapdb ingest` creates one)")
     check_database_file(db)   # a CSV or Parquet named as --db: refused before any request opens it
@@ -290,4 +304,4 @@ def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, ready=None):
         missing = exc.name or "starlette or uvicorn"
         raise MocapdbError(f"mocapdb serve needs the serve extra, which is not installed ({missing} is missing): "
                            f"pip install \"mocapdb[serve]\" (Starlette and uvicorn)") from None
-    run(db, host=host, port=port, model=model, ready=ready)
+    run(db, host=host, port=port, model=model, ready=ready, **({} if timeout is None else {"timeout": timeout}))

@@ -5,13 +5,13 @@ result; nothing is computed here. Every error is one line ``Error: …`` with
 exit status 1 (sqlite-utils style); progress bars are drawn here and nowhere
 else (on a terminal, unless ``--silent``). The modules mirror those of
 :mod:`mocapdb.api`: :mod:`~mocapdb.cli.database`, :mod:`~mocapdb.cli.annotating`,
-:mod:`~mocapdb.cli.learning`, :mod:`~mocapdb.cli.outputs`; :mod:`~mocapdb.cli.group`
+:mod:`~mocapdb.cli.learning`, :mod:`~mocapdb.cli.outputs`, :mod:`~mocapdb.cli.browsing`; :mod:`~mocapdb.cli.group`
 holds the group and what every command shares, :mod:`~mocapdb.cli.options` the
 shared options, :mod:`~mocapdb.cli.output` the printing. The CLI imports only
 :mod:`mocapdb.api` and :mod:`mocapdb.errors` from the library.
 """
 from mocapdb.cli.group import main
 # importing the command modules registers their commands with the group
-from mocapdb.cli import annotating, database, learning, outputs  # noqa: F401
+from mocapdb.cli import annotating, browsing, database, learning, outputs  # noqa: F401
 
 __all__ = ["main"]

@@ -23,12 +23,15 @@ from mocapdb.cli.output import write_rows, echo_report, print_scores, frame_rate
 @click.option("--out", type=click.Path(path_type=Path), callback=make_parent,
               help="Write to a file (a directory for eaf of several motions) instead of stdout; its folder is "
                    "made.")
+@click.option("--video", is_flag=True, help="With --format eaf: also write each motion's stick figure as an MP4 "
+                                            "beside its .eaf and link it, so ELAN plays it with the tiers "
+                                            "(needs ffmpeg).")
 @click.option("--store/--no-store", default=True, show_default=True,
               help="Replace the stored annotations of these motions and this model (a database attached to an "
                    "archive has none of its own: --no-store).")
 @silent_option
 @click.pass_context
-def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, fmt, out, store, silent):
+def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, fmt, out, video, store, silent):
     """Annotate motions (ids or names; default all) and store the segments in `annotations`.
 
     Frames are 30 Hz frames, 1-based inclusive; CSV (and JSON) columns
@@ -42,18 +45,22 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
     Examples:
       mocapdb --db a.duckdb annotate --format csv --out segments.csv
       mocapdb --db a.duckdb annotate 86_09 --format eaf --out 86_09.eaf
+      mocapdb --db a.duckdb annotate --format eaf --video --out elan/
       mocapdb --db a.duckdb annotate --format parquet --out segments.parquet
     """
 
     export = fmt in ("parquet", "eaf")
     if export and out is None:
         raise click.UsageError(f"--format {fmt} writes files: give --out")
+    if video and fmt != "eaf":
+        raise click.UsageError("--video goes with --format eaf")
     failure = None
     with progress_bar(None, "annotate", silent, unit="motion") as bar:
         try:
             table = api.annotate(open_db(ctx), motions or None, model=model, tau=tau, keyframes=keyframes, store=store,
                                  format=fmt if export else None, out=out if export else None,
-                                 progress=bar_progress(bar), min_length=min_length, min_won=min_won, margin=margin)
+                                 progress=bar_progress(bar), min_length=min_length, min_won=min_won, margin=margin,
+                                 video=video)
         except PartialAnnotationError as exc:  # the others were annotated (and stored): show them
             table, failure = exc.table, exc
     if export:

@@ -91,7 +91,7 @@ def define_class(ctx, definitions, model, replace):
     """Add hand-designed classes from class definition files (TOML) to a model.
 
     Each class is phases of 0/1/* values of named features with durations,
-    compiled to a quantized template and a keyframe query (README "Class
+    compiled to a quantized template and a keyframe query (docs/MODEL.md "Class
     definitions"; paper Sect. 8). A [[keyframes]] table gives a class the
     model already has (a learned one) a designed keyframe query.
 

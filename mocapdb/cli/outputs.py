@@ -222,8 +222,9 @@ def stats(ctx, model, table, fmt):
               help="Address to listen on (the default answers this machine only; 0.0.0.0 opens it to the network).")
 @click.option("--port", type=int, default=8765, show_default=True, help="Port (0: any free port).")
 @model_option("Model whose stored annotations the pages show.")
+@click.option("--timeout", type=float, help="Seconds a request may take before its work is stopped (default 30).")
 @click.pass_context
-def serve(ctx, host, port, model):
+def serve(ctx, host, port, model, timeout):
     """Browse the archive in a web browser (needs the 'serve' extra: pip install 'mocapdb[serve]').
 
     The archive page lists every motion with its format, rate, duration,
@@ -243,5 +244,5 @@ def serve(ctx, host, port, model):
     db = ctx.obj.get("db")
     if db is None:
         raise click.UsageError("this command needs a database: mocapdb --db FILE …")
-    api.serve(db, host=host, port=port, model=model,
+    api.serve(db, host=host, port=port, model=model, timeout=timeout,
               ready=lambda url: click.echo(f"Serving {db} at {url} (read only; Ctrl-C stops)"))

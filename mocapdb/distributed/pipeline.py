@@ -161,7 +161,7 @@ def ray_session(ray, *, address=None, num_cpus=None):
             ray.shutdown()
 
 
-#: what a client of a cluster with token authentication needs (Ray ≥ 2.52; README "Archives larger than one machine")
+#: what a client of a cluster with token authentication needs (Ray ≥ 2.52; docs/CLUSTER.md "Archives larger than one machine")
 TOKEN_AUTH = ("a cluster started with token authentication (RAY_AUTH_MODE=token) needs it here too: "
               "RAY_AUTH_MODE=token and its token in RAY_AUTH_TOKEN_PATH=FILE (or RAY_AUTH_TOKEN, or ~/.ray/auth_token)")
 

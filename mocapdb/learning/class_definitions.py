@@ -9,7 +9,7 @@ motion, phase by phase; it compiles to what a learned class has: a quantized
 motion template (columns of 0 / 1 / wildcard, TEMPLATES.md §8) and a keyframe
 query (KEYFRAMES.md §2).
 
-A definition file is TOML (README "Class definitions")::
+A definition file is TOML (docs/MODEL.md "Class definitions")::
 
     [[class]]
     name = "turnLeft"         # fine class (a template of its own)

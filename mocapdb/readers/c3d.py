@@ -288,7 +288,7 @@ def _select(path, index: MarkerIndex, valid, max_gap, marker_map, marker_rules="
         needs = needs if len(needs) <= 2 else []
         raise ParseError(path, None, f"no full-body marker set: cannot place {', '.join(required or unplaced)} "
                          f"({what}{'; ' + ', '.join(needs) if needs else ''}) from the markers {_describe(index)}; "
-                         "name them in a marker map (marker_map= / --marker-map FILE, see the README)")
+                         "name them in a marker map (marker_map= / --marker-map FILE, see docs/READING_FILES.md)")
     return chosen
 
 

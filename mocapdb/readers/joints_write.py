@@ -29,7 +29,7 @@ row to ``csv.DictReader``), so ``export-joints`` says it per file and in the
 
 References
 ----------
-README "Joints out"; READERS.md §2, §9; FEATURES.md §2.1.
+docs/USER_GUIDE.md "Joints out"; READERS.md §2, §9; FEATURES.md §2.1.
 """
 from __future__ import annotations
 

@@ -71,7 +71,7 @@ class ReaderOptions:
         The ASF skeleton of every AMC file (an absolute path); default: each
         AMC's own, found by the dataset conventions (:func:`~mocapdb.readers.files.find_skeleton`).
     joint_map : tuple, optional
-        BVH files: canonical joint → the file's joint(s) (README "Mapping
+        BVH files: canonical joint → the file's joint(s) (docs/READING_FILES.md "Mapping
         files"); given as a TOML/JSON file or a dict, kept as ``((joint,
         name or (names…)), …)`` (:meth:`mapping` gives the dict).
     marker_map : tuple, optional

@@ -3,23 +3,28 @@
 The ``serve`` extra (``pip install "mocapdb[serve]"``) brings the web stack:
 Starlette (routes, responses) and uvicorn (the HTTP server).
 :mod:`~mocapdb.server.archive` reads the database read-only, one connection
-per request, so a writer can use the file between requests;
+per request, so a writer can use the file between requests, and bounds each
+request (time, heavy requests at once, the query stretch);
 :mod:`~mocapdb.server.app` holds the routes and the JSON API under ``/api/``;
 :mod:`~mocapdb.server.pages` the HTML (the archive page and the summary,
 and each motion's viewer page of :mod:`mocapdb.viewer` with a panel under
-it). The queries are :mod:`mocapdb.storage.browse`,
-:mod:`mocapdb.storage.stats` and query by example
-(:mod:`mocapdb.storage.retrieval`, what ``mocapdb similar`` runs).
+it). The server is a face on :mod:`mocapdb.api`, as the command line is:
+every route is an API function (``api.motions``, ``api.motion_info``,
+``api.label_segments``, ``api.similar``, ``api.stats``) with the command
+line's arguments and fields.
 """
 from __future__ import annotations
 
+import logging
 import socket
 
 from mocapdb.errors import ParameterError
-from mocapdb.server.archive import BUSY_WAIT, Archive
-from mocapdb.storage.model_store import DEFAULT_MODEL
+from mocapdb.server.archive import BUSY_WAIT, REQUEST_TIMEOUT, Archive
+from mocapdb.api import DEFAULT_MODEL
 
-__all__ = ["Archive", "BUSY_WAIT", "create_app", "serve", "bind"]
+__all__ = ["Archive", "BUSY_WAIT", "REQUEST_TIMEOUT", "create_app", "serve", "bind"]
+
+log = logging.getLogger("mocapdb")
 
 
 def create_app(archive, *, host="127.0.0.1"):
@@ -53,7 +58,8 @@ def bind(host, port):
     return sock
 
 
-def serve(path, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, busy_wait=BUSY_WAIT, ready=None):
+def serve(path, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, busy_wait=BUSY_WAIT, timeout=REQUEST_TIMEOUT,
+          ready=None):
     """Serve the archive at ``path`` over HTTP until interrupted (Ctrl-C).
 
     Parameters
@@ -70,14 +76,23 @@ def serve(path, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, busy_wait=B
     busy_wait : float, keyword-only
         Seconds a request waits for another process's lock before it answers
         "busy" (:data:`~mocapdb.server.archive.BUSY_WAIT`).
+    timeout : float, keyword-only
+        Seconds a request may take before its work is stopped
+        (:data:`~mocapdb.server.archive.REQUEST_TIMEOUT`).
     ready : callable, optional, keyword-only
         ``ready(url)`` once the server listens.
     """
     import uvicorn  # the serve extra
 
-    archive = Archive(path, model=model, busy_wait=busy_wait)
+    from mocapdb.server.app import is_wildcard
+
+    archive = Archive(path, model=model, busy_wait=busy_wait, timeout=timeout)
     app = create_app(archive, host=host)
     sock = bind(host, port)
+    if is_wildcard(host):
+        log.warning("mocapdb serve on %s: the archive (names, labels, absolute source paths, the poses of every "
+                    "motion) is open to every machine that reaches this one; --host 127.0.0.1 keeps it to this "
+                    "machine", host)
     bound = sock.getsockname()[1]
     url = f"http://{f'[{host}]' if ':' in host else host}:{bound}/"
     # no log configuration of uvicorn's own: the library never prints; the CLI says where it listens

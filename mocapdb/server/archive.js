@@ -1,9 +1,9 @@
-// mocapdb serve, the archive page: every motion with its format, rate, duration, labels and label strip;
+// mocapdb serve, the archive page: every motion with its folder, format, rate, duration, labels and label strip;
 // filters, sort and pages through /api/motions. The filters live in the address (?label=…&q=…), so a
 // filtered view is a link. When the rows are shown, <body data-ready> holds the request it answers.
 (function () {
   const { $, api, el, cell, link, duration, strip, chip } = serve;
-  const form = $("filters"), FIELDS = ["q", "label", "format", "min_s", "max_s", "sort", "limit"];
+  const form = $("filters"), FIELDS = ["q", "label", "source_format", "min_s", "max_s", "sort", "limit"];
   let offset = 0, total = 0, colors = {}, shown = 0, ticket = 0;
 
   function params() {
@@ -30,17 +30,21 @@
       tr.dataset.motion = String(m.motion_id);
       tr.dataset.name = m.name;
       cell(tr, null).appendChild(link(`/motion/${m.motion_id}`, m.name));
+      // the folder's last parts tell sessions apart; the whole path on hover
+      const parts = (m.folder || "").split(/[\\/]/).filter((x) => x);
+      const folder = cell(tr, parts.length > 2 ? `…/${parts.slice(-2).join("/")}` : m.folder, "folder");
+      folder.title = m.source_path;
       cell(tr, m.format);
       cell(tr, Number(m.source_fps).toFixed(0), "num");
       cell(tr, duration(m.seconds), "num").dataset.seconds = String(m.seconds);
       const labs = cell(tr, null);
       for (const lab of m.labels) labs.appendChild(chip(lab, colors));
-      cell(tr, null, "strip").appendChild(strip(m.strip, page.strip_bins, colors));
+      cell(tr, null, "strip").appendChild(strip(m.strip, page.strip_bins, colors, m.strip_rows));
       body.appendChild(tr);
     }
     shown = page.rows.length;
     const limit = page.limit;
-    $("count").textContent = total ? `${total} motion(s)${p.has("q") || p.has("label") || p.has("format") ||
+    $("count").textContent = total ? `${total} motion(s)${p.has("q") || p.has("label") || p.has("source_format") ||
       p.has("min_s") || p.has("max_s") ? " match" : ""}; showing ${offset + 1}–${offset + shown}` : "no motion matches";
     $("page").textContent = total ? `page ${Math.floor(offset / limit) + 1} of ${Math.max(1, Math.ceil(total / limit))}` : "";
     $("prev").disabled = offset === 0;
@@ -56,7 +60,7 @@
       for (const v of values) if (![...select.options].some((o) => o.value === v)) select.appendChild(new Option(v, v));
     };
     fill(form.elements.label, s.labels.map((r) => r.label));
-    fill(form.elements.format, [...new Set(s.formats.map((r) => r.format))]);
+    fill(form.elements.source_format, [...new Set(s.formats.map((r) => r.format))]);
   }
 
   async function main() {

@@ -48,14 +48,20 @@ const serve = (function () {
     return h ? `${h} h ${String(m % 60).padStart(2, "0")} min` : `${m} min ${String(whole % 60).padStart(2, "0")} s`;
   }
 
-  // a motion's label strip: runs [label, first, last] of `bins` cells along its duration
-  function strip(runs, bins, colors) {
-    const box = el("div", "strip");
-    for (const [label, a, b] of runs) {
+  // a motion's label strip: runs [label, first, last, row] of `bins` cells along its duration; concurrent
+  // labels (a turn during a move) on rows of their own, so none hides another
+  function strip(runs, bins, colors, rows) {
+    const box = el("div", "strip"), n = Math.max(1, rows || 1);
+    box.style.height = `${Math.max(12, 7 * n)}px`;
+    box.dataset.rows = String(n);
+    for (const [label, a, b, row] of runs) {
       const s = el("span");
       s.dataset.label = label;
+      s.dataset.row = String(row || 0);
       s.style.left = `${(a / bins) * 100}%`;
       s.style.width = `${((b - a + 1) / bins) * 100}%`;
+      s.style.top = `${((row || 0) / n) * 100}%`;
+      s.style.height = `${100 / n}%`;
       s.style.background = colors[label] || "#888";
       s.title = label;
       box.appendChild(s);

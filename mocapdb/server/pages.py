@@ -18,9 +18,15 @@ from importlib import resources
 from mocapdb.viewer import motion_poses, motion_view, render_page
 from mocapdb.viewer.encoding import error_script, json_script, page_html
 
-__all__ = ["archive_page", "stats_page", "motion_page", "message_page"]
+__all__ = ["archive_page", "stats_page", "motion_page", "message_page", "FAVICON"]
 
 _MARKER = re.compile(r"@([A-Z]+)@")
+
+#: the tab's icon (``/favicon.ico``, which browsers ask for by themselves): a stick figure, as SVG
+FAVICON = ('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 32 32"><rect width="32" height="32" rx="6" '
+           'fill="#1f77b4"/><g stroke="#fff" stroke-width="2.6" stroke-linecap="round" fill="none">'
+           '<circle cx="16" cy="7" r="3.2"/><path d="M16 10.5v9M16 13l-6 4M16 13l6-3M16 19.5l-5 8M16 19.5l5 8"/>'
+           '</g></svg>').encode()
 
 
 def _asset(name):

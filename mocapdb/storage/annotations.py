@@ -181,7 +181,7 @@ def motion_sources(con, motion_ids=None):
 EXPORT_FORMATS = ("parquet", "eaf")
 
 
-def export_segments(con, table, out, *, format, motion_ids):
+def export_segments(con, table, out, *, format, motion_ids, video=None):
     """Write annotation segments as Parquet (one file, with an ``fps`` column after ``end_frame``: the 30 Hz
     grid of the frames) or ELAN (one ``.eaf`` per motion).
 
@@ -199,11 +199,22 @@ def export_segments(con, table, out, *, format, motion_ids):
     motion_ids : sequence of int
         The motions annotated (an ELAN file is written for each, also
         without segments).
+    video : callable, optional
+        ELAN only: ``video(motion_id, path)`` writes the motion's video to
+        ``path`` (``<eaf stem>.mp4`` beside the ``.eaf``), which is then
+        linked as the file's second media, after the recording. A motion
+        whose video cannot be made (its source gone or changed) keeps its
+        ``.eaf`` without one; the others go on, and the error names them.
 
     Returns
     -------
     list of Path
         The files written.
+
+    Raises
+    ------
+    ParameterError
+        After writing every file, if some videos could not be made.
     """
     import pyarrow.parquet as pq
 
@@ -223,16 +234,25 @@ def export_segments(con, table, out, *, format, motion_ids):
         pq.write_table(table.add_column(at, "fps", pa.array(np.full(table.num_rows, FEATURE_RATE))), out)
         return [out]
     ids = table.column("motion_id").to_numpy()
-    written = []
+    written, no_video = [], []
     for s, stem in zip(sources, file_stems(sources)):
         rows = table.filter(pa.array(ids == s["motion_id"]))
         path = out if single else file_in(out, stem, ".eaf")
         # the last 30 Hz frame may cover fewer native frames than 4: end at the recording's end
         end = np.minimum(rows.column("end_s").to_numpy(), s["n_source_frames"] / s["source_fps"])
+        media = [s["source_path"]]
+        if video is not None:
+            try:
+                media.append(video(s["motion_id"], path.with_suffix(".mp4")))
+                written.append(media[-1])
+            except (MocapdbError, OSError) as exc:
+                no_video.append(f"{s['name']}: {exc}")
         write_eaf(path, rows.column("label").to_pylist(), rows.column("start_s").to_numpy(), end,
-                  media=s["source_path"], fps=s["source_fps"],
+                  media=media, fps=s["source_fps"],
                   confidence=rows.column("confidence").to_numpy(zero_copy_only=False))
         written.append(path)
+    if no_video:
+        raise ParameterError(f"{len(no_video)} of {len(sources)} ELAN files have no video: " + "; ".join(no_video))
     return written
 
 

@@ -3,7 +3,7 @@
 Every function only reads (serve opens the database read-only). A page of
 the archive is one query (``sql/browse.sql``, ``motion_page``): the filters —
 a label among the motion's stored segments, the source format, a substring
-of the name, the duration — one of :data:`SORTS`, ``LIMIT``/``OFFSET``, and
+of the name or of the source path (its folder), the duration — one of :data:`SORTS`, ``LIMIT``/``OFFSET``, and
 the number of motions kept as a window count beside the rows. The label
 strips are then read for the page's motions only (``page_segments``: a
 semi-join on their ids, never the archive's annotations), so a page costs
@@ -21,8 +21,8 @@ from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.sqltext import statement
 
-__all__ = ["SORTS", "STRIP_BINS", "MAX_LIMIT", "MotionPage", "motion_page", "motion_row", "motion_segments",
-           "label_segments", "model_labels"]
+__all__ = ["SORTS", "STRIP_BINS", "MAX_LIMIT", "MAX_OFFSET", "MotionPage", "motion_page", "motion_row",
+           "motion_segments", "label_segments", "model_labels", "known_labels"]
 
 #: the orders of a page: a column, ``-`` for descending (``id``: ingest order)
 SORTS = ("id", "-id", "name", "-name", "seconds", "-seconds", "format", "-format", "rate", "-rate")
@@ -30,6 +30,9 @@ SORTS = ("id", "-id", "name", "-name", "seconds", "-seconds", "format", "-format
 STRIP_BINS = 120
 #: the most rows one page or one request returns
 MAX_LIMIT = 500
+#: the largest offset of a page (motion ids and segment counts are 32-bit in the schema; a larger offset
+#: would reach DuckDB as an integer it cannot take, not as an empty page)
+MAX_OFFSET = 2**31 - 1
 
 
 def _sql(name):
@@ -44,11 +47,14 @@ class MotionPage:
     ----------
     rows : list of dict
         Per motion: ``motion_id``, ``name``, ``format``, ``source_fps``,
-        ``fps``, ``n_frames``, ``seconds``, ``source_path``, ``labels`` (the
-        labels of its stored segments, most time first) and ``strip``: runs
-        ``[label, first, last]`` of :data:`STRIP_BINS` cells over the
-        motion's duration (a cell holds a label when a segment of it covers
-        part of the cell).
+        ``fps``, ``n_frames``, ``seconds``, ``source_path``, ``folder`` (the
+        source path's folder), ``labels`` (the labels of its stored
+        segments, most time first), ``strip``: runs ``[label, first, last,
+        row]`` of :data:`STRIP_BINS` cells over the motion's duration (a cell
+        holds a label when a segment of it covers part of the cell), and
+        ``strip_rows``: concurrent labels (a ``turn`` during a ``move``) are
+        drawn on rows of their own, a label on the first row where none of
+        its cells meets another label's.
     total : int
         The motions the filters keep (all pages).
     """
@@ -60,8 +66,8 @@ class MotionPage:
 def _check_limit(limit, offset):
     if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or not 1 <= limit <= MAX_LIMIT:
         raise ParameterError(f"limit must be an integer from 1 to {MAX_LIMIT}, got {limit!r}")
-    if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
-        raise ParameterError(f"offset must be a non-negative integer, got {offset!r}")
+    if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or not 0 <= offset <= MAX_OFFSET:
+        raise ParameterError(f"offset must be an integer from 0 to {MAX_OFFSET}, got {offset!r}")
 
 
 def _check_seconds(name, value):
@@ -76,8 +82,19 @@ def _check_seconds(name, value):
     return v
 
 
+def _runs(cells):
+    """Runs ``(first, last)`` of consecutive cells of a sorted list."""
+    runs, start = [], cells[0]
+    for prev, c in zip(cells, cells[1:]):
+        if c != prev + 1:
+            runs.append((start, prev))
+            start = c
+    runs.append((start, cells[-1]))
+    return runs
+
+
 def _strips(rows, segments):
-    """Each row's labels (most covered time first) and label strip, from the page's segments."""
+    """Each row's labels (most covered time first), label strip and strip rows, from the page's segments."""
     by_motion = {}
     for mid, label, a, b in zip(segments["motion_id"].tolist(), segments["label"].tolist(),
                                 segments["start_frame"].tolist(), segments["end_frame"].tolist()):
@@ -89,18 +106,20 @@ def _strips(rows, segments):
             covered[label] = covered.get(label, 0) + (b - a + 1)
             first, last = (a - 1) * STRIP_BINS // n, min((b - 1) * STRIP_BINS // n, STRIP_BINS - 1)
             cells.setdefault(label, set()).update(range(first, last + 1))
-        strip = []
-        for label, on in cells.items():
-            on = sorted(on)
-            start = prev = on[0]
-            for c in on[1:]:
-                if c != prev + 1:
-                    strip.append([label, start, prev])
-                    start = c
-                prev = c
-            strip.append([label, start, prev])
-        row["labels"] = sorted(covered, key=lambda lab: (-covered[lab], lab))
-        row["strip"] = sorted(strip, key=lambda s: (s[1], s[0]))
+        labels = sorted(covered, key=lambda lab: (-covered[lab], lab))
+        # the label covering most time on the first row; each other on the first row it does not share a cell
+        # of (a few labels per motion: at most STRIP_BINS cells each)
+        taken, strip = [], []
+        for label in labels:
+            on = cells[label]
+            k = next((k for k, used in enumerate(taken) if not used & on), len(taken))
+            if k == len(taken):
+                taken.append(set())
+            taken[k] |= on
+            strip.extend([label, a, b, k] for a, b in _runs(sorted(on)))
+        row["labels"] = labels
+        row["strip"] = sorted(strip, key=lambda s: (s[1], s[3], s[0]))
+        row["strip_rows"] = max(len(taken), 1)
     return rows
 
 
@@ -135,11 +154,14 @@ def motion_page(con, *, label=None, format=None, q=None, min_s=None, max_s=None,
     Raises
     ------
     ParameterError
-        A sort not in :data:`SORTS`, a bad limit, offset or duration.
+        A sort not in :data:`SORTS`, a bad limit, offset or duration, a label
+        neither of the model nor among its stored segments (the message lists them).
     """
     if sort not in SORTS:
         raise ParameterError(f"sort must be one of {', '.join(SORTS)}, got {sort!r}")
     _check_limit(limit, offset)
+    if label:
+        _check_label(con, label, model)
     params = {"label": label or None, "format": format or None, "q": q or None,
               "min_s": _check_seconds("min_s", min_s), "max_s": _check_seconds("max_s", max_s), "model": model}
     cur = con.execute(_sql("motion_page"), {**params, "sort": sort, "limit": int(limit), "offset": int(offset)})
@@ -178,7 +200,7 @@ def motion_row(con, motion_id, *, model=DEFAULT_MODEL) -> dict:
 
 def motion_segments(con, motion_id, *, model=DEFAULT_MODEL) -> list:
     """One motion's stored segments of a model (``label``, ``start_frame``, ``end_frame``, ``start_s``,
-    ``end_s``, ``cost``; 30 Hz frames, 1-based inclusive), in time order."""
+    ``end_s``, ``cost``, ``confidence``; 30 Hz frames, 1-based inclusive), in time order."""
     cur = con.execute(_sql("motion_segments"), {"model": model, "id": int(motion_id)})
     cols = [d[0] for d in cur.description]
     return [dict(zip(cols, r)) for r in cur.fetchall()]
@@ -191,13 +213,14 @@ def label_segments(con, label, *, model=DEFAULT_MODEL, limit=50, offset=0):
     -------
     rows : list of dict
         ``motion_id``, ``name``, ``start_frame``, ``end_frame`` (30 Hz, 1-based
-        inclusive), ``start_s``, ``end_s``, ``cost``.
+        inclusive), ``start_s``, ``end_s``, ``cost``, ``confidence``.
     total : int
         The label's segments in all.
     """
     if not label:
         raise ParameterError("label must be a label name, got an empty one")
     _check_limit(limit, offset)
+    _check_label(con, label, model)
     cur = con.execute(_sql("label_segments"), {"model": model, "label": str(label), "limit": int(limit),
                                                "offset": int(offset)})
     cols = [d[0] for d in cur.description]
@@ -206,6 +229,21 @@ def label_segments(con, label, *, model=DEFAULT_MODEL, limit=50, offset=0):
     for r in rows:
         del r["total"]
     return rows, total
+
+
+def _check_label(con, label, model):
+    known = known_labels(con, model)
+    if label not in known:
+        raise ParameterError(f"{label!r} is not a label of model {model!r}; its labels: "
+                             f"{', '.join(known) or 'none (the model is not in this database)'}")
+
+
+def known_labels(con, model=DEFAULT_MODEL) -> list:
+    """The labels a filter may name: the model's own (in its label order), then any other its stored
+    segments hold (segments annotated before the model was redefined)."""
+    own = model_labels(con, model)
+    stored = [r[0] for r in con.execute(_sql("stored_labels"), {"model": model}).fetchall()]
+    return own + [lab for lab in stored if lab not in own]
 
 
 def model_labels(con, model=DEFAULT_MODEL) -> list:

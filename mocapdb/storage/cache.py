@@ -67,6 +67,14 @@ class ConnectionCache:
             raise SchemaError("the connection of this cache is closed")
         return con.cursor()
 
+    def check(self):
+        """Raise when the work reading through this cache was cancelled (the connection's ``check()``:
+        ``mocapdb serve``'s requests, :class:`mocapdb.api.reading.Request`); a no-op on other connections.
+        Long passes call it between batches, where a DuckDB interrupt cannot reach (numba kernels)."""
+        check = getattr(self._con(), "check", None)
+        if check is not None:
+            check()
+
     @contextlib.contextmanager
     def cursor(self):
         """A cursor of the connection for the ``with`` block (works inside a UDF, where the

@@ -30,7 +30,8 @@ def motion_ids(con, motions) -> list[int]:
     out = []
     for m in motions:
         if isinstance(m, (int, np.integer)) or (isinstance(m, str) and m.isdigit()):
-            rows = con.execute(_sql("by_id"), {"id": int(m)}).fetchall()
+            # an id beyond the schema's 32-bit ids names no motion (DuckDB would refuse the parameter)
+            rows = con.execute(_sql("by_id"), {"id": int(m)}).fetchall() if 0 <= int(m) < 2**31 else []
         else:
             rows = con.execute(_sql("by_name"), {"name": str(m)}).fetchall()
         if not rows:
@@ -400,17 +401,28 @@ def source_motion(con, motion_id):
     SchemaError
         The source file (or skeleton) is gone: moved (:func:`relocate_sources`)
         or deleted.
+    SchemaError
+        The source file's bytes (or the skeleton's) no longer hash to the
+        sha256 stored at ingest: it changed, or the stored path names another file.
     ParseError
-        The source file changed since ingest.
+        The source file cannot be read.
     """
     rows = con.execute(_sql("source"), {"id": int(motion_id)}).fetchall()
     if not rows:
         raise SchemaError(f"no motion with id {motion_id} (see: SELECT motion_id, name FROM motions)")
-    path, skeleton, options = rows[0]
-    for f in (path, skeleton):
-        if f and os.path.isabs(f) and not is_file(f):  # a file, or a member of a zip archive
+    path, skeleton, options, digest, skeleton_digest = rows[0]
+    for f, want in ((path, digest), (skeleton, skeleton_digest)):
+        if not f:
+            continue
+        if os.path.isabs(f) and not is_file(f):  # a file, or a member of a zip archive
             raise SchemaError(f"motion {motion_id}: {f} is gone; if the files moved, repoint the database: "
                               "mocapdb relocate OLD_FOLDER NEW_FOLDER")
+        # only the bytes that were ingested are read again: a source path changed in an imported archive
+        # (or a file replaced since) could otherwise show any file of this machine with a motion's suffix
+        if want is not None and is_file(f) and sha256(f) != want:
+            raise SchemaError(f"motion {motion_id}: {f} has other bytes than the file ingested (its sha256 differs); "
+                              "if the recordings moved, repoint the database: mocapdb relocate OLD_FOLDER "
+                              "NEW_FOLDER; if the file changed, ingest it again")
     # only the reader's own options: notes and source frames stored beside them only inform
     return read_motion(path, ReaderOptions.from_stored(options, asf=skeleton or None))
 

@@ -16,6 +16,7 @@ archive frames at once.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 
 import numpy as np
@@ -175,6 +176,7 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
         whole = not query.keyframes
     found, ranked = [], 0
     for a, b in frame_batches(lengths, cache.batch_frames):
+        cache.check()  # a cancelled request stops here, between two batches of kernel work
         index = cache.batch_index(ids[a:b], lengths[a:b], ("full",), version=version)
         share = int(CELL_BUDGET * lengths[a:b].sum() / n_frames)
         segs = None if whole else preselect(index, query, budget=share, force=True)
@@ -187,13 +189,20 @@ def search_archive(cache, stretches, *, limit=10, features="all", tau=None, keyf
         here = np.searchsorted(ids[a:b], [s[0] for s in stretches])
         exclude = [(int(d), s[1], s[2]) for d, s in zip(here, stretches)
                    if d < b - a and ids[a + d] == s[0]]
-        hits = search_segments(lambda d, s0, s1: index_words(index, d, s0, s1), doc, start, stop, query,
+        hits = search_segments(functools.partial(_checked_words, cache, index), doc, start, stop, query,
                                limit=limit, exclude=exclude, batch_frames=batch_frames)
         hits["doc"] = ids[a:b][hits["doc"]]
         found.append(hits)
     if stats is not None:
         stats.update(archive_frames=n_frames, ranked_frames=ranked)
     return best_hits(found, limit, key=("cost", "doc", "start"))
+
+
+def _checked_words(cache, index, doc, start, stop):
+    """The index's words of the ranges, once the cache's connection says the work goes on (a batch of
+    kernel work at a time: a cancelled request stops between two)."""
+    cache.check()
+    return index_words(index, doc, start, stop)
 
 
 def _search_features(con, stretches, *, limit, features, tau, batch_frames):

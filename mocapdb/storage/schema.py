@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import re
+import time
 from pathlib import Path
 
 import duckdb
@@ -45,6 +46,8 @@ class DatabaseLockedError(SchemaError):
 #: the environment variable MOCAPDB_MEMORY_LIMIT, or later with ``SET memory_limit``.
 DEFAULT_MEMORY_LIMIT = "512MB"
 MEMORY_LIMIT_ENV = "MOCAPDB_MEMORY_LIMIT"
+#: seconds between two tries to open a file another process holds (``open_database(wait=…)``)
+LOCK_POLL = 0.05
 
 
 #: where DuckDB's database files carry their magic bytes (after an 8-byte checksum)
@@ -83,7 +86,8 @@ def check_database_file(path) -> None:
                           "throw-away database and lose what is written): give a .duckdb file, or a new path")
 
 
-def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None) -> duckdb.DuckDBPyConnection:
+def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None,
+                  wait: float = 0.0) -> duckdb.DuckDBPyConnection:
     """Open (or create) a DuckDB database with the mocapdb schema, without the SQL functions.
 
     Parameters
@@ -97,11 +101,16 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
         DuckDB's memory limit (``"512MB"``, ``"4GB"``); default
         ``$MOCAPDB_MEMORY_LIMIT`` or :data:`DEFAULT_MEMORY_LIMIT`. It applies to
         the whole database instance (every connection to the file in this process).
+    wait : float, keyword-only, default 0
+        Seconds to keep trying while another process holds the file (DuckDB
+        lets one process write it and none open it meanwhile): the one
+        lock-wait of mocapdb, for ``mocapdb.connect(lock_wait=…)`` and each
+        request of ``mocapdb serve`` alike.
 
     Raises
     ------
     DatabaseLockedError
-        Another process holds the file (the message names it).
+        Another process still holds the file after ``wait`` seconds (the message names it).
     SchemaError
         ``read_only`` and the file does not exist, or the path is no DuckDB
         database file (:func:`check_database_file`).
@@ -110,15 +119,21 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
     check_database_file(path)
     if read_only and path != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (read_only=True cannot create it)")
-    try:
-        con = duckdb.connect(path, read_only=read_only)
-    except duckdb.IOException as exc:
-        m = _LOCK.search(str(exc))
-        if m is None:
-            raise SchemaError(f"{path}: cannot open the database: {str(exc).splitlines()[0]}") from None
-        raise DatabaseLockedError(
-            f"{path} is in use by another process (PID {m['pid']}, {m['program']}); DuckDB allows one "
-            "writer at a time: wait for it to finish or stop it") from None
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            con = duckdb.connect(path, read_only=read_only)
+            break
+        except duckdb.IOException as exc:
+            m = _LOCK.search(str(exc))
+            if m is None:
+                raise SchemaError(f"{path}: cannot open the database: {str(exc).splitlines()[0]}") from None
+            if time.monotonic() < deadline:
+                time.sleep(LOCK_POLL)
+                continue
+            raise DatabaseLockedError(
+                f"{path} is in use by another process (PID {m['pid']}, {m['program']}); DuckDB allows one "
+                "writer at a time: wait for it to finish or stop it") from None
     try:
         limit = memory_limit or os.environ.get(MEMORY_LIMIT_ENV) or DEFAULT_MEMORY_LIMIT
         try:

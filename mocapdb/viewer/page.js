@@ -52,7 +52,7 @@
   // -- the 3-D view: orbit camera, perspective projection, 2-D canvas ---------------------------
   const canvas = $("skeleton"), ctx = canvas.getContext("2d");
   const cam = { yaw: 0.7, pitch: 0.25, dist: 1, fov: 0.75 };
-  let P = null, bodySize = 1, floorY = 0, defaultDist = 1;
+  let P = null, bodySize = 1, floorY = 0, defaultDist = 1, targets = null, reach = 1;
   const SIDE_COLOR = { l: "#1f77b4", r: "#d62728", c: "#333" };
 
   function fitCanvas() {
@@ -86,7 +86,7 @@
     ctx.fillRect(0, 0, W, H);
     if (!P) return;
     const root = joint(t, 0);
-    const target = [root[0], floorY + bodySize * 0.5, root[2]];
+    const target = [targets[t * 3], targets[t * 3 + 1], targets[t * 3 + 2]];
     const proj = makeProjector(target);
     // the floor: a grid around the root, half a body size per cell
     const cell = bodySize / 2, cx = Math.round(root[0] / cell) * cell, cz = Math.round(root[2] / cell) * cell;
@@ -123,6 +123,48 @@
       if (!p) continue;
       ctx.beginPath(); ctx.arc(p[0], p[1], Math.max(2, H / 160), 0, 2 * Math.PI); ctx.fill();
     }
+    // where the figure landed, for a look from outside (a test that it stays inside the canvas)
+    const xs = pts.filter((p) => p).map((p) => p[0]), ys = pts.filter((p) => p).map((p) => p[1]);
+    canvas.dataset.figure = [Math.min(...xs), Math.min(...ys), Math.max(...xs), Math.max(...ys), W, H]
+      .map((v) => v.toFixed(1)).join(",");
+  }
+
+  // The camera's framing from the body's actual extent over the whole take, whatever the root does (fixed,
+  // or far up and down as in a dance or a rope swing): it looks at the centre of each frame's joints,
+  // smoothed over half a second so it glides, and starts far enough away that the farthest joint from that
+  // point over the take stays inside the canvas from any side.
+  function framing() {
+    const centre = new Float64Array(N * 3);
+    for (let t = 0; t < N; t++) {
+      for (let k = 0; k < 3; k++) {
+        let lo = Infinity, hi = -Infinity;
+        for (let j = 0; j < J; j++) { const v = P[(t * J + j) * 3 + k]; lo = Math.min(lo, v); hi = Math.max(hi, v); }
+        centre[t * 3 + k] = (lo + hi) / 2;
+      }
+    }
+    // a moving average over half a second (prefix sums: linear in the frames)
+    const half = Math.max(1, Math.round(FPS / 4)), sums = new Float64Array((N + 1) * 3);
+    for (let t = 0; t < N; t++) for (let k = 0; k < 3; k++) sums[(t + 1) * 3 + k] = sums[t * 3 + k] + centre[t * 3 + k];
+    targets = new Float64Array(N * 3);
+    let far = 0;
+    for (let t = 0; t < N; t++) {
+      const a = Math.max(0, t - half), b = Math.min(N, t + half + 1);
+      for (let k = 0; k < 3; k++) targets[t * 3 + k] = (sums[b * 3 + k] - sums[a * 3 + k]) / (b - a);
+      for (let j = 0; j < J; j++) {
+        const q = (t * J + j) * 3;
+        const dx = P[q] - targets[t * 3], dy = P[q + 1] - targets[t * 3 + 1], dz = P[q + 2] - targets[t * 3 + 2];
+        far = Math.max(far, dx * dx + dy * dy + dz * dz);
+      }
+    }
+    reach = Math.max(Math.sqrt(far), 1e-6);
+  }
+
+  // the distance at which a sphere of radius `reach` around the target fills at most 90 % of the canvas's
+  // shorter side: a point of it is at least dist - reach deep and at most reach off the axis
+  function fittingDistance() {
+    fitCanvas();
+    const W = canvas.width, H = canvas.height, f = (H / 2) / Math.tan(cam.fov / 2);
+    return reach + (reach * f) / (0.45 * Math.min(W, H));
   }
 
   // -- player -------------------------------------------------------------------------------------
@@ -448,7 +490,7 @@
   async function main() {
     const [poses, deltaBytes] = await Promise.all([decodePoses(D.pose), inflate(D.delta.data)]);
     P = poses;
-    // body size and floor from the poses; the camera starts three body sizes away
+    // body size (the floor grid's cells) from the first pose, the floor from all of them
     let size = 0;
     for (let k = 0; k < 3; k++) {
       let lo = Infinity, hi = -Infinity;
@@ -459,7 +501,8 @@
     for (let i = 1; i < P.length; i += 3) floor = Math.min(floor, P[i]);
     bodySize = Math.max(size, 1e-6);
     floorY = floor;
-    cam.dist = defaultDist = bodySize * 2.6;
+    framing();
+    cam.dist = defaultDist = fittingDistance();
     const secs = N / FPS;
     $("meta").textContent = `${D.n} frames at ${FPS} Hz (${secs.toFixed(1)} s; source ${D.sourceFps} Hz: ${D.source}) · ` +
       `model ${D.model}, ${tauText(D.tau)}, keyframes ${D.keyframes ? "on" : "off"} · ${D.segments.length} segments`;
