@@ -55,6 +55,7 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
+from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, MOTION, READ_BLOCK, read_head
 from mocapdb.readers.bvh_mapping import auto_map, bvh_joint_map, plan
 from mocapdb.readers.bvh_tracking import lost_samples, mend, pose_frame
 from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
@@ -63,12 +64,14 @@ from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
                                      stream_size)
-from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, MOTION, READ_BLOCK, read_head
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
 from mocapdb.readers.units import bvh_unit
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
            "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
+
+#: bytes of a BVH file read and parsed at a time, header and motion lines (tests make it small)
+_READ_BLOCK = READ_BLOCK
 
 #: BVH channel names (case-insensitive in files) -> (kind, axis): kind 0 =
 #: position, 1 = rotation; axis 0 = x, 1 = y, 2 = z
@@ -212,7 +215,7 @@ class _MotionLines:
     def __init__(self, fh, path, size):
         self.fh, self.path = fh, str(path)
         path = self.path
-        head, self.eof = read_head(fh, path)
+        head, self.eof = read_head(fh, path, _READ_BLOCK)
         if head.startswith(b"\xef\xbb\xbf"):
             head = head[3:]
             size = None if size is None else size - 3
@@ -241,7 +244,7 @@ class _MotionLines:
         self.rest = None
         while True:
             if not eof:
-                more = self.fh.read(READ_BLOCK)
+                more = self.fh.read(_READ_BLOCK)
                 eof = not more
                 rest += more
             if eof:

@@ -32,7 +32,7 @@ MAX_HEADER_LINE = 1 << 14
 _WORD = re.compile(rb"[^\s\x00]{1,16}")
 
 
-def read_head(fh, path):
+def read_head(fh, path, block=READ_BLOCK):
     """The file's bytes up to the end of the ``Frame Time`` line (or all, if there is none), and
     whether the stream is exhausted.
 
@@ -45,7 +45,7 @@ def read_head(fh, path):
     motion = None   # where MOTION starts, once found
     decided = False
     while True:
-        chunk = fh.read(READ_BLOCK)
+        chunk = fh.read(block)
         start = len(head)
         head += chunk
         if not decided and (len(head) >= 1024 or not chunk):   # the first word, once there are bytes enough
