@@ -1,4 +1,5 @@
-"""Build step that fills numba's cache: the wheel carries the compiled kernels.
+"""Build steps: the native DuckDB extension (extension/native_build.py: gcc, the C sources of
+extension/src, DuckDB's metadata footer) and numba's cache: the wheel carries both.
 
 Everything else about the package is in pyproject.toml. ``pip install .``
 builds a wheel on the machine it installs on; after copying the package,
@@ -11,17 +12,32 @@ goes. ``MOCAPDB_PRECOMPILE=0`` skips the step. A failure of the step never
 fails the build.
 """
 import os
+import re
+import runpy
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 from setuptools import setup
 from setuptools.command.build_py import build_py
 
 
+def build_native_extension(package_dir):
+    """Compile the native DuckDB extension (extension/native_build.py) into ``package_dir``; a machine
+    without a C compiler still installs (the reason is left beside the package: mocapdb extension-path)."""
+    here = Path(__file__).resolve().parent
+    builder = runpy.run_path(str(here / "extension" / "native_build.py"))
+    version = re.search(r'^version = "([^"]+)"', (here / "pyproject.toml").read_text(), re.M).group(1)
+    print(f"mocapdb: {builder['build_or_explain'](package_dir, extension_version='v' + version)}", file=sys.stderr)
+
+
 class BuildPyWithKernels(build_py):
     def run(self):
         super().run()
+        # editable installs import extension/ itself: the binary goes there (git ignores it)
+        editable = getattr(self, "editable_mode", False)
+        build_native_extension(Path(__file__).resolve().parent / "extension" if editable else Path(self.build_lib) / "mocapdb" / "extension")
         if getattr(self, "editable_mode", False) or os.environ.get("MOCAPDB_PRECOMPILE", "1") == "0":
             return
         # prepend, never replace: pip's isolated build environment reaches its own

@@ -1,130 +1,224 @@
-"""Ingest throughput: parse, FK, features and store, separately and together.
+"""Ingest throughput: raw files to stored features, this checkout against another, side by side.
 
-Run: ``python benchmarks/bench_ingest.py``. Reads every 120 Hz ASF/AMC file of
-``../shared/data/hdm05_cut`` and ``../shared/data/cmu`` (cmu/13 and cmu/14
-with cmu/02/02.asf, as they ship without a skeleton) and prints source
-frames per second of each stage on one core (numba compile excluded: a
-warm-up pass runs first; the cold compile is measured in a fresh process
-with an empty numba cache and reported separately), then the end-to-end
-``mocapdb.ingest`` into a new database file, with one and with two worker
-threads. The paper: 74 min of 120 Hz data (532,076 frames) in 250 s of
-feature extraction ≈ 2,100 frames/s (Matlab + C, Athlon X2 5000+).
-Target (DESIGN.md §7): ≥ 100,000 source frames/s end to end on one core.
+Run: ``nice python benchmarks/bench_ingest.py --hours 10 --base DIR`` where DIR
+is a checkout of the version to compare with (e.g. ``git archive d3b3f07 | tar
+-x -C DIR``; it runs with this environment's packages). The archive
+(:mod:`ingest_archive`: real 120 Hz takes of ``../shared/data`` repeated with
+distinct bytes, as ASF/AMC, BVH and AMASS ``.npz``; the real C3D recordings
+once) is built in ``--archive`` and reused.
+
+For each format and version, one ``mocapdb.ingest`` of the whole archive into
+a new database file runs in a fresh process (a one-file ingest first, so
+numba's compile is not timed): wall seconds, CPU seconds of the process and
+its worker processes, peak memory (the RSS of the process and its workers
+summed, sampled every 50 ms), and source frames per second. ``--stages``
+first times each step of the path in one process on one copy, one core:
+hashing, the skeleton lookup, parse, forward kinematics, features, store.
+The paper: 74 min of 120 Hz data in 250 s of feature extraction ≈ 2,100
+frames/s (Matlab + C, Athlon X2 5000+).
 """
 import argparse
+import json
 import os
 import subprocess
 import sys
-import tempfile
+import threading
 import time
 from pathlib import Path
 
-from timing import best_seconds  # benchmarks/timing.py
+import ingest_archive   # benchmarks/ingest_archive.py
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
-DATA = SHARED / "data"
 PAPER_FPS = 532_076 / 250
+SUFFIX = {"amc": "amc", "bvh": "bvh", "amass": "npz", "c3d": "c3d"}
+
+# one ingest in a fresh process; prints a JSON line (the repo to import comes first on sys.path)
+_RUN = r"""
+import json, resource, sys, tempfile, time
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])
+import mocapdb
+folders = [Path(f) for f in json.loads(sys.argv[2])]
+suffix = sys.argv[3]
+with tempfile.TemporaryDirectory() as tmp:
+    con = mocapdb.connect(Path(tmp) / "warm.duckdb")
+    mocapdb.ingest(con, [next(folders[0].rglob("*." + suffix))])
+    con.close()
+    con = mocapdb.connect(Path(tmp) / "bench.duckdb")
+    c0 = resource.getrusage(resource.RUSAGE_SELF)
+    print("START", flush=True)
+    t = time.perf_counter()
+    r = mocapdb.ingest(con, folders)
+    wall = time.perf_counter() - t
+    c1 = resource.getrusage(resource.RUSAGE_SELF)
+    con.close()
+print(json.dumps({"wall": wall, "cpu": c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime,
+                  "frames": r.source_frames, "files": len(r.ingested), "failed": len(r.failed),
+                  "module": mocapdb.__file__}))
+"""
 
 
-def inputs():
-    """(amc, asf) pairs: every 120 Hz ASF/AMC take of hdm05_cut and cmu."""
-    from mocapdb.readers import find_skeleton
+def _tree_rss(pid: int) -> int:
+    """RSS in bytes of a process and all its descendants (Linux /proc)."""
+    children = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as fh:
+                    ppid = int(fh.read().rsplit(")", 1)[1].split()[1])
+                children.setdefault(ppid, []).append(int(d))
+            except (OSError, IndexError, ValueError):
+                pass
+    total, todo = 0, [pid]
+    while todo:
+        p = todo.pop()
+        todo += children.get(p, [])
+        try:
+            with open(f"/proc/{p}/status") as fh:
+                for line in fh:
+                    if line.startswith("VmRSS:"):
+                        total += int(line.split()[1]) * 1024
+        except OSError:
+            pass
+    return total
 
-    out = []
-    for amc in sorted((DATA / "hdm05_cut").rglob("*.amc")) + sorted((DATA / "cmu").rglob("*.amc")):
-        out.append((amc, find_skeleton(amc) or DATA / "cmu" / "02" / "02.asf"))
+
+def _children_cpu(pid: int, seen: dict) -> None:
+    """Record the CPU seconds so far of the process's descendants (their last sample counts)."""
+    for d in os.listdir("/proc"):
+        if d.isdigit() and int(d) != pid:
+            try:
+                with open(f"/proc/{d}/stat") as fh:
+                    head, rest = fh.read().rsplit(")", 1)
+                f = rest.split()
+                if int(f[1]) == pid:
+                    seen[int(d)] = (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+            except (OSError, IndexError, ValueError):
+                pass
+
+
+def run_ingest(repo: Path, folders, suffix: str) -> dict:
+    """One measured ingest of ``folders`` by the checkout ``repo`` in a fresh process."""
+    proc = subprocess.Popen([sys.executable, "-c", _RUN, str(repo), json.dumps([str(f) for f in folders]), suffix],
+                            stdout=subprocess.PIPE, text=True, cwd="/tmp")
+    peak, started, workers_cpu = 0, threading.Event(), {}
+
+    def sample():
+        nonlocal peak
+        while proc.poll() is None:
+            if started.is_set():
+                peak = max(peak, _tree_rss(proc.pid))
+                _children_cpu(proc.pid, workers_cpu)
+            time.sleep(0.05)
+
+    mon = threading.Thread(target=sample, daemon=True)
+    mon.start()
+    out = None
+    for line in proc.stdout:
+        if line.startswith("START"):
+            started.set()
+        elif line.startswith("{"):
+            out = json.loads(line)
+    proc.wait()
+    mon.join()
+    if out is None:
+        raise SystemExit(f"the ingest of {repo} failed")
+    out["peak"] = peak
+    out["cpu"] += sum(workers_cpu.values())
     return out
 
 
-def cold_start_seconds():
-    """First read+features call in a fresh process with an empty numba cache."""
-    code = ("import time; t = time.perf_counter(); import mocapdb; "
-            f"m = mocapdb.read_motion(r'{DATA / 'cmu' / '86' / '86_09.amc'}'); mocapdb.motion_features(m); "
-            "print(time.perf_counter() - t)")
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        cold = float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                                    check=True).stdout)
-        warm = float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                                    check=True).stdout)
-    return cold, warm
+def stages(folder: Path):
+    """Seconds per step of the path on one copy, one process, one core (this checkout)."""
+    import mocapdb
+    from mocapdb.features import motion_features
+    from mocapdb.readers import find_skeleton, load_skeleton, motion_files, read_motion
+    from mocapdb.readers.amc import read_amc
+    from mocapdb.readers.kinematics import asf_forward_kinematics
+    from mocapdb.readers.sources import sha256
+    from mocapdb.storage.ingest import store_words
+
+    files = motion_files([folder])
+    amc = files[0].suffix == ".amc"
+    out = {}
+
+    def timed(name, fn):
+        fn()   # warm (compile, page cache)
+        t = time.perf_counter()
+        res = fn()
+        out[name] = time.perf_counter() - t
+        return res
+
+    timed("hash (sha256 of the bytes)", lambda: [sha256(f) for f in files])
+    if amc:
+        skels = timed("skeleton lookup (find_skeleton + load)", lambda: [load_skeleton(find_skeleton(f)) for f in files])
+        vals = timed("parse (read_amc, incl. file read)", lambda: [read_amc(f, s) for f, s in zip(files, skels)])
+        timed("forward kinematics", lambda: [asf_forward_kinematics(s, v) for s, v in zip(skels, vals)])
+        del vals
+        motions = [read_motion(f, asf=s) for f, s in zip(files, skels)]
+    else:
+        motions = timed("read_motion (parse + FK + mapping)", lambda: [read_motion(f) for f in files])
+    words = timed("features (41 + hysteresis + pack)", lambda: [motion_features(m) for m in motions])
+    n = sum(m.n_frames for m in motions)
+
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        con = mocapdb.connect(Path(tmp) / "s.duckdb")
+        named = {f"{f.stem}_{i}": w for i, (f, w) in enumerate(zip(files, words))}
+        store_words(con, dict(list(named.items())[:1]))
+        t = time.perf_counter()
+        store_words(con, dict(list(named.items())[1:]))
+        out["store (DuckDB file, one transaction)"] = time.perf_counter() - t
+        con.close()
+    return n, len(files), out
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--no-cold", action="store_true", help="skip the cold-compile measurement")
+    ap.add_argument("--hours", type=float, default=0.5, help="archive size (whole copies of 12.8 min)")
+    ap.add_argument("--archive", type=Path, default=Path("/tmp/mocapdb_ingest_archive"))
+    ap.add_argument("--base", type=Path, help="a checkout to compare with (e.g. of d3b3f07)")
+    ap.add_argument("--formats", default="amc,bvh,amass,c3d")
+    ap.add_argument("--stages", action="store_true", help="time each step on one copy first")
+    ap.add_argument("--stages-only", action="store_true",
+                    help="only the steps (of the mocapdb first on sys.path: PYTHONPATH=DIR for another checkout)")
     args = ap.parse_args()
 
-    import numpy as np
-
-    import mocapdb
-    from mocapdb.readers.amc import read_amc
-    from mocapdb.features import downsample, pack_words, relational_features
-    from mocapdb.storage.ingest import store_words
-    from mocapdb.readers.kinematics import asf_forward_kinematics
-    from mocapdb.readers import load_skeleton
-
-    pairs = inputs()
-    skels = {asf: load_skeleton(asf) for _, asf in pairs}
-    amcs = [read_amc(amc, skels[asf]) for amc, asf in pairs]                      # warm-up
-    fk = [asf_forward_kinematics(skels[asf], m) for (_, asf), m in zip(pairs, amcs)]
-    feats = [relational_features(j, r, m.fps) for (j, r), m in zip(fk, amcs)]
-    words = [pack_words(downsample(f)) for f in feats]
-    n = sum(m.n_frames for m in amcs)
-
-    t_parse = best_seconds(lambda: [read_amc(amc, skels[asf]) for amc, asf in pairs], args.repeat)
-    t_fk = best_seconds(lambda: [asf_forward_kinematics(skels[asf], m) for (_, asf), m in zip(pairs, amcs)], args.repeat)
-    t_feat = best_seconds(lambda: [pack_words(downsample(relational_features(j, r, m.fps)))
-                           for (j, r), m in zip(fk, amcs)], args.repeat)
-
-    def store():
-        with tempfile.TemporaryDirectory() as tmp:
-            con = mocapdb.connect(Path(tmp) / "bench.duckdb")
-            named = [(f"{amc.stem}_{i}", w) for i, ((amc, _), w) in enumerate(zip(pairs, words))]
-            t = time.perf_counter()
-            for k in range(0, len(named), 64):  # ingest's batches: rows, features, postings per transaction
-                store_words(con, dict(named[k:k + 64]), fps=120.0)
-            dt = time.perf_counter() - t
-            con.close()
-            return dt
-
-    t_store = min(store() for _ in range(args.repeat))
-
-    def end_to_end(workers):
-        times = []
-        for _ in range(args.repeat):
-            with tempfile.TemporaryDirectory() as tmp:
-                con = mocapdb.connect(Path(tmp) / "bench.duckdb")
-                t = time.perf_counter()
-                r1 = mocapdb.ingest(con, [DATA / "hdm05_cut", DATA / "cmu" / "02", DATA / "cmu" / "86"],
-                                    workers=workers)
-                r2 = mocapdb.ingest(con, [DATA / "cmu" / "13", DATA / "cmu" / "14"],
-                                    asf=DATA / "cmu" / "02" / "02.asf", workers=workers)
-                times.append(time.perf_counter() - t)
-                assert not r1.failed and not r2.failed and r1.source_frames + r2.source_frames == n
-                con.close()
-        return min(times)
-
-    t_e2e1 = end_to_end(1)
-    t_e2e2 = end_to_end(2)
-
-    print(f"input: {len(pairs)} ASF/AMC takes (hdm05_cut + cmu), {n:,} source frames at 120 Hz "
-          f"({n / 120 / 60:.1f} min)")
-    print(f"{'stage':34s} {'frames/s':>12s} {'seconds':>9s}")
-    for name, t in (("parse (read_amc, incl. file read)", t_parse), ("forward kinematics", t_fk),
-                    ("features (40 + hysteresis + pack)", t_feat), ("store (DuckDB file, batches of 64)", t_store),
-                    ("sum of the stages", t_parse + t_fk + t_feat + t_store),
-                    ("ingest end to end, 1 worker", t_e2e1), ("ingest end to end, 2 workers", t_e2e2)):
-        print(f"{name:34s} {n / t:12,.0f} {t:9.3f}")
-    print(f"{'paper (feature extraction)':34s} {PAPER_FPS:12,.0f}   (74 min in 250 s)")
-    print(f"speed-up over the paper, 1 worker: {n / t_e2e1 / PAPER_FPS:.0f}x; target >= 100,000 frames/s: "
-          f"{'met' if n / t_e2e1 >= 100_000 else 'NOT met'}")
-    if not args.no_cold:
-        cold, warm = cold_start_seconds()
-        print(f"numba: first read+features call in a fresh process {cold:.1f} s with an empty cache "
-              f"(compile), {warm:.2f} s with the cache")
+    formats = args.formats.split(",")
+    for fmt in formats:
+        ingest_archive.build(args.archive, args.hours, fmt)
+    print(f"machine load (1/5/15 min): {' '.join(f'{x:.1f}' for x in os.getloadavg())}; {os.cpu_count()} cores")
+    if args.stages or args.stages_only:
+        import mocapdb
+        print(f"steps of {Path(mocapdb.__file__).parents[1]}")
+        for fmt in formats:
+            n, nf, st = stages(ingest_archive.copy_folders(args.archive, 0, fmt)[0])
+            print(f"\n{fmt}: {nf} files, {n:,} source frames, one process, one thread")
+            print(f"{'step':44s} {'seconds':>8s} {'frames/s':>11s}")
+            for name, t in st.items():
+                print(f"{name:44s} {t:8.3f} {n / t:11,.0f}")
+            tot = sum(st.values())
+            print(f"{'sum':44s} {tot:8.3f} {n / tot:11,.0f}")
+    if args.stages_only:
+        return
+    versions = [("this", REPO)] + ([("base", args.base.resolve())] if args.base else [])
+    print(f"\n{'format':6s} {'version':7s} {'files':>6s} {'frames':>11s} {'hours':>6s} {'wall s':>8s} "
+          f"{'CPU s':>8s} {'frames/s':>10s} {'peak GB':>8s}")
+    for fmt in formats:
+        folders = ingest_archive.copy_folders(args.archive, args.hours, fmt)
+        rows = {}
+        for name, repo in versions:
+            r = rows[name] = run_ingest(repo, folders, SUFFIX[fmt])
+            print(f"{fmt:6s} {name:7s} {r['files']:6d} {r['frames']:11,d} {r['frames'] / 432000:6.2f} "
+                  f"{r['wall']:8.2f} {r['cpu']:8.2f} {r['frames'] / r['wall']:10,.0f} {r['peak'] / 1e9:8.2f}"
+                  + (f"  ({r['failed']} failed)" if r["failed"] else ""), flush=True)
+        if "base" in rows:
+            a, b = rows["this"], rows["base"]
+            speed = (a["frames"] / a["wall"]) / (b["frames"] / b["wall"])
+            print(f"{fmt:6s} speed-up {speed:.2f}x; 10,000 h at this rate: "
+                  f"{10_000 * 432_000 / (a['frames'] / a['wall']) / 3600:.1f} h (base "
+                  f"{10_000 * 432_000 / (b['frames'] / b['wall']) / 3600:.1f} h)", flush=True)
+    print(f"paper (feature extraction): {PAPER_FPS:,.0f} frames/s")
 
 
 if __name__ == "__main__":

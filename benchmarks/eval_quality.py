@@ -22,6 +22,17 @@ The studio block gives what a user of another studio's library checks:
 locomotion frames labelled ``move`` (per content), turning clips with a
 ``turn``, straight clips with one, gesture frames under a label.
 
+The third lab's clips (accad_dev, never trained on) are annotated by each
+recipe's model of all the other data and scored per clip (every expected
+label found, nothing wrong; locomotion under ``move``, turns, silence on
+motions of no class, hops).
+
+**Leave-one-lab-out** (``--lolo``, on by default): the new recipe trained
+without each lab in turn (HDM05, CMU, bandai2_dev, accad_dev) annotates that
+lab — what a stranger with another lab's recordings sees —, with and
+without keyframes; per fold its figures, inside the fold per actor / document
+/ style, and the spread (min–max) across folds.
+
 ``--shipped`` also scores the shipped models themselves (the previous one
 from git, the new one from the package) on every set — the figures the
 quality guard keeps (``tests/quality_records.json``); ``--record`` raises
@@ -29,6 +40,7 @@ those records to the new model's figures where they are better (never
 lowers them) and stamps them with its fingerprint.
 
 Usage: python benchmarks/eval_quality.py [--previous REV] [--shipped] [--record] [--json FILE] [--seed 0]
+       [--only lolo,shipped]   (development: only these sections; the table in RESULTS.md runs them all)
 """
 import argparse
 import dataclasses
@@ -41,9 +53,12 @@ import time
 from pathlib import Path
 
 import numba
+import numpy as np
 
-from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_by_label, guard,
-                                headline_figures, raised_records, read_records, write_records)
+from mocapdb.evaluation.calibration import confidence_calibration, segment_verdicts
+from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_annotation,
+                                evaluate_by_label, guard, headline_figures, raised_records, read_records,
+                                studio_measures, write_records)
 from mocapdb.learning.default_model import train_recipe
 from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
 from mocapdb.storage.model_store import fingerprint
@@ -59,6 +74,8 @@ RECORDS = REPO / "tests" / "quality_records.json"
 PAPER = {"total, without keyframes": (0.60, 0.70), "total, with keyframes": (0.74, 0.82),
          "CMU, with keyframes": (0.70, 0.76)}
 MODES = {"keyframes": {}, "no keyframes": {"keyframes": False}}
+#: the sets whose segments' confidence is judged (each annotated as such, not joined from others)
+CALIBRATED = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "bandai2", "accad")
 
 
 def previous_recipe(rev):
@@ -117,6 +134,15 @@ def print_table(columns):
                 print(f"{'  ' + lab:<24s}" + "".join(f"{c:>12s}" for c in cells))
 
 
+def _print_rows(rows, columns, attr):
+    """A row per (name, fn): fn of each column's measures (its attribute ``attr``), '-' where it has none."""
+    width = max(14, *(len(n) + 2 for n in columns))
+    print(f"{'':<34s}" + "".join(f"{n:>{width}s}" for n in columns))
+    for name, fn in rows:
+        print(f"{name:<34s}" + "".join(f"{(fn(getattr(r, attr)) if getattr(r, attr) else '-'):>{width}s}"
+                                       for r in columns.values()))
+
+
 def print_studio(columns):
     print("\nbandai2 (another studio's clips, leave-one-style-out where a recipe trains on them)")
     rows = [("locomotion frames labelled move", lambda st: f"{st.move_share:.3f}")]
@@ -125,13 +151,108 @@ def print_studio(columns):
     rows += [("turning clips with a turn", lambda st: f"{st.turning_with_turn}/{st.turning_clips}"),
              ("straight clips with a turn", lambda st: f"{st.straight_with_turn}/{st.straight_clips}"),
              ("gesture frames labelled", lambda st: f"{st.gesture_wrong:.3f}")]
-    print(f"{'':<34s}" + "".join(f"{n:>14s}" for n in columns))
-    for name, fn in rows:
-        print(f"{name:<34s}" + "".join(f"{(fn(r.studio) if r.studio else '-'):>14s}" for r in columns.values()))
+    _print_rows(rows, columns, "studio")
     for n, r in columns.items():
         if r.studio and r.studio.wrong_by_label:
             print(f"  gesture frames by label, {n}: "
                   + ", ".join(f"{k} {v:.3f}" for k, v in r.studio.wrong_by_label.items()))
+
+
+def print_lab(columns):
+    print("\naccad_dev (a third lab's clips, never trained on; per clip: every expected label, nothing wrong)")
+    rows = [("clips entirely right", lambda L: f"{L.clips_right}/{L.clips}"),
+            ("clips needing move with move", lambda L: f"{L.move_found}/{L.move_clips}"),
+            ("locomotion frames labelled move", lambda L: f"{L.move_share:.3f}"),
+            ("turning clips with a turn", lambda L: f"{L.turning_with_turn}/{L.turning_clips}"),
+            ("straight clips with a turn", lambda L: f"{L.straight_with_turn}/{L.straight_clips}"),
+            ("clips of no class left silent", lambda L: f"{L.silent_right}/{L.silent_clips}"),
+            ("hops/leaps in locomotion found", lambda L: f"{L.hops_found}/{L.hop_clips}")]
+    _print_rows(rows, columns, "lab")
+    for n, r in columns.items():
+        if r.lab and r.lab.failures:
+            print(f"  failing clips, {n}: " + "; ".join(f"{k.removeprefix('Male1_')} ({v})"
+                                                      for k, v in r.lab.failures.items()))
+
+
+def _group_f1(res, s, group):
+    """F1 per group of a setting's documents (``group(document)`` → its actor, document, style)."""
+    docs = res.documents[s].names
+    out = {}
+    for g in dict.fromkeys(group(d) for d in docs):
+        mine = [d for d in docs if group(d) == g]
+        t, a = res.truth[s], res.auto[s]
+        out[g] = evaluate_annotation(t[np.isin(t["document"], mine)], a[np.isin(a["document"], mine)],
+                                     labels=res.vocabulary[s]).f1
+    return out
+
+
+def lolo_folds(res, studio):
+    """Per lab (fold): its figures and the figures of the groups inside it (``studio``: the studio's documents)."""
+    fig = headline_figures(res)
+    out = {}
+    if "loao" in res.scores:
+        out["hdm05"] = {"f1": fig["loao"]["f1"], "f1 mirrored": fig.get("loao_mirrored", {}).get("f1"),
+                        "move": fig["loao"].get("move_recall"),
+                        "per actor": _group_f1(res, "loao", lambda d: d.split("_")[1])}
+    if "cmu" in res.scores:
+        out["cmu"] = {"f1": fig["cmu"]["f1"], "f1 86_09": fig["cmu86_09"]["f1"], "f1 mocap6": fig["mocap6"]["f1"],
+                      "move": fig["cmu"].get("move_recall"),
+                      "per document": _group_f1(res, "cmu", lambda d: d)}
+    if res.studio is not None:
+        st = res.studio
+        out["bandai2"] = {"f1": fig["bandai2"]["f1"], "move": st.move_share,
+                          "turning with turn": fig["bandai2"]["turning_with_turn"],
+                          "straight with turn": fig["bandai2"]["straight_with_turn"],
+                          "gesture frames labelled": st.gesture_wrong,
+                          "per style": _group_f1(res, "bandai2", lambda d: d.split("_")[2])}
+        by_style = {style: studio_measures(studio.subset(np.array(studio.styles) == style), res.auto["bandai2"])
+                    for style in sorted(set(studio.styles))}
+        out["bandai2"]["move per style"] = {k: v.move_share for k, v in by_style.items()}
+        out["bandai2"]["gesture frames labelled per style"] = {k: v.gesture_wrong for k, v in by_style.items()}
+    if res.lab is not None:
+        a = fig["accad"]
+        out["accad"] = {"clips right": a["clips_right"], "move": a["move_share"],
+                        "turning with turn": a["turning_with_turn"], "straight with turn": a["straight_with_turn"],
+                        "silent on no class": a["silent_right"], "hops found": a["hops_found"]}
+    return out
+
+
+def print_lolo(folds_by_mode):
+    print("\nLeave-one-lab-out (the new recipe trained on none of the annotated lab's clips)")
+    for mode, folds in folds_by_mode.items():
+        print(f"  {mode}")
+        for lab, figs in folds.items():
+            parts = []
+            for k, v in figs.items():
+                if isinstance(v, dict):
+                    vals = list(v.values())
+                    parts.append(f"{k} {min(vals):.3f}–{max(vals):.3f} (" + ", ".join(f"{g} {x:.3f}"
+                                                                                     for g, x in v.items()) + ")")
+                elif v is not None:
+                    parts.append(f"{k} {v:.3f}")
+            print(f"    {lab:<8s} " + "; ".join(parts))
+        for k in ("f1", "move"):
+            vals = {lab: f[k] for lab, f in folds.items() if f.get(k) is not None}
+            if vals:
+                print(f"    spread of {k} across labs: {min(vals.values()):.3f}–{max(vals.values()):.3f} "
+                      f"(sd {np.std(list(vals.values())):.3f})")
+
+
+def calibration_rows(res):
+    """Per judged set and pooled: the confidence's calibration (segments ≥ 0.5 right, AUC)."""
+    parts = {s: segment_verdicts(res, s) for s in CALIBRATED if s in res.auto}
+    out = {s: confidence_calibration(*v) for s, v in parts.items()}
+    if parts:
+        out["pooled"] = confidence_calibration(np.concatenate([c for c, _ in parts.values()]),
+                                               np.concatenate([r for _, r in parts.values()]))
+    return out
+
+
+def print_calibration(title, by_mode):
+    print(f"\n{title}: segments with confidence >= 0.5 that are right; AUC of right over wrong (target 0.90; 0.85)")
+    for mode, rows in by_mode.items():
+        print(f"  {mode}: " + "; ".join(f"{s} {c.confident_right:.3f} of {c.confident}/{c.segments}, "
+                                        f"AUC {c.auc:.3f}" for s, c in rows.items()))
 
 
 def main():
@@ -142,40 +263,67 @@ def main():
     ap.add_argument("--record", action="store_true", help="raise tests/quality_records.json to the new shipped "
                                                           "model's figures (implies --shipped)")
     ap.add_argument("--json", type=Path, default=REPO / "benchmarks" / "eval_quality.json")
+    ap.add_argument("--only", default=None, help="comma-separated sections to run (folds, lolo, shipped); "
+                                                  "default folds and lolo, and shipped with --shipped/--record")
     args = ap.parse_args()
     args.shipped = args.shipped or args.record
+    sections = set(args.only.split(",")) if args.only else {"folds", "lolo"} | ({"shipped"} if args.shipped else set())
+    args.shipped = "shipped" in sections
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, numba threads "
           f"{numba.config.NUMBA_NUM_THREADS}; data {DATA}; previous {args.previous}\n")
     t0 = time.perf_counter()
     data = development_data(DATA)
     # the previous recipe knew nothing of the studio's clips
-    old_data = dataclasses.replace(data, studio_clips={})
+    old_data = dataclasses.replace(data, studio_trains=False)
     common = dict(vocabulary=PAPER_LABELS, mirrored=True, seed=args.seed)
     timings, results = {}, {}
-    t = time.perf_counter()
-    results["reference"] = development_evaluation(DATA, data=old_data, cmu_training=False, tau=0.13,
-                                                  modes={"no keyframes": {"keyframes": False}}, **common)
-    timings["reference"] = time.perf_counter() - t
-    for name, recipe, d in (("previous", previous_recipe(args.previous), old_data), ("new", default_recipe(), data)):
+    # the figures are tied to the shipped model they were measured beside (a test compares)
+    shipped_fp = fingerprint(model_dir(REPO / "mocapdb" / "shipped_models" / "default"))
+    out = {"parameters": {"previous": args.previous, "seed": args.seed, "sections": sorted(sections),
+                          "fingerprint": shipped_fp}}
+    if "folds" in sections:
         t = time.perf_counter()
-        results[name] = development_evaluation(DATA, data=d, build=builder(recipe, args.seed), modes=MODES, **common)
-        timings[name] = time.perf_counter() - t
-    columns = {"reference": results["reference"]["no keyframes"]}
-    for name in ("previous", "new"):
-        columns[f"{name} kf"] = results[name]["keyframes"]
-        columns[f"{name} no-kf"] = results[name]["no keyframes"]
+        results["reference"] = development_evaluation(DATA, data=old_data, cmu_training=False, tau=0.13,
+                                                      modes={"no keyframes": {"keyframes": False}}, **common)
+        timings["reference"] = time.perf_counter() - t
+        for name, recipe, d in (("previous", previous_recipe(args.previous), old_data),
+                                ("new", default_recipe(), data)):
+            t = time.perf_counter()
+            results[name] = development_evaluation(DATA, data=d, build=builder(recipe, args.seed), modes=MODES,
+                                                   **common)
+            timings[name] = time.perf_counter() - t
+        columns = {"reference": results["reference"]["no keyframes"]}
+        for name in ("previous", "new"):
+            columns[f"{name} kf"] = results[name]["keyframes"]
+            columns[f"{name} no-kf"] = results[name]["no keyframes"]
 
-    print(f"Development evaluation over the paper's 15 labels, every set held out (seed {args.seed}); F1/F2\n")
-    print_table(columns)
-    print_studio({k: v for k, v in columns.items() if k != "reference"})
-    print()
-    for k, (f1, f2) in PAPER.items():
-        print(f"paper {k:<34s} {f1:.2f}/{f2:.2f}")
-
-    out = {"columns": {n: {s: {"f1": sc.f1, "f2": sc.f2, "p1": sc.p1, "r1": sc.r1} for s, sc in r.scores.items()}
-                       for n, r in columns.items()},
-           "studio": {n: dataclasses.asdict(r.studio) | {"scores": None} for n, r in columns.items() if r.studio},
-           "parameters": {"previous": args.previous, "seed": args.seed}}
+        print(f"Development evaluation over the paper's 15 labels, every set held out (seed {args.seed}); F1/F2\n")
+        print_table(columns)
+        print_studio({k: v for k, v in columns.items() if k != "reference"})
+        print_lab(columns)
+        print_calibration("Confidence, the new recipe's folds", {m: calibration_rows(results["new"][m])
+                                                                   for m in MODES})
+        print()
+        for k, (f1, f2) in PAPER.items():
+            print(f"paper {k:<34s} {f1:.2f}/{f2:.2f}")
+        out |= {"columns": {n: {s: {"f1": sc.f1, "f2": sc.f2, "p1": sc.p1, "r1": sc.r1}
+                                for s, sc in r.scores.items()} for n, r in columns.items()},
+                "studio": {n: dataclasses.asdict(r.studio) | {"scores": None} for n, r in columns.items()
+                           if r.studio},
+                "lab": {n: dataclasses.asdict(r.lab) for n, r in columns.items() if r.lab}}
+    if "lolo" in sections:
+        t = time.perf_counter()
+        lolo = development_evaluation(DATA, data=data, build=builder(default_recipe(), args.seed), modes=MODES,
+                                      leave_out_lab=True, **common)
+        timings["leave-one-lab-out"] = time.perf_counter() - t
+        folds = {m: lolo_folds(r, data.studio) for m, r in lolo.items()}
+        print_lolo(folds)
+        print_lab({f"lolo {m}": r for m, r in lolo.items()})
+        calibration = {m: calibration_rows(r) for m, r in lolo.items()}
+        print_calibration("Confidence, leave-one-lab-out", calibration)
+        out["lolo"] = folds
+        out["lolo_calibration"] = {m: {s: dataclasses.asdict(c) for s, c in rows.items()}
+                                   for m, rows in calibration.items()}
     if args.shipped:
         t = time.perf_counter()
         shipped = {"previous shipped": model_at(args.previous),

@@ -1,33 +1,24 @@
 -- How a plain DuckDB user finds the SQL functions (run on every read-write
 -- open, after schema.sql and views.sql, which recreate the views).
 --
--- annotate(), mt_distance(), keyframe_search() and keyframe_search_words()
--- are Python functions that mocapdb.connect registers on each connection
--- (temporary macros, which take precedence over these). In a DuckDB client
--- without mocapdb, these persisted stand-ins say how to get them, and every
+-- annotate() is a Python function that mocapdb.connect registers on each
+-- connection (a temporary macro, which takes precedence over this). In a DuckDB
+-- client without mocapdb, this persisted stand-in says how to get it, and every
 -- table says where it comes from (SELECT table_name, comment FROM duckdb_tables()).
 
 CREATE OR REPLACE MACRO annotate(motion, model := 'default', tau := NULL, keyframes := NULL) AS
     error('annotate() is a mocapdb SQL function: open this database with mocapdb.connect(''FILE'') in Python '
           || '(pip install mocapdb), or run: mocapdb --db FILE sql QUERY');
-CREATE OR REPLACE MACRO mt_distance(motion, cls, model := 'default') AS
-    error('mt_distance() is a mocapdb SQL function: open this database with mocapdb.connect(''FILE'') in Python '
-          || '(pip install mocapdb), or run: mocapdb --db FILE sql QUERY');
-CREATE OR REPLACE MACRO keyframe_search(cls, model := 'default', extend := false) AS TABLE
-    SELECT error('keyframe_search() is a mocapdb SQL function: open this database with mocapdb.connect(''FILE'') '
-                 || 'in Python (pip install mocapdb), or run: mocapdb --db FILE sql QUERY') AS motion_id;
-CREATE OR REPLACE MACRO keyframe_search_words(masks, vals, gap_min, gap_max, extend_left := 0, extend_right := 0)
-    AS TABLE
-    SELECT error('keyframe_search_words() is a mocapdb SQL function: open this database with '
-                 || 'mocapdb.connect(''FILE'') in Python (pip install mocapdb), or run: mocapdb --db FILE sql QUERY')
-           AS motion_id;
+-- mt_distance(), keyframe_search() and keyframe_search_words() are native: the extension that
+-- `mocapdb extension-path` names has them (LOAD it; docs/EXTENSION.md). A persisted macro of
+-- one of those names would hide it, so the stand-ins that older versions wrote go.
+DROP MACRO IF EXISTS mt_distance;
+DROP MACRO TABLE IF EXISTS keyframe_search;
+DROP MACRO TABLE IF EXISTS keyframe_search_words;
 
 COMMENT ON MACRO annotate IS 'mocapdb: labelled segments of a motion. Stand-in: the real function exists on connections from mocapdb.connect() (Python) or `mocapdb --db FILE sql`.';
-COMMENT ON MACRO mt_distance IS 'mocapdb: Δ of a class template against a motion. Stand-in: the real function exists on connections from mocapdb.connect() (Python) or `mocapdb --db FILE sql`.';
-COMMENT ON MACRO TABLE keyframe_search IS 'mocapdb: segments holding a class''s keyframe chain. Stand-in: the real function exists on connections from mocapdb.connect() (Python) or `mocapdb --db FILE sql`.';
-COMMENT ON MACRO TABLE keyframe_search_words IS 'mocapdb: segments holding an inline keyframe chain. Stand-in: the real function exists on connections from mocapdb.connect() (Python) or `mocapdb --db FILE sql`.';
 
-COMMENT ON TABLE motions IS 'mocapdb: one row per recording. The SQL functions annotate(), mt_distance(), keyframe_search() need a connection from mocapdb.connect() (Python) or `mocapdb --db FILE sql`.';
+COMMENT ON TABLE motions IS 'mocapdb: one row per recording. The SQL function annotate() needs a connection from mocapdb.connect() (Python) or `mocapdb --db FILE sql`; mt_distance(), keyframe_search(), keyframe_search_words() are in the native extension too (LOAD the file `mocapdb extension-path` prints).';
 COMMENT ON TABLE features IS 'mocapdb: the 40 relational features of every 30 Hz frame, packed (bit k-1 = feature k). annotate() and the other SQL functions: open the file with mocapdb.connect() or `mocapdb --db FILE sql`.';
 COMMENT ON VIEW feature_flags IS 'mocapdb: the 40 features as named BOOLEAN columns.';
 COMMENT ON VIEW duplicates IS 'mocapdb: near-duplicate takes: pairs of motions of as many frames whose feature words agree on at least 99 % of them (the same take at another scale or unit, or exported again).';

@@ -393,3 +393,36 @@ def test_define_class_attaches_keyframes_to_a_model_s_classes(tmp_path):
         assert stored == [("keyframe definition",)]
         with pytest.raises(ParameterError, match="name classes \\['kickLFront1Reps'\\] that model 'empty'"):
             define_class(con, [SHIPPED / "kick.toml", SHIPPED / "turn.toml"], model="empty")
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("path, walks", [
+    *((f"bandai2_dev/dataset-2_walk_{style}_001.bvh.gz", True)
+      for style in ("normal", "exhausted", "feminine", "masculine", "youthful")),
+    ("bandai2_dev/dataset-2_run_youthful_001.bvh.gz", True),
+    ("accad_dev/Male1_B3_Walk.bvh.gz", True),
+    ("accad_dev/Male1_B6_WalkBackwards.bvh.gz", True),
+    ("accad_dev/Male1_B20_WalkWithBox.bvh.gz", True),
+    ("cmu/02/02_01.amc", True),
+    ("hdm05_cut/elbowToKnee1RepsLelbowStart/HDM_bk_elbowToKnee1RepsLelbowStart_007_120.amc", False),
+    ("hdm05_cut/kickLFront1Reps/HDM_bk_kickLFront1Reps_007_120.amc", False),
+    ("bandai2_dev/dataset-2_wave-both-hands_masculine_001.bvh.gz", False),
+])
+def test_the_designed_gait_finds_any_walker_and_no_step_in_place(data_dir, path, walks):
+    """gaitRightLeft / gaitLeftRight (move.toml), as shipped (τ, query): walks and runs of three labs (every acting
+    style of the studio, backwards, carrying a box) are move over most of their frames through the keyframe
+    preselection; an elbow-to-knee exercise (one foot swings, the root still), a kick and a wave are not."""
+    import mocapdb
+    from mocapdb.annotation import Model
+    from mocapdb.features import motion_features
+    from mocapdb.readers import read_motion
+    from mocapdb.storage.model_store import load_model
+
+    with mocapdb.connect() as con:
+        shipped = load_model(con, "default")
+    gait = Model("gait", tuple(c for c in shipped.classes if c.name.startswith("gait")))
+    assert len(gait.classes) == 2
+    words = motion_features(read_motion(data_dir / path))
+    ann = annotate(words, gait, doc_lengths=[words.size], preselection=preselection_for(words, [words.size], gait))
+    covered = int((ann.segments["end"] - ann.segments["start"] + 1).sum())
+    assert (covered >= 0.75 * words.size) if walks else covered == 0, (path, covered, words.size)

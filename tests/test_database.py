@@ -223,8 +223,7 @@ def test_plain_duckdb_is_told_how_to_get_the_functions(tmp_path):
     path = tmp_path / "plain.duckdb"
     mocapdb.connect(path).close()
     with duckdb.connect(str(path)) as con:
-        for q in ("SELECT annotate(1)", "SELECT mt_distance(1, 'x')", "SELECT * FROM keyframe_search('x')",
-                  "SELECT * FROM keyframe_search_words([1], [1], [], [])"):
+        for q in ("SELECT annotate(1)",):
             with pytest.raises(duckdb.Error, match=r"mocapdb SQL function: open this database with "
                                                    r"mocapdb\.connect"):
                 con.sql(q).fetchall()
@@ -235,7 +234,9 @@ def test_plain_duckdb_is_told_how_to_get_the_functions(tmp_path):
         assert "mocapdb.connect()" in comments["motions"]
         macros = dict(con.execute("SELECT function_name, comment FROM duckdb_functions() "
                                   "WHERE database_name = 'plain' AND comment IS NOT NULL").fetchall())
-        assert set(macros) == {"annotate", "mt_distance", "keyframe_search", "keyframe_search_words"}
+        # mt_distance, keyframe_search and keyframe_search_words are native (LOAD the extension:
+        # tests/test_native_extension.py); no stand-in hides them
+        assert set(macros) == {"annotate"}
 
 
 @pytest.mark.shared

@@ -9,7 +9,8 @@ import mocapdb
 from conftest import REPO
 from mocapdb.evaluation import development_data
 from mocapdb.learning.recipe import DEFAULT_MIRRORS, DEFAULT_REVERSALS, PAPER_LABELS, build_model, default_recipe
-from mocapdb.storage.model_store import load_model
+from mocapdb.evaluation import LABS
+from mocapdb.storage.model_store import fingerprint, load_model
 
 FIGURES = REPO / "benchmarks" / "eval_quality.json"
 
@@ -51,11 +52,13 @@ def test_the_shipped_templates_are_the_recipe_s(shipped, data_dir):
             np.testing.assert_array_equal(getattr(a.quantized, x), getattr(b.quantized, x), err_msg=a.name)
 
 
-def test_the_development_figures_are_the_shipped_recipe_s():
+def test_the_development_figures_are_the_shipped_recipe_s(shipped):
     """benchmarks/eval_quality.py's figures (RESULTS.md, issue 25): the new recipe, every set held out,
     beside the previous default's recipe and the reference mode."""
     figures = json.loads(FIGURES.read_text())
     assert figures["parameters"]["previous"] == "a7c2d94" and figures["parameters"]["seed"] == 0
+    assert figures["parameters"]["fingerprint"] == fingerprint(shipped[0]), \
+        "the shipped model changed: run benchmarks/eval_quality.py again in the same commit"
     cols = figures["columns"]
     assert set(cols) == {"reference", "previous kf", "previous no-kf", "new kf", "new no-kf"}
     for col in cols.values():
@@ -77,3 +80,18 @@ def test_the_new_default_holds_every_set_and_travels_to_the_studio():
     assert st["straight_with_turn"] <= 1
     assert st["gesture_wrong"] < old["gesture_wrong"]
     assert st["move_share"] >= figures["studio"]["new no-kf"]["move_share"] - 0.01
+
+
+def test_the_stored_figures_leave_every_lab_out():
+    """eval_quality.py's leave-one-lab-out: every lab, both modes, per fold and inside it; the third lab's clips
+    and the confidence judged per held-out set."""
+    figures = json.loads(FIGURES.read_text())
+    for mode in ("keyframes", "no keyframes"):
+        folds = figures["lolo"][mode]
+        assert set(folds) == set(LABS)
+        assert len(folds["hdm05"]["per actor"]) == 4 and len(folds["bandai2"]["per style"]) == 5
+        assert len(folds["cmu"]["per document"]) == 6
+        assert all(0 <= f["move"] <= 1 for f in folds.values())
+        assert {"loao", "bandai2", "accad", "pooled"} <= set(figures["lolo_calibration"][mode])
+    assert {"new kf", "previous kf", "reference"} <= set(figures["lab"])
+    assert figures["lab"]["new kf"]["clips"] == 69

@@ -9,6 +9,7 @@ from mocapdb.evaluation import (
     loao_documents, mocap6_documents)
 from mocapdb.annotation.labels import class_labels
 from mocapdb.evaluation.metrics import evaluate_by_label
+from mocapdb.features.heading import heading_degrees
 from mocapdb.readers import read_motion
 from mocapdb.learning.class_templates import clip_files
 
@@ -28,7 +29,7 @@ def test_joined_clips_have_continuous_roots():
     paths = [p for ps in clip_files(CUT, classes=["kickLFront1Reps", "jogLeftCircle4StepsRstart"],
                                     actors=["bk"]).values() for p in ps]
     clips = [read_motion(p) for p in paths]
-    doc, lengths = concatenate_motions(clips, name="d")
+    doc, lengths = concatenate_motions(clips, name="d", heading="kept")
     assert doc.n_frames == lengths.sum() == sum(c.n_frames for c in clips)
     ends = np.cumsum(lengths)
     root = doc.joints[:, 0, :]
@@ -46,6 +47,30 @@ def test_joined_clips_have_continuous_roots():
     assert doc.meta["clips"] == [c.name for c in clips]
     with pytest.raises(ParameterError, match="at least one clip"):
         concatenate_motions([])
+
+
+def test_joined_clips_continue_the_last_ones_heading():
+    """Each clip turned about the vertical to start facing where the last ended: no turn at a join."""
+    paths = [p for ps in clip_files(CUT, classes=["kickLFront1Reps", "jogLeftCircle4StepsRstart"],
+                                    actors=["bk"]).values() for p in ps]
+    clips = [read_motion(p) for p in paths]
+    doc, lengths = concatenate_motions(clips, name="d")
+    ends = np.cumsum(lengths)
+    h = heading_degrees(doc.joints, doc.root_rotation)
+    np.testing.assert_allclose(h[ends[:-1]], h[ends[:-1] - 1], atol=1e-6)      # the heading runs on
+    root = doc.joints[:, 0, :]
+    np.testing.assert_allclose(root[ends[:-1]][:, [0, 2]], root[ends[:-1] - 1][:, [0, 2]], atol=1e-9)
+    kept = [heading_degrees(c.joints, c.root_rotation) for c in clips]
+    assert max(abs(((k[0] - kept[i - 1][-1]) + 180) % 360 - 180) for i, k in enumerate(kept) if i) > 20
+    for k, c in enumerate(clips):
+        part = doc.joints[ends[k] - lengths[k]:ends[k]]
+        np.testing.assert_allclose(part[..., 1], c.joints[..., 1], atol=1e-9)      # heights kept
+        # a rigid turn and shift in the floor plane: every distance between joints is kept
+        np.testing.assert_allclose(np.linalg.norm(part[:, 1] - part[:, 0], axis=1),
+                                   np.linalg.norm(c.joints[:, 1] - c.joints[:, 0], axis=1), atol=1e-9)
+        np.testing.assert_allclose(np.diff(heading_degrees(part, doc.root_rotation[ends[k] - lengths[k]:ends[k]])),
+                                   np.diff(kept[k]), atol=1e-6)                   # the clip's own turns kept
+    np.testing.assert_array_equal(doc.joints[:lengths[0]], clips[0].joints)
 
 
 def test_loao_documents_truth_is_the_clip_boundaries(dg_docs):

@@ -82,6 +82,7 @@ TOUR = [
      lambda r, t: r.output.startswith("motion_id,name,format,") and "86_09" in r.output),
     ("serve", None, lambda r, t: '"motions"' in r.output or "<html" in r.output.lower()),
     ("warmup", ["warmup", "ingest"], lambda r, t: r.output.startswith("compiled in ")),
+    ("extension-path", ["extension-path"], lambda r, t: r.output.strip().endswith("mocapdb.duckdb_extension")),
 ]
 
 

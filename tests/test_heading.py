@@ -119,3 +119,62 @@ def test_studio_walks_turn_exactly_when_their_names_say(path):
     """Every walk-turn clip of bandai2_dev (90–105°) holds feature 41 somewhere; no straight walk or run does."""
     b = bit41(F.motion_features(read_motion(path)))
     assert b.any() == ("walk-turn" in path.name)
+
+
+def test_the_heading_streamed_block_by_block_is_the_whole_takes_bit_for_bit(walk):
+    """Issue 32 item 5: HeadingChangeStream carries the unwrap, the held heading and the leading unreliable
+    frames over blocks of any size; real takes (the sample walk, the CMU document, a walk turned round,
+    a lie-down clip whose pelvis axis stands upright) and the same with unreliable stretches made."""
+    from mocapdb.evaluation.turns import straightened_walk
+    from mocapdb.features.heading import HeadingChangeStream, heading_axis
+
+    cmu = read_motion(SAMPLE_86_09, asf=SAMPLE_86_ASF)
+    turned = turning_walk(straightened_walk(dataclasses.replace(cmu, joints=cmu.joints[:880],
+                                                                root_rotation=cmu.root_rotation[:880])),
+                          3.0, 2.0, 200.0, style="smooth")
+    takes = [walk, cmu, turned]
+    lie = sorted((DATA / "hdm05_cut" / "lieDownFloor").glob("*.amc"))
+    if lie:
+        takes.append(read_motion(lie[0]))
+    checked = 0
+    for take in takes:
+        for rot in (take.root_rotation, None):
+            base = heading_axis(take.joints, rot)
+            for made in ("as is", "upright start", "upright half", "upright middle"):
+                axis = base.copy()
+                if made == "upright start":
+                    axis[:50] = [0.0, 1.0, 0.0]
+                elif made == "upright half":
+                    axis[: len(axis) // 2] = [0.05, 1.0, 0.0]
+                elif made == "upright middle":   # held over block boundaries
+                    axis[len(axis) // 3: len(axis) // 2] = [0.0, 1.0, 0.05]
+                whole = heading_change(None, None, take.fps, axis=axis)
+                for block in (1, 37, 500, len(axis)):
+                    stream = HeadingChangeStream(len(axis), take.fps)
+                    got = np.concatenate([stream.feed(axis[a:a + block]) for a in range(0, len(axis), block)]
+                                         + [stream.finish()])
+                    assert got.tobytes() == whole.tobytes(), (take.name, made, block)
+                    checked += 1
+                    if take is turned and made == "as is":
+                        assert whole.max() > 150   # a real turn crossed ±180° on the way
+    upright = np.tile([0.0, 1.0, 0.0], (400, 1))
+    stream = HeadingChangeStream(400, 120.0)
+    parts = [stream.feed(upright[:150]), stream.feed(upright[150:]), stream.finish()]
+    np.testing.assert_array_equal(np.concatenate(parts), heading_change(None, None, 120.0, axis=upright))
+    assert checked >= 3 * 2 * 4 * 4
+
+
+def test_feature_41_of_a_long_take_by_blocks_is_the_whole_takes(monkeypatch):
+    """The block path of a long take (relational._words_by_block) with the heading streamed: the same
+    words, feature 41 included, as the whole take's — on a walk turned round twice (the feature on)."""
+    import mocapdb.features.relational as relational
+    from mocapdb.evaluation.turns import straightened_walk
+
+    m = read_motion(SAMPLE_86_09, asf=SAMPLE_86_ASF)
+    walk = straightened_walk(dataclasses.replace(m, joints=m.joints[:880], root_rotation=m.root_rotation[:880]))
+    turned = turning_walk(walk, 3.0, 2.0, 170.0, style="smooth")
+    whole = F.motion_features(turned)
+    assert bit41(whole).any() and not bit41(whole).all()
+    for block in (8, 60, 256):
+        monkeypatch.setattr(relational, "BLOCK_FRAMES", block)
+        np.testing.assert_array_equal(F.motion_features(turned), whole, err_msg=f"blocks of {block}")

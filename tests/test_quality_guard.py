@@ -10,20 +10,30 @@ Also: the studio's clips as the evaluation reads them, and the guard's
 rules on figures made by hand.
 """
 import dataclasses
+from importlib import resources
 
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
 import mocapdb
 from conftest import REPO
 from mocapdb.annotation.labels import LABEL_DTYPE, label_rows
+from mocapdb.errors import ParameterError
+from mocapdb.evaluation.calibration import confidence_calibration
+from mocapdb.evaluation.lab_clips import lab_measures, parse_expected
+from mocapdb.evaluation.metrics import segments_correct
+from mocapdb.evaluation.records import CLASSES
 from mocapdb.evaluation.studio import STUDIO_GROUP, studio_style
-from mocapdb.evaluation import (STUDIO_CONTENTS, development_data, guard, model_figures, raised_records,
-                                read_records, studio_measures)
-from mocapdb.learning.recipe import OTHERS
+from mocapdb.evaluation import (STUDIO_CONTENTS, development_data, development_evaluation, guard,
+                                headline_figures, model_figures, raised_records, read_records, studio_measures)
+from mocapdb.learning.recipe import OTHERS, PAPER_LABELS
 from mocapdb.storage.model_store import fingerprint, load_model
 
 RECORDS = REPO / "tests" / "quality_records.json"
+#: the shipped default model's classes, read from the package at collection (a test deletes each)
+SHIPPED_CLASSES = pq.read_table(resources.files("mocapdb.shipped_models") / "default" / "classes.parquet",
+                                columns=["class"]).column("class").to_pylist()
 
 
 # -- the rules, on figures made by hand ------------------------------------------------------
@@ -52,6 +62,20 @@ def test_the_guard_wants_every_recorded_figure_and_keyframes_that_keep_move():
     fails = guard(fig, REC)
     assert any("bandai2: f1 was not measured" in f for f in fails)
     assert any("move recall with keyframes 0.945 is below 0.960 without" in f for f in fails)
+
+
+def test_label_caps_and_class_hits():
+    rec = {"keyframes": {"accad": {"share_kick": 0.02}, CLASSES: {"kickLFront1Reps": 400, "cartwheel": 0}}}
+    ok = {"keyframes": {"accad": {"share_kick": 0.029}, CLASSES: {"kickLFront1Reps": 201, "cartwheel": 0}}}
+    assert guard(ok, rec) == []                           # a cap allows 0.01; a class half its hits
+    bad = {"keyframes": {"accad": {"share_kick": 0.031}, CLASSES: {"kickLFront1Reps": 199}}}
+    fails = guard(bad, rec)
+    assert any("accad: share_kick 0.031 is above" in f for f in fails)
+    assert any("kickLFront1Reps's hits span 199 frames" in f for f in fails)
+    assert any("classes: cartwheel was not measured" in f for f in fails)
+    # a class's hits follow the model; a cap only moves down
+    r = raised_records(rec, {"keyframes": {"accad": {"share_kick": 0.05}, CLASSES: {"kickLFront1Reps": 300}}})
+    assert r["keyframes"]["accad"]["share_kick"] == 0.02 and r["keyframes"][CLASSES]["kickLFront1Reps"] == 300
 
 
 def test_records_only_move_up():
@@ -110,6 +134,98 @@ def test_studio_measures_of_a_perfect_and_a_spoilt_annotation(data):
     assert m.straight_with_turn == 1 and m.scores.p1 < 1.0
 
 
+# -- the third lab's clips: per-clip truth --------------------------------------------------------
+
+def test_expected_labels_parse():
+    t = parse_expected("move+jump|hopOneLeg+?neutral")
+    assert t.required == (frozenset({"move"}), frozenset({"jump", "hopOneLeg"}))
+    assert t.acceptable == {"neutral"} and t.locomotion is False          # standing is not locomotion
+    assert parse_expected("move+?turn").locomotion and parse_expected("move+jump|hopOneLeg").locomotion
+    assert t.verdict({"move", "hopOneLeg", "neutral"}) == ((), ())
+    assert t.verdict({"move", "kick"}) == (("hopOneLeg|jump",), ("kick",))
+    none = parse_expected("none+?standUp")
+    assert none.required == () and none.verdict({"standUp", "neutral"}) == ((), ())   # neutral is silence
+    for bad in ("move++turn", "none+move", "?"):
+        with pytest.raises(ParameterError, match="line 7"):
+            parse_expected(bad, where="truth.csv, line 7")
+
+
+@pytest.mark.shared
+def test_the_third_labs_clips_are_read_with_their_truth(data):
+    lab = data.lab
+    assert len(lab.docs.names) + len(lab.refused) == 69
+    # crawling on all fours, and a crouch that ends lying, are no upright human to the reader (it never
+    # stands upright and is not in its rest pose): refused, scored as a clip that gets no label
+    assert {n for n, _, _ in lab.refused} == {"Male1_A11_CrawlForward", "Male1_A12_CrawlBackward",
+                                              "Male1_A8_CrouchToLie"}
+    k = lab.docs.names.index("Male1_B11_WalkTurnLeft135")
+    assert lab.truth[k].requires == {"move", "turn"} and lab.docs.doc_lengths[k] > 30
+
+
+@pytest.mark.shared
+def test_lab_measures_of_a_perfect_and_a_spoilt_annotation(data):
+    lab = data.lab
+    n = dict(zip(lab.docs.names, lab.docs.doc_lengths.tolist()))
+    # every required label over the whole clip (one of alternatives)
+    rows = [(name, sorted(r)[0], 0, n[name] - 1) for name, t in zip(lab.docs.names, lab.truth) for r in t.required]
+    perfect = label_rows(*zip(*rows))
+    m = lab_measures(lab, perfect)
+    assert m.clips == 69 and m.clips_right == 68 and m.failures == {"Male1_A8_CrouchToLie": "missing sitLieDown"}
+    assert m.move_share == 1.0 and m.turning_with_turn == m.turning_clips >= 14
+    assert m.straight_with_turn == 0 and m.straight_clips >= 10 and m.hops_found == m.hop_clips == 4
+    walk = "Male1_B3_Walk"
+    spoilt = np.concatenate([perfect[perfect["document"] != walk], label_rows([walk] * 2, ["move", "turn"], 0, 9),
+                             label_rows("Male1_A2_Sway", "kick", 3, 5)]).astype(LABEL_DTYPE)
+    m = lab_measures(lab, spoilt)
+    assert m.clips_right == 66 and m.straight_with_turn == 1 and m.silent_right == m.silent_clips - 1
+    assert m.failures == {walk: "wrong turn", "Male1_A2_Sway": "wrong kick", "Male1_A8_CrouchToLie": "missing sitLieDown"}
+    assert m.wrong_by_label == {"turn": 1, "kick": 1} and m.move_share < 1.0
+
+
+# -- folds: leave one lab out, cut per fold -------------------------------------------------------
+
+@pytest.mark.shared
+def test_a_lab_left_out_gives_none_of_its_clips(data):
+    every = data.clips()
+    groups = lambda clips: {x.group for v in clips.values() for x in v}          # noqa: E731
+    assert {"bd", "bk", "dg", "mm", STUDIO_GROUP} <= groups(every)
+    no_hdm = data.clips(without_lab="hdm05")
+    assert not groups(no_hdm) & set(data.actors)                  # neither cut clips nor full documents' poses
+    assert "kickLFront1Reps" not in no_hdm and "cmuWalk2Steps" in no_hdm and "bandaiWalk2Steps" in no_hdm
+    no_cmu = data.clips(without_lab="cmu")
+    assert not any(c.startswith("cmu") for c in no_cmu) and "kickLFront1Reps" in no_cmu
+    no_studio = data.clips(without_lab="bandai2")
+    assert STUDIO_GROUP not in groups(no_studio) and OTHERS not in no_studio
+    assert data.clips(without_lab="accad").keys() == every.keys()           # the third lab never trains
+    with pytest.raises(ParameterError, match="without_lab"):
+        data.clips(without_lab="hdm")
+
+
+@pytest.mark.shared
+def test_the_studio_is_cut_per_fold(data):
+    """A style left out is left out before the cut: no step of it, and the cut of the rest is its own."""
+    every = data.clips()["bandaiWalk2Steps"]
+    fold = data.clips(without_style="masculine")["bandaiWalk2Steps"]
+    assert {studio_style(x.document) for x in fold} == set(data.styles) - {"masculine"}
+    assert 0 < len(fold) < len(every)
+
+
+def test_calibration_of_hand_made_confidences():
+    c = confidence_calibration([0.9, 0.8, 0.6, 0.4, 0.3, 0.7], [True, True, False, True, False, True])
+    assert (c.segments, c.confident) == (6, 4) and c.confident_right == pytest.approx(0.75)
+    # right {0.9, 0.8, 0.4, 0.7} over wrong {0.6, 0.3}: 7 of 8 pairs ranked right
+    assert c.auc == pytest.approx(7 / 8)
+    tied = confidence_calibration([1.0, 1.0, 1.0], [True, False, True])
+    assert tied.auc == pytest.approx(0.5)                      # a constant confidence ranks nothing
+    assert np.isnan(confidence_calibration([0.2], [True]).auc)
+
+
+def test_segments_correct_row_for_row():
+    truth = label_rows(["a", "a", "b"], ["move", "kick", "move"], [0, 50, 0], [40, 60, 9])
+    auto = label_rows(["a", "a", "a", "b"], ["move", "move", "kick", "kick"], [35, 45, 55, 0], [44, 49, 70, 9])
+    assert segments_correct(truth, auto).tolist() == [True, False, True, False]
+
+
 # -- the guard on the shipped model -----------------------------------------------------------
 
 @pytest.fixture(scope="module")
@@ -138,3 +254,29 @@ def test_the_guard_fails_a_worse_model(shipped, data, data_dir):
     fails = guard(model_figures(worse, data_dir, data=data), read_records(RECORDS)["figures"])
     assert any("bandai2: move_share" in f for f in fails)
     assert any("bandai2: gesture_wrong" in f for f in fails)
+
+
+@pytest.fixture(scope="module")
+def lab_only(data):
+    """The development data with the third lab's clips alone to annotate (a second per model)."""
+    return dataclasses.replace(data, studio=None)
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("name", SHIPPED_CLASSES)
+def test_the_guard_fails_a_model_with_a_class_deleted(shipped, lab_only, data_dir, name):
+    """Every class is watched: deleted, its hits are not measured, whatever the sets annotated.
+
+    The model without the class annotates the third lab's clips only (the
+    figures of the other sets, unmeasured, fail too; the assertion is on the
+    class's own line), which keeps forty models within a minute.
+    """
+    fewer = dataclasses.replace(shipped, classes=tuple(c for c in shipped.classes if c.name != name))
+    assert len(fewer.classes) == len(shipped.classes) - 1
+    res = development_evaluation(data_dir, data=lab_only, build=lambda clips, n: fewer, cmu_training=True,
+                                 held_out=[], real_documents=False, vocabulary=PAPER_LABELS,
+                                 modes={"keyframes": {}})
+    rec = read_records(RECORDS)["figures"]
+    fails = guard({m: headline_figures(r) for m, r in res.items()}, {"keyframes": rec["keyframes"]})
+    assert any(f"classes: {name} was not measured" in line for line in fails)
+    assert not any(f"classes: {other.name} was not measured" in line for line in fails for other in fewer.classes)

@@ -32,12 +32,13 @@ CLI                           API
 ``mocapdb relocate``           :func:`relocate`
 ``mocapdb joint-map-template`` :func:`joint_map_template`
 ``mocapdb warmup``             :func:`warmup`
+``mocapdb extension-path``     :func:`extension_path`
 ``mocapdb sql``                ``connect(...).sql(query)``
 =============================  ==========================
 """
 from mocapdb.api.database import (DeleteReport, attach, connect, convert_labels, create_index, delete, drop_index,
-                                  export_features, export_joints, import_features, ingest, joint_map_template,
-                                  relocate)
+                                  export_features, export_joints, extension_path, import_features, ingest,
+                                  joint_map_template, relocate)
 from mocapdb.api.kernels import (background_compile_running, kernels_cold, start_background_compile,
                                  wait_for_background_compile, warmup)
 from mocapdb.api.learning import define_class, learn_keyframes, train
@@ -52,4 +53,4 @@ from mocapdb.api.browsing import (MAX_LIMIT, MOTION_COLUMNS, SORTS, STRIP_BINS, 
 __all__ = ["connect", "ingest", "delete", "train", "learn_keyframes", "define_class", "annotate", "evaluate",
            "report", "view", "similar", "stats", "motions", "serve", "create_index", "drop_index", "export_features",
            "import_features", "export_joints", "attach", "ray_annotate", "convert_labels", "relocate",
-           "joint_map_template", "warmup"]
+           "joint_map_template", "warmup", "extension_path"]

@@ -12,6 +12,7 @@ from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.readers import ReaderOptions
 from mocapdb.readers import joint_map_template as readers_joint_map_template
 from mocapdb.extension import connect as connect_database
+from mocapdb.extension.native import extension_path as native_extension_path
 from mocapdb.storage import attached, parquet, postings
 from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.joint_export import JointsExport
@@ -149,6 +150,18 @@ def ingest(con, paths=(), *, sample=False, asf=None, joint_map=None, marker_map=
     options = ReaderOptions(asf=asf, joint_map=joint_map, marker_map=marker_map, marker_rules=marker_rules,
                             body_model=body_model, max_decompressed=max_decompressed)
     return ingest_files(con, paths, options=options, progress=progress, replace=replace, log_csv=report)
+
+
+def extension_path() -> Path:
+    """The absolute path of the native DuckDB extension ``mocapdb.duckdb_extension``, which any DuckDB
+    client loads with ``LOAD 'PATH'`` (unsigned: ``duckdb -unsigned``; docs/EXTENSION.md).
+
+    Raises
+    ------
+    mocapdb.errors.MocapdbError
+        When this install has no native extension, saying why (no C compiler at install time, …).
+    """
+    return native_extension_path()
 
 
 def joint_map_template(path) -> str:

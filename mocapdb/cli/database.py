@@ -61,6 +61,14 @@ def warmup(parts):
     click.echo(f"compiled in {api.warmup(parts=parts or None):.1f} s")
 
 
+@command("extension-path")
+def extension_path():
+    """Print the absolute path of the native DuckDB extension (LOAD it in any DuckDB client:
+    duckdb -unsigned FILE -c "LOAD 'PATH'; ..."; docs/EXTENSION.md)."""
+
+    click.echo(str(api.extension_path()))
+
+
 @command()
 @click.argument("path", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 def joint_map_template(path):

@@ -21,7 +21,16 @@ are in :mod:`mocapdb.evaluation.documents`):
   clips is built without the style it annotates (leave-one-style-out),
   and :attr:`DevelopmentEvaluation.studio` holds the measures that tell
   whether labels travel (locomotion labelled ``move``, turns, silence on
-  gestures).
+  gestures);
+* **accad** — a third lab's clips with what a user expects of each
+  (:mod:`mocapdb.evaluation.lab_clips`): never trained on, annotated by the
+  model of all the other data; :attr:`DevelopmentEvaluation.lab` holds the
+  per-clip measures (its truth is per clip, not per frame, so it has no
+  P/R/F and is not one of :data:`SETTINGS`).
+
+``leave_out_lab`` replaces these folds by leave-one-lab-out (:data:`LABS`):
+every lab annotated by a model trained on none of its clips — what a
+stranger with another lab's recordings sees.
 
 The truths of loao, cmu86_09 and mocap6 label one activity per frame and
 never a turn (11 HDM05 classes; walks, claps and exercises): a turn there —
@@ -56,7 +65,8 @@ from mocapdb.evaluation.documents import (CLIPS_PER_DOCUMENT, MOCAP6_TRIALS, Doc
                                           cmu86_documents, cmu_stretches, concatenate_motions, loao_documents,
                                           mirror_document_set, mocap6_documents, pose_clips)
 from mocapdb.evaluation.metrics import evaluate_annotation
-from mocapdb.evaluation.studio import STUDIO_FOLDER, studio_documents, studio_measures, studio_style, studio_training
+from mocapdb.evaluation.lab_clips import LAB_FOLDER, lab_documents, lab_measures
+from mocapdb.evaluation.studio import STUDIO_FOLDER, studio_documents, studio_measures, studio_training
 from mocapdb.features import motion_features
 from mocapdb.learning.cutting import clips_from_stretches
 from mocapdb.learning.recipe import Clip, default_recipe
@@ -65,12 +75,16 @@ from mocapdb.readers import read_motion
 
 __all__ = ["DocumentSet", "DevelopmentEvaluation", "DevelopmentData", "concatenate_motions", "loao_documents",
            "cmu86_documents", "mocap6_documents", "development_evaluation", "development_data",
-           "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS", "UNSCORED"]
+           "MOCAP6_TRIALS", "CLIPS_PER_DOCUMENT", "SETTINGS", "UNSCORED", "LABS", "LAB_SETTINGS"]
 
 log = logging.getLogger("mocapdb")
 
 #: the settings :func:`development_evaluation` scores, in report order
 SETTINGS = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all", "bandai2")
+#: the labs of the development data, each a fold of the leave-one-lab-out evaluation, with its settings
+LAB_SETTINGS = {"hdm05": ("loao", "loao_mirrored"), "cmu": ("cmu86_09", "mocap6", "cmu"), "bandai2": ("bandai2",),
+                "accad": ("accad",)}
+LABS = tuple(LAB_SETTINGS)
 #: labels a setting's truth can never carry, left out of its scores (module docstring)
 UNSCORED = {s: ("turn",) for s in ("loao", "loao_mirrored", "cmu86_09", "mocap6", "cmu", "all")}
 
@@ -97,9 +111,12 @@ class DevelopmentData:
         Poses held still in HDM05 full documents (:func:`mocapdb.evaluation.documents.pose_clips`).
     studio : StudioDocuments or None
         Another studio's clips (:func:`mocapdb.evaluation.studio.studio_documents`).
-    studio_clips : dict of str to list of Clip
-        What a model may learn from them (:func:`mocapdb.evaluation.studio.studio_training`: one
-        performer's; the style is in each clip's document name).
+    studio_trains : bool
+        Whether a model may learn from them (:func:`mocapdb.evaluation.studio.studio_training`: one
+        performer's walks and runs, cut per fold, and gestures as motions of no class).
+    lab : LabDocuments or None
+        A third lab's clips with per-clip truth (:func:`mocapdb.evaluation.lab_clips.lab_documents`):
+        annotated only, never trained on.
     """
 
     hdm05: dict
@@ -108,36 +125,51 @@ class DevelopmentData:
     cmu_groups: dict = field(default_factory=dict)
     poses: dict = field(default_factory=dict)
     studio: object = None
-    studio_clips: dict = field(default_factory=dict)
+    studio_trains: bool = False
+    lab: object = None
 
     @property
     def styles(self):
         return sorted(set(self.studio.styles)) if self.studio is not None else []
 
     @property
+    def studio_clips(self):
+        """What a model may learn from the studio's clips, all styles cut together (empty when it may not)."""
+        return studio_training(self.studio) if self.studio_trains and self.studio is not None else {}
+
+    @property
     def actors(self):
         return sorted({c.group for cl in self.hdm05.values() for c, _ in cl if c.group})
 
-    def clips(self, *, without_actor=None, without_document=None, without_style=None, cut_params=None):
+    def clips(self, *, without_actor=None, without_document=None, without_style=None, without_lab=None,
+              cut_params=None):
         """Training clips of a fold: class → list of Clip (HDM05 clips, CMU repetitions, the studio's).
 
-        The CMU stretches of ``without_document`` are dropped before cutting,
-        so the cut (its anchor feature) never sees the held-out document;
-        ``without_style`` leaves out the studio's clips of that style.
+        Stretches are cut per fold, after the held-out part is dropped, so the
+        cut (its anchor feature) never sees what the fold annotates: the CMU
+        stretches of ``without_document``, the studio's clips of
+        ``without_style``. ``without_lab`` (one of :data:`LABS`) leaves out
+        everything of that lab: HDM05's clips and the poses of its full
+        documents, CMU's stretches, the studio's clips (the third lab's never
+        train).
         """
-        out = {c: [clip for clip, _ in cl if clip.group != without_actor] for c, cl in self.hdm05.items()}
-        for c, cl in self.poses.items():
-            out[c] = [clip for clip in cl if clip.group != without_actor and clip.document != without_document]
+        if without_lab is not None and without_lab not in LABS:
+            raise ParameterError(f"without_lab must be one of {list(LABS)}, got {without_lab!r}")
+        out = {}
+        if without_lab != "hdm05":
+            out = {c: [clip for clip, _ in cl if clip.group != without_actor] for c, cl in self.hdm05.items()}
+            for c, cl in self.poses.items():
+                out[c] = [clip for clip in cl if clip.group != without_actor and clip.document != without_document]
         out = {c: v for c, v in out.items() if v}
         rows = self.cmu_rows[self.cmu_rows["document"] != without_document] if without_document else self.cmu_rows
-        if rows.size:
+        if rows.size and without_lab != "cmu":
             cut = clips_from_stretches(self.cmu_words, rows, groups=self.cmu_groups.get, **(cut_params or {}))
             for c, items in cut.items():
                 out.setdefault(c, []).extend(Clip(n, w, g, d) for n, g, d, w in items)
-        for c, items in self.studio_clips.items():
-            kept = [x for x in items if without_style is None or studio_style(x.document) != without_style]
-            if kept:
-                out.setdefault(c, []).extend(kept)
+        if self.studio_trains and self.studio is not None and without_lab != "bandai2":
+            keep = np.array(self.studio.styles) != without_style
+            for c, items in studio_training(self.studio.subset(keep), **(cut_params or {})).items():
+                out.setdefault(c, []).extend(items)
         return out
 
 
@@ -166,12 +198,12 @@ def development_data(data_dir, *, classes=None, cmu_training=True, definitions=N
             m = read_motion(p)
             hdm05[c].append((Clip(p.stem, motion_features(m), clip_actor(p.stem) or "", p.stem), m))
     docs = studio_documents(data_dir) if studio and (Path(data_dir) / STUDIO_FOLDER).is_dir() else None
+    lab = lab_documents(data_dir) if studio and (Path(data_dir) / LAB_FOLDER).is_dir() else None
     if not cmu_training:
-        return DevelopmentData(hdm05, studio=docs)
+        return DevelopmentData(hdm05, studio=docs, lab=lab)
     words, rows, groups = cmu_stretches(data_dir)
     defs = default_recipe().definitions if definitions is None else definitions
-    return DevelopmentData(hdm05, words, rows, groups, pose_clips(data_dir, defs), docs,
-                           studio_training(docs) if docs is not None else {})
+    return DevelopmentData(hdm05, words, rows, groups, pose_clips(data_dir, defs), docs, docs is not None, lab)
 
 
 # ---------------------------------------------------------------------------
@@ -206,6 +238,15 @@ class DevelopmentEvaluation:
         The labels scored per setting.
     studio : StudioScores or None
         The studio measures of the bandai2 setting (:func:`mocapdb.evaluation.studio.studio_measures`).
+    lab : LabScores or None
+        The per-clip measures of the accad setting (:func:`mocapdb.evaluation.lab_clips.lab_measures`).
+    hit_frames : dict of str to int
+        Class → the lengths of its hits (Δ below its τ) summed over every setting annotated, in 30 Hz
+        frames (hits of one class may share frames, which then count once per hit): a class
+        that finds nothing anywhere shows 0 (the quality guard keeps these).
+    confidence : dict of str to ndarray of float64
+        Per setting, each annotation segment's confidence, row for row with ``auto``
+        (:func:`mocapdb.evaluation.calibration.confidence_calibration` scores it).
     """
 
     scores: dict
@@ -218,6 +259,9 @@ class DevelopmentEvaluation:
     preselected: dict = field(default_factory=dict)
     vocabulary: dict = field(default_factory=dict)
     studio: object = None
+    lab: object = None
+    hit_frames: dict = field(default_factory=dict)
+    confidence: dict = field(default_factory=dict)
 
 
 def _preselect(preselection, model, docs, keyframes):
@@ -266,9 +310,12 @@ def _annotate_modes(docs, model, modes, preselection):
         if key not in cache:
             cache[key] = _preselect(preselection, model, docs, kf)
         pre = cache[key]
-        ann = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre, keep_hits=False,
-                       **opts)
-        out[mode] = (segments_to_rows(ann.segments, docs.names), _preselected_rows(model, docs, pre))
+        ann = annotate(docs.words, model, doc_lengths=docs.doc_lengths, preselection=pre, **opts)
+        lengths = np.bincount(ann.hits["class_id"], weights=ann.hits["end"] - ann.hits["start"] + 1,
+                              minlength=len(ann.class_names))
+        out[mode] = (segments_to_rows(ann.segments, docs.names), _preselected_rows(model, docs, pre),
+                     dict(zip(ann.class_names, lengths.astype(np.int64).tolist())),
+                     np.asarray(ann.segments["confidence"], dtype=np.float64))
     return out
 
 
@@ -277,7 +324,7 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
                            class_labels=None, real_documents=True, preselection=None,
                            keyframes=None, sweep_taus=None, progress=None, build=None, cmu_training=None,
                            mirrored=False, vocabulary=None, modes=None, data=None, cut_params=None,
-                           studio=True):
+                           studio=True, leave_out_lab=False):
     """Leave-one-actor-out and real-document evaluation of the annotation.
 
     For each held-out actor: build a model without that actor's clips,
@@ -345,6 +392,15 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
         Also the bandai2 setting, where ``data`` holds the studio's clips: a
         model built without each style annotates that style's clips when the
         studio trains (``cmu_training``), else the model of every fold's data.
+        Likewise the accad setting (``data.lab``), whose clips never train: the
+        model of every fold's data annotates them.
+    leave_out_lab : bool, default False
+        Leave one lab out instead (:data:`LABS`): each lab's settings are
+        annotated by a model trained on none of its clips
+        (:meth:`DevelopmentData.clips` ``without_lab``) — HDM05's documents of
+        every actor by the model of CMU and the studio, CMU's documents by the
+        model of HDM05 and the studio, the studio's clips by the model of HDM05
+        and CMU, the third lab's by the model of all three.
 
     Returns
     -------
@@ -390,16 +446,28 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
     parts = {m: {} for m in modes}       # mode -> setting -> list of (truth, auto, preselected)
     sweep_parts = []
 
+    hit_frames = {m: {} for m in modes}  # mode -> class -> its hits' lengths summed, over every setting
+
     def add(setting, docs, model):
         t = time.perf_counter()
-        for m, (rows, pre) in _annotate_modes(docs, model, modes, preselection).items():
-            parts[m].setdefault(setting, []).append((docs.truth, rows, pre, model.labels))
+        for m, (rows, pre, hits, conf) in _annotate_modes(docs, model, modes, preselection).items():
+            parts[m].setdefault(setting, []).append((docs.truth, rows, pre, model.labels, conf))
+            for c, n in hits.items():
+                hit_frames[m][c] = hit_frames[m].get(c, 0) + n
         timings["annotate"] += time.perf_counter() - t
+
+    def lab_model(lab):
+        if f"without_{lab}" not in models:
+            models[f"without_{lab}"] = make(data.clips(without_lab=lab, cut_params=cut_params), f"without_{lab}")
+        return models[f"without_{lab}"]
 
     loao_docs, mirror_docs = [], []
     for k, actor in enumerate(held_out):
-        model = make(data.clips(without_actor=actor, cut_params=cut_params), f"without_{actor}")
-        models[model.name] = model
+        if leave_out_lab:
+            model = lab_model("hdm05")
+        else:
+            model = make(data.clips(without_actor=actor, cut_params=cut_params), f"without_{actor}")
+            models[model.name] = model
         t0 = time.perf_counter()
         items = [(c, m) for c, cl in data.hdm05.items() for clip, m in cl if clip.group == actor]
         docs = _loao_from_clips(items, actor, seed=seed, clips_per_document=clips_per_document,
@@ -429,9 +497,11 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
         documents["cmu86_09"] = cmu86_documents(data_dir)
         documents["mocap6"] = mocap6_documents(data_dir)
         timings["read"] += time.perf_counter() - t0
-        full = make(data.clips(cut_params=cut_params), "all")
-        models["all"] = full
-        trained_on = set(data.cmu_rows["document"].tolist()) if cmu_training else set()
+        if leave_out_lab:
+            full = lab_model("cmu")
+        else:
+            full = models["all"] = make(data.clips(cut_params=cut_params), "all")
+        trained_on = set(data.cmu_rows["document"].tolist()) if cmu_training and not leave_out_lab else set()
         for s in ("cmu86_09", "mocap6"):
             ds = documents[s]
             off = np.concatenate(([0], np.cumsum(ds.doc_lengths)))
@@ -447,7 +517,9 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
             progress(n_steps, n_steps, "CMU documents")
     if studio and data.studio is not None:
         documents["bandai2"] = data.studio.docs
-        if cmu_training and data.studio_clips:
+        if leave_out_lab:
+            add("bandai2", data.studio.docs, lab_model("bandai2"))
+        elif cmu_training and data.studio_trains:
             for style in data.styles:
                 model = make(data.clips(without_style=style, cut_params=cut_params), f"without_{style}")
                 models[model.name] = model
@@ -458,6 +530,17 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
             add("bandai2", data.studio.docs, models["all"])
         if progress is not None:
             progress(n_steps, n_steps, "studio clips")
+    if studio and data.lab is not None:
+        documents["accad"] = data.lab.docs
+        if leave_out_lab:
+            model = lab_model("accad")
+        else:
+            if "all" not in models:
+                models["all"] = make(data.clips(cut_params=cut_params), "all")
+            model = models["all"]
+        add("accad", data.lab.docs, model)
+        if progress is not None:
+            progress(n_steps, n_steps, "the third lab's clips")
     results = {}
     for m in modes:
         results[m] = _scores(parts[m], vocabulary, models, documents, timings, sweep_parts if m == next(iter(modes))
@@ -465,6 +548,9 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
         if "bandai2" in results[m].auto:
             object.__setattr__(results[m], "studio", studio_measures(data.studio, results[m].auto["bandai2"],
                                                                       vocabulary=results[m].vocabulary["bandai2"]))
+        object.__setattr__(results[m], "hit_frames", hit_frames[m])
+        if "accad" in results[m].auto:
+            object.__setattr__(results[m], "lab", lab_measures(data.lab, results[m].auto["accad"]))
     timings["total"] = time.perf_counter() - t_start
     log.info("development evaluation: %s", {m: {s: round(v.f1, 3) for s, v in r.scores.items()}
                                             for m, r in results.items()})
@@ -480,18 +566,20 @@ def _subset(ds, k, off):
 
 def _scores(parts, vocabulary, models, documents, timings, sweep_parts, sweep_taus):
     """Concatenate the folds of each setting, build cmu and all, score."""
-    truth, auto, pre, vocab = {}, {}, {}, {}
+    truth, auto, pre, vocab, conf = {}, {}, {}, {}, {}
     for s, items in parts.items():
-        truth[s] = np.concatenate([t for t, _, _, _ in items])
-        auto[s] = np.concatenate([a for _, a, _, _ in items])
-        pre[s] = np.concatenate([p for _, _, p, _ in items])
-        vocab[s] = tuple(dict.fromkeys(lab for _, _, _, labs in items for lab in labs))
+        truth[s] = np.concatenate([t for t, _, _, _, _ in items])
+        auto[s] = np.concatenate([a for _, a, _, _, _ in items])
+        pre[s] = np.concatenate([p for _, _, p, _, _ in items])
+        vocab[s] = tuple(dict.fromkeys(lab for _, _, _, labs, _ in items for lab in labs))
+        conf[s] = np.concatenate([c for _, _, _, _, c in items])
     for s, members in (("cmu", ("cmu86_09", "mocap6")), ("all", ("loao", "cmu86_09", "mocap6"))):
         have = [x for x in members if x in truth]
         if have and (s != "cmu" or len(have) == 2):
             truth[s] = np.concatenate([truth[x] for x in have])
             auto[s] = np.concatenate([auto[x] for x in have])
             pre[s] = np.concatenate([pre[x] for x in have])
+            conf[s] = np.concatenate([conf[x] for x in have])
             vocab[s] = tuple(dict.fromkeys(lab for x in have for lab in vocab[x]))
     if vocabulary is not None:
         vocab = {s: tuple(vocabulary) for s in vocab}
@@ -506,4 +594,5 @@ def _scores(parts, vocabulary, models, documents, timings, sweep_parts, sweep_ta
         sweep = [(float(t), evaluate_annotation(tr, np.concatenate([p[i] for _, p, _ in sweep_parts]), labels=lv))
                  for i, t in enumerate(np.atleast_1d(sweep_taus))]
         timings["sweep"] += time.perf_counter() - t0
-    return DevelopmentEvaluation(scores, truth, auto, models, documents, sweep, timings, pre, vocab)
+    return DevelopmentEvaluation(scores, truth, auto, models, documents, sweep, timings, pre, vocab,
+                                 confidence=conf)

@@ -21,11 +21,12 @@ Judgement calls (documented here, data not code where possible):
   paper's evaluation documents (109 documents averaging 40 s). Unlike those,
   every frame of a LOAO document belongs to a labelled clip (no unlabelled
   transitions), and the joins are abrupt pose changes.
-* Joining clips: each clip's joints are translated in the floor plane (x, z)
-  so that its first-frame root lies where the previous clip's last-frame
-  root was; height, heading and the recorded root rotation are kept. The
-  features are computed on the joined document (so velocities and the root
-  turn rate see the joins), not clip by clip.
+* Joining clips: each clip is turned about the vertical so that it starts
+  facing where the previous clip ended facing (continuous heading: a join is
+  no turn of the body, issue 32), and translated in the floor plane (x, z) so
+  that its first-frame root lies where the previous clip's last-frame root
+  was; heights are kept. The features are computed on the joined document
+  (so velocities see the joins), not clip by clip.
 * CMU 86_09 (``labels/cmu86_segmentation``, 120 Hz frames): only ``walk``
   has a counterpart among the paper's labels (→ ``move``,
   ``mocapdb/shipped_models/cmu86_labels.csv``); ``look_around``, ``clap``,
@@ -69,6 +70,7 @@ from mocapdb.annotation.labels import (
     map_labels, to_feature_grid)
 from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE, mirror_words, motion_features
+from mocapdb.features.heading import heading_degrees
 from mocapdb.readers import read_motion
 from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.motion import Motion
@@ -166,19 +168,27 @@ def _document_set(names, motions, truth_native, clips=()):
                        tuple(clips))
 
 
-def concatenate_motions(motions, *, name=""):
+def concatenate_motions(motions, *, name="", heading="continuous"):
     """Join clips into one document, each clip's root re-placed where the previous ended.
 
-    Clip k+1 is translated in the floor plane (x, z) so that its first-frame
-    root is at clip k's last-frame root (after clip k's own translation);
-    heights, headings and the recorded root rotations are unchanged. The first
-    clip stays where it was recorded.
+    Clip k+1 is turned about the vertical through its first-frame root so
+    that its first-frame heading (:func:`mocapdb.features.heading.heading_degrees`:
+    the pelvis's floor-plane direction) is clip k's last-frame heading, and
+    translated in the floor plane (x, z) so that its first-frame root is at
+    clip k's last-frame root (after clip k's own turn and translation);
+    heights are unchanged, root rotations turn with the joints. The first clip
+    stays as it was recorded. A join is then no turn of the body: feature 41
+    reads only the turns the clips hold, so ``turn`` can be judged on the
+    documents (with the headings kept, every join where two clips face apart
+    turns the heading at once).
 
     Parameters
     ----------
     motions : sequence of Motion
         Same native rate; root rotations all present or all absent.
     name : str
+    heading : {"continuous", "kept"}, default "continuous"
+        ``"kept"``: clips are only translated, each keeping its recorded heading.
 
     Returns
     -------
@@ -203,20 +213,37 @@ def concatenate_motions(motions, *, name=""):
         raise ParameterError("clips must all have root rotations or all lack them")
     if any(m.n_frames == 0 for m in motions):
         raise ParameterError("cannot join a clip without frames")
-    parts = []
-    end = None
+    if heading not in ("continuous", "kept"):
+        raise ParameterError(f"heading must be 'continuous' or 'kept', got {heading!r}")
+    parts, rots = [], []
+    end = facing = None
     for m in motions:
         j = np.array(m.joints, dtype=np.float64, copy=True)
+        r = None if m.root_rotation is None else np.array(m.root_rotation, dtype=np.float64, copy=True)
+        h = heading_degrees(j, r)
         if end is not None:
+            if heading == "continuous":
+                turn = _turn_about_vertical(np.radians(facing - h[0]))
+                pivot = j[0, _ROOT].copy()
+                j = (j - pivot) @ turn.T + pivot
+                r = None if r is None else turn @ r
+                h = h + (facing - h[0])
             j[:, :, _FLOOR] += end - j[0, _ROOT, _FLOOR]
-        end = j[-1, _ROOT, _FLOOR].copy()
+        end, facing = j[-1, _ROOT, _FLOOR].copy(), h[-1]
         parts.append(j)
-    rot = (np.concatenate([m.root_rotation for m in motions]) if has_rot == {True} else None)
+        rots.append(r)
+    rot = np.concatenate(rots) if has_rot == {True} else None
     first = motions[0]
     doc = Motion(joints=np.concatenate(parts), root_rotation=rot, fps=first.fps, name=name,
                  skeleton=first.skeleton, source_format=first.source_format,
                  meta={"clips": [m.name for m in motions]})
     return doc, np.array([m.n_frames for m in motions], dtype=np.int64)
+
+
+def _turn_about_vertical(angle):
+    """The rotation about Y (up) that adds ``angle`` (radians) to a floor-plane direction's atan2(z, x)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
 
 
 def _actor_rng(seed, actor):

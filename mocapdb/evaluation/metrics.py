@@ -38,7 +38,7 @@ from mocapdb.annotation import annotate_sweep, as_label_rows, segments_to_rows
 from mocapdb.errors import ParameterError
 
 __all__ = ["Scores", "f_measure", "frame_measures", "segment_measures",
-           "evaluate_annotation", "evaluate_by_label", "restrict_labels",
+           "evaluate_annotation", "evaluate_by_label", "restrict_labels", "segments_correct",
            "sweep_tau", "tau_grid", "parse_tau_grid"]
 
 
@@ -215,6 +215,15 @@ def segment_measures(truth, auto):
     correct = int(_overlapped(as_, ae, ts, te).sum())
     p, r = _ratio(correct, as_.size), _ratio(found, ts.size)
     return p, r, f_measure(p, r), (ts.size, as_.size, found, correct)
+
+
+def segments_correct(truth, auto) -> np.ndarray:
+    """Per automatic segment: does it share a frame with a truth segment of its label and document?
+
+    The segment-level correctness of :func:`segment_measures` (P2), row for row.
+    """
+    (ts, te), (as_, ae) = _global_line(_coerce(truth, "truth"), _coerce(auto, "auto"))
+    return _overlapped(as_, ae, ts, te)
 
 
 def restrict_labels(rows, labels):

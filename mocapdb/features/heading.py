@@ -34,7 +34,8 @@ import numpy as np
 from mocapdb.errors import ParameterError
 from mocapdb.readers.joints import JOINT_INDEX
 
-__all__ = ["HEADING_WINDOW_S", "HEADING_THRESHOLDS", "heading_axis", "heading_degrees", "heading_change"]
+__all__ = ["HEADING_WINDOW_S", "HEADING_THRESHOLDS", "heading_axis", "heading_degrees", "heading_change",
+           "HeadingChangeStream"]
 
 #: the window (seconds) over which the heading change is measured, centred on the frame
 HEADING_WINDOW_S = 3.0
@@ -117,3 +118,120 @@ def heading_change(joints, root_rotation, fps, *, window_s=HEADING_WINDOW_S, axi
     half = max(1, int(round(float(window_s) * float(fps) / 2)))
     t = np.arange(n)
     return np.abs(h[np.minimum(t + half, n - 1)] - h[np.maximum(t - half, 0)])
+
+
+def _unwrap_corrections(dd):
+    """``np.unwrap``'s per-step corrections (period 2π) of the steps ``dd``, element by element as NumPy's."""
+    ddmod = np.mod(dd + np.pi, 2 * np.pi) - np.pi
+    np.copyto(ddmod, np.pi, where=(ddmod == -np.pi) & (dd > 0))
+    correct = ddmod - dd
+    np.copyto(correct, 0, where=np.abs(dd) < np.pi)
+    return correct
+
+
+class HeadingChangeStream:
+    """:func:`heading_change` of a long take fed its pelvis axis a block at a time, bit for bit.
+
+    ``feed(axis)`` takes the next frames' :func:`heading_axis` and returns the
+    change of every frame it can already tell; ``finish()`` returns the rest.
+    What it keeps between blocks: the last raw angle and the sum of the
+    unwrapping's corrections so far (added in the same order as
+    ``np.unwrap``'s ``cumsum`` over the whole take), the last reliable angle
+    (held over unreliable frames), the count of leading frames before the first
+    reliable one (they take its angle), and the heading of the last ``2 ×
+    half`` frames. A frame's change needs the heading ``half`` frames ahead
+    (1.5 s: the window's second half), so the answer trails the input by
+    ``half`` frames — memory is the block plus ``half`` frames, not the take.
+
+    Parameters
+    ----------
+    n_frames : int
+        Frames of the whole take (the window is clipped at its end).
+    fps : float
+    window_s : float, default 3.0
+    """
+
+    def __init__(self, n_frames: int, fps: float, *, window_s=HEADING_WINDOW_S):
+        if not (float(window_s) > 0 and float(fps) > 0):
+            raise ParameterError(f"window_s and fps must be positive, got {window_s!r}, {fps!r}")
+        self.n = int(n_frames)
+        self.half = max(1, int(round(float(window_s) * float(fps) / 2)))
+        self._held = None        # the last reliable raw angle (radians)
+        self._pending = 0        # leading frames before the first reliable one
+        self._prev = None        # the last raw angle unwrapped
+        self._carry = None       # the unwrapping's corrections summed so far (None: none yet)
+        self._h = np.zeros(0)    # heading (degrees) of frames [_h0, _fed)
+        self._h0 = 0
+        self._fed = 0            # frames whose heading is known
+        self._done = 0           # frames whose change was returned
+
+    def feed(self, axis) -> np.ndarray:
+        """The change (degrees) of the frames that the axes fed so far decide, in frame order."""
+        axis = np.asarray(axis, dtype=np.float64)
+        if axis.shape[0] == 0:
+            return np.zeros(0)
+        norm = np.linalg.norm(axis, axis=1)
+        floor = np.hypot(axis[:, 0], axis[:, 2])
+        ok = floor > _MIN_FLOOR * np.maximum(norm, 1e-12)
+        m = axis.shape[0]
+        if self._held is None:
+            if not ok.any():
+                self._pending += m
+                return np.zeros(0)
+            first = int(np.flatnonzero(ok)[0])
+            lead = self._pending + first      # the frames before the take's first reliable one
+            self._pending = 0
+            axis, ok = axis[first:], ok[first:]
+            m = axis.shape[0]
+        else:
+            lead = 0
+        idx = np.where(ok, np.arange(m), -1)
+        idx = np.maximum.accumulate(idx)
+        angle = np.empty(m)
+        have = idx >= 0
+        angle[have] = np.arctan2(axis[idx[have], 2], axis[idx[have], 0])
+        angle[~have] = self._held          # held from the block before
+        if lead:
+            angle = np.concatenate([np.full(lead, angle[0]), angle])
+        self._held = angle[-1]
+        self._push(angle)
+        return self._emit(final=False)
+
+    def finish(self) -> np.ndarray:
+        """The change of the remaining frames (all frames fed: ``n_frames`` of them)."""
+        if self._held is None and self._pending:   # never reliable: the heading is 0 throughout
+            self._push(np.zeros(self._pending))
+            self._pending = 0
+        if self._fed != self.n:
+            raise ParameterError(f"fed {self._fed} frames of a take of {self.n}")
+        return self._emit(final=True)
+
+    def _push(self, angle):
+        """Unwrap the next raw angles and append their heading."""
+        if self._prev is None:
+            corr = _unwrap_corrections(np.diff(angle))
+            up = angle.copy()
+        else:
+            corr = _unwrap_corrections(np.diff(np.concatenate([[self._prev], angle])))
+            up = np.empty_like(angle)
+        if corr.size:
+            # the running sum continues exactly as np.unwrap's cumsum over the whole take adds
+            total = corr.cumsum() if self._carry is None else np.concatenate([[self._carry], corr]).cumsum()[1:]
+            up[up.size - corr.size:] = angle[angle.size - corr.size:] + total
+            self._carry = total[-1]
+        self._prev = angle[-1]
+        self._h = np.concatenate([self._h, np.degrees(up)])
+        self._fed += angle.size
+
+    def _emit(self, *, final: bool) -> np.ndarray:
+        last = self.n if final else min(self.n, self._fed - self.half)   # frames < last are decided
+        if last <= self._done:
+            return np.zeros(0)
+        t = np.arange(self._done, last)
+        ahead = np.minimum(t + self.half, self.n - 1) - self._h0
+        behind = np.maximum(t - self.half, 0) - self._h0
+        out = np.abs(self._h[ahead] - self._h[behind])
+        self._done = last
+        keep = max(0, last - self.half) - self._h0   # the frames a later change can still read
+        self._h, self._h0 = self._h[keep:], self._h0 + keep
+        return out

@@ -24,7 +24,8 @@ from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, feature_frame_count,
                                     grid_source_frames, resample_joints, resampled_count)
-from mocapdb.features.heading import HEADING_THRESHOLDS, HEADING_WINDOW_S, heading_axis, heading_change
+from mocapdb.features.heading import (HEADING_THRESHOLDS, HEADING_WINDOW_S, HeadingChangeStream, heading_axis,
+                                      heading_change)
 from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
 from mocapdb.readers import JOINT_INDEX
 
@@ -788,23 +789,32 @@ def _words_by_block(motion, root_ang_vel_thresholds) -> np.ndarray:
 
     units = body_units(frames(0, 1)[0])
     step = max(4, BLOCK_FRAMES // 4 * 4)
-    # feature 41 reads the heading over the whole take (unwrapped, held where unreliable): its axis,
-    # 24 bytes a frame, is gathered a block at a time first
-    axis = np.empty((n, 3))
-    for a in range(0, n, step):
-        axis[a:a + step] = heading_axis(*frames(a, min(n, a + step)))
-    turned = heading_turned(None, None, TOOLBOX_RATE, axis=axis)
-    del axis
+    # feature 41 streams too (HeadingChangeStream: the unwrap and the held heading carried from block to
+    # block, its hysteresis state as well); a block's bits need the pelvis axis 1.5 s beyond the block
+    lo_turn, hi_turn = HEADING_THRESHOLDS
+    heading = HeadingChangeStream(n, TOOLBOX_RATE)
+    turn_state = np.zeros(1, dtype=np.bool_)
+    turned, turned0, axis_fed = np.zeros(0, dtype=np.bool_), 0, 0   # feature 41 of frames turned0 …
     states = np.zeros(N_FEATURES, dtype=np.bool_)
     words = np.empty((n + 3) // 4, dtype=np.uint64)
     for a in range(0, n, step):
         b = min(n, a + step)
+        while turned0 + turned.size < b:
+            if axis_fed < n:
+                change = heading.feed(heading_axis(*frames(axis_fed, min(n, axis_fed + step))))
+                axis_fed = min(n, axis_fed + step)
+            else:
+                change = heading.finish()
+            part = np.empty((change.size, 1), dtype=np.bool_)
+            _hysteresis_kernel((change >= lo_turn)[:, None], (change >= hi_turn)[:, None], part, turn_state)
+            turned = np.concatenate([turned, part[:, 0]])
         lo, hi = max(0, a - _CONTEXT), min(n, b + _CONTEXT)
         jw, rw = frames(lo, hi)
         f1, f2 = feature_tests(np.ascontiguousarray(jw), rw, TOOLBOX_RATE, units, root_ang_vel_thresholds=ang_thr)
         feats = np.empty((b - a, N_FEATURES + 1), dtype=np.bool_)
         _hysteresis_kernel(f1[a - lo:b - lo], f2[a - lo:b - lo], feats[:, :N_FEATURES], states)
-        feats[:, N_FEATURES] = turned[a:b]
+        feats[:, N_FEATURES] = turned[a - turned0:b - turned0]
+        turned, turned0 = turned[b - turned0:], b
         words[a // 4:(b + 3) // 4] = pack_words(feats[::4])
     return words
 

@@ -11,6 +11,7 @@ DESIGN.md §1, §6; READERS.md §5, §7, §9.
 """
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -30,7 +31,7 @@ from mocapdb.readers.motion import Motion, check_finite_motion
 from mocapdb.readers.textscan import longest_line
 from mocapdb.readers.options import ReaderOptions
 from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix, open_stream,
-                                     special_kind)
+                                     special_kind, split_archive)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
            "load_skeleton", "SUPPORTED_EXTENSIONS"]
@@ -111,9 +112,27 @@ def _named_candidates(amc_path) -> list:
 
 
 def _folder_asf(folder):
-    """The folder's only ASF (plain or compressed), or None."""
-    own = [q for q in list_dir(folder) if motion_suffix(q) == ".asf" and is_file(q)]
-    return own[0] if len(own) == 1 else None
+    """The folder's only ASF (plain or compressed), or None (listed once per folder and version: an
+    archive's folder of thousands of takes is not listed again for each take)."""
+    try:
+        st = os.stat(split_archive(folder)[0])   # the folder, or the zip archive it lies in
+    except OSError:
+        st = None
+    key = None if st is None else (str(folder), st.st_size, st.st_mtime_ns)
+    if key is None or key not in _FOLDER_ASF:
+        own = [q for q in list_dir(folder) if motion_suffix(q) == ".asf" and is_file(q)]
+        own = own[0] if len(own) == 1 else None
+        if key is None:
+            return own
+        if len(_FOLDER_ASF) >= 256:
+            _FOLDER_ASF.clear()
+        _FOLDER_ASF[key] = own
+    return _FOLDER_ASF[key]
+
+
+#: folder -> its only ASF or None, keyed with the folder's (or its zip archive's) size and mtime, which
+#: change when entries come or go
+_FOLDER_ASF = {}
 
 
 def find_skeleton(amc_path) -> Path | None:
@@ -121,12 +140,15 @@ def find_skeleton(amc_path) -> Path | None:
 
     See :func:`skeleton_candidates` for the rules; ``.ASF`` in upper case and
     compressed skeletons (``.asf.gz``, ``.bz2``, ``.xz``) are accepted too.
+    The folder is listed (rule 4) only when no name pattern matches.
     """
-    for c in skeleton_candidates(amc_path):
+    named = _named_candidates(amc_path)
+    for c in named:
         for cand in (c, c.with_suffix(".ASF"), *(c.with_name(c.name + z) for z in COMPRESSED)):
             if is_file(cand):
                 return cand
-    return None
+    own = _folder_asf(Path(amc_path).parent)
+    return own if own is not None and own not in named else None
 
 
 def skeleton_note(amc_path, asf_path) -> str | None:

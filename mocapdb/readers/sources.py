@@ -141,6 +141,9 @@ def split_archive(path) -> tuple:
     ``(Path("/d/a.zip"), "")``.
     """
     p = Path(path)
+    text = str(path).lower()
+    if not any(a in text for a in ARCHIVES):   # the common case, asked per file many times: no path walk
+        return p, None
     for parent in (p, *p.parents):
         if _is_zip(parent):
             try:

@@ -11,7 +11,6 @@ import hashlib
 import json
 import logging
 import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,8 +21,9 @@ from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
 from mocapdb.readers import ReaderOptions, find_skeleton, motion_files, read_motion, skeleton_note
 from mocapdb.readers.files import check_start
-from mocapdb.readers.sources import motion_stem, motion_suffix, sha256, special_kind
+from mocapdb.readers.sources import motion_stem, motion_suffix, sha256, special_kind, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
+from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
@@ -299,9 +299,10 @@ def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: 
 
 
 #: computed files are stored in batches, one transaction per batch, once a batch
-#: holds this many files or source frames (a commit costs milliseconds, a file
-#: of the HDM05 cut ~2 ms of compute)
-BATCH_FILES = 64
+#: holds this many files or source frames (a commit and a batch's inserts cost
+#: milliseconds whatever its size, and the parent that stores shares the cores
+#: with the workers: fewer, larger batches; 10⁶ frames keep a batch's words at 2 MB)
+BATCH_FILES = 256
 BATCH_FRAMES = 1_000_000
 
 
@@ -326,7 +327,9 @@ def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, r
         Called as ``progress(n_files_done, n_files, path)`` once per file (the
         ``progress(n_done, n_total, …)`` of every long command).
     workers : int, keyword-only
-        Threads that read and compute features (the kernels release the GIL).
+        How many files are hashed, read and turned into features at once:
+        worker processes for an archive (:mod:`mocapdb.storage.ingest_pool`),
+        threads for a few files.
     replace : bool, keyword-only
         Read files whose bytes are already stored again and replace those
         motions (a new id; their annotations go), e.g. with a corrected
@@ -390,21 +393,39 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
     already = []      # (path, prep, key) of files whose bytes are stored: decided after the loop
     first_of = {}     # key -> the first file of this ingest with those bytes
     duplicates = []   # (path, key): decided once the first file is read
-    for path in files:
-        try:
-            prep = prepare_file(path, options)   # a compression bomb stops here, while it is hashed
-        except MocapdbError as exc:
-            report.failed.append((str(path), str(exc)))
-            tick(path)
-            continue
-        key = (prep.sha256, prep.skeleton_sha256)
-        if key in stored:
-            already.append((path, prep, key))
-        elif key in first_of:
-            duplicates.append((path, key))
+    processes = use_processes(len(files), sum(_size(f) for f in files), workers)
+    with executor(workers, processes) as pool:
+        # hashing and the skeleton lookup run in the pool; the decisions below stay in file order
+        fingerprints = ordered(pool, _prepare_or_error, [(f, options) for f in files], window=window_for(workers),
+                               chunk=chunk_for(processes))
+        for path, prep in zip(files, fingerprints):
+            if isinstance(prep, (str, WorkerDied)):   # a compression bomb stops here, while it is hashed
+                report.failed.append((str(path), prep if isinstance(prep, str) else f"{path}: {prep}"))
+                tick(path)
+                continue
+            key = (prep.sha256, prep.skeleton_sha256)
+            if key in stored:
+                already.append((path, prep, key))
+            elif key in first_of:
+                duplicates.append((path, key))
+            else:
+                first_of[key] = str(path)
+                todo.append(prep)
+        _decide_stored(con, report, already, stored, first_of, duplicates, todo, replace, tick)
+        _compute_and_store(con, pool, report, log, todo, workers, chunk_for(processes), tick)
+    # a copy of a stored file is skipped; a copy of a broken one is as broken
+    failed = dict(report.failed[walk_refused:])
+    for path, key in duplicates:
+        first = first_of[key]
+        if first in failed:
+            report.failed.append((str(path), f"{path}: same bytes as {first}, which failed: {failed[first]}"))
         else:
-            first_of[key] = str(path)
-            todo.append(prep)
+            report.skipped.append((str(path), f"same bytes as {first} of this ingest"))
+        tick(path)
+
+
+def _decide_stored(con, report, already, stored, first_of, duplicates, todo, replace, tick):
+    """Files whose bytes are stored: skipped, or read again (``replace``, or incomplete stored features)."""
     # a stored motion is read again and replaced, in the insert's transaction, with replace=True, or
     # when its features are incomplete (an import of a partial archive by an older mocapdb)
     broken = {mid: reason for mid, _, reason in incomplete_motions(con, [stored[k] for _, _, k in already])}
@@ -426,6 +447,10 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
                 prep.log_reason = f"replaces motion {mid} (replace=True: read again)"
             todo.append(prep)
 
+
+
+def _compute_and_store(con, pool, report, log, todo, workers, chunk, tick):
+    """Compute the files to store in the pool, in order, and store them a batch (one transaction) at a time."""
     batch = []
 
     def flush():
@@ -453,26 +478,58 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
         log.add_report(report)
         log.flush()
 
-    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        for prep in pool.map(compute_motion, todo):
-            if prep.error is not None:
-                report.failed.append((str(prep.path), prep.error))
-                tick(prep.path)
-                continue
-            batch.append(prep)
-            if len(batch) >= BATCH_FILES or sum(p.motion.n_frames for p in batch) >= BATCH_FRAMES:
-                flush()
-        if batch:
+    frames = 0
+    for sent, prep in zip(todo, ordered(pool, _compute_slim, todo, window=window_for(workers), chunk=chunk)):
+        if isinstance(prep, WorkerDied):
+            prep, sent.error = sent, f"{sent.path}: {prep}"
+        if prep.error is not None:
+            report.failed.append((str(prep.path), prep.error))
+            tick(prep.path)
+            continue
+        batch.append(prep)
+        frames += prep.motion.n_frames
+        if len(batch) >= BATCH_FILES or frames >= BATCH_FRAMES:
             flush()
-    # a copy of a stored file is skipped; a copy of a broken one is as broken
-    failed = dict(report.failed[walk_refused:])
-    for path, key in duplicates:
-        first = first_of[key]
-        if first in failed:
-            report.failed.append((str(path), f"{path}: same bytes as {first}, which failed: {failed[first]}"))
-        else:
-            report.skipped.append((str(path), f"same bytes as {first} of this ingest"))
-        tick(path)
+            frames = 0
+    if batch:
+        flush()
+
+
+def _size(path) -> int:
+    """The bytes a file holds, as far as known without reading it (0 when not known: a compressed stream)."""
+    try:
+        return stream_size(path) or 0
+    except (OSError, KeyError, ValueError):
+        return 0
+
+
+def _prepare_or_error(item):
+    """:func:`prepare_file` of ``(path, options)`` in a pool: the record, or the one-line reason it failed."""
+    path, options = item
+    try:
+        return prepare_file(path, options)
+    except MocapdbError as exc:
+        return str(exc)
+
+
+@dataclass(frozen=True)
+class _Computed:
+    """What storing a computed file needs of its :class:`~mocapdb.readers.Motion`: a pool's worker sends
+    this back, never the joints."""
+    name: str | None
+    source_format: str
+    fps: float
+    n_frames: int
+    skeleton: str | None
+
+
+def _compute_slim(prep):
+    """:func:`compute_motion` with the motion reduced to :class:`_Computed`."""
+    compute_motion(prep)
+    m = prep.motion
+    if m is not None:
+        prep.motion = _Computed(m.name, m.source_format, float(m.fps), int(m.n_frames), m.skeleton)
+    return prep
 
 
 def _ticker(progress, total):

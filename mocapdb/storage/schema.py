@@ -46,6 +46,11 @@ class DatabaseLockedError(SchemaError):
 #: the environment variable MOCAPDB_MEMORY_LIMIT, or later with ``SET memory_limit``.
 DEFAULT_MEMORY_LIMIT = "512MB"
 MEMORY_LIMIT_ENV = "MOCAPDB_MEMORY_LIMIT"
+#: the storage format of the files mocapdb creates: DuckDB 1.5's, which DuckDB 1.5 and later read, so
+#: an archive opens in the clients that load the native extension (the DuckDB CLI, Node and JDBC
+#: at 1.5: docs/EXTENSION.md), not only in the Python duckdb that wrote it (2.0 writes a newer format
+#: by default, which 1.5 refuses). A file keeps the format it was created with.
+STORAGE_VERSION = "v1.5.0"
 #: seconds between two tries to open a file another process holds (``open_database(wait=…)``)
 LOCK_POLL = 0.05
 
@@ -120,9 +125,12 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
     if read_only and path != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (read_only=True cannot create it)")
     deadline = time.monotonic() + wait
+    # on every open, not only the first: DuckDB refuses a second connection to a file of this process
+    # with other settings, and on a file of a newer format the setting changes nothing
+    config = {"storage_compatibility_version": STORAGE_VERSION}
     while True:
         try:
-            con = duckdb.connect(path, read_only=read_only)
+            con = duckdb.connect(path, read_only=read_only, config=config)
             break
         except duckdb.IOException as exc:
             m = _LOCK.search(str(exc))

@@ -1,0 +1,700 @@
+/* The archive's tables as the native functions read them. Every read is one query
+ * on the extension's connection under its lock, reading committed data only (as
+ * the Python UDFs' cursors do). A table that is missing is an error naming it and
+ * the command that creates it. */
+#include "archive.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+DUCKDB_EXTENSION_EXTERN
+
+/* no ORDER BY: the rows come in insertion order, which is (motion, run) order unless the table was
+ * rewritten; sorting here only when they do not costs less than DuckDB's sort every time */
+#define RUNS_SQL                                                                                                       \
+	"SELECT motion_id, word, start_frame - 1, n_frames, seg FROM mocap_index.postings "                                \
+	"WHERE feature_set = 'full' AND motion_id BETWEEN $1 AND $2"
+#define VERSION_SQL "SELECT version FROM mocap_index.state"
+#define TEMPLATE_SQL "SELECT mask, value, weight FROM templates WHERE model = $1 AND class = $2 ORDER BY col"
+#define CLASSES_SQL "SELECT string_agg(class, ', ' ORDER BY class_id) FROM classes WHERE model = $1"
+#define MODELS_SQL "SELECT string_agg(model, ', ' ORDER BY model) FROM models"
+#define QUERY_SQL                                                                                                      \
+	"SELECT k.mask, k.value, k.position, k.d_min, k.d_max, q.template_length FROM keyframes k "                        \
+	"JOIN keyframe_queries q USING (model, class) WHERE k.model = $1 AND k.class = $2 ORDER BY k.k"
+#define HAS_CLASS_SQL "SELECT count(*) FROM classes WHERE model = $1 AND class = $2"
+#define RANGE_SQL "SELECT motion_id, n_frames FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
+#define WORDS_SQL                                                                                                      \
+	"SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id, frame"
+/* 41 feature bits (40 + the heading feature): a template column may fix no other */
+#define FEATURE_BITS ((((uint64_t)1) << (MDB_N_COST - 1)) - 1)
+/* more expanded columns than any template has (the longest are a few hundred) */
+#define MAX_COLUMNS ((size_t)1 << 16)
+/* as mocapdb.storage.cache.INDEX_CACHE_BYTES: the index batches kept between queries */
+#define CACHE_BYTES ((size_t)256 << 20)
+
+/* The error of a failed query, with the table it needed named when it is missing. */
+static void query_error(const char *what, const char *table, const char *detail, mdb_error *err) {
+	if (detail && strstr(detail, "does not exist")) {
+		snprintf(err->text, sizeof err->text,
+		         "%s: table %s does not exist in this database: `mocapdb ingest` creates it (an archive whose "
+		         "keyframe index was dropped gets it back with `mocapdb create-index`)",
+		         what, table);
+	} else {
+		snprintf(err->text, sizeof err->text, "%s: reading %s failed: %s", what, table, detail ? detail : "?");
+	}
+}
+
+static int column_types_ok(duckdb_result *res, const duckdb_type *want, idx_t n) {
+	if (duckdb_column_count(res) != n) {
+		return 0;
+	}
+	for (idx_t i = 0; i < n; i++) {
+		if (duckdb_column_type(res, i) != want[i]) {
+			return 0;
+		}
+	}
+	return 1;
+}
+
+/* Grow the array *pp to cap elements of elem bytes; 0, or -1 leaving it as it was. */
+static int grow(void *pp, size_t elem, size_t cap) {
+	void **p = pp;
+	void *q = realloc(*p, cap * elem);
+	if (!q) {
+		return -1;
+	}
+	*p = q;
+	return 0;
+}
+
+/* A query with text parameters, then integer ones ($1, $2, … in that order), executed on the
+ * extension's connection (the caller holds the lock); 0, or -1 with err naming the table. */
+static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                     const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
+	duckdb_prepared_statement stmt = NULL;
+	int rc = -1;
+	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
+		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
+		duckdb_destroy_prepare(&stmt);
+		return -1;
+	}
+	for (idx_t i = 0; i < n_texts; i++) {
+		duckdb_bind_varchar(stmt, i + 1, texts[i]);
+	}
+	for (idx_t i = 0; i < n_ints; i++) {
+		duckdb_bind_int32(stmt, n_texts + i + 1, ints[i]);
+	}
+	if (duckdb_execute_prepared(stmt, res) == DuckDBError) {
+		query_error("mocapdb", table, duckdb_result_error(res), err);
+		duckdb_destroy_result(res);
+	} else {
+		rc = 0;
+	}
+	duckdb_destroy_prepare(&stmt);
+	return rc;
+}
+
+/* Where a query's rows go, a chunk of n at a time: 0 to go on, non-zero to stop (err set). */
+typedef int (*chunk_sink)(void *ctx, duckdb_data_chunk chunk, idx_t n, mdb_error *err);
+
+/* Run a query and hand its rows to sink, after checking that its columns have the types
+ * mocapdb writes; 0 or -1. The result is destroyed. */
+static int query_rows(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                      const int32_t *ints, idx_t n_ints, const duckdb_type *want, idx_t n_cols, chunk_sink sink,
+                      void *ctx, mdb_error *err) {
+	duckdb_result res;
+	if (run_query(st, sql, table, texts, n_texts, ints, n_ints, &res, err)) {
+		return -1;
+	}
+	int rc = 0;
+	if (!column_types_ok(&res, want, n_cols)) {
+		snprintf(err->text, sizeof err->text,
+		         "mocapdb: table %s has unexpected column types; was it written by `mocapdb ingest`?", table);
+		rc = -1;
+	}
+	while (rc == 0) {
+		duckdb_data_chunk chunk = duckdb_fetch_chunk(res);
+		if (!chunk) {
+			break;
+		}
+		rc = sink(ctx, chunk, duckdb_data_chunk_get_size(chunk), err) ? -1 : 0;
+		duckdb_destroy_data_chunk(&chunk);
+	}
+	duckdb_destroy_result(&res);
+	return rc;
+}
+
+/* Column c of a chunk: its data and validity. */
+#define COLUMN(chunk, c, type, data, valid)                                                                            \
+	duckdb_vector data##_v = duckdb_data_chunk_get_vector(chunk, c);                                                   \
+	type *data = duckdb_vector_get_data(data##_v);                                                                     \
+	uint64_t *valid = duckdb_vector_get_validity(data##_v)
+
+static int out_of_memory(mdb_error *err, const char *what) {
+	snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading %s", what);
+	return -1;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * motions */
+
+typedef struct {
+	mdb_motions *m;
+	size_t cap;
+} motions_ctx;
+
+static int motions_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	motions_ctx *c = p;
+	mdb_motions *m = c->m;
+	if (m->n + n > c->cap) {
+		c->cap = 2 * (m->n + n);
+		if (grow(&m->id, sizeof *m->id, c->cap) || grow(&m->n_frames, sizeof *m->n_frames, c->cap)) {
+			return out_of_memory(err, "motions");
+		}
+	}
+	COLUMN(chunk, 0, int32_t, ids, ok_id);
+	COLUMN(chunk, 1, int32_t, lens, ok_len);
+	for (idx_t i = 0; i < n; i++) {
+		if (!duckdb_validity_row_is_valid(ok_id, i)) {
+			continue; /* NOT NULL in the schema; never trusted */
+		}
+		m->id[m->n] = ids[i];
+		m->n_frames[m->n] = duckdb_validity_row_is_valid(ok_len, i) && lens[i] > 0 ? lens[i] : 0;
+		m->n++;
+	}
+	return 0;
+}
+
+void mdb_motions_free(mdb_motions *m) {
+	free(m->id);
+	free(m->n_frames);
+	memset(m, 0, sizeof *m);
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * the keyframe index */
+
+void mdb_runs_free(mdb_runs *r) {
+	free(r->motion);
+	free(r->word);
+	free(r->start);
+	free(r->len);
+	memset(r, 0, sizeof *r);
+}
+
+static int runs_reserve(mdb_runs *r, size_t need) {
+	if (need <= r->cap) {
+		return 0;
+	}
+	size_t cap = need > 2 * r->cap ? need : 2 * r->cap;
+	if (grow(&r->motion, sizeof *r->motion, cap) || grow(&r->word, sizeof *r->word, cap) ||
+	    grow(&r->start, sizeof *r->start, cap) || grow(&r->len, sizeof *r->len, cap)) {
+		return -1;
+	}
+	r->cap = cap;
+	return 0;
+}
+
+/* A run's place in (motion, run) order, for the rare table not stored in that order. */
+typedef struct {
+	int32_t motion, seg;
+	size_t row;
+} run_key;
+
+static int run_order(const void *a, const void *b) {
+	const run_key *x = a, *y = b;
+	if (x->motion != y->motion) {
+		return x->motion < y->motion ? -1 : 1;
+	}
+	return (x->seg > y->seg) - (x->seg < y->seg);
+}
+
+/* Put the runs into (motion, run) order. */
+static int order_runs(mdb_runs *r, const int32_t *seg) {
+	int sorted = 1;
+	for (size_t i = 1; i < r->n && sorted; i++) {
+		sorted = r->motion[i - 1] < r->motion[i] || (r->motion[i - 1] == r->motion[i] && seg[i - 1] < seg[i]);
+	}
+	if (sorted) {
+		return 0;
+	}
+	run_key *key = malloc(r->n * sizeof *key);
+	mdb_runs out = {0};
+	if (!key || runs_reserve(&out, r->n)) {
+		free(key);
+		mdb_runs_free(&out);
+		return -1;
+	}
+	for (size_t i = 0; i < r->n; i++) {
+		key[i] = (run_key){r->motion[i], seg[i], i};
+	}
+	qsort(key, r->n, sizeof *key, run_order);
+	for (size_t i = 0; i < r->n; i++) {
+		size_t j = key[i].row;
+		out.motion[i] = r->motion[j];
+		out.word[i] = r->word[j];
+		out.start[i] = r->start[j];
+		out.len[i] = r->len[j];
+	}
+	out.n = r->n;
+	free(key);
+	mdb_runs_free(r);
+	*r = out;
+	return 0;
+}
+
+typedef struct {
+	mdb_runs *r;
+	int32_t *seg;
+	size_t seg_cap;
+} runs_ctx;
+
+static int runs_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	runs_ctx *c = p;
+	mdb_runs *r = c->r;
+	if (r->n + n > c->seg_cap) {
+		c->seg_cap = 2 * (r->n + n);
+		if (grow(&c->seg, sizeof *c->seg, c->seg_cap)) {
+			return out_of_memory(err, "the keyframe index");
+		}
+	}
+	if (runs_reserve(r, r->n + n)) {
+		return out_of_memory(err, "the keyframe index");
+	}
+	COLUMN(chunk, 0, int32_t, mid, v0);
+	COLUMN(chunk, 1, uint64_t, word, v1);
+	COLUMN(chunk, 2, int32_t, start, v2);
+	COLUMN(chunk, 3, int32_t, len, v3);
+	COLUMN(chunk, 4, int32_t, seg, v4);
+	for (idx_t i = 0; i < n; i++) {
+		int ok = duckdb_validity_row_is_valid(v0, i) && duckdb_validity_row_is_valid(v1, i) &&
+		         duckdb_validity_row_is_valid(v2, i) && duckdb_validity_row_is_valid(v3, i) &&
+		         duckdb_validity_row_is_valid(v4, i);
+		if (!ok || len[i] <= 0 || start[i] < 0) {
+			continue; /* NOT NULL and positive in the schema; never trusted */
+		}
+		r->motion[r->n] = mid[i];
+		r->word[r->n] = word[i];
+		r->start[r->n] = start[i];
+		r->len[r->n] = len[i];
+		c->seg[r->n] = seg[i];
+		r->n++;
+	}
+	return 0;
+}
+
+/* Read the runs of motions lo .. hi (the caller holds the lock). */
+static int read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_error *err) {
+	runs_ctx ctx = {out, NULL, 0};
+	int32_t range[2] = {lo, hi};
+	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER,
+	                      DUCKDB_TYPE_INTEGER};
+	out->n = 0;
+	int rc = query_rows(st, RUNS_SQL, "mocap_index.postings", NULL, 0, range, 2, want, 5, runs_sink, &ctx, err);
+	if (rc == 0 && order_runs(out, ctx.seg)) {
+		rc = out_of_memory(err, "the keyframe index");
+	}
+	free(ctx.seg);
+	return rc;
+}
+
+/* The index version (NULL: -1; no index built), the caller holding the lock. */
+static int version_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	int64_t *version = p;
+	COLUMN(chunk, 0, int64_t, x, valid);
+	if (n != 1 || *version != -2) {
+		snprintf(err->text, sizeof err->text,
+		         "mocapdb: table mocap_index.state must have one row; `mocapdb ingest` writes it");
+		return -1;
+	}
+	*version = duckdb_validity_row_is_valid(valid, 0) ? x[0] : -1;
+	return 0;
+}
+
+static int index_version(mdb_state *st, int64_t *version, mdb_error *err) {
+	duckdb_type want[] = {DUCKDB_TYPE_BIGINT};
+	*version = -2; /* no row yet */
+	if (query_rows(st, VERSION_SQL, "mocap_index.state", NULL, 0, NULL, 0, want, 1, version_sink, version, err)) {
+		return -1;
+	}
+	if (*version == -2) {
+		snprintf(err->text, sizeof err->text,
+		         "mocapdb: table mocap_index.state must have one row; `mocapdb ingest` writes it");
+		return -1;
+	}
+	return 0;
+}
+
+static void batch_free(mdb_batch *b) {
+	mdb_runs_free(&b->runs);
+	free(b);
+}
+
+static size_t batch_bytes(const mdb_batch *b) {
+	return sizeof *b + b->runs.cap * (sizeof(int32_t) + sizeof(uint64_t) + 2 * sizeof(int64_t));
+}
+
+/* Drop the cached batches of other versions (those in use go when released). */
+static void drop_stale(mdb_state *st, int64_t version) {
+	mdb_batch **p = &st->cache;
+	while (*p) {
+		mdb_batch *b = *p;
+		if (b->version == version) {
+			p = &b->next;
+			continue;
+		}
+		*p = b->next;
+		st->cache_bytes -= batch_bytes(b);
+		b->detached = 1;
+		if (b->refs == 0) {
+			batch_free(b);
+		}
+	}
+}
+
+mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err) {
+	int64_t version;
+	mdb_batch *b = NULL;
+	pthread_mutex_lock(&st->lock);
+	if (index_version(st, &version, err)) {
+		goto done;
+	}
+	drop_stale(st, version);
+	for (b = st->cache; b; b = b->next) {
+		if (b->lo == lo && b->hi == hi) {
+			b->refs++;
+			goto done;
+		}
+	}
+	b = calloc(1, sizeof *b);
+	if (!b) {
+		snprintf(err->text, sizeof err->text, "mocapdb: out of memory reading the keyframe index");
+		goto done;
+	}
+	if (read_runs(st, lo, hi, &b->runs, err)) {
+		batch_free(b);
+		b = NULL;
+		goto done;
+	}
+	b->version = version;
+	b->lo = lo;
+	b->hi = hi;
+	b->refs = 1;
+	/* Archive-wide passes read the batches in the same order every time: keeping the first
+	 * ones that fit (never evicting for the one read last) lets the next pass reuse them, as
+	 * mocapdb.storage.cache does. No index built (version NULL): nothing is kept. */
+	if (version >= 0 && st->cache_bytes + batch_bytes(b) <= CACHE_BYTES) {
+		b->next = st->cache;
+		st->cache = b;
+		st->cache_bytes += batch_bytes(b);
+	} else {
+		b->detached = 1;
+	}
+done:
+	pthread_mutex_unlock(&st->lock);
+	return b;
+}
+
+void mdb_release_runs(mdb_state *st, mdb_batch *b) {
+	if (!b) {
+		return;
+	}
+	pthread_mutex_lock(&st->lock);
+	if (--b->refs == 0 && b->detached) {
+		batch_free(b);
+	}
+	pthread_mutex_unlock(&st->lock);
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * models and motions */
+
+/* The first row's VARCHAR of a one-column result into buf ("" when NULL or none). */
+static void first_text(duckdb_result *res, char *buf, size_t size) {
+	buf[0] = 0;
+	duckdb_data_chunk chunk = duckdb_column_type(res, 0) == DUCKDB_TYPE_VARCHAR ? duckdb_fetch_chunk(*res) : NULL;
+	if (!chunk) {
+		return;
+	}
+	duckdb_vector v = duckdb_data_chunk_get_vector(chunk, 0);
+	if (duckdb_data_chunk_get_size(chunk) > 0 && duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), 0)) {
+		duckdb_string_t *x = duckdb_vector_get_data(v);
+		uint32_t len = duckdb_string_t_length(x[0]);
+		if (len >= size) {
+			len = (uint32_t)size - 1;
+		}
+		memcpy(buf, duckdb_string_t_data(&x[0]), len);
+		buf[len] = 0;
+	}
+	duckdb_destroy_data_chunk(&chunk);
+}
+
+/* Why a model has no template for a class: the model or the class is unknown. */
+static void unknown_class(mdb_state *st, const char *model, const char *cls, mdb_error *err) {
+	duckdb_result res;
+	char known[300];
+	if (run_query(st, CLASSES_SQL, "classes", &model, 1, NULL, 0, &res, err)) {
+		return;
+	}
+	first_text(&res, known, sizeof known);
+	duckdb_destroy_result(&res);
+	if (known[0]) {
+		snprintf(err->text, sizeof err->text, "model '%s' has no class '%s'; its classes: %s", model, cls, known);
+		return;
+	}
+	if (run_query(st, MODELS_SQL, "models", NULL, 0, NULL, 0, &res, err)) {
+		return;
+	}
+	first_text(&res, known, sizeof known);
+	duckdb_destroy_result(&res);
+	snprintf(err->text, sizeof err->text,
+	         "no model '%s' in the database (stored models: %s); a database that mocapdb opened read-write once "
+	         "has the shipped ones",
+	         model, known[0] ? known : "none");
+}
+
+typedef struct {
+	uint64_t *mask, *value;
+	double *weight;
+	size_t n, cap;
+	int bad;
+} template_ctx;
+
+static int template_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	template_ctx *c = p;
+	if (c->n + n > c->cap) {
+		c->cap = 2 * (c->n + n);
+		if (grow(&c->mask, sizeof *c->mask, c->cap) || grow(&c->value, sizeof *c->value, c->cap) ||
+		    grow(&c->weight, sizeof *c->weight, c->cap)) {
+			return out_of_memory(err, "a template");
+		}
+	}
+	COLUMN(chunk, 0, uint64_t, mask, v0);
+	COLUMN(chunk, 1, uint64_t, value, v1);
+	COLUMN(chunk, 2, double, weight, v2);
+	for (idx_t i = 0; i < n; i++) {
+		c->bad |= !duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
+		          !duckdb_validity_row_is_valid(v2, i) || (mask[i] & ~FEATURE_BITS) != 0;
+		c->mask[c->n] = mask[i];
+		c->value[c->n] = value[i];
+		c->weight[c->n] = weight[i];
+		c->n++;
+	}
+	return 0;
+}
+
+int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_template *out, mdb_error *err) {
+	template_ctx c = {0};
+	const char *key[2] = {model, cls};
+	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_DOUBLE};
+	int rc = -1;
+	memset(out, 0, sizeof *out);
+	pthread_mutex_lock(&st->lock);
+	if (query_rows(st, TEMPLATE_SQL, "templates", key, 2, NULL, 0, want, 3, template_sink, &c, err)) {
+		goto done;
+	}
+	if (c.n == 0) {
+		unknown_class(st, model, cls, err);
+		goto done;
+	}
+	int prep = c.bad ? -2 : mdb_template_prepare(c.mask, c.value, c.weight, c.n, MAX_COLUMNS, out);
+	if (prep == -2) {
+		snprintf(err->text, sizeof err->text,
+		         "model '%s', class '%s': the stored template is damaged (NULLs, bits past feature 41 or "
+		         "weights not in 0 < w <= %zu); train or install the model again",
+		         model, cls, MAX_COLUMNS);
+	} else if (prep) {
+		out_of_memory(err, "a template");
+	} else {
+		rc = 0;
+	}
+done:
+	pthread_mutex_unlock(&st->lock);
+	free(c.mask);
+	free(c.value);
+	free(c.weight);
+	return rc;
+}
+
+typedef struct {
+	const int32_t *want;
+	const int64_t *n_frames;
+	const size_t *off;
+	size_t n_want, k;
+	size_t *count; /* rows stored per wanted motion */
+	uint64_t *words;
+	int32_t bad;   /* a motion whose rows are not its frames 1, 2, …; 0: none */
+} words_ctx;
+
+static int words_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	words_ctx *c = p;
+	(void)err;
+	COLUMN(chunk, 0, int32_t, mid, v0);
+	COLUMN(chunk, 1, int32_t, frame, v1);
+	COLUMN(chunk, 2, uint64_t, bits, v2);
+	for (idx_t i = 0; i < n; i++) {
+		if (!duckdb_validity_row_is_valid(v0, i)) {
+			continue;
+		}
+		while (c->k < c->n_want && c->want[c->k] < mid[i]) {
+			c->k++;
+		}
+		if (c->k == c->n_want || c->want[c->k] != mid[i]) {
+			continue; /* a motion of the range that was not asked for */
+		}
+		size_t k = c->k, at = c->count[k];
+		if ((int64_t)at >= c->n_frames[k] || !duckdb_validity_row_is_valid(v1, i) ||
+		    !duckdb_validity_row_is_valid(v2, i) || frame[i] != (int64_t)at + 1) {
+			c->bad = mid[i];
+			return 1;
+		}
+		c->words[c->off[k] + at] = bits[i];
+		c->count[k]++;
+	}
+	return 0;
+}
+
+int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *out, mdb_error *err) {
+	memset(out, 0, sizeof *out);
+	motions_ctx ctx = {out, 0};
+	int32_t range[2] = {lo, hi};
+	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
+	pthread_mutex_lock(&st->lock);
+	int rc = query_rows(st, RANGE_SQL, "motions", NULL, 0, range, 2, want, 2, motions_sink, &ctx, err);
+	pthread_mutex_unlock(&st->lock);
+	if (rc) {
+		mdb_motions_free(out);
+	}
+	return rc;
+}
+
+int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, const int64_t *n_frames,
+                   const size_t *off, size_t n_want, uint64_t *words, mdb_error *err) {
+	words_ctx c = {want, n_frames, off, n_want, 0, calloc(n_want ? n_want : 1, sizeof(size_t)), words, 0};
+	int32_t range[2] = {lo, hi};
+	duckdb_type cols[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT};
+	if (!c.count) {
+		return out_of_memory(err, "motions");
+	}
+	pthread_mutex_lock(&st->lock);
+	int rc = query_rows(st, WORDS_SQL, "features", NULL, 0, range, 2, cols, 3, words_sink, &c, err);
+	pthread_mutex_unlock(&st->lock);
+	for (size_t k = 0; k < n_want && !c.bad; k++) {
+		if ((int64_t)c.count[k] != n_frames[k]) {
+			c.bad = want[k];
+		}
+	}
+	if (c.bad) {
+		/* the words of mocapdb.storage.motions.incomplete_reason */
+		snprintf(err->text, sizeof err->text,
+		         "motion %d has feature rows that are not its frames 1…n_frames: ingest or import it again to "
+		         "repair it",
+		         c.bad);
+		rc = -1;
+	}
+	free(c.count);
+	return rc;
+}
+
+typedef struct {
+	mdb_query *q;
+	int64_t first_pos, last_pos, length;
+	size_t rows;
+	int bad;
+} query_ctx;
+
+static int query_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	query_ctx *c = p;
+	(void)err;
+	COLUMN(chunk, 0, uint64_t, mask, v0);
+	COLUMN(chunk, 1, uint64_t, value, v1);
+	COLUMN(chunk, 2, int32_t, pos, v2);
+	COLUMN(chunk, 3, int32_t, d_min, v3);
+	COLUMN(chunk, 4, int32_t, d_max, v4);
+	COLUMN(chunk, 5, int32_t, length, v5);
+	for (idx_t i = 0; i < n; i++, c->rows++) {
+		if (c->rows >= MDB_MAX_KEYFRAMES || !duckdb_validity_row_is_valid(v0, i) ||
+		    !duckdb_validity_row_is_valid(v1, i) || !duckdb_validity_row_is_valid(v2, i) ||
+		    !duckdb_validity_row_is_valid(v5, i) || (mask[i] & ~FEATURE_BITS) || (value[i] & ~mask[i])) {
+			c->bad = 1;
+			return 1;
+		}
+		size_t k = c->rows;
+		c->q->mask[k] = mask[i];
+		c->q->value[k] = value[i];
+		/* the gap to the next keyframe (the last row's bounds are NULL): NULL d_min is 0, NULL d_max
+		 * unbounded, as mocapdb.storage.model_store reads them */
+		c->q->d_min[k] = duckdb_validity_row_is_valid(v3, i) ? d_min[i] : 0;
+		c->q->d_max[k] = duckdb_validity_row_is_valid(v4, i) ? d_max[i] : MDB_UNBOUNDED;
+		if (k == 0) {
+			c->first_pos = pos[i];
+		}
+		c->last_pos = pos[i];
+		c->length = length[i];
+	}
+	return 0;
+}
+
+static int count_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	(void)err;
+	COLUMN(chunk, 0, int64_t, x, valid);
+	if (n > 0 && duckdb_validity_row_is_valid(valid, 0)) {
+		*(int64_t *)p = x[0];
+	}
+	return 0;
+}
+
+int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, int extend, mdb_query *out,
+                            mdb_error *err) {
+	query_ctx c = {out, 0, 0, 0, 0, 0};
+	const char *key[2] = {model, cls};
+	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER,
+	                      DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
+	duckdb_type count_type[] = {DUCKDB_TYPE_BIGINT};
+	int64_t has_class = 0;
+	int rc = -1;
+	memset(out, 0, sizeof *out);
+	pthread_mutex_lock(&st->lock);
+	if (query_rows(st, QUERY_SQL, "keyframes", key, 2, NULL, 0, want, 6, query_sink, &c, err) && !c.bad) {
+		goto done;
+	}
+	if (c.bad || c.first_pos < 1 || c.last_pos < c.first_pos || c.length < c.last_pos) {
+		if (c.rows == 0) {
+			if (query_rows(st, HAS_CLASS_SQL, "classes", key, 2, NULL, 0, count_type, 1, count_sink, &has_class,
+			               err)) {
+				goto done;
+			}
+			if (has_class) {
+				snprintf(err->text, sizeof err->text,
+				         "class '%s' of model '%s' has no keyframe query; learn one with `mocapdb learn-keyframes`", cls,
+				         model);
+			} else {
+				unknown_class(st, model, cls, err);
+			}
+		} else {
+			snprintf(err->text, sizeof err->text,
+			         "model '%s', class '%s': the stored keyframe query is damaged (NULLs, more than %d keyframes, "
+			         "words past feature 41 or positions outside the template); learn or install it again",
+			         model, cls, MDB_MAX_KEYFRAMES);
+		}
+		goto done;
+	}
+	out->K = c.rows;
+	for (size_t g = 0; g + 1 < out->K; g++) {
+		if (out->d_min[g] < 0 || out->d_max[g] < out->d_min[g]) {
+			snprintf(err->text, sizeof err->text,
+			         "model '%s', class '%s': gap %zu of the stored keyframe query has d_max < d_min or d_min < 0", model,
+			         cls, g + 1);
+			goto done;
+		}
+	}
+	if (extend) { /* mocapdb.keyframes.annot_margins, positions 1-based here */
+		out->ext_l = 2 * (c.first_pos - 1);
+		out->ext_r = 2 * (c.length - c.last_pos);
+	}
+	rc = 0;
+done:
+	pthread_mutex_unlock(&st->lock);
+	return rc;
+}

@@ -1,0 +1,29 @@
+/* Δ of a quantized motion template against one document's packed words (TEMPLATES.md §9):
+ * subsequence DTW with the annotation steps (1,1) w 1, (1,2) w 1, (2,1) w 2 and the toolbox's
+ * predecessor rule. Pure C over arrays, the twin of mocapdb.templates.distance. */
+#ifndef MOCAPDB_DISTANCE_H
+#define MOCAPDB_DISTANCE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* A template as stored (one (mask, value, weight) per column), expanded by rounded weight
+ * with its cost table (K rows of MDB_N_COST) built by mdb_template_prepare. */
+#define MDB_N_COST 42
+
+typedef struct {
+	size_t K;
+	uint64_t *mask, *value;
+	double *table; /* K x MDB_N_COST: cost of column i at c mismatching features, 1/K folded in */
+} mdb_template;
+
+/* Expand columns 0..n-1 and tabulate their costs; 0, -1 when out of memory, -2 when a weight
+ * is not finite and positive or the expansion passes max_columns. */
+int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const double *weight, size_t n,
+                         size_t max_columns, mdb_template *out);
+void mdb_template_free(mdb_template *t);
+
+/* Δ(j) for j = 0..n-1 into delta (+inf where no path ends); 0, or -1 when out of memory. */
+int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta);
+
+#endif

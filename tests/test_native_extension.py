@@ -1,0 +1,425 @@
+"""The native DuckDB extension (``mocapdb.duckdb_extension``, extension/src, docs/EXTENSION.md).
+
+What holds it: the binary ``pip install .`` built (``mocapdb extension-path``) LOADs into the two
+DuckDBs at hand — Python ``duckdb`` 2.0.x in a process that never imports mocapdb, and the DuckDB
+CLI 1.5.x of PyPI's ``duckdb-cli`` — and its ``keyframe_search_words`` gives the same rows as the
+Python UDF (the numba kernels) on real recordings, for seeded random queries built from the
+archive's own words; bad arguments are DuckDB errors naming the problem, a missing table names the
+table and ``mocapdb ingest``; and a build under ``-fsanitize=address,undefined`` survives thousands
+of seeded random calls.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mocapdb
+from mocapdb.extension.native_build import BINARY_NAME, MISSING_NAME, build, build_or_explain
+from conftest import DATA, run
+
+# A client that never imported mocapdb: plain Python duckdb, the extension LOADed, the queries of a
+# JSON list on stdin run one by one; each answer is its rows or its error's first line.
+PLAIN_CLIENT = r"""
+import json, sys
+import duckdb
+db, ext, queries, read_only = json.load(sys.stdin)
+con = duckdb.connect(db, read_only=read_only, config={"allow_unsigned_extensions": "true"})
+con.execute("SET enable_progress_bar = false")
+con.execute(f"LOAD '{ext}'")
+out = []
+for q in queries:
+    try:
+        out.append({"rows": [list(r) for r in con.execute(q).fetchall()]})
+    except duckdb.Error as e:
+        out.append({"error": str(e).splitlines()[0]})
+assert "mocapdb" not in sys.modules
+print(json.dumps(out))
+"""
+
+
+def plain_client(db, ext, queries, env=None, read_only=True):
+    """Answers of :data:`PLAIN_CLIENT` in a fresh process (the extension keeps the database open
+    for the life of its process: docs/EXTENSION.md)."""
+    run = subprocess.run([sys.executable, "-c", PLAIN_CLIENT],
+                         input=json.dumps([str(db), str(ext), queries, read_only]),
+                         capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout)
+
+
+def words_query(masks, vals, gap_min, gap_max, left, right):
+    def sql_list(xs):
+        return "[" + ", ".join("NULL" if x is None else str(int(x)) for x in xs) + "]"
+
+    return (f"SELECT * FROM keyframe_search_words({sql_list(masks)}::UBIGINT[], {sql_list(vals)}::UBIGINT[], "
+            f"{sql_list(gap_min)}::BIGINT[], {sql_list(gap_max)}::BIGINT[], extend_left := {left}, "
+            f"extend_right := {right}) ORDER BY ALL")
+
+
+@pytest.fixture(scope="module")
+def native():
+    return mocapdb.api.extension_path()
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory):
+    """The shipped sample recordings and, from ../shared, an HDM05 document and the 40 squat clips
+    (many motions: the search goes motion by motion)."""
+    path = tmp_path_factory.mktemp("native") / "archive.duckdb"
+    with mocapdb.connect(path) as con:
+        mocapdb.ingest(con, sample=True)
+        if DATA.is_dir():
+            mocapdb.ingest(con, [DATA / "hdm05_full" / "HDM_dg_06-03_03_120.amc", DATA / "hdm05_cut" / "squat1Reps"],
+                           asf=DATA / "hdm05_full" / "HDM_dg.asf")
+    return path
+
+
+def random_queries(path, n, seed):
+    """Seeded keyframe queries that hit: keyframes are a few bits of the words of real frames
+    (chosen along one motion, so the chain exists), gap bounds around the frames' distances,
+    sometimes unbounded; margins up to 2 s."""
+    rng = np.random.default_rng(seed)
+    with mocapdb.connect(path, read_only=True) as con:
+        words = con.execute("SELECT motion_id, list(bits ORDER BY frame) FROM features GROUP BY ALL "
+                            "ORDER BY motion_id").fetchall()
+    queries = []
+    for _ in range(n):
+        _, w = words[rng.integers(len(words))]
+        K = int(rng.integers(1, 5))
+        frames = np.sort(rng.integers(0, len(w), K))
+        masks, vals = [], []
+        for f in frames:
+            mask = 0
+            for b in rng.choice(40, int(rng.integers(0, 7)), replace=False):
+                mask |= 1 << int(b)
+            masks.append(mask)
+            vals.append(int(w[f]) & mask)
+        gaps = np.diff(frames)
+        gap_min = [int(max(0, g - rng.integers(0, 20))) for g in gaps]
+        gap_max = [None if rng.random() < 0.2 else int(g + rng.integers(0, 40)) for g in gaps]
+        queries.append(words_query(masks, vals, gap_min, gap_max, int(rng.integers(0, 61)),
+                                   int(rng.integers(0, 61))))
+    return queries
+
+
+@pytest.mark.shared
+def test_keyframe_search_words_equals_the_python_udf(archive, native):
+    """Seeded random queries over real recordings: the native rows are the numba kernels' rows."""
+    queries = random_queries(archive, 300, seed=31)
+    with mocapdb.connect(archive, read_only=True) as con:
+        want = [[list(r) for r in con.execute(q).fetchall()] for q in queries]
+    got = plain_client(archive, native, queries)
+    assert [g.get("error") for g in got] == [None] * len(queries)
+    assert [g["rows"] for g in got] == want
+    assert sum(map(bool, want)) > 200  # most queries hit: the comparison is not over empty answers
+    assert len({m for rows in want for m, _, _ in rows}) > 20  # across many motions
+
+
+@pytest.mark.shared
+def test_keyframe_search_equals_the_python_udf(archive, native):
+    """Every class of the shipped default model with a keyframe query, with and without the
+    annotation margins, and the toolbox's classes, which have none (an error naming the class)."""
+    with mocapdb.connect(archive, read_only=True) as con:
+        classes = [c for c, in con.execute("SELECT class FROM keyframe_queries WHERE model = 'default' "
+                                           "ORDER BY class").fetchall()]
+        queries = [f"SELECT * FROM keyframe_search('{c}', extend := {e}) ORDER BY ALL"
+                   for c in classes for e in ("false", "true")]
+        want = [[list(r) for r in con.execute(q).fetchall()] for q in queries]
+    got = plain_client(archive, native, queries + [
+        "SELECT * FROM keyframe_search('squat1Reps', model := 'toolbox')",
+        "SELECT * FROM keyframe_search('nope')", "SELECT * FROM keyframe_search(NULL)",
+        "SELECT * FROM keyframe_search('squat1Reps', model := NULL)",
+        "SELECT count(*) FROM keyframe_search('squat1Reps', extend := NULL)"])
+    assert len(classes) > 30 and [g.get("error") for g in got[:len(queries)]] == [None] * len(queries)
+    assert [g["rows"] for g in got[:len(queries)]] == want
+    assert sum(map(bool, want)) > 20  # most classes hit something
+    assert "class 'squat1Reps' of model 'toolbox' has no keyframe query" in got[-5]["error"]
+    assert "model 'default' has no class 'nope'" in got[-4]["error"]
+    assert "class is NULL" in got[-3]["error"] and "model is NULL" in got[-2]["error"]
+    assert got[-1]["rows"] == [[len(want[classes.index("squat1Reps") * 2])]]  # NULL extend: none
+
+
+@pytest.mark.shared
+def test_mt_distance_equals_the_python_udf_bit_for_bit(archive, native):
+    """Δ of every class of both shipped models on every motion: the same doubles, bit for bit (the
+    C kernel does numba's operations in numba's order, without fused multiply-add), inf included."""
+    with mocapdb.connect(archive, read_only=True) as con:
+        classes = con.execute("SELECT model, class FROM classes WHERE model IN ('default', 'toolbox') "
+                              "ORDER BY ALL").fetchall()
+        queries = [f"SELECT motion_id, mt_distance(motion_id, '{c}', '{m}') FROM motions ORDER BY motion_id"
+                   for m, c in classes]
+        want = [[[mid, list(d)] for mid, d in con.execute(q).fetchall()] for q in queries]
+    got = plain_client(archive, native, queries)
+    assert len(classes) > 40 and [g.get("error") for g in got] == [None] * len(queries)
+    for (m, c), w, g in zip(classes, want, got):
+        a = np.array([x for _, d in w for x in d])
+        b = np.array([x for _, d in g["rows"] for x in d])
+        assert [r[0] for r in g["rows"]] == [r[0] for r in w] and a.shape == b.shape, (m, c)
+        assert np.array_equal(a.view(np.int64), b.view(np.int64)), (m, c)
+    assert np.isfinite(a).any() and np.isinf(a).any()  # both kinds of value were compared
+
+
+def test_mt_distance_arguments(archive, native):
+    """A NULL or unknown motion is NULL (as the Python UDF); a NULL or unknown class or model is an
+    error naming it; the model is the third argument, 'default' without it."""
+    got = plain_client(archive, native, [
+        "SELECT mt_distance(NULL, 'squat1Reps'), mt_distance(1000000, 'squat1Reps'), mt_distance(-1, 'squat1Reps')",
+        "SELECT len(mt_distance(1, 'squat1Reps')) = n_frames, mt_distance(1, 'squat1Reps') = mt_distance(1, "
+        "'squat1Reps', 'default') FROM motions WHERE motion_id = 1",
+        "SELECT mt_distance(1, 'nope')", "SELECT mt_distance(1, 'squat1Reps', 'nomodel')",
+        "SELECT mt_distance(1, NULL)", "SELECT mt_distance(1, 'squat1Reps', NULL)",
+        "SELECT mt_distance(1, 'standStill', 'toolbox')"])
+    assert got[0]["rows"] == [[None, None, None]]
+    assert got[1]["rows"] == [[True, True]]
+    assert "model 'default' has no class 'nope'; its classes: " in got[2]["error"]
+    assert "no model 'nomodel' in the database (stored models: default, toolbox" in got[3]["error"]
+    assert "class is NULL" in got[4]["error"] and "model is NULL" in got[5]["error"]
+    assert "model 'toolbox' has no class 'standStill'" in got[6]["error"]  # a class of the default model only
+
+
+def test_bad_arguments_are_errors_that_name_them(archive, native):
+    cases = {
+        "keyframe_search_words([], [], [], [])": "a query has 1..32 keyframes, got 0",
+        "keyframe_search_words(NULL, [1], [], [])": "masks and values must not be NULL",
+        "keyframe_search_words([1, 2], [1], [0], [1])": "2 masks but 1 values",
+        "keyframe_search_words([1], [2], [], [])": "keyframe 1 must be 40-bit words",
+        "keyframe_search_words([1099511627776], [0], [], [])": "keyframe 1 must be 40-bit words",
+        "keyframe_search_words([-1], [0], [], [])": "keyframe 1 must be 40-bit words",
+        "keyframe_search_words([1, 2], [1, 0], [5], [3])": "gap 1 must have 0 <= d_min <= d_max <= 108000",
+        "keyframe_search_words([1, 2], [1, 0], [NULL], [3])": "gap 1 must have",
+        "keyframe_search_words([1, 2], [1, 0], [0], [108001])": "gap 1 must have",
+        "keyframe_search_words([1, 2], [1, 0], [], [])": "a query of 2 keyframes needs 1 gap bounds",
+        "keyframe_search_words([1], [1], [], [], extend_left := -1)": "extend_left must be in 0..108000 frames",
+        "keyframe_search_words([1], [1], [], [], extend_right := NULL)": "extend_right must be in 0..108000",
+        "keyframe_search_words('x', [0], [], [])": "masks must be a list of integers",
+        "keyframe_search_words([1.5], [0], [], [])": "masks must be a list of integers",
+        "keyframe_search_words(range(40), range(40), [], [])": "a query has 1..32 keyframes, got 40",
+    }
+    got = plain_client(archive, native, [f"SELECT * FROM {q}" for q in cases])
+    for (q, message), answer in zip(cases.items(), got):
+        assert message in answer.get("error", ""), (q, answer)
+    # integer lists of any type bind (the Python macro casts; here the function reads them)
+    ok = plain_client(archive, native, ["SELECT count(*) FROM keyframe_search_words([0], [0], [], [])",
+                                        "SELECT count(*) FROM motions"])
+    assert ok[0]["rows"] == ok[1]["rows"]  # an all-wildcard keyframe matches every motion once, whole
+
+
+def test_a_changed_index_is_read_again(archive, native, tmp_path):
+    """The extension keeps index batches between queries, keyed by mocap_index.state.version: a
+    write that bumps it (as every ingest, delete and import does) is seen by the next query, and
+    postings stored out of (motion, run) order give the same rows."""
+    db = tmp_path / "changed.duckdb"
+    shutil.copy(archive, db)
+    q = "SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_left := 3) ORDER BY ALL"
+    answers = plain_client(db, native, [
+        q,
+        "CREATE OR REPLACE TABLE mocap_index.postings AS SELECT * FROM mocap_index.postings ORDER BY random()",
+        "UPDATE mocap_index.state SET version = version + 1",
+        q,
+        "DELETE FROM mocap_index.postings WHERE motion_id = 1",
+        "UPDATE mocap_index.state SET version = version + 1",
+        q], read_only=False)
+    before, shuffled, deleted = answers[0]["rows"], answers[3]["rows"], answers[6]["rows"]
+    assert before and shuffled == before
+    assert deleted == [r for r in before if r[0] != 1] != before
+
+
+def test_a_damaged_motion_is_named(archive, native, tmp_path):
+    """Features that are not a motion's frames 1 … n (what an older mocapdb could leave) are an
+    error naming the motion, as the Python UDF's; the other motions are unaffected."""
+    db = tmp_path / "damaged.duckdb"
+    shutil.copy(archive, db)
+    got = plain_client(db, native, ["DELETE FROM features WHERE motion_id = 2 AND frame = 5",
+                                    "SELECT mt_distance(2, 'squat1Reps')",
+                                    "SELECT len(mt_distance(1, 'squat1Reps')), len(mt_distance(3, 'squat1Reps'))"],
+                       read_only=False)
+    assert "motion 2 has feature rows that are not its frames" in got[1]["error"]
+    assert got[2]["rows"] == [[1199, 266]]
+
+
+def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, native, tmp_path):
+    no_index = tmp_path / "no_index.duckdb"
+    shutil.copy(archive, no_index)
+    with mocapdb.connect(no_index) as con:
+        mocapdb.api.drop_index(con)
+    empty = tmp_path / "empty.duckdb"
+    __import__("duckdb").connect(str(empty)).close()
+    q = ["SELECT * FROM keyframe_search_words([1], [1], [], [])"]
+    assert "table mocap_index.postings does not exist" in plain_client(no_index, native, q)[0]["error"]
+    err = plain_client(empty, native, q)[0]["error"]
+    assert "table motions does not exist" in err and "`mocapdb ingest` creates it" in err
+
+
+@pytest.fixture(scope="module")
+def archive_v15(archive):
+    """The archive as mocapdb wrote it: in DuckDB 1.5's storage format (mocapdb.storage.schema.STORAGE_VERSION),
+    which the DuckDB 1.5 clients (the CLI, Node's @duckdb/node-api) read as it is — no copy."""
+    return archive
+
+
+#: what the Node test runs: keyframe hits, Δ's length and its finite sum (in millionths), a class's hits
+CLIENT_QUERIES = [
+    "SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_right := 5) ORDER BY ALL",
+    "SELECT motion_id, len(d), list_sum(list_filter(d, lambda x: isfinite(x))) * 1e6 // 1 "
+    "FROM (SELECT motion_id, mt_distance(motion_id, 'squat1Reps') AS d FROM motions) ORDER BY ALL",
+    "SELECT * FROM keyframe_search('squat1Reps', extend := true) ORDER BY ALL"]
+
+
+@pytest.mark.slow  # subprocesses: another client, a sanitizer build
+def test_the_duckdb_cli_loads_it(archive, archive_v15, native):
+    """PyPI's duckdb-cli (1.5.x): LOAD with -unsigned, the same rows as in Python duckdb 2.0; without
+    -unsigned DuckDB refuses the unsigned binary cleanly."""
+    beside = Path(sys.executable).with_name("duckdb")  # the venv's, when it is not on PATH
+    cli = shutil.which("duckdb") or (str(beside) if beside.is_file() else None)
+    assert cli, "the [test] extra installs duckdb-cli (a `duckdb` executable)"
+    old = archive_v15
+    for query, want in zip(CLIENT_QUERIES, plain_client(archive, native, CLIENT_QUERIES)):
+        run = subprocess.run([cli, "-unsigned", "-csv", "-noheader", str(old), "-c", f"LOAD '{native}'; {query}"],
+                             capture_output=True, text=True, timeout=300)
+        assert run.returncode == 0, run.stderr
+        got = [[int(float(x)) for x in line.split(",")] for line in run.stdout.split()]
+        assert got and got == [[int(x) for x in row] for row in want["rows"]]
+    refused = subprocess.run([cli, str(old), "-c", f"LOAD '{native}'"], capture_output=True, text=True, timeout=300)
+    assert refused.returncode != 0 and "unsigned" in refused.stderr + refused.stdout
+
+
+#: Node's DuckDB client (DuckDB 1.5.6 inside), installed from the npm registry into the test's folder
+NODE_API = "@duckdb/node-api@1.5.6-r.1"
+NODE_CLIENT = r"""
+import { DuckDBInstance } from '@duckdb/node-api';
+const [db, ext, queries] = [process.argv[2], process.argv[3], JSON.parse(process.argv[4])];
+const instance = await DuckDBInstance.create(db, { allow_unsigned_extensions: 'true', access_mode: 'READ_ONLY' });
+const con = await instance.connect();
+await con.run(`LOAD '${ext}'`);
+const out = [];
+for (const q of queries) out.push((await con.runAndReadAll(q)).getRowsJson());
+console.log(JSON.stringify(out));
+"""
+
+
+@pytest.mark.slow  # subprocesses: another client, a sanitizer build
+def test_node_loads_it(archive, archive_v15, native, tmp_path):
+    """@duckdb/node-api (a third client, JavaScript): LOAD, the same rows as Python duckdb 2.0."""
+    node, npm = shutil.which("node"), shutil.which("npm")
+    assert node and npm, "the Node client test needs node and npm (Debian: nodejs, npm)"
+    subprocess.run([npm, "install", "--silent", "--no-audit", "--no-fund", "--prefix", str(tmp_path), NODE_API],
+                   check=True, timeout=600, capture_output=True)
+    script = tmp_path / "client.mjs"
+    script.write_text(NODE_CLIENT)
+    run = subprocess.run([node, str(script), str(archive_v15), str(native), json.dumps(CLIENT_QUERIES)],
+                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-3000:]
+    got = json.loads(run.stdout)
+    want = plain_client(archive, native, CLIENT_QUERIES)
+    assert [[[int(float(x)) for x in row] for row in rows] for rows in got] == \
+        [[[int(x) for x in row] for row in w["rows"]] for w in want]
+    assert all(got)
+
+
+def test_mocapdb_extension_path_names_the_binary(native, tmp_path):
+    # the last line: a first run on a cold numba cache may say so before it
+    out = run(tmp_path / "unused.duckdb", "extension-path").output.strip().splitlines()[-1]
+    assert Path(out) == native and native.is_absolute() and native.name == "mocapdb.duckdb_extension"
+    # DuckDB's footer: C API v1.2.0, the C_STRUCT ABI, unsigned (a zero signature)
+    tail = native.read_bytes()[-534:]
+    assert tail[:22] == b"\x00\x93\x04\x10duckdb_signature\x80\x04"
+    fields = [tail[22 + 32 * i:54 + 32 * i].rstrip(b"\0").decode() for i in range(8)][::-1]
+    assert fields[0] == "4" and fields[1] == "linux_amd64" and fields[2] == "v1.2.0" and fields[4] == "C_STRUCT"
+    assert tail[-256:] == bytes(256)
+
+
+def test_a_machine_without_a_c_compiler_still_installs(tmp_path, monkeypatch):
+    """The build step leaves the reason where the binary would be (extension-path reports it), and
+    no stale binary."""
+    (tmp_path / BINARY_NAME).write_bytes(b"old")
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    status = build_or_explain(tmp_path)
+    assert status.startswith("native extension NOT built") and not (tmp_path / BINARY_NAME).exists()
+    assert "install gcc and reinstall mocapdb" in (tmp_path / MISSING_NAME).read_text()
+
+
+# Thousands of seeded random calls, valid and not: every one must end in rows or a DuckDB error.
+FUZZ_CLIENT = r"""
+import json, random, sys
+import duckdb
+db, ext, seed, n = json.load(sys.stdin)
+rng = random.Random(seed)
+con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
+con.execute("SET enable_progress_bar = false")
+con.execute(f"LOAD '{ext}'")
+SCALARS = ["NULL", "0", "1", "-1", "3", "1023", "1099511627775", "1099511627776", "9223372036854775807",
+           "-9223372036854775808", "18446744073709551615", "108000", "108001", "2.5", "'x'", "true", "[]", "[[1]]"]
+def value():
+    return rng.choice(SCALARS) if rng.random() < 0.7 else str(rng.randrange(-5, 1 << 41))
+def a_list():
+    r = rng.random()
+    if r < 0.05:
+        return "NULL"
+    if r < 0.1:
+        return rng.choice(["'text'", "42", "[1.5, 2]", "{'a': 1}", "range(100)", "[NULL]::UBIGINT[]"])
+    n = rng.choice([0, 1, 2, 3, 4, 5, 31, 32, 33, 200])
+    items = [value() for _ in range(n)]
+    cast = rng.choice(["", "::UBIGINT[]", "::BIGINT[]", "::INTEGER[]", "::VARCHAR[]"])
+    return "[" + ", ".join(items) + "]" + cast
+n_rows = n_errors = 0
+for i in range(n):
+    k = rng.choice([1, 2, 3, 4, 32])
+    if rng.random() < 0.5:  # a well-formed query with random words and bounds
+        masks = [rng.randrange(0, 1 << 40) & rng.choice([0, 1, 15, 1023, (1 << 40) - 1]) for _ in range(k)]
+        vals = [m & rng.randrange(0, 1 << 40) for m in masks]
+        lo = [rng.choice([0, 1, 10, 108000]) for _ in range(k - 1)]
+        hi = [rng.choice(["NULL", str(x + rng.choice([0, 5, 1000])), "108000"]) for x in lo]
+        args = [str(masks), str(vals), str(lo), "[" + ", ".join(hi) + "]::BIGINT[]"]
+    else:
+        args = [a_list() for _ in range(4)]
+    named = []
+    for name in ("extend_left", "extend_right"):
+        if rng.random() < 0.5:
+            named.append(f"{name} := {rng.choice(['NULL', '0', '5', '108000', '108001', '-3', str(1 << 40)])}")
+    q = f"SELECT count(*), min(start_frame), max(end_frame) FROM keyframe_search_words({', '.join(args + named)})"
+    if rng.random() < 0.3:  # mt_distance: motions, classes and models good and bad, NULLs, a column of rows
+        motion = rng.choice(["NULL", "1", "3", "0", "-1", "2147483647", "2147483648", "motion_id", "'1'"])
+        cls = rng.choice(["'squat1Reps'", "'kickLFront1Reps'", "NULL", "''", "'x' || motion_id", "'squat1Reps'"])
+        model = rng.choice([[], ["'default'"], ["'toolbox'"], ["NULL"], ["'nomodel'"], ["''"]])
+        q = (f"SELECT count(*), sum(len(d)) FROM (SELECT mt_distance({', '.join([motion, cls] + model)}) AS d "
+             "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
+        if rng.random() < 0.3:  # keyframe_search: a class's stored query, or none
+            named = [f"{k} := {rng.choice(v)}" for k, v in (("model", ["'default'", "'toolbox'", "NULL", "'x'"]),
+                                                             ("extend", ["true", "false", "NULL"]))
+                     if rng.random() < 0.5]
+            q = f"SELECT count(*) FROM keyframe_search({', '.join([cls.replace(' || motion_id', '')] + named)})"
+    try:
+        con.execute(q).fetchall()
+        n_rows += 1
+    except duckdb.Error:
+        n_errors += 1
+print(json.dumps([n_rows, n_errors]))
+"""
+
+
+@pytest.mark.slow  # subprocesses: another client, a sanitizer build
+def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
+    """A build with -fsanitize=address,undefined (UBSan aborting on the first finding) LOADed into
+    Python duckdb with libasan preloaded: 3,000 seeded random calls, none may crash."""
+    cc = os.environ.get("CC") or shutil.which("gcc")
+    assert cc, "the sanitizer test needs gcc"
+    asan = subprocess.run([cc, "-print-file-name=libasan.so"], capture_output=True, text=True).stdout.strip()
+    ubsan = subprocess.run([cc, "-print-file-name=libubsan.so"], capture_output=True, text=True).stdout.strip()
+    assert Path(asan).is_file() and Path(ubsan).is_file(), "gcc's libasan/libubsan (Debian: libgcc-12-dev)"
+    ext = build(tmp_path / "mocapdb.duckdb_extension", sanitize=True)
+    # leaks: CPython and DuckDB keep memory at exit by design; the extension's own are bounded by LOAD
+    env = dict(os.environ, LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
+               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
+    run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT], input=json.dumps([str(archive), str(ext), 31, 3000]),
+                         capture_output=True, text=True, env=env, timeout=1200)
+    assert run.returncode == 0, run.stderr[-4000:]
+    assert len(run.stdout.splitlines()) == 1, run.stdout[:3000]
+    n_rows, n_errors = json.loads(run.stdout)
+    assert n_rows + n_errors == 3000 and n_rows > 500 and n_errors > 500  # both paths were exercised
