@@ -11,8 +11,8 @@ sets whose truth never carries it, :data:`mocapdb.evaluation.UNSCORED`):
 * **previous** — the recipe of the default shipped at ``--previous``
   (default a7c2d94): its class and keyframe definitions, read from git, with
   the training it had (HDM05, CMU stretches, poses; nothing of the studio);
-* **new** — :func:`mocapdb.learning.recipe.default_recipe` as shipped now,
-  trained by :func:`mocapdb.learning.default_model.train_recipe`.
+* **new** — :func:`lab.recipe.default_recipe` as shipped now,
+  trained by :func:`lab.default_model.train_recipe`.
 
 Folds (every set held out from what annotates it): leave-one-actor-out on
 hdm05_cut (loao, its mirror image loao_mirrored), leave-one-document-out
@@ -48,6 +48,7 @@ import json
 import os
 import platform
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -55,15 +56,18 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from mocapdb.evaluation.calibration import confidence_calibration, segment_verdicts
-from mocapdb.evaluation import (SETTINGS, development_data, development_evaluation, evaluate_annotation,
-                                evaluate_by_label, guard, headline_figures, raised_records, read_records,
-                                studio_measures, write_records)
-from mocapdb.learning.default_model import train_recipe
-from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
+from mocapdb.evaluation import evaluate_annotation, evaluate_by_label
 from mocapdb.storage.model_store import fingerprint
 
 from timing import model_at, model_dir
+
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
+from lab.calibration import confidence_calibration, segment_verdicts
+from lab.development import SETTINGS, development_data, development_evaluation
+from lab.records import guard, headline_figures, raised_records, read_records, write_records
+from lab.studio import studio_measures
+from lab.default_model import train_recipe
+from lab.recipe import PAPER_LABELS, default_recipe
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))

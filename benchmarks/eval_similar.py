@@ -3,7 +3,7 @@
 Run: ``python benchmarks/eval_similar.py``. Prints the tables of
 benchmarks/RESULTS.md ("Query by example").
 
-**Leave one actor out** (``mocapdb.evaluation.retrieval.loao_retrieval``):
+**Leave one actor out** (``lab.retrieval.loao_retrieval``):
 the leave-one-actor-out documents of the four hdm05_cut actors
 (``loao_documents``, seed 0, the 11 classes as labels); every clip of an
 actor is a query over the other three actors' documents, which it never saw.
@@ -37,6 +37,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_annotate import DATA, FRAMES_PER_HOUR, machine_header  # noqa: E402
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
+
 #: the classes the issue's aim is about (kick, jump, rotate arms, throw, lie down)
 DISTINCTIVE = ("kickLFront1Reps", "hopBothLegs1hops", "rotateArmsBothBackward1Reps", "throwBasketball",
                "lieDownFloor")
@@ -44,7 +46,7 @@ ACTORS = ("bd", "bk", "dg", "mm")
 
 
 def table(title, scores, classes=None):
-    from mocapdb.evaluation.retrieval import PRECISION_AT
+    from lab.retrieval import PRECISION_AT
 
     print(f"\n### {title}\n")
     print("| class | queries | n | R-precision | " + " | ".join(f"P@{k}" for k in PRECISION_AT) + " |")
@@ -63,8 +65,8 @@ def table(title, scores, classes=None):
 
 
 def main():
-    from mocapdb.evaluation.documents import DocumentSet, loao_documents, mocap6_documents
-    from mocapdb.evaluation.retrieval import class_scores, loao_retrieval
+    from lab.documents import DocumentSet, loao_documents, mocap6_documents
+    from lab.retrieval import class_scores, loao_retrieval
     from mocapdb.retrieval import CELL_BUDGET
 
     machine_header("eval_similar: query by example on held-out actors")

@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/eval_turns.py [--previous REV …] [--model-dir DIR …] [--json benchmarks/eval_turns.json]``.
 
-Walks of three walkers from two labs, made to turn (:mod:`mocapdb.evaluation.turns`:
+Walks of three walkers from two labs, made to turn (:mod:`lab.turns`:
 the body's own motion kept, the path and heading turned):
 
 * CMU 02_01 and 02_02 (subject 2, ASF/AMC, straight walks of 2.5–2.9 s);
@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
+
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
@@ -46,7 +48,7 @@ STYLES = ("steps", "bursts", "smooth")
 
 def walks():
     """The straight walks: name → Motion."""
-    from mocapdb.evaluation.turns import straightened_walk
+    from lab.turns import straightened_walk
     from mocapdb.readers import read_motion
 
     walk86 = read_motion(DATA / "cmu" / "86" / "86_09.amc")
@@ -59,7 +61,7 @@ def walks():
 
 def variants(walk, table):
     """(name, turned walk, degrees, start, seconds) for every angle, time and style that fits the walk."""
-    from mocapdb.evaluation.turns import turning_walk
+    from lab.turns import turning_walk
 
     span = walk.n_frames / walk.fps
     for degrees, times in table:
@@ -88,7 +90,7 @@ def turn_frames(model, motion):
 
 def heading_turn_frames(motion, rate=60.0):
     """30 Hz frames where the hip axis turns faster than ``rate`` °/s (over 1/3 s): a real take's turning."""
-    from mocapdb.evaluation.turns import hip_heading
+    from lab.turns import hip_heading
 
     step = max(1, int(round(motion.fps / 30)))
     h = np.degrees(hip_heading(motion))[::step]

@@ -13,7 +13,7 @@ idempotency check stores every one:
   significant digits as MotionBuilder-like writers do), the root moved by
   k cm along x in copy k — one rig per actor, as in a studio's archive;
 * ``amass``: each take written as an AMASS-format SMPL-H ``.npz``
-  (:mod:`mocapdb.readers.amass_write`), the root moved as for BVH;
+  (:mod:`lab.amass_write`), the root moved as for BVH;
 * ``c3d``: the real 120 Hz C3D recordings of ``cmu/c3d`` and ``hdm05_full``
   as published (binary files: one copy only, whatever ``hours`` asks).
 
@@ -26,7 +26,10 @@ import dataclasses
 import math
 import os
 import shutil
+import sys
 from pathlib import Path
+
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
@@ -77,7 +80,7 @@ def copy_folders(root, hours: float, fmt: str) -> list[Path]:
 
 def _write_copy(folder: Path, k: int, fmt: str) -> None:
     from mocapdb.readers import load_skeleton, read_amc, write_bvh
-    from mocapdb.readers.amass_write import write_amass
+    from lab.amass_write import write_amass
 
     if fmt == "c3d":
         folder.mkdir(parents=True, exist_ok=True)

@@ -8,10 +8,10 @@ Run: ``python benchmarks/train_default_model.py [--runs 20] [--seed 0] [--jobs N
   of labelled CMU stretches (walks, jogs, the mocap6 exercise sets, one
   repetition each), their mirror images and reversals, and the designed
   classes of ``mocapdb/shipped_models/classes/*.toml``
-  (:func:`mocapdb.learning.recipe.default_recipe`); designed keyframe
+  (:func:`lab.recipe.default_recipe`); designed keyframe
   queries (``--ga``: also robust GA queries), τ per class and minimum
   segment lengths
-  (:func:`mocapdb.learning.default_model.train_recipe`). Every random step
+  (:func:`lab.default_model.train_recipe`). Every random step
   is seeded: the same seed gives the same Parquet files, whatever ``--jobs``.
 * ``toolbox`` — the 11 HDM05 templates, identical to the authors' toolbox
   templates (../shared/oracle/templates), τ = 0.13, no keyframe queries: the
@@ -24,14 +24,17 @@ import argparse
 import os
 import tempfile
 import time
+import sys
 from pathlib import Path
 
 import mocapdb
 from mocapdb.api import train
-from mocapdb.evaluation import development_data
-from mocapdb.learning.default_model import train_recipe
-from mocapdb.learning.recipe import PAPER_LABELS, default_recipe
 from mocapdb.storage.model_store import export_model, save_model
+
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
+from lab.development import development_data
+from lab.default_model import train_recipe
+from lab.recipe import PAPER_LABELS, default_recipe
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))

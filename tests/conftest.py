@@ -18,6 +18,7 @@ The helpers the test modules share live here too: the connection fixture
 """
 import csv
 import os
+import sys
 import re
 from importlib import resources
 from pathlib import Path
@@ -26,6 +27,10 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+# lab/ (the development harness, not installed) beside the package: appended, so that `import mocapdb`
+# still finds the installed package first (the tests run against it: python -P -m pytest)
+if str(REPO) not in sys.path:
+    sys.path.append(str(REPO))
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared")).resolve()
 DATA = SHARED / "data"
 ORACLE = SHARED / "oracle"

@@ -2,7 +2,7 @@
 
 AMASS's licence forbids redistributing its files, so these tests write their own: the shipped
 CMU take 86_09 (and HDM05 takes of ../shared) re-expressed on the SMPL tree
-(`mocapdb.readers.amass_write`), in the SMPL-H, SMPL-X and SMPL layouts. Read back, they give
+(`lab.amass_write`), in the SMPL-H, SMPL-X and SMPL layouts. Read back, they give
 the take's features again. Body models are made up here too: random vertices around a rest
 skeleton, a regressor averaging them, random shape directions — arrays of the shape of an SMPL-H
 or SMPL-X model.npz, none of its numbers.
@@ -19,7 +19,7 @@ import mocapdb
 from mocapdb.errors import ParseError
 from mocapdb.features import N_BITS, motion_features, unpack_words
 from mocapdb.readers import ReaderOptions, read_amc, read_asf, read_motion
-from mocapdb.readers.amass_write import write_amass
+from lab.amass_write import write_amass
 from mocapdb.readers.body_model import load_body_model
 from mocapdb.readers.humanoid import Z_UP_TO_Y_UP
 from mocapdb.readers.joints import JOINT_INDEX

@@ -15,7 +15,7 @@ from mocapdb.annotation import ClassModel
 from mocapdb.learning.class_definitions import (WARP, KeyframeDefinition, attach_keyframes, compile_definition,
                                                 mirror_definition, parse_class_definitions, parse_definitions,
                                                 read_class_definitions, reverse_definition)
-from mocapdb.learning.recipe import PAPER_LABELS
+from lab.recipe import PAPER_LABELS
 from mocapdb.templates import QuantizedTemplate
 
 F = {name: k for k, name in enumerate(FEATURE_NAMES)}

@@ -16,7 +16,7 @@ from click.testing import CliRunner
 
 import mocapdb
 from mocapdb.cli import main
-from mocapdb.learning.recipe import PAPER_LABELS
+from lab.recipe import PAPER_LABELS
 
 from conftest import DATA, REPO, SAMPLE_86_09, SAMPLE_86_ASF, amc_frame_count, eval_scores, run, user_docs_text, write_truth_86_09
 

@@ -7,9 +7,9 @@ import pytest
 
 import mocapdb
 from conftest import REPO
-from mocapdb.evaluation import development_data
-from mocapdb.learning.recipe import DEFAULT_MIRRORS, DEFAULT_REVERSALS, PAPER_LABELS, build_model, default_recipe
-from mocapdb.evaluation import LABS
+from lab.development import development_data
+from lab.recipe import DEFAULT_MIRRORS, DEFAULT_REVERSALS, PAPER_LABELS, build_model, default_recipe
+from lab.development import LABS
 from mocapdb.storage.model_store import fingerprint, load_model
 
 FIGURES = REPO / "benchmarks" / "eval_quality.json"

@@ -4,9 +4,8 @@ import pytest
 
 from mocapdb.annotation import annotate
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation import (
-    CLIPS_PER_DOCUMENT, cmu86_documents, concatenate_motions, development_data, development_evaluation,
-    loao_documents, mocap6_documents)
+from lab.documents import CLIPS_PER_DOCUMENT, cmu86_documents, concatenate_motions, loao_documents, mocap6_documents
+from lab.development import development_data, development_evaluation
 from mocapdb.annotation.labels import class_labels
 from mocapdb.evaluation.metrics import evaluate_by_label
 from mocapdb.features.heading import heading_degrees
@@ -181,7 +180,7 @@ def test_real_documents_annotated_with_the_full_model():
 def test_cmu_documents_are_annotated_by_models_that_never_saw_them(data_dir):
     """Leave-one-document-out: a CMU document whose stretches train templates is annotated by a model
     built without them; modes annotate every fold's model several ways; mirrored LOAO documents."""
-    from mocapdb.learning.recipe import PAPER_LABELS, Recipe, build_model
+    from lab.recipe import PAPER_LABELS, Recipe, build_model
 
     recipe = Recipe(labels={"squat1Reps": "exercise", "cmuJumpingJack1Reps": "jump", "cmuWalk2Steps": "move"})
     seen = {}

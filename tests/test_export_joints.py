@@ -15,7 +15,7 @@ import mocapdb
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.features import N_BITS, motion_features, unpack_words
 from mocapdb.readers import JOINT_NAMES, read_amc, read_asf, read_motion
-from mocapdb.readers.amass_write import write_amass
+from lab.amass_write import write_amass
 from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.joints_write import metres_per_unit
 from mocapdb.storage.motions import source_motion

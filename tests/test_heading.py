@@ -13,7 +13,7 @@ import pytest
 from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH, shared_cases
 from mocapdb import features as F
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation.turns import turn_path, turning_walk
+from lab.turns import turn_path, turning_walk
 from mocapdb.features.heading import heading_change, heading_degrees
 from mocapdb.readers import read_motion
 
@@ -89,7 +89,7 @@ def test_feature_41_has_no_side():
 def test_a_walk_turned_round_turns_and_the_straight_walk_does_not():
     """The CMU walker of the sample, straightened, then turned by 120° over 2 s: feature 41 holds
     around the turn and nowhere on the straight part."""
-    from mocapdb.evaluation.turns import straightened_walk
+    from lab.turns import straightened_walk
 
     m = read_motion(SAMPLE_86_09, asf=SAMPLE_86_ASF)
     walk = dataclasses.replace(m, joints=m.joints[:880], root_rotation=m.root_rotation[:880])
@@ -125,7 +125,7 @@ def test_the_heading_streamed_block_by_block_is_the_whole_takes_bit_for_bit(walk
     """Issue 32 item 5: HeadingChangeStream carries the unwrap, the held heading and the leading unreliable
     frames over blocks of any size; real takes (the sample walk, the CMU document, a walk turned round,
     a lie-down clip whose pelvis axis stands upright) and the same with unreliable stretches made."""
-    from mocapdb.evaluation.turns import straightened_walk
+    from lab.turns import straightened_walk
     from mocapdb.features.heading import HeadingChangeStream, heading_axis
 
     cmu = read_motion(SAMPLE_86_09, asf=SAMPLE_86_ASF)
@@ -168,7 +168,7 @@ def test_feature_41_of_a_long_take_by_blocks_is_the_whole_takes(monkeypatch):
     """The block path of a long take (relational._words_by_block) with the heading streamed: the same
     words, feature 41 included, as the whole take's — on a walk turned round twice (the feature on)."""
     import mocapdb.features.relational as relational
-    from mocapdb.evaluation.turns import straightened_walk
+    from lab.turns import straightened_walk
 
     m = read_motion(SAMPLE_86_09, asf=SAMPLE_86_ASF)
     walk = straightened_walk(dataclasses.replace(m, joints=m.joints[:880], root_rotation=m.root_rotation[:880]))

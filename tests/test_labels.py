@@ -5,7 +5,7 @@ import re
 import numpy as np
 import pytest
 
-from mocapdb.learning.recipe import PAPER_LABELS
+from lab.recipe import PAPER_LABELS
 
 from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import motion_features
@@ -329,12 +329,12 @@ def test_a_huge_name_is_not_echoed_whole():
 @pytest.mark.shared
 def test_convert_labels_reads_the_published_label_files_as_the_development_evaluation_does(tmp_path):
     """The CMU segment table and the mocap6 per-frame labels, converted, are the truth the
-    development evaluation reads (mocapdb.evaluation.documents), frame for frame."""
+    development evaluation reads (lab.documents), frame for frame."""
     from click.testing import CliRunner
 
     import mocapdb
     from mocapdb.cli import main
-    from mocapdb.evaluation.documents import cmu86_documents, mocap6_documents
+    from lab.documents import cmu86_documents, mocap6_documents
 
     out = tmp_path / "86_09.csv"
     r = CliRunner().invoke(main, ["convert-labels", str(SEGMENTS_86), "--document-column", "trial", "--out", str(out)])

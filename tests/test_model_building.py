@@ -8,18 +8,18 @@ import pytest
 from mocapdb.annotation import Model, annotate, preselection_for
 from mocapdb.annotation.postprocess import apply_margin, drop_short_segments, label_min_frames
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation import cmu_stretches, mocap6_documents
-from mocapdb.evaluation.documents import POSE_CLASSES, pose_clips
+from lab.documents import cmu_stretches, mocap6_documents
+from lab.documents import POSE_CLASSES, pose_clips
 from mocapdb.features import (DIRECTION_FEATURES, FEATURE_NAMES, mirror_words, pack_words, reverse_fuzzy_words,
                               unpack_words)
 from mocapdb.keyframes import build_index, keyframe_hit_documents
 from mocapdb.learning import clips_from_folders, learn_keyframe_queries, learn_keyframe_query, training_index
-from mocapdb.learning.cutting import cut_repetitions, matching_runs, onsets
-from mocapdb.learning.generalisation import generalise_query, loosen_gaps, query_changes
+from lab.cutting import cut_repetitions, matching_runs, onsets
+from lab.generalisation import generalise_query, loosen_gaps, query_changes
 from mocapdb.learning.genetic import fitness_from_hits, fixed_entries
-from mocapdb.learning.default_model import half_median_template
-from mocapdb.learning.recipe import Clip, Recipe, build_model, default_recipe, mirror_class
-from mocapdb.learning.thresholds import learn_taus
+from lab.default_model import half_median_template
+from lab.recipe import Clip, Recipe, build_model, default_recipe, mirror_class
+from lab.thresholds import learn_taus
 from mocapdb.templates import learn_template
 
 F = {name: k for k, name in enumerate(FEATURE_NAMES)}
@@ -226,7 +226,7 @@ def test_moving_classes_take_no_tau_that_claims_still_poses(cut_clips):
     """Step 4 of learn_taus: a class that moves claims at most max_still_rate of the
     held-out actors' still poses; without the cap the sneak template (slow steps)
     claims many of them. Static classes (T-pose) are left alone."""
-    from mocapdb.learning.thresholds import clip_costs, is_static, still_clips, with_taus
+    from lab.thresholds import clip_costs, is_static, still_clips, with_taus
 
     names = ("sneak2StepsLStart", "kickLFront1Reps", "squat1Reps", "hopBothLegs1hops")
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c]] for c in names}
@@ -257,7 +257,7 @@ def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
     every kick clip of every actor and in no clip of walking, jogging, sneaking, hopping, squats,
     elbow-to-knee, throwing, grabbing or arm rotations (lying on the back may show it), nor in the CMU
     walks and jogs; its mirror holds in no HDM05 clip but a lie-down (no right kicks here)."""
-    from mocapdb.evaluation.development import development_data
+    from lab.development import development_data
 
     k = next(k for k in default_recipe().keyframes if k.cls == "kickLFront1Reps")
     (mask, value), = k.keyframes
@@ -287,7 +287,7 @@ def test_the_kick_keyframe_is_a_kick_s_own_moment(cut_clips, data_dir):
 def test_clip_costs_through_the_preselection_equal_annotation_with_keyframes(cut_clips):
     """clip_costs(preselect=…): Δ of a class with a query only where its keyframes let annotation
     match it — the same minima as annotate() with the keyframe preselection, clip by clip."""
-    from mocapdb.learning.thresholds import clip_costs
+    from lab.thresholds import clip_costs
 
     names = ("kickLFront1Reps", "squat1Reps", "sneak2StepsLStart")
     clips = {c: [Clip(n, w, n.split("_")[1]) for n, w in cut_clips[c][:6]] for c in names}
@@ -337,7 +337,7 @@ def test_the_throw_keyframe_holds_in_every_throw_but_only_filters(cut_clips):
     keyframe: a recording supplies what a short clip lacks), although the whole chain fits into almost no
     other clip; so learn_taus(keyframes=True) gives the throw the τ of its template alone, while the
     kick's query — in no other clip — earns the kick its τ through the preselection."""
-    from mocapdb.learning.thresholds import specific_queries
+    from lab.thresholds import specific_queries
 
     k = next(k for k in default_recipe().keyframes if k.cls == "throwBasketball")
     (mask, value), _ = k.keyframes

@@ -20,14 +20,15 @@ import mocapdb
 from conftest import REPO
 from mocapdb.annotation.labels import LABEL_DTYPE, label_rows
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation.calibration import confidence_calibration
-from mocapdb.evaluation.lab_clips import lab_measures, parse_expected
+from lab.calibration import confidence_calibration
+from lab.lab_clips import lab_measures, parse_expected
 from mocapdb.evaluation.metrics import segments_correct
-from mocapdb.evaluation.records import CLASSES
-from mocapdb.evaluation.studio import STUDIO_GROUP, studio_style
-from mocapdb.evaluation import (STUDIO_CONTENTS, development_data, development_evaluation, guard,
-                                headline_figures, model_figures, raised_records, read_records, studio_measures)
-from mocapdb.learning.recipe import OTHERS, PAPER_LABELS
+from lab.records import CLASSES
+from lab.studio import STUDIO_GROUP, studio_style
+from lab.studio import STUDIO_CONTENTS, studio_measures
+from lab.development import development_data, development_evaluation
+from lab.records import guard, headline_figures, model_figures, raised_records, read_records
+from lab.recipe import OTHERS, PAPER_LABELS
 from mocapdb.storage.model_store import fingerprint, load_model
 
 RECORDS = REPO / "tests" / "quality_records.json"

@@ -197,7 +197,7 @@ def test_amass_files_with_a_body_model_as_ingest(local_ray, tmp_path, open_db):
     annotate, so the option reaches the workers; the shape file is no motion in either."""
     from amass_files import make_body_model
     from mocapdb.readers import generic_rest, read_amc, read_asf
-    from mocapdb.readers.amass_write import write_amass
+    from lab.amass_write import write_amass
 
     folder = tmp_path / "AMASS" / "CMU" / "86"
     folder.mkdir(parents=True)

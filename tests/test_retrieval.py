@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation.retrieval import class_scores, loao_retrieval, precision_at, r_precision, relevance
+from lab.retrieval import class_scores, loao_retrieval, precision_at, r_precision, relevance
 from mocapdb.features import FEATURE_NAMES, FEATURE_SETS, mirror_words, unpack_words
 from mocapdb.keyframes import build_index, keyframe_search
 from mocapdb.learning import read_clip
@@ -271,7 +271,7 @@ def test_relevance_counts_each_true_segment_once():
 @pytest.mark.shared
 def test_r_precision_on_held_out_actors(tmp_path):
     """Kicks and arm rotations of one actor find the other three actors' (the LOAO documents)."""
-    from mocapdb.evaluation.documents import DocumentSet, loao_documents
+    from lab.documents import DocumentSet, loao_documents
 
     docs = DocumentSet.concat(loao_documents(DATA / "hdm05_cut", a, classes=list(CLASSES), class_labels={})
                               for a in ("bd", "bk", "dg", "mm"))

@@ -213,3 +213,9 @@ def test_import_mocapdb_is_light():
     assert n <= 40 and "api" not in packages and "learning" not in packages and "storage" not in packages, packages
     n, packages = loaded("import mocapdb; mocapdb.connect")  # the API loads on first use
     assert "api" in packages and "storage" in packages
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "mocapdb").rglob("*.py")), ids=lambda p: str(p.relative_to(REPO)))
+def test_the_package_never_imports_the_lab(path):
+    """lab/ (the development harness) is not installed: nothing under mocapdb/ may import it (issue 34 item 1)."""
+    assert not re.search(r"^\s*(from lab[. ]|import lab\b)", path.read_text(encoding="utf-8"), flags=re.M), path

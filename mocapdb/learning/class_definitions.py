@@ -64,7 +64,7 @@ template only says how it goes on average::
 Each keyframe is placed at the template column where it most probably
 holds; a mirrored class takes the query mirrored. A query specific to its
 class also lets the class's τ be learned through it
-(:func:`mocapdb.learning.thresholds.learn_taus`, step 5); one that holds in
+(:func:`lab.thresholds.learn_taus`, step 5); one that holds in
 other motions too only filters.
 
 Errors are :class:`~mocapdb.errors.ParseError` naming the file and line.

@@ -4,7 +4,7 @@ Preselection is a hard filter: a class whose query misses a new actor's
 motion cannot annotate it (paper Sect. 5). The GA (paper Sect. 6) sees only
 its training actors, so :func:`learn_robust_queries` adds two steps:
 
-1. **Generalise** each learned query (:func:`mocapdb.learning.generalisation.generalise_query`):
+1. **Generalise** each learned query (:func:`lab.generalisation.generalise_query`):
    turn fixed keyframe entries into wildcards as long as the training
    fitness stays (dropping keyframes or widening gaps is not done: on
    joined documents it lets chains form almost anywhere).
@@ -32,7 +32,7 @@ import numpy as np
 from mocapdb.errors import ParameterError
 from mocapdb.keyframes import annot_margins, build_index, keyframe_search
 from mocapdb.learning.genetic import training_index
-from mocapdb.learning.generalisation import generalise_query
+from lab.generalisation import generalise_query
 from mocapdb.learning.keyframe_learning import learn_keyframe_queries
 from mocapdb.templates import learn_template
 

@@ -7,7 +7,7 @@ can follow it. :func:`learn_taus` measures both the way annotation meets
 them — on actors the templates did not see:
 
 1. For every group g of the training clips (HDM05 actor, CMU subject) the
-   model is built without g's clips (:func:`mocapdb.learning.recipe.build_model`,
+   model is built without g's clips (:func:`lab.recipe.build_model`,
    templates only) and every class's Δ is computed on each of g's clips (a
    document each; mirror images for mirrored classes): the clip's cost
    ``m[c, d]`` = min Δ_c over the clip.
@@ -43,7 +43,7 @@ them — on actors the templates did not see:
    measured on are short and a long recording of those motions gives the
    template the chances the clips do not.
 
-6. **Motions of no class.** Clips of :data:`mocapdb.learning.recipe.OTHERS`
+6. **Motions of no class.** Clips of :data:`lab.recipe.OTHERS`
    (waving, raising a hand: motions a user's archive holds that none of
    the classes are) are held out with their group like every clip, and a
    class that claims one counts a false positive, as for another label's
@@ -66,7 +66,7 @@ from mocapdb.annotation.preselection import preselection_for
 from mocapdb.errors import ParameterError
 from mocapdb.features import FEATURE_NAMES
 from mocapdb.keyframes import KeyframeQuery
-from mocapdb.learning.recipe import OTHERS, build_model, recipe_clips
+from lab.recipe import OTHERS, build_model, recipe_clips
 from mocapdb.templates import ANNOTATION_STEPS, mt_distance_slices
 
 __all__ = ["TAU_GRID", "VELOCITY_FEATURES", "clip_costs", "learn_taus", "with_taus", "still_clips", "is_static",
@@ -181,7 +181,7 @@ def specific_queries(model: Model, clips, *, max_rate=0.02) -> dict:
     ----------
     model : Model
     clips : mapping of str to sequence of Clip
-        Clips per class name (:func:`mocapdb.learning.recipe.recipe_clips`);
+        Clips per class name (:func:`lab.recipe.recipe_clips`);
         a name the model does not have is its own label.
     max_rate : float, default 0.02
         A query is specific if one of its keyframes holds in at most this

@@ -3,12 +3,12 @@
 A segment's confidence (:func:`mocapdb.annotation.postprocess.segment_confidence`:
 1 − Δ̄^τ/τ at its best frame) should say how likely the segment is right.
 :func:`segment_verdicts` decides, per segment of a setting of a
-:class:`~mocapdb.evaluation.development.DevelopmentEvaluation`, whether it
+:class:`~lab.development.DevelopmentEvaluation`, whether it
 is right:
 
 * on sets with per-frame truth: it shares a frame with a truth segment of its
   label (the paper's segment-level correctness, P2); labels the set cannot
-  score (:data:`~mocapdb.evaluation.development.UNSCORED`) and ``neutral``
+  score (:data:`~lab.development.UNSCORED`) and ``neutral``
   where the truth never carries it (silence is not wrong) are left out;
 * on the third lab's clips (per-clip truth): its label is one the clip's
   truth requires or accepts; ``neutral`` is left out unless required.
@@ -43,7 +43,7 @@ class Calibration:
 
 def segment_verdicts(result, setting):
     """(confidence, right) of the segments of one setting that can be judged (module docstring)."""
-    from mocapdb.evaluation.development import UNSCORED
+    from lab.development import UNSCORED
 
     auto, conf = result.auto[setting], result.confidence[setting]
     if setting == "accad":

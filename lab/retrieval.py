@@ -3,7 +3,7 @@
 The measure (issue 21, the usual ones of ranked retrieval): a query is one
 labelled clip of one actor; the archive searched is the documents of the
 *other* actors (the leave-one-actor-out documents of
-:mod:`mocapdb.evaluation.documents`), so the query never saw them. A result
+:mod:`lab.documents`), so the query never saw them. A result
 is relevant when the truth segment it overlaps most is of the query's class,
 covers at least half of the result, and no better-ranked result found it
 already (a segment counts once). Per query, with n the number of true
@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation.documents import DocumentSet
+from lab.documents import DocumentSet
 from mocapdb.keyframes import build_index, keyframe_search
 from mocapdb.features import unpack_words
 from mocapdb.retrieval import (CELL_BUDGET, RESULT_DTYPE, TAU_FACTOR, archive_sample, chance_cost, clip_template,

@@ -1,7 +1,7 @@
 """The development evaluation: annotation quality on data the model was not trained on.
 
 data/README.md fixes what the project's own evaluation reports (the documents
-are in :mod:`mocapdb.evaluation.documents`):
+are in :mod:`lab.documents`):
 
 * **loao** — leave-one-actor-out on ``hdm05_cut`` (actors bd, bk, dg, mm):
   a model built without one actor's clips annotates documents joined from
@@ -17,13 +17,13 @@ are in :mod:`mocapdb.evaluation.documents`):
 * **cmu** (both CMU sets) and **all** (loao and cmu), concatenated, as the
   paper scores its evaluation set;
 * **bandai2** — another studio's clips named by their action
-  (:mod:`mocapdb.evaluation.studio`): a model that trains on the studio's
+  (:mod:`lab.studio`): a model that trains on the studio's
   clips is built without the style it annotates (leave-one-style-out),
   and :attr:`DevelopmentEvaluation.studio` holds the measures that tell
   whether labels travel (locomotion labelled ``move``, turns, silence on
   gestures);
 * **accad** — a third lab's clips with what a user expects of each
-  (:mod:`mocapdb.evaluation.lab_clips`): never trained on, annotated by the
+  (:mod:`lab.lab_clips`): never trained on, annotated by the
   model of all the other data; :attr:`DevelopmentEvaluation.lab` holds the
   per-clip measures (its truth is per clip, not per frame, so it has no
   P/R/F and is not one of :data:`SETTINGS`).
@@ -41,7 +41,7 @@ carries it beside ``move``.
 :func:`development_evaluation` builds one model per fold — by default the
 toolbox's way (a template per HDM05 class, :func:`mocapdb.learning.train_model`),
 or by any ``build(clips, name)`` (e.g. the default model's recipe,
-:func:`mocapdb.learning.recipe.build_model`) — annotates each fold's documents
+:func:`lab.recipe.build_model`) — annotates each fold's documents
 in one or several annotation ``modes`` (keyframes on/off, τ, segment
 filters) and scores every setting with the paper's P1/R1/F1 and P2/R2/F2
 (:mod:`mocapdb.evaluation.metrics`), restricted to a label vocabulary
@@ -61,15 +61,15 @@ from mocapdb.annotation.labels import LABEL_DTYPE, class_labels as shipped_class
 from mocapdb.annotation.model import DEFAULT_DELTA
 from mocapdb.annotation.preselection import preselection_for
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation.documents import (CLIPS_PER_DOCUMENT, MOCAP6_TRIALS, DocumentSet, _loao_from_clips,
+from lab.documents import (CLIPS_PER_DOCUMENT, MOCAP6_TRIALS, DocumentSet, _loao_from_clips,
                                           cmu86_documents, cmu_stretches, concatenate_motions, loao_documents,
                                           mirror_document_set, mocap6_documents, pose_clips)
 from mocapdb.evaluation.metrics import evaluate_annotation
-from mocapdb.evaluation.lab_clips import LAB_FOLDER, lab_documents, lab_measures
-from mocapdb.evaluation.studio import STUDIO_FOLDER, studio_documents, studio_measures, studio_training
+from lab.lab_clips import LAB_FOLDER, lab_documents, lab_measures
+from lab.studio import STUDIO_FOLDER, studio_documents, studio_measures, studio_training
 from mocapdb.features import motion_features
-from mocapdb.learning.cutting import clips_from_stretches
-from mocapdb.learning.recipe import Clip, default_recipe
+from lab.cutting import clips_from_stretches
+from lab.recipe import Clip, default_recipe
 from mocapdb.learning.class_templates import clip_actor, clip_files, train_model
 from mocapdb.readers import read_motion
 
@@ -108,14 +108,14 @@ class DevelopmentData:
     cmu_groups : dict of str to str
         CMU document → subject.
     poses : dict of str to list of Clip
-        Poses held still in HDM05 full documents (:func:`mocapdb.evaluation.documents.pose_clips`).
+        Poses held still in HDM05 full documents (:func:`lab.documents.pose_clips`).
     studio : StudioDocuments or None
-        Another studio's clips (:func:`mocapdb.evaluation.studio.studio_documents`).
+        Another studio's clips (:func:`lab.studio.studio_documents`).
     studio_trains : bool
-        Whether a model may learn from them (:func:`mocapdb.evaluation.studio.studio_training`: one
+        Whether a model may learn from them (:func:`lab.studio.studio_training`: one
         performer's walks and runs, cut per fold, and gestures as motions of no class).
     lab : LabDocuments or None
-        A third lab's clips with per-clip truth (:func:`mocapdb.evaluation.lab_clips.lab_documents`):
+        A third lab's clips with per-clip truth (:func:`lab.lab_clips.lab_documents`):
         annotated only, never trained on.
     """
 
@@ -182,8 +182,8 @@ def development_data(data_dir, *, classes=None, cmu_training=True, definitions=N
     classes : sequence of str, optional
         HDM05 classes (default all).
     cmu_training : bool, default True
-        Also the CMU training stretches (:func:`mocapdb.evaluation.documents.cmu_stretches`)
-        and the poses of the HDM05 full documents (:func:`mocapdb.evaluation.documents.pose_clips`).
+        Also the CMU training stretches (:func:`lab.documents.cmu_stretches`)
+        and the poses of the HDM05 full documents (:func:`lab.documents.pose_clips`).
     definitions : sequence of ClassDefinition, optional
         The definitions that find the poses (default the shipped ones).
     studio : bool, default True
@@ -237,16 +237,16 @@ class DevelopmentEvaluation:
     vocabulary : dict of str to tuple of str
         The labels scored per setting.
     studio : StudioScores or None
-        The studio measures of the bandai2 setting (:func:`mocapdb.evaluation.studio.studio_measures`).
+        The studio measures of the bandai2 setting (:func:`lab.studio.studio_measures`).
     lab : LabScores or None
-        The per-clip measures of the accad setting (:func:`mocapdb.evaluation.lab_clips.lab_measures`).
+        The per-clip measures of the accad setting (:func:`lab.lab_clips.lab_measures`).
     hit_frames : dict of str to int
         Class → the lengths of its hits (Δ below its τ) summed over every setting annotated, in 30 Hz
         frames (hits of one class may share frames, which then count once per hit): a class
         that finds nothing anywhere shows 0 (the quality guard keeps these).
     confidence : dict of str to ndarray of float64
         Per setting, each annotation segment's confidence, row for row with ``auto``
-        (:func:`mocapdb.evaluation.calibration.confidence_calibration` scores it).
+        (:func:`lab.calibration.confidence_calibration` scores it).
     """
 
     scores: dict
@@ -368,7 +368,7 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
         ``progress(n_done, n_steps, what)`` after each fold.
     build : callable, optional
         ``build(clips, name)`` → Model, given the fold's training clips
-        (class → list of :class:`mocapdb.learning.recipe.Clip`: HDM05 clips,
+        (class → list of :class:`lab.recipe.Clip`: HDM05 clips,
         then CMU repetitions). Default: a template per class by
         :func:`mocapdb.learning.train_model` with ``class_labels``, δ, and
         ``keyframes``.
@@ -387,7 +387,7 @@ def development_evaluation(data_dir, *, seed=0, tau=None, delta=DEFAULT_DELTA,
     data : DevelopmentData, optional
         Already read material (:func:`development_data`); default read here.
     cut_params : dict, optional
-        Options of :func:`mocapdb.learning.cutting.cut_repetitions` for the CMU stretches.
+        Options of :func:`lab.cutting.cut_repetitions` for the CMU stretches.
     studio : bool, default True
         Also the bandai2 setting, where ``data`` holds the studio's clips: a
         model built without each style annotates that style's clips when the

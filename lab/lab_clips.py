@@ -4,7 +4,7 @@
 ACCAD lab — walks, runs, side steps, backward walks, turns of 45–180°, hops
 and leaps, crouches, crawling — and ``truth.csv``, which says per clip what
 a user expects (``file,content,expected_labels,notes``). Unlike the studio's
-clips (:mod:`mocapdb.evaluation.studio`) a clip here may hold several
+clips (:mod:`lab.studio`) a clip here may hold several
 actions (stand, then walk), so the truth is per clip, not per frame:
 ``expected_labels`` is ``+``-joined tokens —
 
@@ -36,7 +36,7 @@ import numpy as np
 
 from mocapdb.annotation.labels import LABEL_DTYPE
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.evaluation.documents import DocumentSet
+from lab.documents import DocumentSet
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 

@@ -1,6 +1,6 @@
 """The documents of the development evaluation and the CMU stretches that train templates.
 
-data/README.md fixes the development data (:mod:`mocapdb.evaluation.development`
+data/README.md fixes the development data (:mod:`lab.development`
 scores it):
 
 * **leave-one-actor-out (LOAO)** documents (:func:`loao_documents`) joined
@@ -12,7 +12,7 @@ scores it):
   13_29–13_31, 14_14, 14_20 with the mocap6 labels;
 * **training stretches** (:func:`cmu_stretches`): the labelled stretches of
   CMU documents that train templates of the default model (walks, jogs,
-  exercise sets), cut into repetitions by :mod:`mocapdb.learning.cutting`.
+  exercise sets), cut into repetitions by :mod:`lab.cutting`.
 
 Judgement calls (documented here, data not code where possible):
 
@@ -75,8 +75,8 @@ from mocapdb.readers import read_motion
 from mocapdb.readers.joints import JOINT_INDEX
 from mocapdb.readers.motion import Motion
 from mocapdb.learning.class_definitions import compile_definition
-from mocapdb.learning.cutting import matching_runs
-from mocapdb.learning.recipe import Clip
+from lab.cutting import matching_runs
+from lab.recipe import Clip
 from mocapdb.learning.class_templates import clip_actor, clip_files
 
 __all__ = ["DocumentSet", "concatenate_motions", "loao_documents", "cmu86_documents", "mocap6_documents",

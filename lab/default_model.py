@@ -2,21 +2,21 @@
 
 :func:`train_recipe` runs, on training clips with groups (actors, subjects):
 
-1. **classes** — :func:`mocapdb.learning.recipe.build_model`: learned,
+1. **classes** — :func:`lab.recipe.build_model`: learned,
    mirrored, reversed and designed classes;
 2. **keyframe queries** — a keyframe definition's for the learned classes
    it names; with ``keyframes=True`` (off by default) the other learned
-   classes get :func:`mocapdb.learning.robust_queries.learn_robust_queries`
+   classes get :func:`lab.robust_queries.learn_robust_queries`
    (GA, generalised, kept only if they found every held-out group's clip,
    ``min_recall = 1``, and kept 95 % of their frames in the preselection,
    ``min_coverage = 0.95``); mirrored and reversed classes take their
    source's query mirrored / reversed; designed classes their definition's;
-3. **τ per class** — :func:`mocapdb.learning.thresholds.learn_taus`
+3. **τ per class** — :func:`lab.thresholds.learn_taus`
    (leave-one-group-out on the clips);
 4. **minimum segment length** — :func:`half_median_template` per label.
 
 Each step is switchable; the development evaluation
-(:mod:`mocapdb.evaluation.development`, ``benchmarks/eval_quality.py``)
+(:mod:`lab.development`, ``benchmarks/eval_quality.py``)
 reports each beside the reference mode.
 """
 from __future__ import annotations
@@ -28,9 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapdb.annotation.model import Model
-from mocapdb.learning.recipe import build_model
-from mocapdb.learning.robust_queries import learn_robust_queries
-from mocapdb.learning.thresholds import learn_taus, with_taus
+from lab.recipe import build_model
+from lab.robust_queries import learn_robust_queries
+from lab.thresholds import learn_taus, with_taus
 
 __all__ = ["TrainedModel", "train_recipe", "half_median_template", "TAU_GRID_DEFAULT"]
 
@@ -93,20 +93,20 @@ def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=1
         gave (RESULTS.md, issue 11: loao F1 0.874 → 0.86); designed
         queries (class and keyframe definitions) are always attached.
     runs, generations, inner_runs, inner_generations, min_recall, min_coverage
-        See :func:`mocapdb.learning.robust_queries.learn_robust_queries`.
+        See :func:`lab.robust_queries.learn_robust_queries`.
     learn_tau : bool, default True
-        τ per class by :func:`mocapdb.learning.thresholds.learn_taus`
+        τ per class by :func:`lab.thresholds.learn_taus`
         (else the recipe's τ and the definitions').
     tau_grid : sequence of float
     max_false_rate : float, default 0.0
         Designed (and reversed) classes may claim no held-out clip of another label.
     max_still_rate : float or None, default 0.05
         A moving class claims at most this share of still poses (None: off);
-        see :func:`mocapdb.learning.thresholds.learn_taus`.
+        see :func:`lab.thresholds.learn_taus`.
     tau_keyframes : bool, default True
         τ of learned classes with a specific keyframe definition (one whose
         most specific keyframe holds in at most 2 % of other labels' clips,
-        :func:`mocapdb.learning.thresholds.specific_queries`) measured
+        :func:`lab.thresholds.specific_queries`) measured
         through their preselection (the default annotation mode uses
         keyframes); other queries only filter, and designed classes keep
         the whole-clip rule.

@@ -34,11 +34,11 @@ import numpy as np
 
 from mocapdb.annotation.labels import LABEL_DTYPE, label_rows
 from mocapdb.errors import ParameterError
-from mocapdb.evaluation.documents import DocumentSet
+from lab.documents import DocumentSet
 from mocapdb.evaluation.metrics import Scores, evaluate_annotation
 from mocapdb.features import motion_features
-from mocapdb.learning.cutting import clips_from_stretches
-from mocapdb.learning.recipe import OTHERS, Clip
+from lab.cutting import clips_from_stretches
+from lab.recipe import OTHERS, Clip
 from mocapdb.readers import read_motion
 
 __all__ = ["STUDIO_CONTENTS", "STUDIO_FOLDER", "STUDIO_GROUP", "STUDIO_TRAINING_CLASSES", "StudioDocuments",
@@ -156,11 +156,11 @@ def studio_training(studio: StudioDocuments, **cut_params) -> dict:
     Their documents say their style (:func:`studio_style`), so that a fold
     can leave a style out; τ learning sees one performer, and a class learned
     only from them takes the τ at which it claims no other label's clip
-    (:func:`mocapdb.learning.thresholds.learn_taus`).
+    (:func:`lab.thresholds.learn_taus`).
 
     * walks and runs (:data:`STUDIO_TRAINING_CLASSES`), each clip a stretch,
-      cut into two-step repetitions by :func:`mocapdb.learning.cutting.clips_from_stretches`;
-    * gestures, whole, as :data:`mocapdb.learning.recipe.OTHERS`: motions of
+      cut into two-step repetitions by :func:`lab.cutting.clips_from_stretches`;
+    * gestures, whole, as :data:`lab.recipe.OTHERS`: motions of
       no class, which τ learning keeps every class from claiming.
 
     Returns

@@ -153,7 +153,7 @@ def reverse_class(c: ClassModel, name: str, label: str) -> ClassModel:
 
 def _check(recipe, clips):
     if not isinstance(recipe, Recipe):
-        raise ParameterError(f"recipe must be a mocapdb.learning.recipe.Recipe, got {type(recipe).__name__}")
+        raise ParameterError(f"recipe must be a lab.recipe.Recipe, got {type(recipe).__name__}")
     for what, keys in (("mirrors", recipe.mirrors), ("reversals", recipe.reversals),
                        ("keyframes", [k.cls for k in recipe.keyframes])):
         unknown = sorted(set(keys) - set(recipe.labels))

@@ -216,8 +216,8 @@ def model_figures(model, data_dir, *, data=None, seed=0, modes=MODES) -> dict:
     dict of str to dict
         Mode → :func:`headline_figures`: ``{"keyframes": …, "no keyframes": …}``.
     """
-    from mocapdb.evaluation.development import development_evaluation
-    from mocapdb.learning.recipe import PAPER_LABELS
+    from lab.development import development_evaluation
+    from lab.recipe import PAPER_LABELS
 
     res = development_evaluation(data_dir, data=data, build=lambda clips, name: model, cmu_training=True,
                                  mirrored=True, seed=seed, vocabulary=PAPER_LABELS, modes=modes)
