@@ -105,7 +105,8 @@ def export_round_trip(tmp):
              (SAMPLE / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh.xz", {}), (SAMPLE / "HDM_mm_01-02_03_120.c3d.xz", {})]
     for path, kw in takes:
         m = read_motion(path, **kw)
-        out = write_joints(Path(tmp) / "take.bvh", m, format="bvh")
+        out = Path(tmp) / "take.bvh"
+        write_joints(out, m, format="bvh")
         same, total = agreement(m, read_motion(out))
         print(f"(c) export-joints --format bvh, read back: {path.name}: {same / total:.4%} of {total:,} bits equal")
 

@@ -42,6 +42,14 @@ def escape_control(text: str) -> str:
     return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
 
 
+def os_error_text(exc: OSError) -> str:
+    """An ``OSError`` as ``path: reason`` (``No such file or directory``), never Python's
+    ``[Errno 2] …`` form; the second path of a rename or link too."""
+    reason = exc.strerror or (str(exc.args[-1]) if exc.args else type(exc).__name__)
+    names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
+    return escape_control(clip_message(f"{' → '.join(names)}: {reason}" if names else reason))
+
+
 class MocapdbError(Exception):
     """Root of all mocapdb errors. A message is clipped (:func:`clip_message`): values echoed in
     it, however long, never make it longer than a few thousand characters."""
@@ -131,4 +139,4 @@ def _is_numpy_number(value) -> bool:
 
 
 __all__ = ["MocapdbError", "ParameterError", "ParseError", "SchemaError", "PartialAnnotationError",
-           "check_nonnegative", "shorten", "clip_message", "escape_control"]
+           "check_nonnegative", "shorten", "clip_message", "escape_control", "os_error_text"]

@@ -79,3 +79,15 @@ SELECT motion_id, name, format, source_path FROM motions WHERE motion_id IN (SEL
 
 -- name: named
 SELECT motion_id, name, format, source_path FROM motions WHERE name = $name ORDER BY motion_id;
+
+-- name: selected
+-- the motions a command selects by filter (export-joints): a label among the stored segments of a
+-- model and a WHERE condition over motions' columns (spliced in by mocapdb.storage.motions.select_motions,
+-- the user's own SQL on their own database, as `mocapdb sql` runs it; the commands open it read-only)
+SELECT motion_id FROM motions
+WHERE ($label IS NULL OR motion_id IN (SELECT motion_id FROM annotations WHERE model = $model AND label = $label))
+  AND ({where})
+ORDER BY motion_id;
+
+-- name: stored_labels
+SELECT DISTINCT label FROM annotations WHERE model = $model ORDER BY label;

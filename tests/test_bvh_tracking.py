@@ -61,7 +61,8 @@ def test_the_kinect_take_with_nan_frames_reads():
     assert motion.n_frames == 100 and np.isfinite(motion.joints).all()
     assert motion.meta["notes"] == ["lost tracking (NaN, infinite or absurd values) interpolated in 97 frames "
                                     "(stretches up to 0.25 s; 22 channels of Head, Hips, LeftFoot, LeftHand, "
-                                    "LeftLeg, Neck …)"]
+                                    "LeftLeg, Neck …)",
+                                    "unit cm: the only unit giving the legs an adult's length (0.59 m)"]
     assert len(motion_features(motion)) == 100
 
 

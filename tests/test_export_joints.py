@@ -55,7 +55,7 @@ def test_npz_holds_the_joints_in_metres_at_the_source_rate(db, tmp_path):
         assert not report.failed and len(report.written) == 4
         for fmt, mid in ids.items():
             motion = source_motion(con, mid)
-            (file,) = [p for m, _, p in report.written if m == mid]
+            (file,) = [p for m, _, p, _ in report.written if m == mid]
             with np.load(file) as z:
                 assert list(z["joint_names"]) == list(JOINT_NAMES)
                 assert float(z["fps"]) == motion.fps == con.execute(
@@ -98,7 +98,7 @@ def test_the_bvh_ingests_back_with_the_same_features(db, tmp_path, fmt):
     with mocapdb.connect(path, read_only=True) as con:
         mid = ids_by_format(con)[fmt]
         source = source_motion(con, mid)
-        (_, _, file), = mocapdb.export_joints(con, [mid], tmp_path / "take.bvh", format="bvh").written
+        (_, _, file, _), = mocapdb.export_joints(con, [mid], tmp_path / "take.bvh", format="bvh").written
     back = read_motion(file)
     a, b = unpack_words(motion_features(source), N_BITS), unpack_words(motion_features(back), N_BITS)
     assert a.shape == b.shape
@@ -120,9 +120,9 @@ def test_several_motions_go_to_a_directory_named_by_motion(db, tmp_path):
         mocapdb.ingest(con, [tmp_path / "86_09.npz"])
         report = mocapdb.export_joints(con, ["86_09", NAMES["bvh"]], tmp_path / "dir", format="csv")
         ids = [r[0] for r in con.execute("SELECT motion_id FROM motions WHERE name = '86_09' ORDER BY 1").fetchall()]
-    names = sorted(p.name for *_, p in report.written)
+    names = sorted(p.name for _, _, p, _ in report.written)
     assert names == sorted([f"86_09_{ids[0]}.csv", f"86_09_{ids[1]}.csv", f"{NAMES['bvh']}.csv"])
-    assert all(p.parent == tmp_path / "dir" for *_, p in report.written)
+    assert all(p.parent == tmp_path / "dir" for _, _, p, _ in report.written)
 
 
 @pytest.mark.slow

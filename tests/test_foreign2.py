@@ -27,7 +27,7 @@ FOREIGN2 = {
                                           "skeleton test_mass_kg.asf read by its shape and bone names "
                                           "(not the CMU names)"]),
     "bvh/kinect_clap_nan.bvh": ("ingested", ["lost tracking (NaN, infinite or absurd values) interpolated in "
-                                             "97 frames"]),
+                                             "97 frames", "unit cm: the only unit giving the legs"]),
     "bvh/dog_D1_007_KAN01_001.bvh": ("failed", "not a human skeleton: it stands upright"),
     "bvh/chicken_walk.bvh": ("failed", "not a humanoid skeleton mocapdb can map: cannot find the joints of an arm"),
     "c3d/vicon53_freeform.c3d": ("ingested", ["rebuilt Nick01:RBWT in 37 of the 37 frames",
@@ -98,7 +98,7 @@ def test_every_file_gets_its_outcome_and_its_notes(ingested, open_db):
     failed = sorted(p for p, (outcome, _, _) in log.items() if outcome == "failed")
     assert sorted(ln.split(": ", 1)[0][len("failed  "):] for ln in lines if ln.startswith("failed  ")) == failed
     assert len(lines) == len(failed) + 2 and not any(ln.startswith("note") for ln in lines)
-    assert lines[-2].startswith("11 ingested, 0 skipped, 7 failed, 2 not motion files; 5 read with notes (")
+    assert lines[-2].startswith("11 ingested, 0 skipped, 7 failed, 2 not motion files; 9 read with notes (")
     assert lines[-1] == f"every file's outcome, reason and notes: ingest_log run 1, and {report}"
     # --report: the same rows as CSV
     with report.open(newline="", encoding="utf-8") as fh:
@@ -115,7 +115,9 @@ def test_notes_are_stored_with_the_motion_and_the_source_rereads(ingested, open_
     rows = dict(con.execute("SELECT name, reader_options FROM motions").fetchall())
     cortex = json.loads(rows["cortex_dotted_trial1"])
     assert cortex["source_frames"] == [844, 1286] and cortex["notes"][0].startswith("kept frames 844–1286")
-    assert rows["mixamo_freebvh"] is None   # nothing to say, nothing stored
+    # a BVH's only note: the unit its lengths were taken in (issue 33 item 1)
+    assert json.loads(rows["mixamo_freebvh"])["notes"] == ["unit cm: the only unit giving the legs an adult's "
+                                                           "length (0.83 m)"]
     for name in ("cortex_dotted_trial1", "kinect_clap_nan", "test_mass_kg"):
         mid, n = con.execute("SELECT motion_id, n_source_frames FROM motions WHERE name = ?", [name]).fetchall()[0]
         assert source_motion(con, mid).n_frames == n

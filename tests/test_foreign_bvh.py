@@ -280,7 +280,7 @@ def test_a_mixed_folder_stores_every_good_file(tmp_path, open_db):
     assert sorted(p.split("/")[-1] for p in unsupported) == ["02.asf", "notes.txt"]
     assert "unsupported file type '.txt'" in unsupported[str(folder / "notes.txt")]
     assert con.execute("SELECT count(*) FROM motions").fetchall()[0][0] == 3
-    assert report.summary() == "3 ingested, 0 skipped, 3 failed, 2 not motion files"
+    assert report.summary() == "3 ingested, 0 skipped, 3 failed, 2 not motion files; 1 read with notes"   # a unit
 
 
 @pytest.mark.shared

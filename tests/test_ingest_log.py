@@ -57,7 +57,9 @@ def test_every_file_of_an_ingest_gets_its_row(tmp_path, open_db):
             assert mid == stored[path] and reason is None
         else:
             assert mid is None and reason.startswith(("an ASF skeleton", "unsupported file type '.txt'"))
-    assert all(r[4] is None for r in rows)   # the sample's readers had nothing to say
+    # the sample's readers had nothing to say but the BVH's unit (issue 33 item 1)
+    assert {r[0]: r[4] for r in rows if r[4] is not None} == {
+        str(SAMPLE_BVH): "unit inch: the only unit giving the legs an adult's length (0.82 m)"}
     # again: every motion file is skipped, with why
     again = mocapdb.ingest(con, [SAMPLE])
     assert again.run_id == report.run_id + 1

@@ -403,9 +403,9 @@ def test_a_tampered_archive_is_refused_naming_what_is_missing_or_extra(archive, 
     pq.write_table(t.slice(0, t.num_rows - 5), parts["features"][0])
     for said in _refusals(a, db):
         assert f"holds {t.num_rows - 5} rows, manifest.json says {t.num_rows}" in said, said
-    # an archive of an older mocapdb (no parts in its manifest): its totals, and each motion's frames
+    # an archive of an older mocapdb (no parts nor digests in its manifest): its totals, and each motion's frames
     a, parts = _tampered(out, tmp_path, "older")
-    old = {k: v for k, v in manifest.items() if k != "parts"}
+    old = {k: v for k, v in manifest.items() if k not in ("parts", "digests")}
     (a / "manifest.json").write_text(json.dumps(old))
     parts["annotations"][0].unlink()
     for said in _refusals(a, db):
@@ -421,6 +421,24 @@ def test_a_tampered_archive_is_refused_naming_what_is_missing_or_extra(archive, 
     r = run(db, "attach", a, code=1)
     assert f"motion {first} (" in r.output and "has 0 feature rows" in r.output, r.output
     assert not db.exists() or api.connect(db).execute("SELECT count(*) FROM motions").fetchall() == [(0,)]
+
+
+@pytest.mark.shared
+def test_rows_rewritten_in_place_are_refused_by_their_digest(archive, tmp_path):
+    """Issue 33: an archive whose annotation labels were rewritten (the same rows) was attached and imported
+    silently; the manifest now holds each part's SHA-256 beside its rows."""
+    out, _ = archive
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert sorted(manifest["digests"]) == sorted(manifest["parts"]) and all(
+        len(v) == 64 for v in manifest["digests"].values())
+    a, parts = _tampered(out, tmp_path, "relabelled")
+    part = next(p for p in parts["annotations"] if pq.read_metadata(p).num_rows)
+    t = pq.read_table(part)
+    k = t.schema.get_field_index("label")
+    pq.write_table(t.set_column(k, "label", pa.array(["jump"] * t.num_rows, t.schema.field("label").type)), part)
+    for said in _refusals(a, tmp_path / "t.duckdb"):
+        assert (f"does not match its manifest.json: {part.relative_to(a).as_posix()} is not the file written (its "
+                "bytes differ from the SHA-256 in manifest.json: changed since)") in said, said
 
 
 @pytest.mark.shared

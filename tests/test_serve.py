@@ -243,7 +243,7 @@ def test_without_an_ingest_log_nothing_is_said_about_refused_files(sample_db, tm
 def test_stats_command(sample_db):
     r = run(sample_db, "stats")
     lines = r.output.splitlines()
-    assert lines[0] == "3 motion(s), 0.02 hours"
+    assert lines[0] == "3 motion(s), 1 min 22 s in all (0.02281 hours)"   # as the summary page (issue 33 item 7)
     assert "hours and motions per source format and rate:" in lines and "files refused at their latest ingest:" in lines
     assert any(ln.split()[:3] == ["bvh", "120", "1"] for ln in lines)
     data = json.loads(run(sample_db, "stats", "--format", "json").output)

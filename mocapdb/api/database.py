@@ -18,6 +18,7 @@ from mocapdb.storage.ingest import IngestReport, delete_motions, ingest_files
 from mocapdb.storage.joint_export import JointsExport
 from mocapdb.storage.joint_export import export_joints as storage_export_joints
 from mocapdb.storage.motions import documents_by_name, motions_to_delete, relocate_sources
+from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.schema import require_own_tables
 from mocapdb.warmup import sample_files
 
@@ -237,39 +238,60 @@ def export_features(con, directory, *, overwrite=False) -> int:
     return parquet.export_features(con, directory, overwrite=overwrite)
 
 
-def export_joints(con, motions, out, *, format="npz", progress=None) -> JointsExport:
+def export_joints(con, motions, out, *, all=False, format="npz", where=None, label=None, model=DEFAULT_MODEL,
+                  unit=None, scale=None, progress=None) -> JointsExport:
     """Write the 24 canonical joints of motions as files for other tools (fairmotion, Blender, aitviewer).
 
     Each motion's source is re-read with the options it was ingested with
     (as the viewer does): its joints at the recording's own rate, in metres,
-    Y up, in ``JOINT_NAMES`` order. See
-    :func:`mocapdb.storage.joint_export.export_joints` and
-    :mod:`mocapdb.readers.joints_write`.
+    Y up, in ``JOINT_NAMES`` order. A BVH file declares no unit: the reader
+    takes the one giving the legs an adult's length (or CMU's 1/0.45 inch
+    for CMU-named bones when none does), which ``unit`` or ``scale``
+    overrides. See :func:`mocapdb.storage.joint_export.export_joints`,
+    :mod:`mocapdb.readers.joints_write` and :mod:`mocapdb.readers.units`.
 
     Parameters
     ----------
     con : duckdb.DuckDBPyConnection
-    motions : iterable of int or str
-        Motion ids or names.
+    motions : iterable of int or str, or None
+        Motion ids or names; None (or empty) with ``all``, ``where`` or
+        ``label``: every motion they keep.
     out : str or Path
-        The file (one motion, ``out`` ending in ``.<format>``), else a
-        directory of ``<motion name>.<format>`` files.
+        The file (one motion, ``out`` ending in ``.<format>``; its folder is
+        created), else a directory (created) of ``<motion name>.<format>``
+        files and ``units.json`` (each file's source unit and how it was known).
     format : {"npz", "csv", "bvh"}, keyword-only
-        ``npz``: ``joints`` (frames × 24 × 3), ``fps``, ``joint_names``;
-        ``csv``: a row per frame (``frame``, ``time``, ``<joint>_x/_y/_z``);
-        ``bvh``: a skeleton of the canonical joints that mocapdb (and other
-        tools) read back.
+        ``npz``: ``joints`` (frames × 24 × 3), ``fps``, ``joint_names``,
+        ``source_unit``, ``metres_per_source_unit``; ``csv``: a row per
+        frame (``frame``, ``time``, ``<joint>_x/_y/_z``); ``bvh``: a skeleton
+        of the canonical joints that mocapdb (and other tools) read back.
+    all : bool, keyword-only
+        Every motion (that ``where`` and ``label`` keep): said, so that no
+        motions given by mistake never exports a whole archive.
+    where : str, optional, keyword-only
+        A SQL condition over ``motions``' columns (``"format = 'bvh'"``).
+    label : str, optional, keyword-only
+        Motions with a stored segment of this label (of ``model``).
+    model : str, keyword-only
+    unit : {"m", "cm", "mm", "inch", "cmu"}, optional, keyword-only
+    scale : float, optional, keyword-only
+        Metres per unit of BVH sources (instead of ``unit``).
     progress : callable, optional, keyword-only
         ``progress(n_done, n_motions, name)`` once per motion.
 
     Returns
     -------
     mocapdb.storage.joint_export.JointsExport
-        ``written`` ``(motion_id, name, path)``; ``failed`` ``(motion_id, name,
-        reason)`` for each motion whose source could not be read (the
-        command exits 1 when it is not empty).
+        ``written`` ``(motion_id, name, path, source unit)``, ``failed``
+        ``(motion_id, name, reason)``.
     """
-    return storage_export_joints(con, motions, out, format=format, progress=progress)
+    motions = list(motions or ()) or None
+    if motions is None and not all and where is None and label is None:
+        raise ParameterError("give motions (ids or names), all=True, where or label")
+    if motions is not None and all:
+        raise ParameterError("give motions or all=True, not both")
+    return storage_export_joints(con, motions, out, format=format, where=where, label=label, model=model, unit=unit,
+                                 scale=scale, progress=progress)
 
 
 def import_features(con, directory):

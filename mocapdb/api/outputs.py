@@ -13,6 +13,7 @@ from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_rows, one_motion
 from mocapdb.storage.names import safe_stem
+from mocapdb.storage.schema import check_database_file
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.stats import archive_stats
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
@@ -289,11 +290,18 @@ def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, timeout=None,
         raise ParameterError(f"timeout must be a number of seconds > 0, got {timeout!r}")
     if not Path(db).is_file():
         raise SchemaError(f"{db}: no such database file (a mistyped --db? `mocapdb ingest` creates one)")
+    check_database_file(db)   # a CSV or Parquet named as --db: refused before any request opens it
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise ParameterError(f"port must be an integer from 0 to 65535, got {port!r}")
     try:
+        # the web stack itself, now: mocapdb.server imports it only where it is used, so a missing
+        # uvicorn would otherwise surface mid-start as "No module named 'uvicorn'"
+        import starlette  # noqa: F401
+        import uvicorn  # noqa: F401
+
         from mocapdb.server import serve as run
     except ImportError as exc:
-        raise MocapdbError(f"mocapdb serve needs the serve extra: pip install \"mocapdb[serve]\" (starlette and "
-                           f"uvicorn; {exc})") from None
+        missing = exc.name or "starlette or uvicorn"
+        raise MocapdbError(f"mocapdb serve needs the serve extra, which is not installed ({missing} is missing): "
+                           f"pip install \"mocapdb[serve]\" (Starlette and uvicorn)") from None
     run(db, host=host, port=port, model=model, ready=ready, **({} if timeout is None else {"timeout": timeout}))

@@ -7,7 +7,7 @@ import click
 
 import mocapdb.api as api
 from mocapdb.errors import PartialAnnotationError
-from mocapdb.cli.options import (FORMATS, annotation_options, keyframes_option, map_option, model_option,
+from mocapdb.cli.options import (FORMATS, annotation_options, keyframes_option, make_parent, map_option, model_option,
                                  reader_options, silent_option, tau_option, truth_help)
 from mocapdb.cli.group import command, open_db, progress_bar, bar_progress
 from mocapdb.cli.output import write_rows, echo_report, print_scores, frame_rates
@@ -20,8 +20,9 @@ from mocapdb.cli.output import write_rows, echo_report, print_scores, frame_rate
               show_default=True, help="table/csv/json print (or write --out); parquet writes the segments to "
                                       "--out; eaf writes ELAN files (one tier per label, the source file as "
                                       "linked media): --out FILE.eaf for one motion, else a directory.")
-@click.option("--out", type=click.Path(path_type=Path), help="Write to a file (a directory for eaf of several "
-                                                             "motions) instead of stdout.")
+@click.option("--out", type=click.Path(path_type=Path), callback=make_parent,
+              help="Write to a file (a directory for eaf of several motions) instead of stdout; its folder is "
+                   "made.")
 @click.option("--video", is_flag=True, help="With --format eaf: also write each motion's stick figure as an MP4 "
                                             "beside its .eaf and link it, so ELAN plays it with the tiers "
                                             "(needs ffmpeg).")

@@ -8,7 +8,8 @@ import click
 
 import mocapdb.api as api
 from mocapdb.errors import escape_control
-from mocapdb.cli.options import format_option, reader_options, silent_option
+from mocapdb.cli.options import (UNIT_NAMES, format_option, make_parent, model_option, reader_options,
+                                 silent_option)
 from mocapdb.cli.group import bar_progress, command, open_db, progress_bar
 from mocapdb.cli.output import write_rows, echo_report
 
@@ -22,7 +23,7 @@ from mocapdb.cli.output import write_rows, echo_report
 @reader_options
 @click.option("--replace", is_flag=True, help="Read files already stored (same bytes) again and replace their "
                                               "motions, e.g. with a corrected --joint-map (default: skip them).")
-@click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="Also write every file's row of the ingest_log table (outcome, reason, the reader's notes, "
                    "motion_id) to this CSV file.")
 @silent_option
@@ -121,11 +122,16 @@ def sql(ctx, query, sql_file, fmt, read_only):
     """
     if (query is None) == (sql_file is None):
         raise click.UsageError("give a QUERY, '-' (stdin) or --file FILE (one of them)")
-    if sql_file is not None:
-        query = sql_file.read()
-    elif query == "-":
-        with click.open_file("-", encoding="utf-8") as stdin:
-            query = stdin.read()
+    try:
+        if sql_file is not None:
+            query = sql_file.read()
+        elif query == "-":
+            with click.open_file("-", encoding="utf-8") as stdin:
+                query = stdin.read()
+    except UnicodeDecodeError as exc:   # a binary file given as the query
+        where = getattr(sql_file, "name", "stdin")
+        raise click.UsageError(f"{where} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
+                               f"{exc.start}): the query must be SQL text") from None
     con = open_db(ctx, read_only=read_only)
     statements = con.extract_statements(query)
     if not statements:
@@ -175,32 +181,50 @@ def export_features(ctx, directory, overwrite):
 
 
 @command("export-joints")
-@click.argument("motions", nargs=-1, required=True)
+@click.argument("motions", nargs=-1)
+@click.option("--all", "all", is_flag=True, help="Every motion (that --where and --label keep).")
+@click.option("--where", metavar="SQL", help="Motions a SQL condition over the motions table holds for, e.g. "
+                                             "\"format = 'bvh' AND source_path LIKE '%/session1/%'\".")
+@click.option("--label", help="Motions with a stored segment of this label (run annotate first; --model's).")
+@model_option("Model whose stored segments --label reads (default: the shipped default model).")
 @click.option("--format", "fmt", type=click.Choice(("npz", "csv", "bvh")), default="npz", show_default=True,
-              help="npz: joints (frames × 24 × 3), fps, joint_names; csv: a row per frame (frame, time, "
-                   "<joint>_x/_y/_z); bvh: a skeleton of the canonical joints.")
-@click.option("--out", required=True, type=click.Path(path_type=Path),
-              help="The file for one motion (ending in .npz, .csv or .bvh), else a directory of files named by "
-                   "motion.")
+              help="npz: joints (frames × 24 × 3), fps, joint_names, source_unit; csv: a row per frame (frame, "
+                   "time, <joint>_x/_y/_z); bvh: a skeleton of the canonical joints.")
+@click.option("--out", required=True, type=click.Path(path_type=Path), callback=make_parent,
+              help="The file for one motion (ending in .npz, .csv or .bvh), else a directory (created) of files "
+                   "named by motion, with units.json.")
+@click.option("--unit", type=click.Choice(UNIT_NAMES),
+              help="The unit of BVH sources (default: decided from the legs' length and the bone names; cmu: "
+                   "CMU's 1/0.45 inch).")
+@click.option("--scale", type=float, help="Or: metres per unit of BVH sources.")
 @silent_option
 @click.pass_context
-def export_joints(ctx, motions, fmt, out, silent):
-    """Write the 24 canonical joints of motions (ids or names) for other tools.
+def export_joints(ctx, motions, all, where, label, model, fmt, out, unit, scale, silent):
+    """Write the 24 canonical joints of motions (ids or names, --all, --where, --label) for other tools.
 
     Each motion's source file is read again as it was ingested: its joints
     at the recording's own rate, in metres, Y up, in JOINT_NAMES order. A
+    BVH file declares no unit: it is the one giving the legs an adult's
+    length (each line says which and why; --unit or --scale overrides). A
     motion that cannot be exported (its source moved) is named; the others
     are written, and the exit status is 1.
 
     \b
-    Example:
+    Examples:
       mocapdb --db demo.duckdb export-joints 86_09 --format bvh --out 86_09.bvh
+      mocapdb --db demo.duckdb export-joints --where "format = 'bvh'" --out joints/
+      mocapdb --db demo.duckdb export-joints --label jump --format csv --out jumps/
     """
+    if not motions and not (all or where is not None or label is not None):
+        raise click.UsageError("give motion ids or names, --all, --where SQL or --label LABEL")
+    if motions and all:
+        raise click.UsageError("give motion ids or names, or --all, not both")
     con = open_db(ctx, read_only=True)
     with progress_bar(None, "export-joints", silent, unit="motion") as bar:
-        report = api.export_joints(con, motions, out, format=fmt, progress=bar_progress(bar))
-    for mid, name, path in report.written:   # a name is data: never its control characters raw
-        click.echo(escape_control(f"wrote {path} (motion {mid} {name})"))
+        report = api.export_joints(con, list(motions) or None, out, all=all, format=fmt, where=where, label=label,
+                                   model=model, unit=unit, scale=scale, progress=bar_progress(bar))
+    for mid, name, path, how in report.written:   # a name is data: never its control characters raw
+        click.echo(escape_control(f"wrote {path} (motion {mid} {name}; source unit {how})"))
     for mid, name, reason in report.failed:
         click.echo(escape_control(f"failed  {reason}"), err=True)
     if report.failed:
@@ -233,7 +257,7 @@ def import_features(ctx, directory):
 
 @command("convert-labels")
 @click.argument("path", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="The label CSV to write (default: print it).")
 @click.option("--document", help="Per-frame labels: the document (default: the file's stem); a segment table: "
                                  "keep only its rows.")

@@ -12,7 +12,7 @@ from pathlib import Path
 import click
 
 import mocapdb.api as api
-from mocapdb.errors import MocapdbError, clip_message
+from mocapdb.errors import MocapdbError, clip_message, os_error_text
 
 
 _UDF_WRAPPER = re.compile(r"^Invalid Input Error: Python exception occurred while executing the UDF: "
@@ -34,7 +34,9 @@ def _errors_as_one_line(fn):
         except Exception as exc:
             if os.environ.get("MOCAPDB_DEBUG"):
                 raise
-            text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            # a file error says the path and the reason, never Python's "[Errno 2] …"
+            raw = os_error_text(exc) if isinstance(exc, OSError) else str(exc).strip()
+            text = raw.splitlines()[0] if raw else ""
             # a library error raised inside a SQL function reaches us wrapped by DuckDB
             text = clip_message(_UDF_WRAPPER.sub("", text))  # a megabyte name is not echoed whole
             if not isinstance(exc, (MocapdbError, duckdb.Error, ImportError, OSError)):

@@ -6,8 +6,26 @@ from pathlib import Path
 
 import click
 
+from mocapdb.errors import os_error_text
+
 
 FORMATS = ("table", "csv", "json")
+
+
+def make_parent(ctx, param, value):
+    """The callback of every option naming a file to write (``--out``, ``--report``): its folder is made,
+    as a user writing ``--out results/x.eaf`` means; a folder that cannot be made is a usage error naming
+    why (never Python's ``[Errno …]``)."""
+    if value is not None:
+        folder = Path(value).parent
+        blocker = next((p for p in (folder, *folder.parents) if p.exists() and not p.is_dir()), None)
+        if blocker is not None:
+            raise click.BadParameter(f"cannot make its folder: {blocker} is a file", ctx, param)
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise click.BadParameter(f"cannot make its folder ({os_error_text(exc)})", ctx, param) from None
+    return value
 
 
 def model_option(help="Model name (default: the shipped default model)."):
@@ -39,6 +57,11 @@ min_won_option = click.option("--min-won/--no-min-won", default=None,
 margin_option = click.option("--margin", type=float,
                              help="Leave frames unlabelled where the best label wins by less than this "
                                   "(default: the model's margin, 0 for the shipped models = off, as the paper).")
+
+
+#: the units a BVH source may be given in (export-joints --unit): mocapdb.readers.units.UNITS' names, which the
+#: API checks (the CLI imports only mocapdb.api; tests/test_units.py holds the two equal)
+UNIT_NAMES = ("m", "cm", "mm", "inch", "cmu")
 
 
 format_option = click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True)

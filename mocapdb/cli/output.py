@@ -11,8 +11,12 @@ import click
 from mocapdb.errors import escape_control
 
 
-def write_rows(rows, columns, fmt, out=None):
-    """Print rows as an aligned table, CSV or JSON (to stdout or ``out``)."""
+def write_rows(rows, columns, fmt, out=None, *, width=None):
+    """Print rows as an aligned table, CSV or JSON (to stdout or ``out``).
+
+    ``width``: a table's lines kept within this many characters (the terminal's), the widest columns
+    narrowed and their longer cells cut in the middle (a path keeps its start and its file name).
+    """
     stream = io.StringIO()
     if fmt == "csv":
         w = csv.writer(stream, lineterminator="\n")
@@ -24,6 +28,9 @@ def write_rows(rows, columns, fmt, out=None):
     else:
         cells = [[_cell(v) for v in r] for r in rows]
         widths = [max([len(str(c))] + [len(r[i]) for r in cells]) for i, c in enumerate(columns)]
+        if width is not None:
+            widths = _narrowed(widths, [len(str(c)) for c in columns], width)
+            cells = [[_cut(c, w) for c, w in zip(r, widths)] for r in cells]
         stream.write("  ".join(str(c).ljust(w) for c, w in zip(columns, widths)).rstrip() + "\n")
         stream.write("  ".join("-" * w for w in widths) + "\n")
         for r in cells:
@@ -33,6 +40,42 @@ def write_rows(rows, columns, fmt, out=None):
         click.echo(stream.getvalue(), nl=False)
     else:
         Path(out).write_text(stream.getvalue(), encoding="utf-8")
+
+
+#: a column narrowed to fit the terminal keeps at least this many characters (or its heading's)
+_MIN_COLUMN = 12
+
+
+def _narrowed(widths, headings, total):
+    """Column widths whose table (two spaces between columns) fits ``total`` characters where it can:
+    the widest column gives up a character at a time."""
+    widths = list(widths)
+    floor = [max(h, _MIN_COLUMN) for h in headings]
+    while sum(widths) + 2 * (len(widths) - 1) > total:
+        k = max(range(len(widths)), key=lambda i: widths[i] - floor[i])
+        if widths[k] <= floor[k]:
+            break
+        widths[k] -= 1
+    return widths
+
+
+def _cut(text, width):
+    """``text`` within ``width`` characters: its start and end kept, the middle an ellipsis."""
+    if len(text) <= width:
+        return text
+    tail = (width - 1) // 2
+    return text[:width - 1 - tail] + "…" + (text[-tail:] if tail else "")
+
+
+def duration(seconds) -> str:
+    """A duration as the pages of ``serve`` write it (``common.js``): ``12.3 s``, ``3 min 09 s``,
+    ``12 h 05 min``."""
+    s = float(seconds)
+    if s < 59.95:
+        return f"{s:.1f} s"
+    whole = round(s)
+    m, h = whole // 60, whole // 3600
+    return f"{h} h {m % 60:02d} min" if h else f"{m} min {whole % 60:02d} s"
 
 
 def _cell(v):

@@ -1,16 +1,19 @@
 """Commands that draw, show and search (:mod:`mocapdb.api.outputs`)."""
 from __future__ import annotations
 
+import os
 import re
+import shutil
+import sys
 from pathlib import Path
 
 import click
 
 import mocapdb.api as api
-from mocapdb.cli.options import (FORMATS, keyframes_option, map_option, model_option, silent_option, tau_option,
-                                 truth_help)
+from mocapdb.cli.options import (FORMATS, keyframes_option, make_parent, map_option, model_option, silent_option,
+                                 tau_option, truth_help)
 from mocapdb.cli.group import command, open_db, progress_bar, bar_progress
-from mocapdb.cli.output import write_rows
+from mocapdb.cli.output import duration, write_rows
 
 
 @command()
@@ -20,7 +23,7 @@ from mocapdb.cli.output import write_rows
                    "functions per class, white above tau (Fig. 3a); template: a class template, real and "
                    "quantized (Fig. 1c/d); tau: P/R/F over tau against --truth (Fig. 8); timeline: a motion's "
                    "labels over time, against --truth if given (Figs. 6/7; 'annotation' is its former name).")
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="Image file (format from the suffix: .png, .pdf, .svg).")
 @model_option()
 @click.option("--motion", help="Motion id or name (delta, timeline).")
@@ -51,7 +54,7 @@ def report(ctx, figure, out, model, motion, class_name, truth, label_map, tau, k
 
 @command()
 @click.argument("motion", required=False)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), callback=make_parent,
               help="The HTML page of MOTION (default: <motion name>.html here).")
 @click.option("--all", "all", type=click.Path(file_okay=False, path_type=Path),
               help="Instead: write one page per motion and index.html into this directory.")
@@ -109,7 +112,8 @@ def _stretch(text):
 @click.option("--format", "fmt", type=click.Choice(FORMATS + ("html",)), default="table", show_default=True,
               help="table/csv/json print (or write --out); html writes --out DIR/index.html listing the results, "
                    "linked to a viewer page per motion at each hit.")
-@click.option("--out", type=click.Path(path_type=Path), help="Write to a file (a directory for html).")
+@click.option("--out", type=click.Path(path_type=Path), callback=make_parent,
+              help="Write to a file (a directory for html).")
 @model_option("Model whose annotation the html pages show.")
 @silent_option
 @click.pass_context
@@ -189,7 +193,12 @@ def stats(ctx, model, table, fmt):
               "labels": f"annotated hours per label (model {model})",
               "refused": "files refused at their latest ingest"}
     if table is None:
-        click.echo(f"{s.motions} motion(s), {s.hours:.2f} hours")
+        click.echo(f"{s.motions} motion(s), {duration(s.hours * 3600)} in all ({s.hours:.4g} hours)")
+    # within the terminal (a line as wide as it wraps on some); piped into a file or grep, whole
+    columns = os.environ.get("COLUMNS", "")
+    width = (int(columns) if columns.isdigit() else shutil.get_terminal_size().columns if sys.stdout.isatty()
+             else None)
+    width = None if width is None else width - 1
     for name in chosen:
         t = tables[name]
         if table is None:
@@ -200,7 +209,12 @@ def stats(ctx, model, table, fmt):
                            f"{', '.join(s.annotated_models) or 'none'})")
                 continue
         cols = list(t.column_names)
-        write_rows(list(zip(*(t.column(c).to_pylist() for c in cols))), cols, fmt)
+        rows = list(zip(*(t.column(c).to_pylist() for c in cols)))
+        if fmt == "table" and "hours" in cols:   # for a reader, as the summary page writes it; csv/json keep hours
+            k = cols.index("hours")
+            rows = [(*r[:k], duration(r[k] * 3600), *r[k + 1:]) for r in rows]
+            cols = [*cols[:k], "duration", *cols[k + 1:]]
+        write_rows(rows, cols, fmt, width=width if fmt == "table" else None)
 
 
 @command()

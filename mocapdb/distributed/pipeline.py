@@ -23,6 +23,7 @@ import logging
 import math
 import os
 import re
+import socket
 import warnings
 from dataclasses import dataclass
 from datetime import datetime
@@ -38,7 +39,7 @@ from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
 from mocapdb.readers import MOTION_SUFFIXES, ReaderOptions, companion_kind, motion_files
 from mocapdb.storage.ingest import IngestReport
 from mocapdb.storage.model_store import DEFAULT_MODEL, load_model
-from mocapdb.storage.parquet import archive_parts, table_schemas, write_manifest
+from mocapdb.storage.parquet import archive_parts, part_digests, table_schemas, write_manifest
 from mocapdb.storage.schema import open_database
 
 log = logging.getLogger("mocapdb")
@@ -143,6 +144,7 @@ def ray_session(ray, *, address=None, num_cpus=None):
     if started:
         quiet = {"logging_level": logging.WARNING, "log_to_driver": False}
         if address is not None:
+            _check_reachable(address)
             try:
                 ray.init(address=address, **quiet)
             except (ConnectionError, ray.exceptions.AuthenticationError) as exc:
@@ -162,6 +164,39 @@ def ray_session(ray, *, address=None, num_cpus=None):
 #: what a client of a cluster with token authentication needs (Ray ≥ 2.52; docs/CLUSTER.md "Archives larger than one machine")
 TOKEN_AUTH = ("a cluster started with token authentication (RAY_AUTH_MODE=token) needs it here too: "
               "RAY_AUTH_MODE=token and its token in RAY_AUTH_TOKEN_PATH=FILE (or RAY_AUTH_TOKEN, or ~/.ray/auth_token)")
+
+
+#: seconds to wait for a cluster's address to answer before Ray is asked to connect (Ray itself retries
+#: an address nobody answers at for minutes)
+CONNECT_TIMEOUT = 5.0
+
+
+def _check_reachable(address) -> None:
+    """Refuse at once a ``host:port`` (or ``ray://host:port``) that no host answers at: a name that does
+    not resolve, a port nothing listens on, or no answer within :data:`CONNECT_TIMEOUT` seconds. Other
+    forms (``auto``, ``local``) are Ray's to resolve.
+
+    Raises
+    ------
+    MocapdbError
+    """
+    text = str(address)
+    hostport = text.split("://", 1)[1] if "://" in text else text
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return
+    host = host.strip("[]")   # an IPv6 address in brackets
+    try:
+        with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT):
+            pass
+    except socket.gaierror as exc:
+        raise MocapdbError(f"cannot connect to the Ray cluster at {address}: no such host {host!r} "
+                           f"({exc.strerror or exc})") from None
+    except (OSError, ValueError, OverflowError) as exc:
+        why = "no answer within {:g} s".format(CONNECT_TIMEOUT) if isinstance(exc, TimeoutError) else \
+            (getattr(exc, "strerror", None) or str(exc))
+        raise MocapdbError(f"cannot connect to the Ray cluster at {address}: {why} (is the cluster's head "
+                           "running, and the address its GCS address, e.g. HOST:6379?)") from None
 
 
 def _cannot_connect(address, exc) -> str:
@@ -302,8 +337,9 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
                          "failed": len(report.failed), "skipped": len(report.skipped),
                          "source_frames": report.source_frames, "segments": report.segments,
                          "batch_files": batch_files, "bucket_motions": bucket_motions,
-                         # every part and its rows: attach and import check the archive against them
-                         "parts": archive_parts(out)})
+                         # every part, its rows and its bytes' SHA-256: attach and import check the archive
+                         # against them (rows rewritten in place keep their count, not their digest)
+                         "parts": (found := archive_parts(out)), "digests": part_digests(out, found)})
     log.info("ray_annotate: %s", report.summary())
     return report
 

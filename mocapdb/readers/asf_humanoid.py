@@ -82,8 +82,8 @@ def asf_humanoid_joints(skeleton, nodes: np.ndarray, root_rotation: np.ndarray):
         The AMC root rotation when its x axis is the hip axis (the CMU
         convention feature #40 relies on), else None (#40 then uses the hip axis).
     jm : JointMap
-    problem : str or None
-        Why the body is not a human (:func:`~mocapdb.readers.humanoid.humanoid_problem`).
+    problem : tuple or None
+        ``(what, why)``: why the body is not a human (:func:`~mocapdb.readers.humanoid.humanoid_problem`).
     """
     jm = asf_joint_map(skeleton)
     joints = np.einsum("jp,fpc->fjc", jm.weights, nodes)

@@ -55,17 +55,23 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
+from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, MOTION, READ_BLOCK, read_head
 from mocapdb.readers.bvh_mapping import auto_map, bvh_joint_map, plan
 from mocapdb.readers.bvh_tracking import lost_samples, mend, pose_frame
 from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.kinematics import _rotate_columns
 from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
-from mocapdb.readers.sources import max_decompressed, motion_stem, open_stream, read_bytes, stream_size
+from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
+                                     stream_size)
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
+from mocapdb.readers.units import bvh_unit
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
            "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
+
+#: bytes of a BVH file read and parsed at a time, header and motion lines (tests make it small)
+_READ_BLOCK = READ_BLOCK
 
 #: BVH channel names (case-insensitive in files) -> (kind, axis): kind 0 =
 #: position, 1 = rotation; axis 0 = x, 1 = y, 2 = z
@@ -190,15 +196,6 @@ def fps_from_frame_time(frame_time: float) -> float:
 # parsing
 
 _TOKEN = re.compile(rb"[{}]|[^\s{}]+")
-_FRAMES = re.compile(rb"Frames\s*:?\s*(\S*)", re.IGNORECASE)
-_FRAME_TIME = re.compile(rb"Frame\s*Time\s*:?\s*([^\s]*)", re.IGNORECASE)
-_MOTION = re.compile(rb"(?m)^[ \t]*MOTION\b")
-
-
-#: bytes of a BVH file read and parsed at a time: the text is never held whole
-_READ_BLOCK = 1 << 22
-
-
 def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
     """Parse the bytes of a BVH file into hierarchy and channel values; see :func:`parse_bvh_stream`.
 
@@ -210,22 +207,6 @@ def parse_bvh(data: bytes, *, path="<bvh>") -> BvhData:
     return parse_bvh_stream(io.BytesIO(data), path=path, size=len(data))
 
 
-def _read_head(fh, path):
-    """The file's bytes up to the end of the ``Frame Time`` line (or all, if there is none), and
-    whether the stream is exhausted."""
-    head = b""
-    while True:
-        chunk = fh.read(_READ_BLOCK)
-        head += chunk
-        if not chunk:
-            return head, True
-        m = _MOTION.search(head)
-        if m is not None:
-            tm = _FRAME_TIME.search(head, m.end(), m.end() + 4096)
-            if tm is not None and head.find(b"\n", tm.end()) >= 0:
-                return head, False
-
-
 class _MotionLines:
     """A BVH stream after its header (read whole): the hierarchy, ``n_frames``, ``frame_time``; iterating
     gives the channel values of a 4 MiB block of motion lines at a time ((rows, n_channels) float64), never
@@ -234,14 +215,14 @@ class _MotionLines:
     def __init__(self, fh, path, size):
         self.fh, self.path = fh, str(path)
         path = self.path
-        head, self.eof = _read_head(fh, path)
+        head, self.eof = read_head(fh, path, _READ_BLOCK)
         if head.startswith(b"\xef\xbb\xbf"):
             head = head[3:]
             size = None if size is None else size - 3
         if b"\n" not in head and b"\r" in head:
             head = (head + (b"" if self.eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
             self.eof = True
-        m = _MOTION.search(head)
+        m = MOTION.search(head)
         if m is None:
             if not head.lstrip().upper().startswith(b"HIERARCHY"):
                 raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
@@ -327,7 +308,7 @@ class _LazyLine:
 
 def _parse_motion_header(data, pos, path):
     head = data[pos:pos + 4096]
-    fm = _FRAMES.search(head)
+    fm = FRAMES.search(head)
     if fm is None:
         raise ParseError(path, line_of(data, pos), "expected 'Frames:' after MOTION")
     frames_at = pos + fm.start()
@@ -338,7 +319,7 @@ def _parse_motion_header(data, pos, path):
     n_frames = int(tok)
     if n_frames == 0:
         raise ParseError(path, frames_line, "no frames ('Frames: 0')")
-    tm = _FRAME_TIME.search(head, fm.end())
+    tm = FRAME_TIME.search(head, fm.end())
     if tm is None:
         raise ParseError(path, int(frames_line) + 1, "expected 'Frame Time:' after 'Frames:'")
     line = _LazyLine(data, pos + tm.start())
@@ -599,11 +580,18 @@ def joint_map_template(path) -> str:
     Raises
     ------
     ParseError
-        The file's hierarchy is malformed.
+        The file's hierarchy is malformed, or it is no regular file (a FIFO).
     """
     path = Path(path)
-    data = read_bytes(path)
-    m = _MOTION.search(data)
+    kind = special_kind(path)
+    if kind is not None:   # reading a FIFO would wait for a writer forever, a device never end
+        raise ParseError(path, None, f"{kind}, not a BVH file")
+    try:
+        with open_stream(path) as fh:   # the header only: the motion lines are not needed
+            data, _ = read_head(fh, str(path))
+    except OSError as exc:
+        raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
+    m = MOTION.search(data)
     hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
     tree = hier.tree()
     auto, problem, _ = auto_map(hier, tree)
@@ -843,8 +831,10 @@ def _motion(joints, rot, jm, hier, frame_time, path, joint_map, skip_rest_frame,
         rest = jm.weights @ hier.tree().rest
         problem = humanoid_problem(joints, rest @ up.T if up is not None else rest)
         if problem:
-            raise ParseError(path, None, f"not a human skeleton: {problem}")
+            raise ParseError(path, None, "not a human {}: {}".format(*problem))
     meta["frames"] = (start + 1, stop)
-    meta["notes"] = notes
+    # BVH declares no unit: decided once here, so ingest_log's notes and every export say the same
+    meta["unit"], meta["unit_reason"] = bvh_unit(joints, [j.name for j in hier.joints])
+    meta["notes"] = notes + [f"unit {meta['unit_reason']}"]
     return Motion(joints=np.ascontiguousarray(joints), root_rotation=rot if asf_axes else None,
                   fps=fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)

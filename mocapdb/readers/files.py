@@ -23,12 +23,14 @@ from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import Skeleton, read_asf
 from mocapdb.readers.asf_humanoid import asf_humanoid_joints
 from mocapdb.readers.bvh import read_bvh
+from mocapdb.readers.bvh_head import MAX_HEADER_LINE, check_bvh_start
 from mocapdb.readers.c3d import read_c3d
 from mocapdb.readers.humanoid import MappingError
 from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
 from mocapdb.readers.motion import Motion, check_finite_motion
+from mocapdb.readers.textscan import longest_line
 from mocapdb.readers.options import ReaderOptions
-from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix,
+from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix, open_stream,
                                      special_kind, split_archive)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
@@ -38,6 +40,38 @@ SUPPORTED_EXTENSIONS = (".amc", ".bvh", ".c3d", ".npz")
 
 _CMU_TAKE = re.compile(r"^(\d+)_\d+$")
 _HDM_TAKE = re.compile(r"^HDM_([A-Za-z]+)_")
+
+
+#: bytes of a text recording read to decide whether it can be one, before it is hashed or read whole
+START_BYTES = 1 << 16
+
+
+def check_start(path) -> None:
+    """Refuse a text recording (BVH, AMC, ASF) that cannot be one from its first bytes.
+
+    A file whose first line never ends (500 MiB of NUL bytes as a 0.5 MB ``.bvh.gz``) took minutes and
+    gigabytes to refuse; its first :data:`START_BYTES` say enough: a BVH must start with ``HIERARCHY``,
+    and no line of a BVH header, an AMC or an ASF is longer than :data:`MAX_HEADER_LINE` bytes.
+    ``ingest`` asks this before hashing a file, :func:`read_motion` before reading it.
+
+    Raises
+    ------
+    ParseError
+        Naming the file and what its start shows.
+    OSError
+        The file cannot be read (or decompresses past the cap).
+    """
+    ext = motion_suffix(path)
+    if ext not in (".bvh", ".amc", ".asf"):
+        return
+    with open_stream(path) as fh:   # an OSError (unreadable, over the cap) is the caller's to word
+        head = fh.read(START_BYTES)
+    if ext == ".bvh":
+        check_bvh_start(head, path)
+    elif longest_line(head)[0] > MAX_HEADER_LINE:
+        raise ParseError(path, None, f"a line longer than {MAX_HEADER_LINE:,} bytes within its first "
+                         f"{START_BYTES:,} (an {ext[1:].upper()} file's lines are short: not an {ext[1:].upper()} "
+                         "file?)")
 
 
 def skeleton_candidates(amc_path) -> list:
@@ -173,7 +207,8 @@ def read_asf_amc(amc_path, asf) -> Motion:
             raise ParseError(asf_path, None, f"the skeleton of {amc_path.name} lacks the CMU bone names "
                              f"and is not a humanoid mocapdb can map: {exc}") from None
         if problem:
-            raise ParseError(amc_path, None, f"not a human skeleton ({Path(asf_path).name}): {problem}")
+            what, why = problem
+            raise ParseError(amc_path, None, f"not a human {what} ({Path(asf_path).name}): {why}")
         notes.append(f"skeleton {Path(asf_path).name} read by its shape and bone names (not the CMU names)")
         how = "humanoid mapper"
     # an absurd root translation or ASF unit overflows to inf in FK
@@ -248,6 +283,7 @@ def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None
     try:
         # hostile values overflow in FK; the result is checked for finiteness
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"), options.capped():
+            check_start(path)
             return _read(path, options)
     except MocapdbError:
         raise

@@ -637,12 +637,38 @@ def upright_frames(joints: np.ndarray) -> np.ndarray:
     return vertical & head_up & (hands - feet > 0.25 * leg) & (feet < hips)
 
 
-def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> str | None:
+def _proportions(j, leg) -> dict:
+    """Each measure of :data:`HUMAN_PROPORTIONS`, its median over the joints ``j`` (frames, 24, 3), per
+    median leg ``leg``."""
+    measures = {"arm": 0.5 * (_length(j, "lshoulder", "lelbow") + _length(j, "lelbow", "lwrist")
+                              + _length(j, "rshoulder", "relbow") + _length(j, "relbow", "rwrist")),
+                "trunk": _length(j, "root", "neck"), "hip width": _length(j, "lhip", "rhip"),
+                "shoulder width": _length(j, "lshoulder", "rshoulder")}
+    return {what: float(np.median(values)) / leg for what, values in measures.items()}
+
+
+def _proportion_problems(j, leg) -> list:
+    """The measures ``(what, ratio, lo, hi)`` of the joints ``j`` outside :data:`HUMAN_PROPORTIONS`."""
+    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(j, leg).items()
+            if not HUMAN_PROPORTIONS[what][0] <= ratio <= HUMAN_PROPORTIONS[what][1]]
+
+
+def _leg(j) -> float:
+    return float(np.median(0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
+                                  + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))))
+
+
+def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tuple | None:
     """Why a mapped skeleton is not a human, or None when it is one.
 
     A human has plausible proportions (:data:`HUMAN_PROPORTIONS`, from the
     median bone lengths) and stands upright (:func:`upright_frames`) in its
     rest pose or in at least :data:`MIN_UPRIGHT` of the take's frames.
+    Distances across joints (root → neck) change with the pose: where the
+    rest pose has a human's proportions and only the take's frames miss
+    them, it is the pose that is not a human's (a trunk folded to a tenth of
+    the leg), and the reason says so rather than blaming the skeleton that
+    other takes share.
 
     Parameters
     ----------
@@ -650,25 +676,34 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> str 
         The canonical joints of the take, Y up.
     rest : ndarray, shape (24, 3), optional
         The canonical joints in the skeleton's rest pose, Y up.
+
+    Returns
+    -------
+    tuple or None
+        ``("skeleton", why)`` or ``("pose", why)``: the message is
+        ``not a human {what}: {why}``.
     """
     step = max(1, len(joints) // _SAMPLE)
     j = joints[::step]
-    leg = float(np.median(0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
-                                 + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))))
+    leg = _leg(j)
     if not leg > 0:
-        return "the legs have no length"
-    measures = {"arm": 0.5 * (_length(j, "lshoulder", "lelbow") + _length(j, "lelbow", "lwrist")
-                              + _length(j, "rshoulder", "relbow") + _length(j, "relbow", "rwrist")),
-                "trunk": _length(j, "root", "neck"), "hip width": _length(j, "lhip", "rhip"),
-                "shoulder width": _length(j, "lshoulder", "rshoulder")}
-    reasons = []
-    for what, values in measures.items():
-        ratio = float(np.median(values)) / leg
-        lo, hi = HUMAN_PROPORTIONS[what]
-        if not lo <= ratio <= hi:
-            reasons.append(f"{what} {ratio:.2f} × the leg length (a human's: {lo}–{hi})")
+        return "skeleton", "the legs have no length"
+    problems = _proportion_problems(j, leg)
     stands = float(upright_frames(j).mean())
+    upright = None
     if stands < MIN_UPRIGHT and (rest is None or not upright_frames(rest[None])[0]):
-        reasons.insert(0, f"it stands upright (two legs to the floor, arms off it, head above the shoulders) "
-                          f"in {stands:.0%} of the frames and not in its rest pose")
-    return "; ".join(reasons) or None
+        upright = (f"it stands upright (two legs to the floor, arms off it, head above the shoulders) "
+                   f"in {stands:.0%} of the frames and not in its rest pose")
+    if not problems and upright is None:
+        return None
+    rest_leg = _leg(rest[None]) if rest is not None else 0.0
+    if rest_leg > 0 and not _proportion_problems(rest[None], rest_leg):
+        # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
+        at_rest = _proportions(rest[None], rest_leg)
+        why = [upright] if upright else []
+        why += [f"{what} {ratio:.2f} × the leg length over the take's frames, {at_rest[what]:.2f} in its rest pose "
+                f"(a human's: {lo}–{hi})" for what, ratio, lo, hi in problems]
+        return "pose", "; ".join(why) + " — the skeleton has a human's proportions at rest: it is the take's poses"
+    reasons = [upright] if upright else []
+    reasons += [f"{what} {ratio:.2f} × the leg length (a human's: {lo}–{hi})" for what, ratio, lo, hi in problems]
+    return "skeleton", "; ".join(reasons)

@@ -18,8 +18,14 @@ rate, in metres, Y up, in :data:`~mocapdb.readers.joints.JOINT_NAMES` order.
 
 Lengths come out in metres: ASF/AMC and C3D joints carry their unit
 (centimetres, or the toolbox's ``mm × -POINT:SCALE``), AMASS joints are
-metres; BVH files declare none, so their unit is the one of metres,
-centimetres, millimetres or inches that gives the legs a human length.
+metres; BVH files declare none, so the BVH reader decides it from the legs
+and the bone names (:mod:`mocapdb.readers.units`: metres, centimetres,
+millimetres, inches or CMU's 1/0.45 inch), unless the user gives it. The npz
+says which source unit was converted and why (``source_unit``,
+``metres_per_source_unit``); a CSV or BVH has no place for a note that
+every reader skips (Blender's wants ``HIERARCHY`` first, a ``#`` line is a
+row to ``csv.DictReader``), so ``export-joints`` says it per file and in the
+``units.json`` of a folder it writes.
 
 References
 ----------
@@ -27,8 +33,6 @@ docs/USER_GUIDE.md "Joints out"; READERS.md §2, §9; FEATURES.md §2.1.
 """
 from __future__ import annotations
 
-import math
-import re
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +42,7 @@ from mocapdb.readers.bvh_write import write_bvh_tree
 from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.readers.motion import Motion
 from mocapdb.readers.smpl import align_rotations
+from mocapdb.readers.units import metres_per_unit
 
 __all__ = ["JOINTS_FORMATS", "BVH_JOINTS", "metres_per_unit", "write_joints", "canonical_bvh_rotations"]
 
@@ -60,45 +65,6 @@ BVH_JOINTS = (
     ("rclavicle", 11, "neck", "rshoulder"), ("rhumerus", 18, "rshoulder", "relbow"),
     ("rwrist", 19, "relbow", "rwrist"), ("rfingers", 20, "rwrist", "rfingers"),
 )
-
-#: units a BVH file may be in, metres each
-_BVH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
-#: a human's leg (hip → knee → ankle), metres: the BVH unit is the one that comes closest
-_LEG_M = 0.85
-_MM_TIMES = re.compile(r"^mm × ([0-9.eE+-]+)$")
-
-
-def _leg_length(joints) -> float:
-    j = joints
-    legs = [np.linalg.norm(j[:, JOINT_INDEX[f"{s}hip"]] - j[:, JOINT_INDEX[f"{s}knee"]], axis=1)
-            + np.linalg.norm(j[:, JOINT_INDEX[f"{s}knee"]] - j[:, JOINT_INDEX[f"{s}ankle"]], axis=1)
-            for s in "lr"]
-    return float(np.median(np.concatenate(legs)))
-
-
-def metres_per_unit(motion: Motion) -> tuple:
-    """``(metres per unit of motion.joints, how that is known)``.
-
-    AMASS: metres. ASF/AMC: centimetres (the ASF reader's unit, READERS.md
-    §5). C3D: the unit the reader records (``cm``, or ``mm × s`` for the
-    toolbox set). BVH, which declares no unit: metres, centimetres,
-    millimetres or inches, whichever makes the median leg (hip → knee →
-    ankle) closest to 0.85 m.
-    """
-    unit = str(motion.meta.get("unit", ""))
-    if unit == "m":
-        return 1.0, "metres (the reader's)"
-    if unit == "cm" or motion.source_format == "amc":
-        return 0.01, "centimetres (the reader's)"
-    m = _MM_TIMES.match(unit)
-    if m:
-        return 0.001 / float(m.group(1)), f"{unit} (the C3D reader's)"
-    leg = _leg_length(motion.joints)
-    if not (math.isfinite(leg) and leg > 0.0):
-        return 1.0, "metres (assumed: the legs have no length)"
-    name = min(_BVH_UNITS, key=lambda u: abs(math.log(leg * _BVH_UNITS[u] / _LEG_M)))
-    return _BVH_UNITS[name], f"{name} (the file declares none; the legs are {leg * _BVH_UNITS[name]:.2f} m)"
-
 
 def _hip_frame(joints):
     """Per frame a rotation whose x axis is the hip axis (lhip − rhip) and y the spine orthogonal to it:
@@ -159,7 +125,7 @@ def _write_bvh(path, joints, fps, root_rotation):
                           end_sites=leaves)
 
 
-def write_joints(path, motion: Motion, *, format: str) -> Path:
+def write_joints(path, motion: Motion, *, format: str, unit=None, scale=None) -> str:
     """Write a motion's canonical joints, in metres at its own rate, as ``npz``, ``csv`` or ``bvh``.
 
     Parameters
@@ -167,25 +133,30 @@ def write_joints(path, motion: Motion, *, format: str) -> Path:
     path : str or Path
     motion : Motion
     format : {"npz", "csv", "bvh"}, keyword-only
+    unit, scale : optional, keyword-only
+        A BVH source's unit or metres per unit, overriding the reader's
+        decision (:func:`mocapdb.readers.units.metres_per_unit`).
 
     Returns
     -------
-    Path
+    str
+        The source unit converted from and how it was known.
 
     Raises
     ------
     ParameterError
-        An unknown format.
+        An unknown format, unit or a bad scale.
     """
     if format not in JOINTS_FORMATS:
         raise ParameterError(f"format must be one of {', '.join(JOINTS_FORMATS)}, got {format!r}")
     path = Path(path)
-    scale, _ = metres_per_unit(motion)
-    joints = np.ascontiguousarray(motion.joints * scale)
+    factor, how = metres_per_unit(motion, unit=unit, scale=scale)
+    joints = np.ascontiguousarray(motion.joints * factor)
     fps = float(motion.fps)
     if format == "npz":
         with path.open("wb") as fh:   # np.savez would add .npz to another suffix
-            np.savez(fh, joints=joints, fps=np.float64(fps), joint_names=np.array(JOINT_NAMES))
+            np.savez(fh, joints=joints, fps=np.float64(fps), joint_names=np.array(JOINT_NAMES),
+                     source_unit=np.array(how), metres_per_source_unit=np.float64(factor))
     elif format == "csv":
         n = joints.shape[0]
         header = ["frame", "time"] + [f"{j}_{a}" for j in JOINT_NAMES for a in "xyz"]
@@ -194,4 +165,4 @@ def write_joints(path, motion: Motion, *, format: str) -> Path:
         np.savetxt(path, table, fmt=fmt, delimiter=",", header=",".join(header), comments="")
     else:
         _write_bvh(path, joints, fps, motion.root_rotation)
-    return path
+    return how

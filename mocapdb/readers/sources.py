@@ -40,6 +40,7 @@ import gzip
 import hashlib
 import io
 import lzma
+import math
 import os
 import re
 import stat
@@ -89,8 +90,8 @@ def parse_size(value, *, what="max_decompressed") -> int:
         if m is None:
             raise ParameterError(f"{what}: {value!r} is not a size in bytes (e.g. 512MiB, 2GiB, 1000000000)")
         n = float(m.group(1)) * (1024 if m.group(3) else 1000) ** " kmgt".index((m.group(2) or " ").lower())
-    if not n >= 1:
-        raise ParameterError(f"{what}: {value!r} is not a positive size in bytes (e.g. 512MiB)")
+    if not (n >= 1 and math.isfinite(n)):   # 1e400 reads as inf: no byte count
+        raise ParameterError(f"{what}: {value!r} is not a positive finite size in bytes (e.g. 512MiB)")
     return int(n)
 
 
@@ -170,11 +171,15 @@ def motion_suffix(path) -> str:
 
 
 def motion_stem(path) -> str:
-    """The file name without compression and format suffixes: ``walk.bvh.gz`` → ``walk``."""
+    """The file name without compression and format suffixes: ``walk.bvh.gz`` → ``walk``.
+
+    A stem of dots only (``...bvh`` → ``..``) is no name a motion can carry out and back in (a file
+    name, ``import-features``): its dots become ``_``."""
     p = Path(path)
     if p.suffix.lower() in COMPRESSED:
         p = Path(p.stem)
-    return Path(p.name).stem
+    stem = Path(p.name).stem
+    return stem if stem.strip(".") else "_" * max(len(stem), 1)
 
 
 # zip archives stay open between reads of their members (an archive of 2,500 takes is

@@ -391,3 +391,17 @@ def truncation_hint(data: bytes, pos: int) -> str:
     if data.endswith(b"\n") or data.find(b"\n", pos) >= 0:
         return ""
     return " (the last line is incomplete: the file may be truncated)"
+
+
+def longest_line(chunk, carry: int = 0) -> tuple:
+    """``(longest line, length of the unfinished last line)`` of the bytes ``chunk`` (LF or CR ends), its
+    first line continuing one of ``carry`` bytes: linear in the chunk, whatever its lines (a "line" of
+    megabytes of NUL bytes is found in one pass, not by a scanner waiting for its end)."""
+    a = np.frombuffer(chunk, np.uint8)
+    ends = np.flatnonzero((a == 10) | (a == 13))
+    if ends.size == 0:
+        return carry + a.size, carry + a.size
+    last = int(a.size - ends[-1] - 1)
+    inner = int(np.diff(ends).max()) - 1 if ends.size > 1 else 0
+    return max(carry + int(ends[0]), inner, last), last
+

@@ -50,9 +50,16 @@ def _hidden(name: str) -> bool:
     return name.startswith(".") or name == "__MACOSX"
 
 
-def _walk(folder: Path, files: list, unsupported, unreadable):
-    """Regular files of a folder, recursively (symlinked folders followed once); special files
-    and unreadable folders reported."""
+def _hidden_reason(name: str, folder: bool) -> str:
+    """Why a hidden entry is passed over (a row of the ingest log: a real take may hide there)."""
+    what = ("macOS zip metadata (__MACOSX)" if name == "__MACOSX" else
+            f"a hidden {'folder' if folder else 'file'} (its name starts with '.')")
+    return f"{what}: not read; name it on the command line to read it"
+
+
+def _walk(folder: Path, files: list, unsupported, unreadable, hidden=None):
+    """Regular files of a folder, recursively (symlinked folders followed once); special files,
+    unreadable folders and hidden entries (one for a hidden folder) reported."""
     seen = set()
 
     def onerror(exc):
@@ -69,9 +76,13 @@ def _walk(folder: Path, files: list, unsupported, unreadable):
             dirs[:] = []
             continue
         seen.add((st.st_dev, st.st_ino))
+        if hidden is not None:
+            hidden += [(str(Path(root) / d), _hidden_reason(d, True)) for d in sorted(dirs) if _hidden(d)]
         dirs[:] = sorted(d for d in dirs if not _hidden(d))
         for name in sorted(names):
             if _hidden(name):
+                if hidden is not None:
+                    hidden.append((str(Path(root) / name), _hidden_reason(name, False)))
                 continue
             q = Path(root) / name
             kind = special_kind(q)
@@ -82,11 +93,11 @@ def _walk(folder: Path, files: list, unsupported, unreadable):
             files.append(q)
 
 
-def _archive_files(archive: Path, unreadable, refused=None, *, named=False) -> list:
-    """The members of a zip archive as paths through it (hidden ones left out); ``refused`` receives
-    the members whose names would leave the archive (never joined to its path: an absolute name
-    would replace it) and earlier copies of a name, and an unreadable archive that was ``named``
-    (an argument, not an entry of a folder)."""
+def _archive_files(archive: Path, unreadable, refused=None, *, named=False, hidden=None) -> list:
+    """The members of a zip archive as paths through it (hidden ones left out, and reported to
+    ``hidden``: a hidden folder once); ``refused`` receives the members whose names would leave the
+    archive (never joined to its path: an absolute name would replace it) and earlier copies of a
+    name, and an unreadable archive that was ``named`` (an argument, not an entry of a folder)."""
     bad = []
     try:
         names = zip_members(archive, refused=bad)
@@ -102,8 +113,17 @@ def _archive_files(archive: Path, unreadable, refused=None, *, named=False) -> l
             why = problem if problem.startswith("the archive holds") else \
                 f"{problem}; a member must name a file inside its archive"
             refused.append((where, f"{where}: refused: {why}"))
-    return [archive / name for name in sorted(names)
-            if not any(_hidden(part) for part in name.split("/"))]
+    out, passed = [], {}
+    for name in sorted(names):
+        parts = name.split("/")
+        k = next((i for i, part in enumerate(parts) if _hidden(part)), None)
+        if k is None:
+            out.append(archive / name)
+        else:   # the first hidden part: a hidden folder is one entry of the log, not one per member
+            passed.setdefault("/".join(parts[:k + 1]), _hidden_reason(parts[k], k < len(parts) - 1))
+    if hidden is not None:
+        hidden += [(f"{archive}/{where}", why) for where, why in passed.items()]
+    return out
 
 
 def _classify(q: Path, out: list, unsupported):
@@ -116,7 +136,7 @@ def _classify(q: Path, out: list, unsupported):
                             + "/".join(COMPRESSED) + " compressed, or in a .zip archive)"))
 
 
-def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> list[Path]:
+def motion_files(paths, *, unsupported=None, unreadable=None, refused=None, hidden=None) -> list[Path]:
     """Expand files, folders (recursively) and zip archives into motion files, in sorted order.
 
     Parameters
@@ -138,6 +158,10 @@ def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> l
         :func:`mocapdb.readers.sources.member_problem`): never read; for each
         earlier copy of a member named twice (its path reads the last); and
         for an archive named in ``paths`` that cannot be read.
+    hidden : list, optional, keyword-only
+        Receives ``(path, reason)`` for each hidden file or folder (a name
+        starting with ``.``, macOS's ``__MACOSX``) of a folder or archive,
+        passed over unread (a hidden folder once, not each file in it).
 
     Raises
     ------
@@ -149,21 +173,24 @@ def motion_files(paths, *, unsupported=None, unreadable=None, refused=None) -> l
         archive, member = split_archive(p)
         if member is not None and member != "" and not is_file(p):
             # a folder inside an archive
-            members = [q for q in _archive_files(archive, unreadable, refused)
+            inside = []
+            members = [q for q in _archive_files(archive, unreadable, refused, hidden=inside)
                        if str(q).startswith(str(p).rstrip("/") + "/")]
+            if hidden is not None:
+                hidden += [(q, why) for q, why in inside if q.startswith(str(p).rstrip("/") + "/")]
             if not members:
                 raise ParameterError(f"paths: {str(p)!r} does not exist (no such member in {archive})")
             for q in members:
                 _classify(q, out, unsupported)
         elif member == "":
-            for q in _archive_files(archive, unreadable, refused, named=True):
+            for q in _archive_files(archive, unreadable, refused, named=True, hidden=hidden):
                 _classify(q, out, unsupported)
         elif p.is_dir():
             found = []
-            _walk(p, found, unsupported, unreadable)
+            _walk(p, found, unsupported, unreadable, hidden)
             for q in found:
                 if q.suffix.lower() in ARCHIVES:
-                    for m in _archive_files(q, unreadable, refused):
+                    for m in _archive_files(q, unreadable, refused, hidden=hidden):
                         _classify(m, out, unsupported)
                 else:
                     _classify(q, out, unsupported)

@@ -23,10 +23,11 @@ HIT_DTYPE = np.dtype([("task", np.int64), ("start", np.int64), ("end", np.int64)
 
 
 def check_limit(limit) -> int:
-    """``limit`` as a positive int (ParameterError otherwise)."""
+    """``limit`` as a positive int (ParameterError otherwise), at most 2**62: hits never outnumber the
+    archive's frames, and the kernels count in int64 (a limit of 10**20 meant "all of them")."""
     if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
         raise ParameterError(f"limit must be a positive integer, got {limit!r}")
-    return int(limit)
+    return min(int(limit), 1 << 62)
 
 
 def select_hits(delta, starts, offsets, task_first, *, tau, limit, taken=None, minima=False):

@@ -221,20 +221,18 @@ def export_segments(con, table, out, *, format, motion_ids, video=None):
     if format not in EXPORT_FORMATS:
         raise ParameterError(f"format must be one of {', '.join(EXPORT_FORMATS)}, got {format!r}")
     out = Path(out)
+    if format == "eaf" and out.suffix.lower() == ".eaf" and len(set(motion_ids)) > 1:
+        raise ParameterError(f"out: {len(set(motion_ids))} motions give one ELAN file each; give a directory, "
+                             f"not {out.name}")
+    sources = motion_sources(con, motion_ids) if format == "eaf" else []
+    single = format == "parquet" or (len(sources) == 1 and out.suffix.lower() == ".eaf")
+    # the file's folder, or the folder of files, made: a path into a missing folder is what a user means
+    (out.parent if single else out).mkdir(parents=True, exist_ok=True)
     if format == "parquet":
         # the frame grid of start_frame/end_frame, as the CSV and JSON outputs carry it (label files read it)
         at = table.schema.get_field_index("end_frame") + 1
         pq.write_table(table.add_column(at, "fps", pa.array(np.full(table.num_rows, FEATURE_RATE))), out)
         return [out]
-    sources = motion_sources(con, motion_ids)
-    single = len(sources) == 1 and out.suffix.lower() == ".eaf"
-    if not single:
-        if out.suffix.lower() == ".eaf":
-            raise ParameterError(f"out: {len(sources)} motions give one ELAN file each; give a directory, "
-                                 f"not {out.name}")
-        out.mkdir(parents=True, exist_ok=True)
-    else:
-        out.parent.mkdir(parents=True, exist_ok=True)
     ids = table.column("motion_id").to_numpy()
     written, no_video = [], []
     for s, stem in zip(sources, file_stems(sources)):

@@ -20,6 +20,7 @@ import pyarrow as pa
 from mocapdb.errors import MocapdbError, ParameterError
 from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
 from mocapdb.readers import ReaderOptions, find_skeleton, motion_files, read_motion, skeleton_note
+from mocapdb.readers.files import check_start
 from mocapdb.readers.sources import motion_stem, motion_suffix, sha256, special_kind, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
 from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
@@ -44,7 +45,7 @@ class IngestReport:
 
     ingested: list = field(default_factory=list)     # (path, motion_id, n_frames)
     replaced: list = field(default_factory=list)     # (path, former motion_id): read again with replace
-    skipped: list = field(default_factory=list)      # (path, reason): already stored
+    skipped: list = field(default_factory=list)      # (path, reason): already stored, or hidden (not read)
     repaired: list = field(default_factory=list)     # (path, reason): stored with incomplete features, replaced
     failed: list = field(default_factory=list)       # (path, reason)
     unsupported: list = field(default_factory=list)  # (path, reason): files of a folder that are not motions
@@ -94,6 +95,7 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     if motion_suffix(path) == ".amc":
         skel = Path(asf) if asf is not None else find_skeleton(path)
     try:
+        check_start(path)   # what its first bytes refuse is not hashed whole first (a gigabyte of NUL bytes)
         digest = sha256(path)
     except OSError as exc:
         raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
@@ -378,10 +380,13 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
     for p in paths:
         try:
             files += motion_files([p], unsupported=report.unsupported, unreadable=report.unreadable,
-                                  refused=report.failed)
+                                  refused=report.failed, hidden=report.skipped)
         except ParameterError as exc:   # a path that is not there: logged, and the call fails
             log.add(p, "failed", str(exc))
             raise
+    # what the walk refused (an earlier copy of a zip member) is keyed by a path a later copy may share:
+    # only the files read and failed make a copy of them fail
+    walk_refused = len(report.failed)
     tick = _ticker(progress, len(files))
     stored = _stored_keys(con)
     todo = []
@@ -409,7 +414,7 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
         _decide_stored(con, report, already, stored, first_of, duplicates, todo, replace, tick)
         _compute_and_store(con, pool, report, log, todo, workers, chunk_for(processes), tick)
     # a copy of a stored file is skipped; a copy of a broken one is as broken
-    failed = dict(report.failed)
+    failed = dict(report.failed[walk_refused:])
     for path, key in duplicates:
         first = first_of[key]
         if first in failed:

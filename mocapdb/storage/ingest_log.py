@@ -131,7 +131,8 @@ def run_rows(con, run_id: int) -> tuple:
 
 
 def write_report(con, run_id: int, path) -> int:
-    """Write one run's log rows as CSV (a header, then a row per file; NULL as an empty field).
+    """Write one run's log rows as CSV (a header, then a row per file; NULL as an empty field; a text
+    that would start a spreadsheet formula behind a ``'``).
 
     Returns
     -------
@@ -142,9 +143,24 @@ def write_report(con, run_id: int, path) -> int:
     with Path(path).open("w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(columns)
-        w.writerows(["" if v is None else v.isoformat(sep=" ") if hasattr(v, "isoformat") else v for v in r]
-                    for r in rows)
+        w.writerows([_cell(v) for v in r] for r in rows)
     return len(rows)
+
+
+#: a text cell starting with one of these is a formula to a spreadsheet (=HYPERLINK(…) in a file name)
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def _cell(v):
+    """A CSV cell: NULL empty, a time ISO, and text that a spreadsheet would run as a formula quoted with a
+    leading ``'`` (as spreadsheet-safe CSV writers do; the rows in the database keep the names as they are)."""
+    if v is None:
+        return ""
+    if hasattr(v, "isoformat"):
+        return v.isoformat(sep=" ")
+    if isinstance(v, str) and v.startswith(_FORMULA_START):
+        return "'" + v
+    return v
 
 
 __all__ = ["IngestLog", "OUTCOMES", "COLUMNS", "location", "run_rows", "write_report"]

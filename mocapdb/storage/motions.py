@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, replace
 
+import duckdb
 import numpy as np
 import pyarrow as pa
 
@@ -37,6 +38,42 @@ def motion_ids(con, motions) -> list[int]:
             raise SchemaError(f"no motion {m!r} in the database (see: SELECT motion_id, name FROM motions)")
         out.extend(r[0] for r in rows)
     return out
+
+
+def _first_line(exc, limit=200) -> str:
+    text = (str(exc).splitlines() or [type(exc).__name__])[0]
+    return text if len(text) <= limit else text[:limit] + "…"
+
+
+def select_motions(con, *, where=None, label=None, model) -> list[int]:
+    """The ids of the motions a filter selects, ascending: every motion, those with a stored segment of
+    ``label`` (of ``model``), those a SQL condition over ``motions``' columns holds for, or both.
+
+    Raises
+    ------
+    ParameterError
+        ``where`` not one condition (a statement of its own, two, or invalid SQL), or a label without
+        stored segments (the labels that have some are named).
+    """
+    condition = "TRUE" if where is None else str(where).strip()
+    text = _sql("selected").replace("{where}", condition)
+    try:   # DuckDB's own parser: one SELECT, or the condition closed the query and began another
+        stmts = duckdb.extract_statements(text)
+    except duckdb.Error as exc:
+        raise ParameterError(f"where: not a SQL condition over motions ({_first_line(exc)})"
+                             ) from None
+    if not condition or len(stmts) != 1 or stmts[0].type != duckdb.StatementType.SELECT:
+        raise ParameterError(f"where: give one SQL condition over motions' columns, e.g. \"format = 'bvh'\"; "
+                             f"got {shorten(condition)}")
+    if label is not None:
+        stored = [r[0] for r in con.execute(_sql("stored_labels"), {"model": model}).fetchall()]
+        if label not in stored:
+            raise ParameterError(f"label {label!r}: no stored segment of it (model {model}); labels stored: "
+                                 + (", ".join(stored) or "none (annotate first)"))
+    try:
+        return [r[0] for r in con.execute(text, {"label": label, "model": model}).fetchall()]
+    except duckdb.Error as exc:
+        raise ParameterError(f"where {shorten(condition)}: {_first_line(exc)}") from None
 
 
 def one_motion(con, motion) -> int:

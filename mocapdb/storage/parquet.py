@@ -24,6 +24,7 @@ the batches that never ran left no trace in it to check against.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import re
@@ -37,7 +38,7 @@ import pyarrow as pa
 import pyarrow.compute  # noqa: F401 - pa.compute
 import pyarrow.parquet as pq
 
-from mocapdb.errors import MocapdbError, ParameterError, SchemaError
+from mocapdb.errors import MocapdbError, ParameterError, SchemaError, shorten
 from mocapdb.storage.ingest import insert_features, remove_motions
 from mocapdb.storage.ingest_log import IngestLog
 from mocapdb.storage.motions import (BATCH_FRAMES, check_frames, frame_batches, incomplete_motions,
@@ -80,7 +81,9 @@ def export_features(con, directory, *, overwrite: bool = False) -> int:
     Notes
     -----
     ``motions.parquet`` is written last, under a temporary name and renamed:
-    a folder without it is an export that did not finish.
+    a folder without it is an export that did not finish. Before it,
+    ``digests.json`` records every part's SHA-256, which
+    :func:`import_features` checks.
     """
     d = Path(directory)
     if d.exists() and not d.is_dir():
@@ -90,9 +93,15 @@ def export_features(con, directory, *, overwrite: bool = False) -> int:
     d.mkdir(parents=True, exist_ok=True)
     (d / EXPORT_MOTIONS).unlink(missing_ok=True)
     shutil.rmtree(d / "features", ignore_errors=True)
+    (d / EXPORT_DIGESTS).unlink(missing_ok=True)
     con.execute(_sql("export_features"), {"path": str(d / "features")})
     tmp = d / f".{EXPORT_MOTIONS}.tmp"
     con.execute(_sql("export_motions"), {"path": str(tmp)})
+    # each part's digest (motions.parquet's under its final name), before the rename that finishes the export
+    parts = [f.relative_to(d).as_posix() for f in sorted((d / "features").rglob("*.parquet"))]
+    digests = {**part_digests(d, parts), EXPORT_MOTIONS: file_digest(tmp)}
+    (d / EXPORT_DIGESTS).write_text(json.dumps({"sha256": digests}, indent=1, sort_keys=True) + "\n",
+                                    encoding="utf-8")
     os.replace(tmp, d / EXPORT_MOTIONS)
     return con.execute(statement("motions.sql", "count")).fetchall()[0][0]
 
@@ -153,9 +162,18 @@ def read_manifest(directory):
     if not f.is_file():
         return None
     try:
-        return json.loads(f.read_text(encoding="utf-8"))
+        manifest = json.loads(f.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise SchemaError(f"{f}: not a readable manifest ({exc})") from None
+    # JSON of another shape (a list, parts that are no table of row counts) is no manifest of ours
+    parts = manifest.get("parts", {}) if isinstance(manifest, dict) else None
+    digests = manifest.get("digests", {}) if isinstance(manifest, dict) else None
+    if not (isinstance(parts, dict) and all(isinstance(k, str) and type(v) is int for k, v in parts.items())
+            and isinstance(digests, dict) and all(isinstance(v, str) for v in digests.values())
+            and all(type(manifest.get(k, 0)) is int for k in ("motions", "segments"))):
+        raise SchemaError(f"{f}: not a manifest of ray-annotate (an object whose motions, segments and parts "
+                          f"count rows; found {type(manifest).__name__} {shorten(json.dumps(manifest)[:200])})")
+    return manifest
 
 
 def _parts(root: Path) -> list:
@@ -184,6 +202,8 @@ class Archive:
     kind: str
     motions: pa.Table
     _parts: dict = field(default_factory=dict, repr=False)  # dataset -> its Ray parts, listed once
+    #: an export's feature parts whose bytes differ from digests.json (file -> why): their motions are refused
+    changed: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def open(cls, directory, *, whole=False) -> "Archive":
@@ -212,6 +232,8 @@ class Archive:
                     "batches are missing; run ray-annotate again (--overwrite)")
             found = archive_parts(d)
             problems = _part_problems(manifest, found)
+            if not problems and "digests" in manifest:   # the same parts with the same rows: their bytes
+                problems = _digest_problems(d, manifest["digests"], MANIFEST)
             if whole:
                 problems += [f"{rel}: not a readable Parquet file" for rel, rows in found.items() if rows < 0]
             _refuse(d, problems)
@@ -227,7 +249,21 @@ class Archive:
                             if n is not None and rows[ds] != n])
             return cls(d, "ray", motions)
         if (d / EXPORT_MOTIONS).is_file():
-            return cls(d, "export", _read_motions(d / EXPORT_MOTIONS))
+            changed = {}
+            if (d / EXPORT_DIGESTS).is_file():   # an export of an older mocapdb has none: rows checked only
+                listed = _read_digests(d / EXPORT_DIGESTS)
+                found = {f.relative_to(d).as_posix() for f in (d / "features").rglob("*.parquet")} \
+                    if (d / "features").is_dir() else set()
+                # the motions table and foreign parts concern every motion: the export is refused whole
+                _refuse(d, _digest_problems(d, {k: v for k, v in listed.items() if k == EXPORT_MOTIONS},
+                                            EXPORT_DIGESTS)
+                        + [f"{rel} is not one of its parts (a copy, or a part of another export)"
+                           for rel in sorted(found - set(listed)) if not Path(rel).name.startswith(".")],
+                        EXPORT_DIGESTS, "export again (--overwrite)")
+                # a changed feature part costs its motion, as a missing or unreadable one does
+                changed = {d / rel: _changed(rel, EXPORT_DIGESTS) for rel in _changed_parts(
+                    d, {k: v for k, v in listed.items() if k != EXPORT_MOTIONS})}
+            return cls(d, "export", _read_motions(d / EXPORT_MOTIONS), changed=changed)
         if (d / "features").is_dir():
             raise ParameterError(f"directory: {str(d)!r} has features/ but no {EXPORT_MOTIONS}, which "
                                  "export-features writes last: the export did not finish; export again (--overwrite)")
@@ -254,6 +290,41 @@ class Archive:
         if dataset not in self._parts:
             self._parts[dataset] = _parts(self.root / dataset)
         return self._parts[dataset]
+
+
+#: the file of an export naming each part's content digest (written before motions.parquet)
+EXPORT_DIGESTS = "digests.json"
+
+
+def file_digest(path) -> str:
+    """The SHA-256 of a file's bytes (hex), read a MiB at a time."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def part_digests(directory, rels) -> dict:
+    """``{relative path: SHA-256}`` of parts of an archive (written at export, checked on import and attach:
+    a part whose rows were rewritten keeps its row count, not its bytes)."""
+    d = Path(directory)
+    return {rel: file_digest(d / rel) for rel in sorted(rels)}
+
+
+def _changed_parts(d: Path, listed: dict) -> list:
+    """The parts of ``listed`` (``{rel: digest}``) that are there with other bytes."""
+    return [rel for rel, digest in listed.items() if (d / rel).is_file() and file_digest(d / rel) != digest]
+
+
+def _changed(rel, source) -> str:
+    return f"{rel} is not the file written (its bytes differ from the SHA-256 in {source}: changed since)"
+
+
+def _digest_problems(d: Path, listed: dict, source: str) -> list:
+    """Parts of ``listed`` (``{rel: digest}`` from ``source``) that are missing or have other bytes."""
+    return ([f"{rel} is missing" for rel in listed if not (d / rel).is_file()]
+            + [_changed(rel, source) for rel in _changed_parts(d, listed)])
 
 
 #: the datasets of a Ray archive: the tables and the files that failed
@@ -288,12 +359,23 @@ def _part_problems(manifest: dict, found: dict) -> list:
                   if rel not in listed]
 
 
-def _refuse(d: Path, problems: list) -> None:
+def _refuse(d: Path, problems: list, listing=MANIFEST, again="run ray-annotate again (--overwrite)") -> None:
     """One line naming an archive's first problems."""
     if problems:
         more = f"; {len(problems) - 3} more" if len(problems) > 3 else ""
-        raise ParameterError(f"directory: {str(d)!r} does not match its {MANIFEST}: " + "; ".join(problems[:3])
-                             + more + "; run ray-annotate again (--overwrite) or restore the archive")
+        raise ParameterError(f"directory: {str(d)!r} does not match its {listing}: " + "; ".join(problems[:3])
+                             + more + f"; {again} or restore the archive")
+
+
+def _read_digests(f: Path) -> dict:
+    """An export's ``{part: SHA-256}`` (:data:`EXPORT_DIGESTS`)."""
+    try:
+        listed = json.loads(f.read_text(encoding="utf-8")).get("sha256")
+    except (OSError, ValueError, AttributeError) as exc:
+        raise SchemaError(f"{f}: not a readable list of digests ({exc})") from None
+    if not (isinstance(listed, dict) and all(isinstance(k, str) and isinstance(v, str) for k, v in listed.items())):
+        raise SchemaError(f"{f}: not a list of digests (an object \"sha256\": {{part: digest}})")
+    return listed
 
 
 def _read_motions(path: Path) -> pa.Table:
@@ -498,11 +580,16 @@ def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, repor
         if f in ann_bad:
             for mid in ids[(ids >= first) & (ids <= last)].tolist():
                 unreadable.setdefault(mid, f"{f}: {ann_bad[f]}")
-    ok = complete & ~np.isin(ids, list(unreadable))
+    changed = {mid: why for f, (first, last) in files.items() if f in archive.changed
+               for mid in ids[(ids >= first) & (ids <= last)].tolist() for why in [archive.changed[f]]}
+    ok = complete & ~np.isin(ids, list(unreadable)) & ~np.isin(ids, list(changed))
     for k, mid in enumerate(ids.tolist()):
         if not ok[k]:
             name = names[rows_k[k]]
+            # an unreadable part is named by its cause; a readable one with other bytes, by its digest
             why = (f"archive motion {mid} ({name}): features unreadable: {unreadable[mid]}" if mid in unreadable
+                   else f"archive motion {mid} ({name}): features changed since the export, not imported: "
+                   f"{changed[mid]}" if mid in changed
                    else incomplete_reason(mid, name, n_rows[k], lengths[rows_k[k]], what="archive motion",
                                           remedy="not imported"))
             report.failed.append((name, why))
@@ -548,5 +635,5 @@ def _reader_notes(reader_options) -> list:
 
 
 __all__ = ["export_features", "import_features", "features_sql", "table_schemas", "ARCHIVE_TABLES", "ImportReport",
-           "Archive", "MANIFEST", "EXPORT_MOTIONS", "write_manifest", "read_manifest", "archive_parts",
-           "check_frames_per_motion", "DATASETS"]
+           "Archive", "MANIFEST", "EXPORT_MOTIONS", "EXPORT_DIGESTS", "file_digest", "part_digests", "write_manifest",
+           "read_manifest", "archive_parts", "check_frames_per_motion", "DATASETS"]

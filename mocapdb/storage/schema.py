@@ -56,6 +56,42 @@ STORAGE_VERSION = "v1.5.0"
 LOCK_POLL = 0.05
 
 
+#: where DuckDB's database files carry their magic bytes (after an 8-byte checksum)
+_MAGIC_AT, _MAGIC = 8, b"DUCK"
+
+
+def check_database_file(path) -> None:
+    """Refuse a path that exists but is no DuckDB database file, before DuckDB reads it.
+
+    DuckDB opens a CSV, JSON or Parquet file named as the database as an
+    in-memory database with the file as a view: what is then written into it
+    is gone when the process exits, silently. A new path, an empty file (a
+    fresh one DuckDB fills) and ``:memory:`` pass.
+
+    Raises
+    ------
+    SchemaError
+        A folder, an unreadable file, or a file without DuckDB's magic bytes.
+    """
+    if str(path) == ":memory:":
+        return
+    p = Path(path)
+    if p.is_dir():
+        raise SchemaError(f"{path} is a folder, not a DuckDB database file")
+    if not p.exists():
+        return
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(_MAGIC_AT + len(_MAGIC))
+    except OSError as exc:
+        raise SchemaError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    if head and head[_MAGIC_AT:] != _MAGIC:
+        kind = {b"PAR1": "a Parquet file", b"PK\x03\x04": "a zip archive", b"SQLi": "an SQLite database"}.get(
+            head[:4], "a JSON file" if head.lstrip()[:1] in (b"{", b"[") else "not DuckDB's")
+        raise SchemaError(f"{path} is not a DuckDB database file ({kind}; DuckDB would read it as a view in a "
+                          "throw-away database and lose what is written): give a .duckdb file, or a new path")
+
+
 def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None,
                   wait: float = 0.0) -> duckdb.DuckDBPyConnection:
     """Open (or create) a DuckDB database with the mocapdb schema, without the SQL functions.
@@ -82,9 +118,11 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
     DatabaseLockedError
         Another process still holds the file after ``wait`` seconds (the message names it).
     SchemaError
-        ``read_only`` and the file does not exist.
+        ``read_only`` and the file does not exist, or the path is no DuckDB
+        database file (:func:`check_database_file`).
     """
     path = str(path)
+    check_database_file(path)
     if read_only and path != ":memory:" and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (read_only=True cannot create it)")
     deadline = time.monotonic() + wait
@@ -171,5 +209,5 @@ def create_schema(con) -> None:
     install_shipped_models(con)
 
 
-__all__ = ["open_database", "create_schema", "is_attached", "attached_archive", "require_own_tables", "DatabaseLockedError", "SCHEMA_FILES", "DEFAULT_MEMORY_LIMIT",
+__all__ = ["open_database", "check_database_file", "create_schema", "is_attached", "attached_archive", "require_own_tables", "DatabaseLockedError", "SCHEMA_FILES", "DEFAULT_MEMORY_LIMIT",
            "MEMORY_LIMIT_ENV"]
