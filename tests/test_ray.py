@@ -442,6 +442,23 @@ def test_rows_rewritten_in_place_are_refused_by_their_digest(archive, tmp_path):
 
 
 @pytest.mark.shared
+def test_a_truncated_annotations_part_is_named_as_annotations(archive, tmp_path):
+    """Issue 33: a truncated annotations part of an archive without digests (written before them) was
+    reported as "features unreadable"; the message names the dataset whose part could not be read."""
+    out, _ = archive
+    a, parts = _tampered(out, tmp_path, "truncated")
+    manifest = json.loads((a / "manifest.json").read_text())
+    del manifest["digests"]  # an archive of an earlier mocapdb: its parts are checked by rows only
+    (a / "manifest.json").write_text(json.dumps(manifest))
+    part = next(p for p in parts["annotations"] if pq.read_metadata(p).num_rows)
+    part.write_bytes(part.read_bytes()[: part.stat().st_size // 2])
+    r = run(tmp_path / "t.duckdb", "import-features", a, code=1)
+    failed = [line for line in r.output.splitlines() if "unreadable" in line]
+    assert failed and all("annotations unreadable: " in line and part.name in line for line in failed), r.output
+    assert "features unreadable" not in r.output
+
+
+@pytest.mark.shared
 def test_similar_ranks_no_motion_without_its_feature_rows(archive, tmp_path):
     """A features part deleted after attach: its motions keep their index runs, but are no answer."""
     out, _ = archive

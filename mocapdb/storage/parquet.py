@@ -573,21 +573,23 @@ def _import_batch(con, archive, rows_k, old_ids, lengths, names, replaces, repor
     for f, (first, last) in files.items():
         if f in bad:
             for mid in ids[(ids >= first) & (ids <= last)].tolist():
-                unreadable.setdefault(mid, f"{f}: {bad[f]}")
+                unreadable.setdefault(mid, ("features", f"{f}: {bad[f]}"))
     ann_files = archive.files("annotations", ids)
     ann, ann_bad = _read_rows(con, "archive_annotations", ann_files, lo, hi)
     for f, (first, last) in ann_files.items():
         if f in ann_bad:
             for mid in ids[(ids >= first) & (ids <= last)].tolist():
-                unreadable.setdefault(mid, f"{f}: {ann_bad[f]}")
+                unreadable.setdefault(mid, ("annotations", f"{f}: {ann_bad[f]}"))
     changed = {mid: why for f, (first, last) in files.items() if f in archive.changed
                for mid in ids[(ids >= first) & (ids <= last)].tolist() for why in [archive.changed[f]]}
     ok = complete & ~np.isin(ids, list(unreadable)) & ~np.isin(ids, list(changed))
     for k, mid in enumerate(ids.tolist()):
         if not ok[k]:
             name = names[rows_k[k]]
-            # an unreadable part is named by its cause; a readable one with other bytes, by its digest
-            why = (f"archive motion {mid} ({name}): features unreadable: {unreadable[mid]}" if mid in unreadable
+            # an unreadable part is named by its dataset and cause (a truncated annotations part is not the
+            # features'); a readable one with other bytes, by its digest
+            why = (f"archive motion {mid} ({name}): {unreadable[mid][0]} unreadable: {unreadable[mid][1]}"
+                   if mid in unreadable
                    else f"archive motion {mid} ({name}): features changed since the export, not imported: "
                    f"{changed[mid]}" if mid in changed
                    else incomplete_reason(mid, name, n_rows[k], lengths[rows_k[k]], what="archive motion",
