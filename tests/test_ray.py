@@ -262,6 +262,43 @@ def test_broken_files_become_rows_of_errors_and_the_rest_goes_on(local_ray, tmp_
     assert f"failed  {broken}:" in r.output and "3 motions" in r.output and "1 skipped, 1 failed" in r.output
 
 
+@pytest.mark.shared
+def test_zip_members_ingest_refuses_are_failed_rows_and_hidden_ones_skipped(local_ray, tmp_path):
+    """Issue 33: ray-annotate dropped the zip members ingest refuses (names leaving the archive, an earlier
+    copy of a member named twice) and hidden files without a trace; they are now rows of the errors dataset
+    (so import-features logs them in ingest_log) and skipped files, as ingest reports them."""
+    import zipfile
+
+    walk = (DATA / "foreign" / "bvh").glob("*.bvh")
+    bvh = next(p for p in sorted(walk)).read_bytes()
+    z = tmp_path / "takes.zip"
+    with zipfile.ZipFile(z, "w") as zf:
+        zf.writestr("good/walk.bvh", bvh)
+        zf.writestr("../evil.bvh", bvh)
+        zf.writestr("twice/a.bvh", b"HIERARCHY broken first copy")
+        zf.writestr("twice/a.bvh", bvh)
+        zf.writestr(".hidden.bvh", bvh)
+    ingested = mocapdb.connect(tmp_path / "i.duckdb")
+    want = mocapdb.ingest(ingested, [z])
+    out = tmp_path / "archive"
+    report = ray_annotate([z], out)
+    refused = sorted(f for f, _ in want.failed)
+    assert refused and sorted(f for f, _ in report.failed) == refused
+    assert sorted(pq.read_table(out / "errors").column("file").to_pylist()) == refused
+    # the hidden member, and the later copy of the member named twice (the same bytes as good/walk.bvh)
+    assert sorted(f for f, _ in report.skipped) == sorted(f for f, _ in want.skipped)
+    assert any(f.endswith("/.hidden.bvh") for f, _ in report.skipped)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["failed"] == len(refused)
+    # imported, the archive's refusals are in ingest_log as ingest's own are: under the zip, by member
+    db = tmp_path / "imported.duckdb"
+    run(db, "import-features", out, code=None)
+    query = "SELECT path, member FROM ingest_log WHERE outcome = 'failed' ORDER BY ALL"
+    with mocapdb.connect(db, read_only=True) as con:
+        logged = con.execute(query).fetchall()
+    assert logged and logged == ingested.execute(query).fetchall()
+
+
 def _dies_once(victim: str, marker: Path):
     """A MotionWorker that kills its own process once, after writing the features and
     postings parts of the batch holding ``victim`` (the marker file says it did)."""

@@ -33,7 +33,8 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from mocapdb.distributed.layout import ERRORS_SCHEMA, finish_output, prepare_output, write_part
+from mocapdb.distributed.layout import (ERRORS_SCHEMA, finish_output, part_name, part_path, prepare_output,
+                                        write_part)
 from mocapdb.distributed.worker import MotionWorker
 from mocapdb.errors import MocapdbError, ParameterError, check_nonnegative
 from mocapdb.readers import MOTION_SUFFIXES, ReaderOptions, companion_kind, motion_files
@@ -96,14 +97,16 @@ class RayReport(IngestReport):
         return out + (f", {len(self.unsupported)} not motion files)" if self.unsupported else ")")
 
 
-def expand_sources(sources, *, unsupported=None) -> list[Path]:
+def expand_sources(sources, *, unsupported=None, refused=None, hidden=None, unreadable=None) -> list[Path]:
     """Files, folders (recursively) and glob patterns → the motion files, as absolute paths.
 
     Folders are walked as by ``ingest`` (:func:`mocapdb.readers.motion_files`);
     a pattern (``*``, ``?``, ``[…]``, ``**`` for any depth) adds its matching
-    folders and motion files. A file listed twice counts once. ``unsupported``
-    receives ``(path, reason)`` of the other files of the folders, as with
-    ``motion_files``.
+    folders and motion files. A file listed twice counts once. ``unsupported``,
+    ``refused`` (zip members never read: names that leave their archive,
+    earlier copies of a member named twice), ``hidden`` and ``unreadable``
+    receive ``(path, reason)`` as with ``motion_files``, so a run accounts for
+    every file ``ingest`` would.
 
     Raises
     ------
@@ -121,7 +124,9 @@ def expand_sources(sources, *, unsupported=None) -> list[Path]:
         else:
             paths.append(Path(s))
     # absolute, symlinks kept: the paths `ingest` stores for the same files
-    files = list(dict.fromkeys(Path(os.path.abspath(p)) for p in motion_files(paths, unsupported=unsupported)))
+    files = list(dict.fromkeys(Path(os.path.abspath(p)) for p in motion_files(paths, unsupported=unsupported,
+                                                                                         refused=refused, hidden=hidden,
+                                                                                         unreadable=unreadable)))
     if not files:
         raise ParameterError(f"sources: no motion files ({', '.join(MOTION_SUFFIXES)}) in {[str(s) for s in sources]}")
     return files
@@ -306,7 +311,10 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     _check(tau, num_cpus, batch_files, bucket_motions)
     ray = require_ray()
     report = RayReport()
-    files = expand_sources(sources, unsupported=report.unsupported)
+    # what the walk refuses is failed (a row of the errors dataset, as ingest logs it), a hidden file skipped
+    walk_refused = []
+    files = expand_sources(sources, unsupported=report.unsupported, refused=walk_refused, hidden=report.skipped,
+                           unreadable=report.unreadable)
     options = options or ReaderOptions()   # its paths are absolute: workers have their own working directory
     the_model = _model(model, database)
     schemas = {**table_schemas(), "errors": ERRORS_SCHEMA}
@@ -321,6 +329,11 @@ def ray_annotate(sources, out, *, address=None, model=DEFAULT_MODEL, tau=None, k
     rows.sort(key=lambda r: r["motion_id"])
     _check_once(rows)
     parts = sorted({p for r in rows for p in r["parts"]})
+    if walk_refused:  # a part of their own, motions 0-0: they have no motion id (ids start at 1)
+        parts.append(part_path("errors", part_name(0, 0)))
+        write_part(out, parts[-1], pa.table({"file": [str(f) for f, _ in walk_refused],
+                                             "reason": [r for _, r in walk_refused]}, schema=ERRORS_SCHEMA))
+        report.failed.extend(walk_refused)
     _drop_duplicates(out, rows, parts, schemas, report)
     for r in rows:
         if r["n_frames"] is not None:
