@@ -79,8 +79,10 @@ class _Worker:
         env = dict(os.environ, NUMBA_NUM_THREADS="1")   # the parallelism is the workers themselves
         # the worker imports this very mocapdb, however the caller found it (an install, a checkout on sys.path)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [_PACKAGE_ROOT, env.get("PYTHONPATH")]))
-        self.proc = subprocess.Popen([sys.executable, "-m", "mocapdb.storage.ingest_worker"], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, env=env)
+        # -P: `-m` would put the working directory first on sys.path, and a checkout there (or any folder
+        # named mocapdb) would shadow the package that runs here
+        self.proc = subprocess.Popen([sys.executable, "-P", "-m", "mocapdb.storage.ingest_worker"],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
 
     def call(self, fn, arg):
         try:
