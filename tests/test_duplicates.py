@@ -8,6 +8,8 @@ import mocapdb
 
 from conftest import DATA
 
+pytestmark = pytest.mark.shared  # real takes of ../shared/data/accad_dev and cmu
+
 TAKES = [DATA / "accad_dev" / name for name in ("Male1_A3_SwingArms.bvh.gz", "Male1_C20_Run2Jump2Walk.bvh.gz",
                                                 "Male1_B7_WalkBackTurnForward.bvh.gz")]
 

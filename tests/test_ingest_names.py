@@ -62,6 +62,7 @@ def test_a_name_of_dots_is_a_name_import_accepts(tmp_path):
     assert "1 motion(s) imported" in r.output
 
 
+@pytest.mark.shared
 @pytest.mark.filterwarnings("ignore:Duplicate name:UserWarning")
 def test_a_copy_of_a_member_named_twice_is_skipped_not_failed(tmp_path):
     """The earlier copy of `s/walk.bvh` is refused (only the last is read); `x_copy.bvh`, the same bytes as the

@@ -126,6 +126,7 @@ def test_the_query_stretch_of_find_similar_is_bounded(db):
     assert anyio.run(_get, create_app(archive), "/api/similar?motion=86_09&start_frame=1&end_frame=300")[0] == 200
 
 
+@pytest.mark.shared
 def test_a_source_is_read_again_only_when_its_bytes_are_those_ingested(db):
     """A source path changed (an imported archive tampered with, a file replaced) is refused, naming relocate:
     the server and ``view`` never show another file of the machine."""

@@ -15,7 +15,7 @@ from conftest import DATA, run
 from serving import Served
 
 #: a browser and a server: seconds each
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.shared]
 
 SOURCE = DATA / "accad_dev" / "Male1_C20_Run2Jump2Walk.bvh.gz"  # run, jump, walk: centimetres, 30 Hz
 
