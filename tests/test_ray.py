@@ -263,6 +263,7 @@ def test_broken_files_become_rows_of_errors_and_the_rest_goes_on(local_ray, tmp_
 
 
 @pytest.mark.shared
+@pytest.mark.filterwarnings("ignore:Duplicate name:UserWarning")  # the member named twice, on purpose
 def test_zip_members_ingest_refuses_are_failed_rows_and_hidden_ones_skipped(local_ray, tmp_path):
     """Issue 33: ray-annotate dropped the zip members ingest refuses (names leaving the archive, an earlier
     copy of a member named twice) and hidden files without a trace; they are now rows of the errors dataset
