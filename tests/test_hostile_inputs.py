@@ -55,7 +55,7 @@ def test_a_bvh_is_decided_by_its_first_word(tmp_path):
 
 def _cli(*args, timeout=120):
     code = "import sys; from mocapdb.cli import main; sys.exit(main(sys.argv[1:]))"
-    return subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-P", "-c", code, *map(str, args)], capture_output=True, text=True,
                           timeout=timeout, env={**os.environ, "MOCAPDB_PRECOMPILE": "0"})
 
 
