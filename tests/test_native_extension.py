@@ -424,11 +424,19 @@ def test_a_machine_without_a_c_compiler_still_installs(tmp_path, monkeypatch):
 FUZZ_CLIENT = r"""
 import json, random, sys
 import duckdb
-db, ext, seed, n = json.load(sys.stdin)
+db, db2, ext, seed, n = json.load(sys.stdin)
 rng = random.Random(seed)
-con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
-con.execute("SET enable_progress_bar = false")
-con.execute(f"LOAD '{ext}'")
+def open_loaded(path):
+    c = duckdb.connect(path, read_only=True, config={"allow_unsigned_extensions": "true"})
+    c.execute("SET enable_progress_bar = false")
+    c.execute(f"LOAD '{ext}'")
+    return c
+# two databases in one process, each with the extension's state of its own; the second is released
+# now and then (its calls are then errors saying so), closed and opened again (a fresh LOAD)
+con = open_loaded(db)
+cons = [con, open_loaded(db2)]
+released = False
+n_released = 0
 SCALARS = ["NULL", "0", "1", "-1", "3", "1023", "1099511627775", "1099511627776", "9223372036854775807",
            "-9223372036854775808", "18446744073709551615", "108000", "108001", "2.5", "'x'", "true", "[]", "[[1]]"]
 def value():
@@ -481,19 +489,32 @@ for i in range(n):
                 break
         q = (f"SELECT count(*), sum(len(s)) FROM (SELECT annotate({', '.join(args)}) AS s "
              "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
+    r = rng.random()
+    if r < 0.01 and not released:
+        assert cons[1].execute("SELECT mocapdb_release()").fetchall() == [(True,)]
+        released = True
+    elif r < 0.03 and released:
+        cons[1].close()  # the file closes: nothing else holds it
+        cons[1] = open_loaded(db2)
+        released = False
+    c = rng.choice(cons)
     try:
-        con.execute(q).fetchall()
+        c.execute(q).fetchall()
         n_rows += 1
-    except duckdb.Error:
+        assert not (released and c is cons[1]), "a call answered after mocapdb_release(): " + q
+    except duckdb.Error as e:
         n_errors += 1
-print(json.dumps([n_rows, n_errors]))
+        n_released += released and c is cons[1] and "was released on this database" in str(e)
+print(json.dumps([n_rows, n_errors, n_released]))
 """
 
 
 @pytest.mark.slow  # subprocesses: another client, a sanitizer build
 def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     """A build with -fsanitize=address,undefined (UBSan aborting on the first finding) LOADed into
-    Python duckdb with libasan preloaded: 3,000 seeded random calls, none may crash."""
+    Python duckdb with libasan preloaded, in two databases of one process: 3,000 seeded random calls,
+    none may crash; after mocapdb_release() every call on that database is refused, and it opens
+    and loads again once closed."""
     cc = os.environ.get("CC") or shutil.which("gcc")
     assert cc, "the sanitizer test needs gcc"
     asan = subprocess.run([cc, "-print-file-name=libasan.so"], capture_output=True, text=True).stdout.strip()
@@ -503,9 +524,12 @@ def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     # leaks: CPython and DuckDB keep memory at exit by design; the extension's own are bounded by LOAD
     env = dict(os.environ, LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
                UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
-    run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT], input=json.dumps([str(archive), str(ext), 31, 3000]),
+    second = shutil.copyfile(archive, tmp_path / "second.duckdb")
+    run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT],
+                         input=json.dumps([str(archive), str(second), str(ext), 31, 3000]),
                          capture_output=True, text=True, env=env, timeout=1200)
     assert run.returncode == 0, run.stderr[-4000:]
     assert len(run.stdout.splitlines()) == 1, run.stdout[:3000]
-    n_rows, n_errors = json.loads(run.stdout)
+    n_rows, n_errors, n_released = json.loads(run.stdout)
     assert n_rows + n_errors == 3000 and n_rows > 500 and n_errors > 500  # both paths were exercised
+    assert n_released > 50  # calls after mocapdb_release() were made, and refused

@@ -85,6 +85,9 @@ static int run_query(mdb_state *st, const char *sql, const char *table, const ch
                      const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
 	duckdb_prepared_statement stmt = NULL;
 	int rc = -1;
+	if (mdb_state_live(st, err)) {
+		return -1;
+	}
 	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
 		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
 		duckdb_destroy_prepare(&stmt);
@@ -350,12 +353,13 @@ static size_t batch_bytes(const mdb_batch *b) {
 	return sizeof *b + b->runs.cap * (sizeof(int32_t) + sizeof(uint64_t) + 2 * sizeof(int64_t));
 }
 
-/* Drop the cached batches of other versions (those in use go when released). */
-static void drop_stale(mdb_state *st, int64_t version) {
+/* Drop the cached batches of other versions, or all of them (every = 1); those in use go when
+ * released. */
+static void drop_batches(mdb_state *st, int64_t version, int every) {
 	mdb_batch **p = &st->cache;
 	while (*p) {
 		mdb_batch *b = *p;
-		if (b->version == version) {
+		if (!every && b->version == version) {
 			p = &b->next;
 			continue;
 		}
@@ -368,6 +372,10 @@ static void drop_stale(mdb_state *st, int64_t version) {
 	}
 }
 
+void mdb_drop_cache(mdb_state *st) {
+	drop_batches(st, 0, 1);
+}
+
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err) {
 	int64_t version;
 	mdb_batch *b = NULL;
@@ -375,7 +383,7 @@ mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *er
 	if (index_version(st, &version, err)) {
 		goto done;
 	}
-	drop_stale(st, version);
+	drop_batches(st, version, 0);
 	for (b = st->cache; b; b = b->next) {
 		if (b->lo == lo && b->hi == hi) {
 			b->refs++;
