@@ -13,6 +13,7 @@ the best of the next passes, the rows (which must agree) and the process's peak 
 """
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -78,8 +79,10 @@ def annotate_sql(keyframes):
 def side(name, db, ext, queries, passes):
     """One side's figures; ``queries`` is a list, or a dict of lists by side (SQL that differs)."""
     queries = queries[name] if isinstance(queries, dict) else queries
+    # the Python side keeps mocapdb.connect from loading the extension: its UDFs answer
+    env = dict(os.environ, MOCAPDB_NATIVE="0") if name == "python" else None
     run = subprocess.run([sys.executable, "-c", SIDE, name, str(db), str(ext), str(passes)],
-                         input=json.dumps(queries), capture_output=True, text=True, check=True)
+                         input=json.dumps(queries), capture_output=True, text=True, check=True, env=env)
     return json.loads(run.stdout)
 
 

@@ -35,7 +35,13 @@ DUCKDB_EXTENSION_EXTERN
 
 /* The error of a failed query, with the table it needed named when it is missing. */
 static void query_error(const char *what, const char *table, const char *detail, mdb_error *err) {
-	if (detail && strstr(detail, "does not exist")) {
+	if (detail && strstr(detail, "does not exist") && strncmp(table, "mocap_index.", 12) == 0) {
+		/* the words of mocapdb.storage.cache.NO_INDEX, with the table named */
+		snprintf(err->text, sizeof err->text,
+		         "%s: this database has no keyframe index (table %s does not exist); build it with `mocapdb "
+		         "create-index` (mocapdb.api.create_index), or annotate without keyframes (keyframes := false)",
+		         what, table);
+	} else if (detail && strstr(detail, "does not exist")) {
 		snprintf(err->text, sizeof err->text,
 		         "%s: table %s does not exist in this database: `mocapdb ingest` creates it (an archive whose "
 		         "keyframe index was dropped gets it back with `mocapdb create-index`)",
