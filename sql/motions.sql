@@ -66,10 +66,6 @@ SELECT count(*) FROM motions;
 -- name: schema_exists
 SELECT count(*) > 0 FROM duckdb_tables() WHERE schema_name = 'main' AND table_name = 'motions';
 
--- name: current_database
--- the catalog name of the database file (DDL that must not reach the system catalog qualifies with it)
-SELECT current_database();
-
 -- name: sources_for_relocate
 SELECT motion_id, name, source_path, sha256, skeleton_path, skeleton_sha256 FROM motions ORDER BY motion_id;
 

@@ -412,6 +412,24 @@ def test_an_instance_kept_open_after_the_release_falls_back_to_the_python_udfs(a
     assert another_process_writes(db) is True
 
 
+def test_older_stand_ins_go_and_a_loaded_instance_opens_again(archive, native, tmp_path):
+    """The persisted stand-in macros an older mocapdb wrote would hide the native functions: a
+    read-write open drops them, and a second open of the loaded instance (where the bare names are
+    the native functions, which DuckDB refuses to drop) works."""
+    db = tmp_path / "stand_ins.duckdb"
+    shutil.copy(archive, db)
+    raw = connect_raw(db)
+    raw.execute("CREATE MACRO annotate(m) AS 'stand-in'")
+    raw.execute("CREATE MACRO keyframe_search(c) AS TABLE SELECT 'stand-in' AS x")
+    raw.close()
+    with mocapdb.connect(db) as first, mocapdb.connect(db) as second:
+        for con in (first, second):
+            assert con.execute("SELECT typeof(annotate(1))").fetchall()[0][0].startswith("STRUCT")
+        assert second.execute("SELECT count(*) FROM duckdb_functions() WHERE database_name = current_database() "
+                              "AND function_type IN ('macro', 'table_macro')").fetchall() == [(0,)]
+        assert second.execute("SELECT count(*) FROM keyframe_search('squat1Reps')").fetchall()[0][0] > 0
+
+
 @pytest.fixture(scope="module")
 def archive_v15(archive):
     """The archive as mocapdb wrote it: in DuckDB 1.5's storage format (mocapdb.storage.schema.STORAGE_VERSION),

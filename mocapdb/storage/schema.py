@@ -25,7 +25,7 @@ import duckdb
 from mocapdb.errors import SchemaError
 from mocapdb.storage.model_store import install_shipped_models
 from mocapdb.storage.postings import create_index, create_index_schema
-from mocapdb.storage.sqltext import quote_identifier, sql_text, statement
+from mocapdb.storage.sqltext import sql_text, statement
 from mocapdb.storage.transaction import transaction
 
 #: run in this order on every read-write open; comments.sql (the plain-DuckDB hints) after views.sql,
@@ -201,19 +201,10 @@ def require_own_tables(con, what: str) -> None:
                           "database of its own (import-features loads the archive into one)")
 
 
-#: the persisted stand-in macros older versions wrote for the names of the native functions
-#: (annotate(), mt_distance(), keyframe_search(), keyframe_search_words(): the extension has them,
-#: docs/EXTENSION.md); a persisted macro would hide the native function, so they go
-_STAND_INS = (("MACRO", "annotate"), ("MACRO", "mt_distance"), ("MACRO TABLE", "keyframe_search"),
-              ("MACRO TABLE", "keyframe_search_words"))
-
-
 def _drop_stand_ins(con) -> None:
-    """Drop the stand-in macros of the file's own catalog. Qualified with it: on an instance that
-    loaded the extension the bare name is the native function, which DuckDB refuses to drop."""
-    db = quote_identifier(con.execute(statement("motions.sql", "current_database")).fetchone()[0])
-    for kind, name in _STAND_INS:
-        con.execute(f"DROP {kind} IF EXISTS {db}.main.{name}")
+    """Drop the persisted stand-in macros an older mocapdb wrote (``sql/stand_ins.sql`` says why)."""
+    for name, in con.execute(statement("stand_ins.sql", "present")).fetchall():
+        con.execute(statement("stand_ins.sql", name))
 
 
 def create_schema(con) -> None:
