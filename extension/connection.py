@@ -97,7 +97,7 @@ class _Registration:
         what it lacks on ``con``."""
         if native is not None and keeper is not None:
             try:
-                keeper.execute("LOAD '{}'".format(str(native).replace("'", "''")))
+                keeper.execute(statement("connection.sql", "load", literals={"extension": native}))
             except duckdb.Error as exc:
                 raise SchemaError(f"loading the native extension {native} failed: {str(exc).splitlines()[0]} "
                                   f"(set {NATIVE_ENV}=0 to use the Python functions instead)") from None

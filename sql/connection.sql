@@ -9,3 +9,7 @@ SELECT mocap_instance();
 -- the native extension lets go of the database (its own connection and caches): the file closes
 -- with its last connection (docs/EXTENSION.md)
 SELECT mocapdb_release();
+
+-- name: load
+-- the native extension (its path; unsigned: the connection allows that, storage/schema.OPEN_CONFIG)
+LOAD '%extension%';
