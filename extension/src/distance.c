@@ -164,33 +164,49 @@ static inline __attribute__((always_inline)) void dp(const mdb_template *t, cons
 	}
 }
 
-MDB_CLONES int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
+void mdb_dp_scratch_free(mdb_dp_scratch *s) {
+	free(s->buf);
+	free(s->sbuf);
+	memset(s, 0, sizeof *s);
+}
+
+MDB_CLONES int mdb_mt_distance_in(const mdb_template *t, const uint64_t *words, size_t n, double *delta,
+                                  int64_t *starts, mdb_dp_scratch *s) {
 	size_t K = t->K;
 	/* a column: PAD rows, K rows, and the rows the last vector reaches past K-1, rounded up to
 	 * 64 bytes (aligned_alloc takes whole multiples of its alignment) */
 	size_t stride = (PAD + K + MDB_LANES + 7) / 8 * 8;
-	/* columns j, j-1, j-2 of D and the frame's costs; with starts, columns j, j-1, j-2 of the
-	 * start frame of each cell's path (-1: none), following the chosen predecessor */
-	double *buf = aligned_alloc(64, 4 * stride * sizeof *buf);
-	int64_t *sbuf = aligned_alloc(64, 3 * stride * sizeof *sbuf);
-	if (!buf || !sbuf) {
-		free(buf);
-		free(sbuf);
-		return -1;
+	if (stride > s->stride) {
+		/* columns j, j-1, j-2 of D and the frame's costs; columns j, j-1, j-2 of the start frame
+		 * of each cell's path (-1: none), following the chosen predecessor */
+		mdb_dp_scratch_free(s);
+		s->buf = aligned_alloc(64, 4 * stride * sizeof *s->buf);
+		s->sbuf = aligned_alloc(64, 3 * stride * sizeof *s->sbuf);
+		if (!s->buf || !s->sbuf) {
+			mdb_dp_scratch_free(s);
+			return -1;
+		}
+		s->stride = stride;
 	}
+	stride = s->stride;
 	for (size_t i = 0; i < 3 * stride; i++) {
-		buf[i] = INFINITY;
-		sbuf[i] = -1;
+		s->buf[i] = INFINITY;
+		s->sbuf[i] = -1;
 	}
 	for (size_t i = 0; i < stride; i++) {
-		buf[3 * stride + i] = 0.0; /* the costs of the rows past K-1 */
+		s->buf[3 * stride + i] = 0.0; /* the costs of the rows past K-1 */
 	}
 	if (starts) {
-		dp(t, words, n, delta, starts, stride, buf, sbuf, 1);
+		dp(t, words, n, delta, starts, stride, s->buf, s->sbuf, 1);
 	} else {
-		dp(t, words, n, delta, NULL, stride, buf, sbuf, 0);
+		dp(t, words, n, delta, NULL, stride, s->buf, s->sbuf, 0);
 	}
-	free(buf);
-	free(sbuf);
 	return 0;
+}
+
+int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
+	mdb_dp_scratch s = {0};
+	int rc = mdb_mt_distance_in(t, words, n, delta, starts, &s);
+	mdb_dp_scratch_free(&s);
+	return rc;
 }
