@@ -32,6 +32,9 @@ without each lab in turn (HDM05, CMU, bandai2_dev, accad_dev) annotates that
 lab — what a stranger with another lab's recordings sees —, with and
 without keyframes; per fold its figures, inside the fold per actor / document
 / style, and the spread (min–max) across folds.
+The segments' confidence is judged there twice: the raw score, and
+calibrated — each lab's segments through confidence maps fitted on the other
+labs' segments only (:func:`lab.calibration.calibrated_by_lab`).
 
 ``--shipped`` also scores the shipped models themselves (the previous one
 from git, the new one from the package) on every set — the figures the

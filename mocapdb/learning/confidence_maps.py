@@ -4,8 +4,8 @@ The raw score of a segment (``1 − Δ̄^τ/τ`` at its best frame) ranks
 segments within a label but says nothing about how often they are right: a
 designed class (turn, neutral, tpose) matches its phases exactly or not at
 all, so its raw score is always 1, and a learned class's τ is set per class.
-What else a wrong segment shows, on every lab left out: it is short (median
-32–58 frames against 88–112 right, RESULTS.md issue 32).
+What else a wrong segment shows, on three labs of four left out: it is short
+(median 32–58 frames against 88–105 right, RESULTS.md issue 32 item 4).
 :func:`fit_confidence_maps` learns, from segments the model's recipe
 annotated on recordings left out of its training (leave-one-lab-out folds,
 each judged right or wrong), for each length band (:data:`LENGTH_EDGES`) a
