@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.units import leg_length
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
            "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP", "humanoid_problem", "upright_frames",
@@ -653,11 +654,6 @@ def _proportion_problems(j, leg) -> list:
             if not HUMAN_PROPORTIONS[what][0] <= ratio <= HUMAN_PROPORTIONS[what][1]]
 
 
-def _leg(j) -> float:
-    return float(np.median(0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
-                                  + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))))
-
-
 def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tuple | None:
     """Why a mapped skeleton is not a human, or None when it is one.
 
@@ -685,7 +681,7 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
     """
     step = max(1, len(joints) // _SAMPLE)
     j = joints[::step]
-    leg = _leg(j)
+    leg = leg_length(j)   # the one median leg: the unit of a BVH take is decided on it too
     if not leg > 0:
         return "skeleton", "the legs have no length"
     problems = _proportion_problems(j, leg)
@@ -696,7 +692,7 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
                    f"in {stands:.0%} of the frames and not in its rest pose")
     if not problems and upright is None:
         return None
-    rest_leg = _leg(rest[None]) if rest is not None else 0.0
+    rest_leg = leg_length(rest[None]) if rest is not None else 0.0
     if rest_leg > 0 and not _proportion_problems(rest[None], rest_leg):
         # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
         at_rest = _proportions(rest[None], rest_leg)
