@@ -1,17 +1,9 @@
 -- How a plain DuckDB user finds the SQL functions (run on every read-write
 -- open, after schema.sql and views.sql, which recreate the views).
 --
--- The SQL functions are Python UDFs on connections from mocapdb.connect and native in the
--- extension (LOAD it in any other DuckDB client); every table says where it comes from
+-- The SQL functions are native in the extension (mocapdb.connect loads it; LOAD it in any other
+-- DuckDB client; Python UDFs where it is missing); every table says where it comes from
 -- (SELECT table_name, comment FROM duckdb_tables()).
-
--- annotate(), mt_distance(), keyframe_search() and keyframe_search_words() are native: the
--- extension that `mocapdb extension-path` names has them (LOAD it; docs/EXTENSION.md). A persisted
--- macro of one of those names would hide it, so the stand-ins that older versions wrote go.
-DROP MACRO IF EXISTS annotate;
-DROP MACRO IF EXISTS mt_distance;
-DROP MACRO TABLE IF EXISTS keyframe_search;
-DROP MACRO TABLE IF EXISTS keyframe_search_words;
 
 COMMENT ON TABLE motions IS 'mocapdb: one row per recording. The SQL functions annotate(), mt_distance(), keyframe_search(), keyframe_search_words() are on connections from mocapdb.connect() (Python) and in the native extension (LOAD the file `mocapdb extension-path` prints).';
 COMMENT ON TABLE features IS 'mocapdb: the 40 relational features of every 30 Hz frame, packed (bit k-1 = feature k). annotate() and the other SQL functions: open the file with mocapdb.connect(), `mocapdb --db FILE sql`, or LOAD the native extension.';

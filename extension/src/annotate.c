@@ -517,7 +517,7 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 		snprintf(err.text, sizeof err.text, WHAT ": out of memory");
 		goto done;
 	}
-	if (collect(st, input, n, &ms, items, &n_items, out_valid, &err)) {
+	if (mdb_check_live(st, &err) || collect(st, input, n, &ms, items, &n_items, out_valid, &err)) {
 		goto done;
 	}
 	qsort(items, n_items, sizeof *items, by_motion);
@@ -618,7 +618,7 @@ static duckdb_scalar_function annotate_function(mdb_state *st, int n_args) {
 	/* NULLs come in: a NULL motion is a NULL answer, a NULL tau or keyframes the default */
 	duckdb_scalar_function_set_special_handling(f);
 	duckdb_scalar_function_set_volatile(f);
-	duckdb_scalar_function_set_extra_info(f, st, NULL);
+	duckdb_scalar_function_set_extra_info(f, mdb_state_ref(st), mdb_state_unref);
 	duckdb_scalar_function_set_function(f, annotate_fn);
 	return f;
 }

@@ -41,7 +41,13 @@ DUCKDB_EXTENSION_EXTERN
 
 /* The error of a failed query, with the table it needed named when it is missing. */
 static void query_error(const char *what, const char *table, const char *detail, mdb_error *err) {
-	if (detail && strstr(detail, "does not exist")) {
+	if (detail && strstr(detail, "does not exist") && strncmp(table, "mocap_index.", 12) == 0) {
+		/* the words of mocapdb.storage.cache.NO_INDEX, with the table named */
+		snprintf(err->text, sizeof err->text,
+		         "%s: this database has no keyframe index (table %s does not exist); build it with `mocapdb "
+		         "create-index` (mocapdb.api.create_index), or annotate without keyframes (keyframes := false)",
+		         what, table);
+	} else if (detail && strstr(detail, "does not exist")) {
 		snprintf(err->text, sizeof err->text,
 		         "%s: table %s does not exist in this database: `mocapdb ingest` creates it (an archive whose "
 		         "keyframe index was dropped gets it back with `mocapdb create-index`)",
@@ -91,6 +97,9 @@ static int run_query(mdb_state *st, const char *sql, const char *table, const ch
                      const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
 	duckdb_prepared_statement stmt = NULL;
 	int rc = -1;
+	if (mdb_state_live(st, err)) {
+		return -1;
+	}
 	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
 		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
 		duckdb_destroy_prepare(&stmt);
@@ -356,12 +365,13 @@ static size_t batch_bytes(const mdb_batch *b) {
 	return sizeof *b + b->runs.cap * (sizeof(int32_t) + sizeof(uint64_t) + 2 * sizeof(int64_t));
 }
 
-/* Drop the cached batches of other versions (those in use go when released). */
-static void drop_stale(mdb_state *st, int64_t version) {
+/* Drop the cached batches of other versions, or all of them (every = 1); those in use go when
+ * released. */
+static void drop_batches(mdb_state *st, int64_t version, int every) {
 	mdb_batch **p = &st->cache;
 	while (*p) {
 		mdb_batch *b = *p;
-		if (b->version == version) {
+		if (!every && b->version == version) {
 			p = &b->next;
 			continue;
 		}
@@ -374,6 +384,10 @@ static void drop_stale(mdb_state *st, int64_t version) {
 	}
 }
 
+void mdb_drop_cache(mdb_state *st) {
+	drop_batches(st, 0, 1);
+}
+
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err) {
 	int64_t version;
 	mdb_batch *b = NULL;
@@ -381,7 +395,7 @@ mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *er
 	if (index_version(st, &version, err)) {
 		goto done;
 	}
-	drop_stale(st, version);
+	drop_batches(st, version, 0);
 	for (b = st->cache; b; b = b->next) {
 		if (b->lo == lo && b->hi == hi) {
 			b->refs++;
