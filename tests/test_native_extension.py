@@ -240,6 +240,36 @@ def test_annotate_equals_the_python_udf(archive, native):
     assert len({lab for m, lab in labels if m == "default"}) >= 4, labels
     assert len({lab for m, lab in labels if m == "toolbox"}) >= 3, labels
     assert ("default", "turn") in labels and want[0] != want[2]  # preselection changes something
+    # the default model's confidence is calibrated: every segment's is a value of its stored maps
+    with mocapdb.connect(archive, read_only=True) as con:
+        values = {v for v, in con.execute("SELECT value FROM confidence_maps WHERE model = 'default'").fetchall()}
+    assert len(values) > 3 and {s["confidence"] for _, segs in want[0] for s in segs} <= values
+
+
+def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
+    """A confidence map whose values fall is an error naming the model and the table; a database from before
+    calibrated confidence (no table confidence_maps) gives the raw score, as the Python UDF gives it under the
+    model without its maps."""
+    import dataclasses
+
+    from mocapdb.storage.model_store import load_model, save_model
+
+    db = tmp_path / "maps.duckdb"
+    shutil.copy(archive, db)
+    with mocapdb.connect(db) as con:
+        model = load_model(con, "default")
+        assert model.confidence_maps
+        save_model(con, dataclasses.replace(model, name="raw", confidence_maps=()))
+        want = con.execute("SELECT motion_id, annotate(motion_id, model := 'raw') FROM motions "
+                           "ORDER BY motion_id").fetchall()
+    got = plain_client(db, native, [
+        "UPDATE confidence_maps SET value = 0 WHERE model = 'default' AND k = 2",
+        "SELECT annotate(1, 'default')",
+        "DROP TABLE confidence_maps",
+        "SELECT motion_id, annotate(motion_id, 'default') FROM motions ORDER BY motion_id"], read_only=False)
+    assert "model 'default': its confidence_maps rows are damaged" in got[1]["error"]
+    assert got[3]["rows"] == [list(r) for r in want]
+    assert any(s["confidence"] not in (0.0, 1.0) for _, segs in want for s in segs)
 
 
 def test_annotate_arguments(archive, native):

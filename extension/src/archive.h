@@ -124,7 +124,8 @@ int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int
 
 /* A stored model as annotation needs it: classes in class_id order with their template, τ,
  * minimum length and keyframe query (K = 0: none, margins of annotation applied); labels in
- * label_id order (the Δarg tie order) with whether each is concurrent; the margin. */
+ * label_id order (the Δarg tie order) with whether each is concurrent and its confidence map;
+ * the margin. */
 typedef struct {
 	size_t n_classes, n_labels;
 	char **label;         /* per label */
@@ -135,6 +136,9 @@ typedef struct {
 	mdb_template *tpl;    /* per class */
 	mdb_query *query;     /* per class */
 	double margin;
+	size_t *conf_n;       /* per label: steps of its confidence map (0: the raw score) */
+	double **conf_cut, **conf_value; /* per label: the steps (mocapdb.annotation.ConfidenceMap) */
+	int64_t **conf_min_length;       /* per label and step: its map's shortest segment */
 } mdb_model;
 
 void mdb_model_free(mdb_model *m);
