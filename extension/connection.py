@@ -43,6 +43,7 @@ from mocapdb.errors import SchemaError
 from mocapdb.extension.native import NativeExtensionMissing, extension_path
 from mocapdb.extension.udfs import make_udfs, register, register_macros, register_python_functions
 from mocapdb.storage.cache import ConnectionCache, share_cache
+from mocapdb.storage.model_store import SHIPPED_MODELS, model_names
 from mocapdb.storage.schema import connect_raw, open_database
 from mocapdb.storage.sqltext import statement
 
@@ -160,6 +161,16 @@ def _registration_of(con):
     return reg
 
 
+def _stores_shipped_models(con) -> bool:
+    """Whether the database holds every shipped model. The native functions read models from the
+    database only; a file made before a model shipped, opened read-only (so the model cannot be
+    installed into it), answers with the Python UDFs, which read the package's copy."""
+    try:
+        return set(SHIPPED_MODELS) <= set(model_names(con))
+    except duckdb.Error:  # no models table at all
+        return False
+
+
 def _attach(con, reopen=None):
     """Give a raw connection the SQL functions: the instance's registration (made on first use)
     and the macros. ``reopen()`` opens another connection to the instance (the keeper of the
@@ -169,7 +180,7 @@ def _attach(con, reopen=None):
         reg = _registration_of(con)
         if reg is None:
             reg = _Registration()
-            native = native_extension() if reopen is not None else None
+            native = native_extension() if reopen is not None and _stores_shipped_models(con) else None
             keeper = reopen() if native is not None else None
             try:
                 reg.register(con, keeper, native)
