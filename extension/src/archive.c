@@ -91,6 +91,27 @@ static int grow(void *pp, size_t elem, size_t cap) {
 	return 0;
 }
 
+/* Whether the extension still holds its connection (mocapdb_release() lets it go: state.c); the
+ * liveness belongs here, with the reads that need the connection. */
+#define RELEASED_ERROR                                                                                                 \
+	"mocapdb: the extension was released on this database (mocapdb_release()); open the database again to use " \
+	"its functions"
+
+int mdb_state_live(mdb_state *st, mdb_error *err) {
+	if (!st->released && st->con) {
+		return 0;
+	}
+	snprintf(err->text, sizeof err->text, "%s", RELEASED_ERROR);
+	return -1;
+}
+
+int mdb_check_live(mdb_state *st, mdb_error *err) {
+	pthread_mutex_lock(&st->lock);
+	int rc = mdb_state_live(st, err);
+	pthread_mutex_unlock(&st->lock);
+	return rc;
+}
+
 /* A query with text parameters, then integer ones ($1, $2, … in that order), executed on the
  * extension's connection (the caller holds the lock); 0, or -1 with err naming the table. */
 static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
