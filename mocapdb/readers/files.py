@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -135,6 +136,51 @@ def _folder_asf(folder):
 _FOLDER_ASF = {}
 
 
+class _Names:
+    """The entry names of a folder, to rule out candidates without a ``stat`` each (an archive's AMC takes
+    asked ~10 each: a sixth of a short take's reading)."""
+
+    def __init__(self, names):
+        self.names = frozenset(names)
+        self.folded = frozenset(n.lower() for n in self.names)
+
+    def may_hold(self, name: str) -> bool:
+        """False only when no entry can be ``name``: on a case-insensitive file system a differently cased
+        entry answers too, so those (and any non-ASCII name, which such a system may also normalise) are
+        still probed."""
+        return name in self.names or not name.isascii() or name.lower() in self.folded
+
+
+#: folder -> ((size, mtime), its _Names); like _FOLDER_ASF
+_FOLDER_NAMES = {}
+#: a folder changed this recently is not listed for the cache: an entry made within the file system's
+#: clock tick after the listing would leave its mtime as it was (git's "racy" files)
+_RACY_NS = 2_000_000_000
+
+
+def _entry_names(folder) -> _Names | None:
+    """The names in a plain folder (listed once while it does not change), or None: unreadable, inside a
+    zip archive, or changed in the last two seconds (then every candidate is probed)."""
+    try:
+        st = os.stat(folder)
+    except OSError:   # also a folder inside a zip archive: its members are probed
+        return None
+    key, version = str(folder), (st.st_size, st.st_mtime_ns)
+    hit = _FOLDER_NAMES.get(key)
+    if hit is not None and hit[0] == version:
+        return hit[1]
+    if time.time_ns() - st.st_mtime_ns < _RACY_NS:
+        return None
+    try:
+        names = _Names(os.listdir(folder))
+    except OSError:
+        return None
+    if len(_FOLDER_NAMES) >= 256:
+        _FOLDER_NAMES.clear()
+    _FOLDER_NAMES[key] = (version, names)
+    return names
+
+
 def find_skeleton(amc_path) -> Path | None:
     """The ASF skeleton of an AMC file by the dataset conventions, or None.
 
@@ -144,7 +190,10 @@ def find_skeleton(amc_path) -> Path | None:
     """
     named = _named_candidates(amc_path)
     for c in named:
+        names = _entry_names(c.parent)
         for cand in (c, c.with_suffix(".ASF"), *(c.with_name(c.name + z) for z in COMPRESSED)):
+            if names is not None and not names.may_hold(cand.name):
+                continue
             if is_file(cand):
                 return cand
     own = _folder_asf(Path(amc_path).parent)
