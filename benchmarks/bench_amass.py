@@ -35,7 +35,7 @@ SAMPLE = REPO / "mocapdb" / "sample"
 
 from mocapdb.features import N_BITS, motion_features, unpack_words  # noqa: E402
 from mocapdb.readers import read_amc, read_asf, read_motion  # noqa: E402
-from mocapdb.readers.joints_write import write_joints  # noqa: E402
+from mocapdb.writers.joints_write import write_joints  # noqa: E402
 
 sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
 from lab.amass_write import write_amass  # noqa: E402

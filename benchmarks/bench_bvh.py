@@ -29,7 +29,8 @@ DATA = SHARED / "data"
 
 import mocapdb  # noqa: E402
 from mocapdb.errors import MocapdbError  # noqa: E402
-from mocapdb.readers import read_amc, read_asf, read_bvh, read_motion, write_bvh  # noqa: E402
+from mocapdb.readers import read_amc, read_asf, read_bvh, read_motion  # noqa: E402
+from mocapdb.writers import write_bvh
 
 
 def fixed_decimals(path: Path, digits=6) -> Path:

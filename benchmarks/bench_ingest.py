@@ -134,7 +134,7 @@ def stages(folder: Path):
     from mocapdb.features import motion_features
     from mocapdb.readers import find_skeleton, load_skeleton, motion_files, read_motion
     from mocapdb.readers.amc import read_amc
-    from mocapdb.readers.kinematics import asf_forward_kinematics
+    from mocapdb.bodies.kinematics import asf_forward_kinematics
     from mocapdb.readers.sources import sha256
     from mocapdb.storage.ingest import store_words
 

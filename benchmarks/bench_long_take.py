@@ -11,7 +11,7 @@ checkout's CLI (the figures before a change).
 CMU 02_01 (a walk, 343 frames at 120 Hz) is looped: its AMC values repeated,
 each repetition's root moved on by the distance the walk covers, so the
 walker goes on walking. Each take is written as a BVH file
-(``mocapdb.readers.write_bvh``) and goes through the CLI in fresh processes,
+(``mocapdb.writers.write_bvh``) and goes through the CLI in fresh processes,
 as a treadmill session would:
 
 * ``ingest`` of the BVH into a new database;
@@ -39,7 +39,7 @@ from bench_scale import run_cli  # noqa: E402
 
 def looped_walk(minutes, path):
     """Write CMU 02_01 looped to ``minutes`` as a BVH file; returns its frames (120 Hz)."""
-    from mocapdb.readers import write_bvh
+    from mocapdb.writers import write_bvh
     from mocapdb.readers.amc import read_amc
     from mocapdb.readers.asf import read_asf
 

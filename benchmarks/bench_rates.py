@@ -24,7 +24,8 @@ SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))
 DATA = SHARED / "data"
 
 from mocapdb.features import FEATURE_NAMES, motion_features, unpack_words  # noqa: E402
-from mocapdb.readers import Motion, read_motion  # noqa: E402
+from mocapdb.bodies import Motion  # noqa: E402
+from mocapdb.readers import read_motion
 
 CMU_ASF = DATA / "cmu" / "02" / "02.asf"
 FACTORS = (2, 3, 4, 5)

@@ -28,8 +28,9 @@ sys.path.insert(0, str(REPO))
 
 from mocapdb.readers.amc import parse_amc, read_amc  # noqa: E402
 from mocapdb.readers.asf import read_asf  # noqa: E402
-from mocapdb.readers import read_bvh, write_bvh  # noqa: E402
-from mocapdb.readers.kinematics import asf_forward_kinematics  # noqa: E402
+from mocapdb.readers import read_bvh  # noqa: E402
+from mocapdb.writers import write_bvh
+from mocapdb.bodies.kinematics import asf_forward_kinematics  # noqa: E402
 from mocapdb.readers import read_motion  # noqa: E402
 
 SHARED = Path(os.environ.get("MOCAPDB_SHARED", REPO.parent / "shared"))

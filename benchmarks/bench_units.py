@@ -2,7 +2,7 @@
 
 Every BVH file of ``../shared/data`` (foreign, foreign2, bandai2_dev, accad_dev) and the CMU takes
 (ASF/AMC, written as the CMU BVH conversions are: ASF bone names, lengths in 1/0.45 inch) is read and its
-unit decided (:func:`mocapdb.readers.units.bvh_unit`). Where the unit is known (the data README: Bandai and
+unit decided (:func:`mocapdb.bodies.units.bvh_unit`). Where the unit is known (the data README: Bandai and
 ACCAD centimetres; Mixamo centimetres, fairmotion's PFNN skeleton metres, the Kinect take centimetres; the
 CMU takes as written) the decision is scored. Then each take's body is put in each of the five units
 (m, cm, mm, inch, cmu; the joints divided by the unit's metres) and the decision scored again: a
@@ -20,8 +20,8 @@ from pathlib import Path
 
 from mocapdb.errors import MocapdbError
 from mocapdb.readers import read_motion
-from mocapdb.readers.joints_write import _write_bvh
-from mocapdb.readers.units import UNITS, bvh_unit, leg_length
+from mocapdb.writers.joints_write import _write_bvh
+from mocapdb.bodies.units import UNITS, bvh_unit, leg_length
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 KNOWN = {"mixamo_freebvh.bvh": "cm", "fairmotion_pfnn_hierarchy.bvh": "m", "kinect_clap_nan.bvh": "cm"}

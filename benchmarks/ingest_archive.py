@@ -79,7 +79,8 @@ def copy_folders(root, hours: float, fmt: str) -> list[Path]:
 
 
 def _write_copy(folder: Path, k: int, fmt: str) -> None:
-    from mocapdb.readers import load_skeleton, read_amc, write_bvh
+    from mocapdb.readers import load_skeleton, read_amc
+    from mocapdb.writers import write_bvh
     from lab.amass_write import write_amass
 
     if fmt == "c3d":

@@ -19,12 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers.amc import AmcMotion
-from mocapdb.readers.asf import Skeleton
-from mocapdb.readers.humanoid import Z_UP_TO_Y_UP
-from mocapdb.readers.kinematics import local_rotations, node_positions
-from mocapdb.readers.smpl import (BODY_JOINTS, BODY_PARENTS, FAMILIES, RestSkeleton, align_rotations,
-                                  asf_rest_tips, generic_rest, rotation_vectors)
+from mocapdb.bodies.acclaim import AmcMotion
+from mocapdb.bodies.acclaim import Skeleton
+from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP
+from mocapdb.bodies.kinematics import local_rotations, node_positions
+from mocapdb.bodies.smpl import (BODY_JOINTS, BODY_PARENTS, FAMILIES, RestSkeleton, align_rotations, asf_rest_tips,
+                                 rotation_vectors)
+from mocapdb.readers.generic_body import generic_rest
 
 __all__ = ["write_amass", "SMPL_BONES", "asf_globals"]
 

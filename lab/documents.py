@@ -72,8 +72,8 @@ from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import DOWNSAMPLING_FACTOR, FEATURE_RATE, mirror_words, motion_features
 from mocapdb.features.heading import heading_degrees
 from mocapdb.readers import read_motion
-from mocapdb.readers.joints import JOINT_INDEX
-from mocapdb.readers.motion import Motion
+from mocapdb.bodies.joints import JOINT_INDEX
+from mocapdb.bodies.motion import Motion
 from mocapdb.learning.class_definitions import compile_definition
 from lab.cutting import matching_runs
 from lab.recipe import Clip

@@ -29,7 +29,7 @@ import dataclasses
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers import JOINT_INDEX, Motion
+from mocapdb.bodies import JOINT_INDEX, Motion
 
 __all__ = ["turn_path", "straightened_walk", "turning_walk", "hip_heading", "TURN_STYLES"]
 

@@ -2,7 +2,7 @@
 
 Implements Müller, Baak & Seidel, "Efficient and Robust Annotation of Motion
 Capture Data" (SCA 2009) on DuckDB. The sub-packages follow the pipeline
-(docs/ARCHITECTURE.md): :mod:`~mocapdb.readers` → :mod:`~mocapdb.features`
+(docs/ARCHITECTURE.md): :mod:`~mocapdb.bodies` → :mod:`~mocapdb.readers` → :mod:`~mocapdb.features`
 → :mod:`~mocapdb.templates` → :mod:`~mocapdb.keyframes` →
 :mod:`~mocapdb.annotation` → :mod:`~mocapdb.learning` →
 :mod:`~mocapdb.retrieval` → :mod:`~mocapdb.evaluation`; :mod:`~mocapdb.storage` and

@@ -40,7 +40,8 @@ from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError
 from mocapdb.extension import connect as connect_database
 from mocapdb.features import motion_features
-from mocapdb.readers import generic_rest, motion_files, read_motion, smpl_forward_kinematics
+from mocapdb.readers import generic_rest, motion_files, read_motion
+from mocapdb.bodies import smpl_forward_kinematics
 from mocapdb.storage.annotations import annotate_documents
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.ingest import ingest_files

@@ -2,7 +2,7 @@
 models of the SMPL family's array layout built around a rest skeleton (none of SMPL's numbers)."""
 import numpy as np
 
-from mocapdb.readers.smpl import BODY_PARENTS, FAMILIES
+from mocapdb.bodies.smpl import BODY_PARENTS, FAMILIES
 
 
 def rewrite(path, out, **changes):

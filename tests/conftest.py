@@ -183,7 +183,7 @@ def open_db():
 
 def humerus(joints):
     """The unit of the position tolerances: |rshoulder − relbow| at frame 1 (joints: (n, 24, 3))."""
-    from mocapdb.readers.joints import JOINT_INDEX
+    from mocapdb.bodies.joints import JOINT_INDEX
 
     return float(np.linalg.norm(joints[0, JOINT_INDEX["rshoulder"]] - joints[0, JOINT_INDEX["relbow"]]))
 

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from mocapdb.readers.joints import JOINT_INDEX
+from mocapdb.bodies.joints import JOINT_INDEX
 
 J = JOINT_INDEX
 

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from mocapdb.readers.joints import JOINT_NAMES
+from mocapdb.bodies.joints import JOINT_NAMES
 
 
 def rot(axis, a):

@@ -21,10 +21,10 @@ from mocapdb.features import N_BITS, motion_features, unpack_words
 from mocapdb.readers import ReaderOptions, read_amc, read_asf, read_motion
 from lab.amass_write import write_amass
 from mocapdb.readers.body_model import load_body_model
-from mocapdb.readers.humanoid import Z_UP_TO_Y_UP
-from mocapdb.readers.joints import JOINT_INDEX
-from mocapdb.readers.smpl import (FAMILIES, canonical_weights, generic_rest,
-                                  smpl_forward_kinematics)
+from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP
+from mocapdb.bodies.joints import JOINT_INDEX
+from mocapdb.bodies.smpl import FAMILIES, canonical_weights, smpl_forward_kinematics
+from mocapdb.readers.generic_body import generic_rest
 from mocapdb.storage.motions import source_motion
 
 from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, run, shared_cases
@@ -196,7 +196,7 @@ def test_a_body_standing_along_y_is_not_turned(small, tmp_path):
     with np.load(small) as z:
         poses, trans = z["poses"].copy(), z["trans"]
     # turn the whole take by +90° about x: Z-up becomes Y-up
-    from mocapdb.readers.smpl import axis_angle_matrices, rotation_vectors
+    from mocapdb.bodies.smpl import axis_angle_matrices, rotation_vectors
     root = Z_UP_TO_Y_UP @ axis_angle_matrices(poses[:, :3])
     poses[:, :3] = rotation_vectors(root)
     m = read_motion(rewrite(small, tmp_path / "y.npz", poses=poses, trans=trans @ Z_UP_TO_Y_UP.T))

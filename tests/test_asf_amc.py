@@ -20,10 +20,11 @@ import pytest
 
 from conftest import DATA, HAVE_SHARED, ORACLE, SAMPLE_86_09, SAMPLE_86_ASF, humerus, shared_cases
 from mocapdb.readers.textscan import NUM_BAD, NUM_OK, NUM_SLOW, longest_line, parse_numbers
-from mocapdb.readers.amc import column_layout, parse_amc, read_amc
+from mocapdb.bodies.acclaim import column_layout
+from mocapdb.readers.amc import parse_amc, read_amc
 from mocapdb.readers.asf import parse_asf, read_asf
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import (asf_forward_kinematics, euler_matrix, node_positions,
+from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.kinematics import (asf_forward_kinematics, euler_matrix, node_positions,
                                 orientation_matrix, sincos)
 from mocapdb.errors import ParseError
 from mocapdb.readers import find_skeleton, read_motion

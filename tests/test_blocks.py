@@ -22,8 +22,10 @@ import mocapdb.readers.c3d as c3d_module
 import mocapdb.readers.c3dfile as c3dfile
 from mocapdb.errors import ParseError
 from mocapdb.features import motion_features
-from mocapdb.readers import Motion, euler_angles, read_c3d, read_motion
-from mocapdb.readers.kinematics import euler_matrix
+from mocapdb.bodies import Motion
+from mocapdb.writers import euler_angles
+from mocapdb.readers import read_c3d, read_motion
+from mocapdb.bodies.kinematics import euler_matrix
 from mocapdb.readers.sources import bytes_file, motion_stem, open_stream, stream_size
 
 from conftest import SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH, SAMPLE_C3D

@@ -9,12 +9,13 @@ import pytest
 from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, humerus
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import read_asf
-from mocapdb.readers import euler_angles, read_bvh, write_bvh
+from mocapdb.writers import euler_angles, write_bvh
+from mocapdb.readers import read_bvh
 from mocapdb.readers.bvh import bvh_node_positions, fps_from_frame_time, parse_bvh
 from mocapdb.errors import ParseError
-from mocapdb.readers.joints import JOINT_INDEX
-from mocapdb.readers.kinematics import asf_forward_kinematics, euler_matrix
-from mocapdb.readers.motion import Motion
+from mocapdb.bodies.joints import JOINT_INDEX
+from mocapdb.bodies.kinematics import asf_forward_kinematics, euler_matrix
+from mocapdb.bodies.motion import Motion
 from mocapdb.readers import read_motion
 from naive_kinematics import naive_bvh_fk
 

@@ -16,9 +16,11 @@ import pytest
 import mocapdb
 from mocapdb.errors import ParseError
 from mocapdb.features import motion_features
-from mocapdb.readers import JOINT_INDEX, euler_matrix, read_amc, read_asf, read_bvh, read_motion, write_bvh
+from mocapdb.bodies import JOINT_INDEX, euler_matrix
+from mocapdb.readers import read_amc, read_asf, read_bvh, read_motion
+from mocapdb.writers import write_bvh
 from mocapdb.readers.bvh import parse_bvh
-from mocapdb.readers.bvh_write import euler_angles
+from mocapdb.writers.bvh_write import euler_angles
 
 from conftest import DATA
 

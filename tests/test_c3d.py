@@ -15,7 +15,8 @@ import pytest
 
 from mocapdb.errors import ParameterError, ParseError
 from mocapdb.features import downsample, motion_features, pack_words, relational_features
-from mocapdb.readers import JOINT_INDEX, load_mapping, read_c3d, read_motion
+from mocapdb.bodies import JOINT_INDEX
+from mocapdb.readers import load_mapping, read_c3d, read_motion
 from mocapdb.readers.c3d import MAX_GAP_S, SKELETON_EDGES
 
 from conftest import DATA, ORACLE, REPO, SAMPLE_C3D, humerus

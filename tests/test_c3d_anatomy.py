@@ -15,7 +15,8 @@ import pytest
 
 from mocapdb.errors import ParseError
 from mocapdb.features import downsample, relational_features
-from mocapdb.readers import JOINT_INDEX, read_c3d, read_motion
+from mocapdb.bodies import JOINT_INDEX
+from mocapdb.readers import read_c3d, read_motion
 from mocapdb.readers.c3d_names import SEGMENT_OF, landmark_of
 from mocapdb.readers.c3dfile import read_c3d_points
 

@@ -14,10 +14,11 @@ import pytest
 import mocapdb
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.features import N_BITS, motion_features, unpack_words
-from mocapdb.readers import JOINT_NAMES, read_amc, read_asf, read_motion
+from mocapdb.bodies import JOINT_NAMES
+from mocapdb.readers import read_amc, read_asf, read_motion
 from lab.amass_write import write_amass
-from mocapdb.readers.joints import JOINT_INDEX
-from mocapdb.readers.joints_write import metres_per_unit
+from mocapdb.bodies.joints import JOINT_INDEX
+from mocapdb.writers.joints_write import metres_per_unit
 from mocapdb.storage.motions import source_motion
 
 from conftest import SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH, SAMPLE_C3D, run

@@ -15,8 +15,8 @@ import naive_features as naive
 from conftest import DATA, ORACLE, SAMPLE_86_ASF, shared_cases
 from mocapdb import features as F
 from mocapdb.errors import ParameterError
-from mocapdb.readers.joints import JOINT_INDEX, MIRROR_JOINTS
-from mocapdb.readers.motion import Motion
+from mocapdb.bodies.joints import JOINT_INDEX, MIRROR_JOINTS
+from mocapdb.bodies.motion import Motion
 from mocapdb.readers import read_motion
 
 J = JOINT_INDEX

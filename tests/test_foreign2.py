@@ -10,8 +10,9 @@ import json
 import numpy as np
 import pytest
 
-from mocapdb.readers import read_asf, read_amc, asf_forward_kinematics, node_positions
-from mocapdb.readers.asf_humanoid import asf_humanoid_joints
+from mocapdb.readers import read_asf, read_amc
+from mocapdb.bodies import asf_forward_kinematics, node_positions
+from mocapdb.bodies.asf_humanoid import asf_humanoid_joints
 from mocapdb.features import downsample, relational_features
 from mocapdb.storage.motions import source_motion
 

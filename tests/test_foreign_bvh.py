@@ -16,8 +16,10 @@ import mocapdb
 from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, SAMPLE_BVH
 from mocapdb.errors import ParseError
 from mocapdb.features import FEATURE_RATE, motion_features, unpack_words
-from mocapdb.readers import (JOINT_INDEX, Motion, bvh_joint_map, joint_map_template, load_mapping, parse_bvh,
-                             read_amc, read_asf, read_bvh, read_motion, write_bvh)
+from mocapdb.bodies import JOINT_INDEX, Motion
+from mocapdb.readers import (bvh_joint_map, joint_map_template, load_mapping, parse_bvh, read_amc, read_asf,
+                             read_bvh, read_motion)
+from mocapdb.writers import write_bvh
 
 FOREIGN = DATA / "foreign" / "bvh"
 HUMANOIDS = {  # file: (source rate, frames after a dropped rest frame)
@@ -203,8 +205,8 @@ def _turned_rig(full, tmp_path, r0):
     offsets (and End Sites) R0·o, root rotation R·R0ᵀ, local rotations R0·L·R0ᵀ.
     The motion is the same; the rest pose (all channels 0) is the body turned by
     R0, and the root's own x axis is R·R0ᵀ·x."""
-    from mocapdb.readers import euler_angles
-    from mocapdb.readers.kinematics import euler_matrix
+    from mocapdb.writers import euler_angles
+    from mocapdb.bodies.kinematics import euler_matrix
 
     data = parse_bvh(full.read_bytes())
     h = data.hierarchy
@@ -232,7 +234,7 @@ def test_a_rig_lying_at_rest_with_its_root_axis_along_the_spine(amc_120, tmp_pat
     mapping reads the body from a frame of the motion, root_rotation is None and
     #40 (hip axis) agrees with the ASF reading, where the root's own x axis would
     be the spine."""
-    from mocapdb.readers.kinematics import euler_matrix
+    from mocapdb.bodies.kinematics import euler_matrix
 
     s, a = amc_120
     full = write_bvh(tmp_path / "full.bvh", s, a, layout="cmu")
@@ -385,8 +387,8 @@ def test_a_z_up_file_is_turned_to_y_up_not_mirrored(amc_120, tmp_path):
     left stays left) and the features are the same."""
     from dataclasses import replace as dc_replace
 
-    from mocapdb.readers import euler_angles
-    from mocapdb.readers.kinematics import euler_matrix
+    from mocapdb.writers import euler_angles
+    from mocapdb.bodies.kinematics import euler_matrix
 
     s, a = amc_120
     full = write_bvh(tmp_path / "y_up.bvh", s, dc_replace(a, values=a.values[:600]), layout="cmu")

@@ -13,7 +13,8 @@ import pytest
 from conftest import DATA
 from mocapdb.readers.amc import read_amc
 from mocapdb.readers.asf import read_asf
-from mocapdb.readers import read_bvh, write_bvh
+from mocapdb.readers import read_bvh
+from mocapdb.writers import write_bvh
 from mocapdb.errors import MocapdbError, ParseError
 from mocapdb.readers import find_skeleton, read_motion
 

@@ -10,8 +10,8 @@ from conftest import REPO
 LIBRARY = sorted([*(REPO / "mocapdb").rglob("*.py"), *(REPO / "extension").glob("*.py")])
 
 #: the sub-packages in pipeline order (docs/ARCHITECTURE.md): each imports only from those before it
-LAYERS = ("errors", "_numba", "readers", "features", "templates", "keyframes", "annotation", "learning",
-          "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "api", "server", "cli")
+LAYERS = ("errors", "_numba", "bodies", "readers", "writers", "features", "templates", "keyframes", "annotation",
+          "learning", "retrieval", "evaluation", "storage", "extension", "viewer", "distributed", "warmup", "api", "server", "cli")
 #: the one import against the pipeline: ``mocapdb.api.serve`` starts the web server (every command is an api
 #: function), importing it only when called, as the ``serve`` extra may be missing
 UPWARD = {("mocapdb.api.outputs", "mocapdb.server")}
@@ -102,6 +102,18 @@ def test_imports_follow_the_pipeline(path):
         if other != own:
             private = [n for n in names if n.startswith("_")]
             assert not private, f"{mod}:{line} imports private names {private} from another sub-package"
+
+
+@pytest.mark.parametrize("path", [p for p in LIBRARY if "bodies" in p.relative_to(REPO).parts],
+                         ids=lambda p: str(p.relative_to(REPO)))
+def test_bodies_import_no_format(path):
+    """Skeletons, poses and their forward kinematics work on arrays and the plain data of bodies.acclaim, below
+    every file format (issue 34 item 3): a body module imports from the library only mocapdb.errors,
+    mocapdb._numba and bodies, never a reader or a writer (fast-lane guard; the pipeline test is slow)."""
+    for line, target, _ in _imports(path):
+        if target.startswith("mocapdb"):
+            assert target.split(".")[1] in ("bodies", "errors", "_numba"), \
+                f"{_module(path)}:{line} imports {target}; a body module imports no format"
 
 
 @pytest.mark.parametrize("path", [p for p in LIBRARY if "cli" in p.relative_to(REPO).parts],

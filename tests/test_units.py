@@ -16,9 +16,9 @@ import mocapdb
 from mocapdb.cli.options import UNIT_NAMES
 from mocapdb.errors import ParameterError
 from mocapdb.readers import read_motion
-from mocapdb.readers.joints import JOINT_INDEX
-from mocapdb.readers.joints_write import _write_bvh
-from mocapdb.readers.units import UNITS, bvh_unit, leg_length, metres_per_unit
+from mocapdb.bodies.joints import JOINT_INDEX
+from mocapdb.writers.joints_write import _write_bvh
+from mocapdb.bodies.units import UNITS, bvh_unit, leg_length, metres_per_unit
 
 from bvh_edit import edit_bvh
 from conftest import DATA, run

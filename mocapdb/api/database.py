@@ -248,7 +248,7 @@ def export_joints(con, motions, out, *, all=False, format="npz", where=None, lab
     takes the one giving the legs an adult's length (or CMU's 1/0.45 inch
     for CMU-named bones when none does), which ``unit`` or ``scale``
     overrides. See :func:`mocapdb.storage.joint_export.export_joints`,
-    :mod:`mocapdb.readers.joints_write` and :mod:`mocapdb.readers.units`.
+    :mod:`mocapdb.writers.joints_write` and :mod:`mocapdb.bodies.units`.
 
     Parameters
     ----------

@@ -59,7 +59,7 @@ margin_option = click.option("--margin", type=float,
                                   "(default: the model's margin, 0 for the shipped models = off, as the paper).")
 
 
-#: the units a BVH source may be given in (export-joints --unit): mocapdb.readers.units.UNITS' names, which the
+#: the units a BVH source may be given in (export-joints --unit): mocapdb.bodies.units.UNITS' names, which the
 #: API checks (the CLI imports only mocapdb.api; tests/test_units.py holds the two equal)
 UNIT_NAMES = ("m", "cm", "mm", "inch", "cmu")
 

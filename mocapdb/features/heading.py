@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers.joints import JOINT_INDEX
+from mocapdb.bodies.joints import JOINT_INDEX
 
 __all__ = ["HEADING_WINDOW_S", "HEADING_THRESHOLDS", "heading_axis", "heading_degrees", "heading_change",
            "HeadingChangeStream"]

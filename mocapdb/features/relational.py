@@ -27,7 +27,7 @@ from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, featu
 from mocapdb.features.heading import (HEADING_THRESHOLDS, HEADING_WINDOW_S, HeadingChangeStream, heading_axis,
                                       heading_change)
 from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
-from mocapdb.readers import JOINT_INDEX
+from mocapdb.bodies import JOINT_INDEX
 
 
 #: the lenient/strict thresholds (θ1, θ2) of FEATURES.md §6, matrix order; the
@@ -571,7 +571,7 @@ def relational_features(joints, root_rotation, fps, *,
     Parameters
     ----------
     joints : array_like, shape (n_frames, 24, 3), float
-        Joint positions in :data:`mocapdb.readers.joints.JOINT_NAMES` order, Y up, any
+        Joint positions in :data:`mocapdb.bodies.joints.JOINT_NAMES` order, Y up, any
         length unit (all features are unit-free).
     root_rotation : array_like, shape (n_frames, 3, 3), float, or None
         Root rotation per frame (AMC ``Rz·Ry·Rx``, without the ASF root
@@ -716,7 +716,7 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
 
     Parameters
     ----------
-    motion : mocapdb.readers.motion.Motion
+    motion : mocapdb.bodies.motion.Motion
     root_ang_vel_thresholds : (float, float), optional
         See :func:`relational_features`.
     rate_method : {"resample", "native"}, keyword-only

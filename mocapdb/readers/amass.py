@@ -7,7 +7,7 @@ SMPL files of other tools), one axis-angle rotation per joint; ``trans``,
 the pelvis's translation; ``betas``, the body shape; ``gender``;
 ``mocap_framerate`` (SMPL-H) or ``mocap_frame_rate`` (SMPL-X). Its world is
 Z up. :func:`read_amass` runs forward kinematics over the SMPL tree
-(:mod:`~mocapdb.readers.smpl`) from a rest skeleton — the user's body model
+(:mod:`~mocapdb.bodies.smpl`) from a rest skeleton — the user's body model
 for the take's shape and gender (:mod:`~mocapdb.readers.body_model`), or the
 generic one shipped with mocapdb — and turns the body to Y up.
 
@@ -28,10 +28,11 @@ import numpy as np
 
 from mocapdb.errors import ParseError
 from mocapdb.readers.body_model import GENDERS, find_body_model
-from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, hip_axis_is_x
-from mocapdb.readers.joints import JOINT_INDEX
-from mocapdb.readers.motion import Motion, check_finite_motion, check_rate, snap_rate
-from mocapdb.readers.smpl import FAMILIES, generic_rest, smpl_forward_kinematics
+from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP, hip_axis_is_x
+from mocapdb.bodies.joints import JOINT_INDEX
+from mocapdb.bodies.motion import Motion, check_finite_motion, check_rate, snap_rate
+from mocapdb.bodies.smpl import FAMILIES, smpl_forward_kinematics
+from mocapdb.readers.generic_body import generic_rest
 from mocapdb.readers.sources import format_size, max_decompressed, motion_stem, plain_file, read_bytes
 
 __all__ = ["read_amass", "RATE_KEYS", "SHAPE_FILE_PATTERNS", "UP_ROTATIONS"]
@@ -186,7 +187,7 @@ def read_amass(path, *, body_model=None) -> Motion:
         (chosen by family and gender, :func:`~mocapdb.readers.body_model.find_body_model`):
         the rest joints are the take's own, ``J_regressor · (v_template +
         shapedirs · betas)``. Default: the generic rest skeleton
-        (:func:`~mocapdb.readers.smpl.generic_rest`).
+        (:func:`~mocapdb.readers.generic_body.generic_rest`).
 
     Returns
     -------

@@ -2,7 +2,7 @@
 
 :func:`read_amc` returns the raw DOF values of every frame as one
 ``(n_frames, n_columns)`` float64 array plus the column of each bone
-(:class:`AmcMotion`); :mod:`mocapdb.readers.kinematics` turns them into joint
+(:class:`AmcMotion`); :mod:`mocapdb.bodies.kinematics` turns them into joint
 positions. Bone lines may come in any order (values are keyed by bone name,
 case-insensitively as in the toolbox); DOFs a file never lists stay 0.
 
@@ -25,7 +25,6 @@ FEATURES.md §1, §2.2, §9; toolbox ``tools/parser/ASFAMCparser/readAMC.m``,
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,86 +32,17 @@ import numpy as np
 from mocapdb._numba import jit
 from mocapdb.readers.textscan import (_CLASS, _is_space, _scan_number, fix_slow_numbers, line_of,
                         number_error, token_at, truncation_hint)
-from mocapdb.readers.asf import Skeleton
+from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
 from mocapdb.readers.sources import read_bytes
 from mocapdb.errors import ParseError
 
-__all__ = ["AmcMotion", "read_amc", "parse_amc", "DEFAULT_FPS"]
+__all__ = ["read_amc", "parse_amc"]
 
 log = logging.getLogger("mocapdb")
-
-#: toolbox default when an AMC has no ``:SAMPLES-PER-SECOND`` (readAMC.m)
-DEFAULT_FPS = 120.0
 
 # error codes reported by the kernel in status[0]
 _E_NONE, _E_NUMBER, _E_COUNT, _E_UNKNOWN_BONE, _E_DUPLICATE, _E_FRAME_SEQ, \
     _E_FRAME_LINE, _E_INCOMPLETE, _E_OVERFLOW, _E_NO_FRAME = range(10)
-
-
-@dataclass(frozen=True)
-class AmcMotion:
-    """DOF values of an AMC file.
-
-    Attributes
-    ----------
-    values : ndarray, shape (n_frames, n_columns), float64
-        Raw values as written (angles in :attr:`angle_unit`, root translation
-        in ASF length units). Columns: root (in the ASF ``order``), then every
-        ASF bone with DOFs, in ASF file order, each in its ``dof`` order.
-    columns : dict str -> slice
-        Columns of each bone (``"root"`` included), keyed by ASF bone name.
-    dof_names : dict str -> tuple of str
-        DOF names of each bone's columns (``"tx"``, ..., ``"rz"``).
-    fps : float
-        ``:SAMPLES-PER-SECOND``, else the rate the ASF's ``:documentation`` notes,
-        else 120.
-    angle_unit : str
-        ``"deg"`` or ``"rad"``.
-    first_frame : int
-        Frame number of the first frame in the file (1 in all files here).
-    path : str
-    """
-
-    values: np.ndarray
-    columns: dict
-    dof_names: dict
-    fps: float = DEFAULT_FPS
-    angle_unit: str = "deg"
-    first_frame: int = 1
-    path: str = ""
-    meta: dict = field(default_factory=dict)
-
-    @property
-    def n_frames(self) -> int:
-        return int(self.values.shape[0])
-
-    @property
-    def dofs(self) -> dict:
-        """bone name -> ``(n_frames, n_dofs)`` view of its values."""
-        return {name: self.values[:, sl] for name, sl in self.columns.items()}
-
-    def column(self, bone: str, dof: str) -> int:
-        """Column index of ``dof`` of ``bone``, or -1 when the bone lacks that DOF."""
-        names = self.dof_names.get(bone, ())
-        if dof not in names:
-            return -1
-        return self.columns[bone].start + names.index(dof)
-
-
-def column_layout(skeleton: Skeleton):
-    """Columns of the AMC value array for ``skeleton``.
-
-    Returns ``(names, ndof, col_start, columns, dof_names)``: index 0 is the
-    root, index k the (k-1)-th bone in file order.
-    """
-    names = ["root"] + [b.name for b in skeleton.bones]
-    dofs = [tuple(skeleton.root_order)] + [tuple(b.dof) for b in skeleton.bones]
-    ndof = np.array([len(d) for d in dofs], dtype=np.int64)
-    col_start = np.zeros(len(names), dtype=np.int64)
-    col_start[1:] = np.cumsum(ndof)[:-1]
-    columns = {n: slice(int(s), int(s + k)) for n, s, k in zip(names, col_start, ndof) if k}
-    dof_names = {n: d for n, d in zip(names, dofs) if d}
-    return names, ndof, col_start, columns, dof_names
 
 
 # ----------------------------------------------------------------------------

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParseError
-from mocapdb.readers.smpl import BODY_PARENTS, FAMILIES, RestSkeleton
+from mocapdb.bodies.smpl import BODY_PARENTS, FAMILIES, RestSkeleton
 from mocapdb.readers.sources import FileCache
 
 __all__ = ["BodyModel", "load_body_model", "find_body_model", "GENDERS"]
@@ -57,7 +57,7 @@ class BodyModel:
         Shape components (β) it has.
     points : ndarray, shape (27, 3), float64
         At β = 0: the 22 body joints, then the end points in
-        :data:`~mocapdb.readers.smpl.END_POINTS` order.
+        :data:`~mocapdb.bodies.smpl.END_POINTS` order.
     directions : ndarray, shape (27, 3, n_shape), float64
         How each point moves per unit of each β.
     """

@@ -6,11 +6,11 @@ or namespaces, CR, LF or CRLF line ends) and the ``MOTION`` lines (the numba
 scanner of :mod:`mocapdb.readers.textscan`), runs forward kinematics and
 places the 24 canonical joints:
 
-* files written with ASF bone names (:func:`mocapdb.readers.bvh_write.write_bvh`)
+* files written with ASF bone names (:func:`mocapdb.writers.bvh_write.write_bvh`)
   take the exact ASF points (FEATURES.md §2.2);
-* any other humanoid goes through :func:`mocapdb.readers.humanoid.map_humanoid`
+* any other humanoid goes through :func:`mocapdb.bodies.humanoid.map_humanoid`
   (names with prefixes stripped, else topology; :mod:`~mocapdb.readers.bvh_mapping`)
-  and must then be a human (:func:`~mocapdb.readers.humanoid.humanoid_problem`:
+  and must then be a human (:func:`~mocapdb.bodies.humanoid.humanoid_problem`:
   plausible proportions, upright in its rest pose or in some frames);
 * a user ``joint_map`` overrides either.
 
@@ -30,7 +30,7 @@ Blender):
   coordinates, those of the root are added to it;
 * an End Site = joint origin + joint global · its OFFSET;
 * Y is up. The frame time is snapped to a common rate (``.0083`` → 120 Hz,
-  :func:`mocapdb.readers.motion.snap_rate`).
+  :func:`mocapdb.bodies.motion.snap_rate`).
 
 A rest pose that converters put in frame 1 (cmuconvert) is dropped: its jump
 to frame 2 is far above the motion's largest frame-to-frame change.
@@ -58,14 +58,14 @@ from mocapdb.errors import ParameterError, ParseError
 from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, MOTION, READ_BLOCK, read_head
 from mocapdb.readers.bvh_mapping import auto_map, bvh_joint_map, plan
 from mocapdb.readers.bvh_tracking import lost_samples, mend, pose_frame
-from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import _rotate_columns
-from mocapdb.readers.motion import Motion, check_finite_motion, snap_rate
+from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
+from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.kinematics import rotate_columns
+from mocapdb.bodies.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
                                      stream_size)
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
-from mocapdb.readers.units import bvh_unit
+from mocapdb.bodies.units import bvh_unit
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
            "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
@@ -527,7 +527,7 @@ def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
                         t[ch_axis[col]] += values[f, col]
                 else:
                     a = values[f, col] * deg
-                    _rotate_columns(h, j, ch_axis[col], math.cos(a), math.sin(a))
+                    rotate_columns(h, j, ch_axis[col], math.cos(a), math.sin(a))
             for i in range(3):
                 if p >= 0:
                     origins[f, j, i] = origins[f, p, i] + (h[p, i, 0] * t[0] + h[p, i, 1] * t[1]
@@ -681,7 +681,7 @@ def _rest_frame(joints: np.ndarray) -> bool:
 
 
 def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
-    """Read a BVH file as a :class:`~mocapdb.readers.motion.Motion` of the 24 canonical joints.
+    """Read a BVH file as a :class:`~mocapdb.bodies.motion.Motion` of the 24 canonical joints.
 
     Parameters
     ----------

@@ -1,8 +1,8 @@
 """Where the 24 canonical joints are in a BVH skeleton: the joint map of a parsed hierarchy.
 
-* files written with ASF bone names (:func:`mocapdb.readers.bvh_write.write_bvh`)
+* files written with ASF bone names (:func:`mocapdb.writers.bvh_write.write_bvh`)
   take the exact ASF points;
-* any other humanoid goes through :func:`mocapdb.readers.humanoid.map_humanoid`
+* any other humanoid goes through :func:`mocapdb.bodies.humanoid.map_humanoid`
   (names first, else topology; a rest pose on its side is judged by a frame
   of the motion; a Z-up rig is turned to Y up);
 * a user ``joint_map`` overrides either.
@@ -19,9 +19,9 @@ from dataclasses import replace
 import numpy as np
 
 from mocapdb.errors import ParseError
-from mocapdb.readers.humanoid import Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, map_humanoid
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import ASF_JOINT_BONES
+from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP, JointMap, MappingError, SkeletonTree, map_humanoid
+from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.kinematics import ASF_JOINT_BONES
 
 __all__ = ["bvh_joint_map", "plan", "auto_map"]
 

@@ -53,8 +53,8 @@ from mocapdb.readers.c3d_rules import (MAPPED, MARKER_RULES, PELVIS_QUAD, REQUIR
 from mocapdb.readers.c3dfile import printable, read_c3d_points
 from mocapdb.readers.gaps import (MAX_GAP_S, fill_short, frames_text, long_gaps, longest_part, max_gap_frames,
                                   rigid_fill)
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.motion import Motion, check_finite_motion
+from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.motion import Motion, check_finite_motion
 from mocapdb.readers.sources import motion_stem
 
 log = logging.getLogger("mocapdb")
@@ -96,7 +96,7 @@ def fit_bone_lengths(joints: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     joints : ndarray, shape (n_frames, 24, 3)
-        In :data:`~mocapdb.readers.joints.JOINT_NAMES` order.
+        In :data:`~mocapdb.bodies.joints.JOINT_NAMES` order.
 
     Returns
     -------

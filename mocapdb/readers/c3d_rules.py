@@ -58,7 +58,7 @@ from typing import Callable
 import numpy as np
 
 from mocapdb.readers.c3d_names import TOOLBOX_ALIASES, landmark_of, marker_key
-from mocapdb.readers.joints import JOINT_NAMES
+from mocapdb.bodies.joints import JOINT_NAMES
 
 __all__ = ["Rule", "marker_key", "TOOLBOX_ALIASES", "TOOLBOX_MARKERS", "MarkerIndex", "candidate_rules",
            "mapped_rule", "TOOLBOX", "ROLES", "DERIVED", "MAPPED", "REQUIRED", "PELVIS_QUAD", "MARKER_RULES",

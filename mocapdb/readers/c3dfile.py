@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParseError
-from mocapdb.readers.motion import check_rate, snap_rate
+from mocapdb.bodies.motion import check_rate, snap_rate
 from mocapdb.readers.sources import bytes_file, open_stream, plain_file, read_bytes, stream_size
 
 __all__ = ["C3dPoints", "read_c3d_points", "check_layout", "printable", "BLOCK_POINTS"]
@@ -62,7 +62,7 @@ class C3dPoints:
         ``"?<i>"`` where the file has fewer labels than points), as stored.
     rate : float
         ``POINT:RATE`` in Hz (the header's rate when the parameter is absent),
-        snapped to a common rate within 0.5 % (:func:`~mocapdb.readers.motion.snap_rate`).
+        snapped to a common rate within 0.5 % (:func:`~mocapdb.bodies.motion.snap_rate`).
     units : str
         ``POINT:UNITS`` lower-cased (``"mm"`` when absent, the C3D default).
     scale : float

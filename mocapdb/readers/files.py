@@ -1,4 +1,4 @@
-"""Read any supported motion file into a :class:`~mocapdb.readers.motion.Motion`.
+"""Read any supported motion file into a :class:`~mocapdb.bodies.motion.Motion`.
 
 :func:`read_motion` dispatches on the extension (``.amc`` with its ASF
 skeleton, ``.bvh``, ``.c3d``, AMASS ``.npz``; each also compressed or inside a
@@ -21,14 +21,15 @@ import numpy as np
 from mocapdb.errors import MocapdbError, ParameterError, ParseError
 from mocapdb.readers.amass import read_amass
 from mocapdb.readers.amc import read_amc
-from mocapdb.readers.asf import Skeleton, read_asf
-from mocapdb.readers.asf_humanoid import asf_humanoid_joints
+from mocapdb.bodies.acclaim import Skeleton
+from mocapdb.readers.asf import read_asf
+from mocapdb.bodies.asf_humanoid import asf_humanoid_joints
 from mocapdb.readers.bvh import read_bvh
 from mocapdb.readers.bvh_head import MAX_HEADER_LINE, check_bvh_start
 from mocapdb.readers.c3d import read_c3d
-from mocapdb.readers.humanoid import MappingError
-from mocapdb.readers.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
-from mocapdb.readers.motion import Motion, check_finite_motion
+from mocapdb.bodies.humanoid import MappingError
+from mocapdb.bodies.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
+from mocapdb.bodies.motion import Motion, check_finite_motion
 from mocapdb.readers.textscan import longest_line
 from mocapdb.readers.options import ReaderOptions
 from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix, open_stream,
@@ -227,7 +228,7 @@ def read_asf_amc(amc_path, asf) -> Motion:
 
     A skeleton with the CMU bone names gives the toolbox's joints (bone tips by
     name); any other is read through the humanoid mapper
-    (:mod:`~mocapdb.readers.asf_humanoid`) and must be a human.
+    (:mod:`~mocapdb.bodies.asf_humanoid`) and must be a human.
     """
     amc_path = Path(amc_path)
     asf_path = asf.path if isinstance(asf, Skeleton) else str(asf)

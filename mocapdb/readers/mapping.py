@@ -20,7 +20,7 @@ import tomllib
 from pathlib import Path
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers.joints import JOINT_NAMES
+from mocapdb.bodies.joints import JOINT_NAMES
 
 __all__ = ["load_mapping"]
 
@@ -38,7 +38,7 @@ def load_mapping(source, *, what: str = "joint_map") -> dict | None:
     Returns
     -------
     dict or None
-        Keys are canonical joint names (:data:`~mocapdb.readers.joints.JOINT_NAMES`);
+        Keys are canonical joint names (:data:`~mocapdb.bodies.joints.JOINT_NAMES`);
         values are a name or a non-empty list of names.
 
     Raises

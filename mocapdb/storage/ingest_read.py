@@ -95,7 +95,7 @@ def prepare_file(path, options=None):
 def compute_motion(prep):
     """Read a prepared file and compute its 30 Hz feature words, as ingest does.
 
-    Sets ``prep.motion`` (:class:`mocapdb.readers.Motion`) and ``prep.words``
+    Sets ``prep.motion`` (:class:`mocapdb.bodies.Motion`) and ``prep.words``
     ((n_frames,) uint64), or ``prep.error`` (the reader's message) when the
     file cannot be read; returns ``prep``.
     """
@@ -144,7 +144,7 @@ def _prepare_or_error(item):
 
 @dataclass(frozen=True)
 class _Computed:
-    """What storing a computed file needs of its :class:`~mocapdb.readers.Motion`: a pool's worker sends
+    """What storing a computed file needs of its :class:`~mocapdb.bodies.Motion`: a pool's worker sends
     this back, never the joints."""
     name: str | None
     source_format: str

@@ -3,10 +3,10 @@
 The joints are not stored (24 × 3 floats per frame would be ~36× the 8-byte
 feature word, :mod:`mocapdb.viewer.data`): each motion's source file is read
 again with the options it was ingested with (:func:`source_motion`), as the
-viewer does, and written by :func:`mocapdb.readers.joints_write.write_joints`.
+viewer does, and written by :func:`mocapdb.writers.joints_write.write_joints`.
 A motion that cannot be exported is named with the reason; the others are
 written. Each file's source unit and how it was decided (a BVH declares
-none: :mod:`mocapdb.readers.units`) is in the report and, for a folder, in
+none: :mod:`mocapdb.bodies.units`) is in the report and, for a folder, in
 its ``units.json``.
 """
 from __future__ import annotations
@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mocapdb.errors import MocapdbError, ParameterError, os_error_text
-from mocapdb.readers.joints_write import JOINTS_FORMATS, write_joints
-from mocapdb.readers.units import check_override
+from mocapdb.writers.joints_write import JOINTS_FORMATS, write_joints
+from mocapdb.bodies.units import check_override
 from mocapdb.storage.annotations import motion_sources
 from mocapdb.storage.motions import motion_ids, select_motions, source_motion
 from mocapdb.storage.model_store import DEFAULT_MODEL

@@ -392,7 +392,7 @@ def source_motion(con, motion_id):
 
     Returns
     -------
-    mocapdb.readers.Motion
+    mocapdb.bodies.Motion
 
     Raises
     ------

@@ -32,7 +32,7 @@ from importlib import resources
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies import JOINT_INDEX, JOINT_NAMES
 
 __all__ = ["BONES", "PALETTE", "encode_poses", "encode_delta", "label_colors", "render_page", "render_index",
            "page_html", "json_script", "error_script"]

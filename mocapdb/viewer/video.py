@@ -156,7 +156,7 @@ def draw_frames(joints, first=0, count=None, width=WIDTH, height=HEIGHT):
     Parameters
     ----------
     joints : (n, 24, 3) float
-        The canonical joints (:data:`mocapdb.readers.JOINT_NAMES`), Y up.
+        The canonical joints (:data:`mocapdb.bodies.JOINT_NAMES`), Y up.
     first, count : int
         The frames to draw (default: all from ``first``).
 

@@ -2,7 +2,7 @@
 
 What every reader produces (FEATURES.md §2.1) is what fairmotion, Blender,
 aitviewer or a notebook want of a take: the joints at the recording's own
-rate, in metres, Y up, in :data:`~mocapdb.readers.joints.JOINT_NAMES` order.
+rate, in metres, Y up, in :data:`~mocapdb.bodies.joints.JOINT_NAMES` order.
 
 * **npz**: ``joints`` (frames × 24 × 3), ``fps``, ``joint_names``;
 * **csv**: one row per frame: ``frame`` (1-based), ``time`` (s), then
@@ -19,7 +19,7 @@ rate, in metres, Y up, in :data:`~mocapdb.readers.joints.JOINT_NAMES` order.
 Lengths come out in metres: ASF/AMC and C3D joints carry their unit
 (centimetres, or the toolbox's ``mm × -POINT:SCALE``), AMASS joints are
 metres; BVH files declare none, so the BVH reader decides it from the legs
-and the bone names (:mod:`mocapdb.readers.units`: metres, centimetres,
+and the bone names (:mod:`mocapdb.bodies.units`: metres, centimetres,
 millimetres, inches or CMU's 1/0.45 inch), unless the user gives it. The npz
 says which source unit was converted and why (``source_unit``,
 ``metres_per_source_unit``); a CSV or BVH has no place for a note that
@@ -38,11 +38,11 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers.bvh_write import write_bvh_tree
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.motion import Motion
-from mocapdb.readers.smpl import align_rotations
-from mocapdb.readers.units import metres_per_unit
+from mocapdb.writers.bvh_write import write_bvh_tree
+from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.motion import Motion
+from mocapdb.bodies.smpl import align_rotations
+from mocapdb.bodies.units import metres_per_unit
 
 __all__ = ["JOINTS_FORMATS", "BVH_JOINTS", "metres_per_unit", "write_joints", "canonical_bvh_rotations"]
 
@@ -135,7 +135,7 @@ def write_joints(path, motion: Motion, *, format: str, unit=None, scale=None) ->
     format : {"npz", "csv", "bvh"}, keyword-only
     unit, scale : optional, keyword-only
         A BVH source's unit or metres per unit, overriding the reader's
-        decision (:func:`mocapdb.readers.units.metres_per_unit`).
+        decision (:func:`mocapdb.bodies.units.metres_per_unit`).
 
     Returns
     -------

@@ -17,7 +17,7 @@ class Motion:
     Attributes
     ----------
     joints : ndarray, shape (n_frames, 24, 3), float64
-        Joint positions in the order of :data:`mocapdb.readers.joints.JOINT_NAMES`,
+        Joint positions in the order of :data:`mocapdb.bodies.joints.JOINT_NAMES`,
         Y up, in the toolbox's length unit (ASF lengths / ``:units length`` ·
         2.54). Features do not depend on the unit.
     root_rotation : ndarray, shape (n_frames, 3, 3), float64, or None

@@ -13,10 +13,12 @@ A rest skeleton (:class:`RestSkeleton`) holds the 22 rest joints and five
 carried rigidly by its joint (as a BVH End Site): SMPL has no joint there,
 and the features need them (FEATURES.md §6, #17, #18, #37). It comes from
 the user's body model (:mod:`~mocapdb.readers.body_model`) or is the generic
-one shipped with mocapdb (:func:`generic_rest`): the proportions of the CMU
-subject 86 skeleton that ships with the sample recordings
-(``mocapdb/sample/86.asf``) laid onto the SMPL tree, computed here from that
-file. No number comes from an SMPL model file (their licence forbids it).
+one shipped with mocapdb (:func:`mocapdb.readers.generic_body.generic_rest`):
+the proportions of the CMU subject 86 skeleton that ships with the sample
+recordings (``mocapdb/sample/86.asf``) laid onto the SMPL tree
+(:func:`asf_rest_tips` here; the file is read in ``readers``, as bodies
+import no format). No number comes from an SMPL model file (their licence
+forbids it).
 
 The canonical joints (FEATURES.md §2.1) on the tree, as the humanoid mapper
 places them on any skeleton (READERS.md §2): the pelvis is the root; hips,
@@ -36,21 +38,18 @@ from __future__ import annotations
 
 import functools
 import math
-import threading
 from dataclasses import dataclass
-from importlib import resources
 
 import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
-from mocapdb.readers.asf import read_asf
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.readers.kinematics import orientation_matrix, sincos
+from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.kinematics import orientation_matrix, sincos
 
-__all__ = ["BODY_JOINTS", "BODY_PARENTS", "FAMILIES", "END_POINTS", "RestSkeleton", "generic_rest",
+__all__ = ["BODY_JOINTS", "BODY_PARENTS", "FAMILIES", "END_POINTS", "RestSkeleton",
            "canonical_weights", "smpl_forward_kinematics", "axis_angle_matrices", "rotation_vectors", "align_rotations",
-           "GENERIC_SOURCE", "asf_rest_tips"]
+           "asf_rest_tips"]
 
 #: the 22 joints every SMPL-family body has, in the order of the pose parameters
 BODY_JOINTS = ("pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2", "left_ankle",
@@ -124,32 +123,9 @@ class RestSkeleton:
 
 
 # ----------------------------------------------------------------------------
-# the generic rest skeleton
+# rest positions of an ASF skeleton's bone tips
 
-#: the skeleton whose proportions the generic rest skeleton takes (ships with mocapdb)
-GENERIC_SOURCE = "86.asf"
 _CM = 0.01  # the ASF reader's lengths are centimetres (READERS.md §5)
-
-#: SMPL body joint → the CMU ASF point it sits at in the generic rest skeleton: a bone's tip, or
-#: ``root``. The SMPL joint is where the ASF bone whose rotation it takes starts (the pelvis's
-#: child spine1 at the root, where ASF's lowerback starts; neck and collars at the thorax's tip).
-_GENERIC_AT = {
-    "pelvis": "root", "left_hip": "lhipjoint", "right_hip": "rhipjoint", "spine1": "root",
-    "left_knee": "lfemur", "right_knee": "rfemur", "spine2": "lowerback", "left_ankle": "ltibia",
-    "right_ankle": "rtibia", "spine3": "upperback", "left_foot": "lfoot", "right_foot": "rfoot",
-    "neck": "thorax", "left_collar": "thorax", "right_collar": "thorax", "head": "upperneck",
-    "left_shoulder": "lclavicle", "right_shoulder": "rclavicle", "left_elbow": "lhumerus",
-    "right_elbow": "rhumerus", "left_wrist": "lwrist", "right_wrist": "rwrist",
-}
-_GENERIC_ENDS = {"ltoes": "ltoes", "rtoes": "rtoes", "headtop": "head", "lfingers": "lfingers",
-                 "rfingers": "rfingers"}
-#: the ASF bones whose rest direction is SMPL's straight down instead (thighs and shins: the CMU
-#: rest pose spreads the legs by 20°, SMPL's rest pose stands on straight legs)
-_VERTICAL = ("lfemur", "ltibia", "rfemur", "rtibia")
-
-_GENERIC: list = []
-_GENERIC_LOCK = threading.Lock()
-
 
 def asf_rest_tips(skeleton, *, vertical=()) -> dict:
     """The rest position of every bone tip of an ASF skeleton (root at the origin), in metres.
@@ -170,29 +146,6 @@ def asf_rest_tips(skeleton, *, vertical=()) -> dict:
         offset = np.array([0.0, -b.length, 0.0]) if b.name in vertical else orient @ np.asarray(b.offset, float)
         tips[b.name] = tips[b.parent] + offset * _CM
     return tips
-
-
-def generic_rest() -> RestSkeleton:
-    """The generic rest skeleton: CMU subject 86's proportions on the SMPL tree (cached).
-
-    Each SMPL body joint sits where the ASF bone whose motion it carries
-    starts (:data:`_GENERIC_AT`); the end points are the tips of the ASF toes,
-    head and finger bones. The rest pose is SMPL's: the ASF rest pose is a
-    T-pose too, but with the legs spread by 20°, so thighs and shins keep
-    their lengths and point straight down. Computed from
-    ``mocapdb/sample/86.asf`` (the skeleton that ships with the sample take).
-    """
-    with _GENERIC_LOCK:
-        if not _GENERIC:
-            path = resources.files("mocapdb") / "sample" / GENERIC_SOURCE
-            with resources.as_file(path) as p:
-                skel = read_asf(p)
-            tips = asf_rest_tips(skel, vertical=_VERTICAL)
-            joints = np.array([tips[_GENERIC_AT[name]] for name in BODY_JOINTS])
-            ends = np.array([tips[_GENERIC_ENDS[name]] for name, _ in END_POINTS])
-            _GENERIC.append(RestSkeleton(joints, ends, "the generic rest skeleton shipped with mocapdb "
-                                                       "(CMU subject 86's proportions on the SMPL tree)"))
-        return _GENERIC[0]
 
 
 # ----------------------------------------------------------------------------
@@ -426,7 +379,7 @@ def smpl_forward_kinematics(rest: RestSkeleton, body_pose, trans):
     Returns
     -------
     joints : ndarray, shape (n_frames, 24, 3), float64
-        In :data:`~mocapdb.readers.joints.JOINT_NAMES` order, the file's frame.
+        In :data:`~mocapdb.bodies.joints.JOINT_NAMES` order, the file's frame.
     pelvis : ndarray, shape (n_frames, 3, 3), float64
         The pelvis's global rotation.
     """

@@ -4,7 +4,7 @@ An ASF bone carries its rotation at its start and ends at its tip, where
 its children start — as a BVH joint and the offset to its child. The
 skeleton becomes a tree of points (the root and every bone's tip, rest
 positions from the bones' directions and lengths) that
-:func:`mocapdb.readers.humanoid.map_humanoid` reads like a BVH skeleton.
+:func:`mocapdb.bodies.humanoid.map_humanoid` reads like a BVH skeleton.
 
 A tip is named after its bone, translated where the bone's name says the
 segment rather than the joint at its end: the tip of a thigh (``LeftUpLeg``,
@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from mocapdb.readers.humanoid import (LIMB_WORDS, JointMap, SkeletonTree, hip_axis_is_x, humanoid_problem,
+from mocapdb.bodies.humanoid import (LIMB_WORDS, JointMap, SkeletonTree, hip_axis_is_x, humanoid_problem,
                                      map_humanoid, name_side, normalized_name)
-from mocapdb.readers.joints import JOINT_INDEX
+from mocapdb.bodies.joints import JOINT_INDEX
 
 __all__ = ["asf_tree", "asf_joint_map", "asf_humanoid_joints"]
 
@@ -72,7 +72,7 @@ def asf_humanoid_joints(skeleton, nodes: np.ndarray, root_rotation: np.ndarray):
     ----------
     skeleton : Skeleton
     nodes : ndarray, shape (n_frames, n_bones + 1, 3)
-        :func:`mocapdb.readers.kinematics.node_positions`.
+        :func:`mocapdb.bodies.kinematics.node_positions`.
     root_rotation : ndarray, shape (n_frames, 3, 3)
 
     Returns
@@ -83,7 +83,7 @@ def asf_humanoid_joints(skeleton, nodes: np.ndarray, root_rotation: np.ndarray):
         convention feature #40 relies on), else None (#40 then uses the hip axis).
     jm : JointMap
     problem : tuple or None
-        ``(what, why)``: why the body is not a human (:func:`~mocapdb.readers.humanoid.humanoid_problem`).
+        ``(what, why)``: why the body is not a human (:func:`~mocapdb.bodies.humanoid.humanoid_problem`).
     """
     jm = asf_joint_map(skeleton)
     joints = np.einsum("jp,fpc->fjc", jm.weights, nodes)

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapdb.readers.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
            "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP", "humanoid_problem", "upright_frames",

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers.joints import JOINT_INDEX
+from mocapdb.bodies.joints import JOINT_INDEX
 
 __all__ = ["UNITS", "UNIT_NAMES", "LEG_BAND", "leg_length", "bvh_unit", "check_override", "metres_per_unit"]
 

@@ -35,10 +35,9 @@ import weakref
 import numpy as np
 
 from mocapdb._numba import jit
-from mocapdb.readers.amc import AmcMotion, column_layout
-from mocapdb.readers.asf import INCH_TO_TOOLBOX, Skeleton
+from mocapdb.bodies.acclaim import INCH_TO_TOOLBOX, AmcMotion, Skeleton, column_layout
 from mocapdb.errors import ParameterError
-from mocapdb.readers.joints import JOINT_NAMES
+from mocapdb.bodies.joints import JOINT_NAMES
 
 __all__ = ["ASF_JOINT_BONES", "node_positions", "asf_joints", "asf_forward_kinematics",
            "root_rotation", "euler_matrix", "orientation_matrix", "local_rotations",
@@ -195,7 +194,7 @@ def sincos(x):
 
 
 @jit
-def _rotate_columns(h, k, axis, c, s):  # pragma: no cover - numba
+def rotate_columns(h, k, axis, c, s):  # pragma: no cover - numba
     """h[k] = h[k] · R_axis(θ) with c = cos θ, s = sin θ (axis 0=x, 1=y, 2=z).
 
     Right-multiplying by an elementary rotation only mixes two columns.
@@ -249,8 +248,8 @@ def _asf_fk_kernel(sin, cos, trans, root_cols, orient, order, parent, dmat, dide
         for q in range(3):
             c = root_cols[q]
             if c >= 0:
-                _rotate_columns(rr, np.int64(0), 2 - q, cos[f, c], sin[f, c])
-                _rotate_columns(h, np.int64(0), 2 - q, cos[f, c], sin[f, c])
+                rotate_columns(rr, np.int64(0), 2 - q, cos[f, c], sin[f, c])
+                rotate_columns(h, np.int64(0), 2 - q, cos[f, c], sin[f, c])
         for i in range(3):
             node[0, i] = trans[f, i]
             for j in range(3):
@@ -272,7 +271,7 @@ def _asf_fk_kernel(sin, cos, trans, root_cols, orient, order, parent, dmat, dide
             for a in range(3):  # z, y, x: M = Rz·Ry·Rx
                 c = rot_cols[b, a]
                 if c >= 0:
-                    _rotate_columns(h, k, 2 - a, cos[f, c], sin[f, c])
+                    rotate_columns(h, k, 2 - a, cos[f, c], sin[f, c])
             for i in range(3):
                 node[k, i] = node[p, i] + (h[k, i, 0] * offp[b, 0] + h[k, i, 1] * offp[b, 1]
                                            + h[k, i, 2] * offp[b, 2])
@@ -426,7 +425,7 @@ def asf_forward_kinematics(skeleton: Skeleton, motion: AmcMotion):
     Returns
     -------
     joints : ndarray, shape (n_frames, 24, 3), float64
-        In :data:`mocapdb.readers.joints.JOINT_NAMES` order.
+        In :data:`mocapdb.bodies.joints.JOINT_NAMES` order.
     root_rotation : ndarray, shape (n_frames, 3, 3), float64
 
     Raises

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers.amc import AmcMotion
-from mocapdb.readers.asf import Skeleton
-from mocapdb.readers.kinematics import local_rotations, node_positions
+from mocapdb.bodies.acclaim import AmcMotion
+from mocapdb.bodies.acclaim import Skeleton
+from mocapdb.bodies.kinematics import local_rotations, node_positions
 
 __all__ = ["write_bvh", "write_bvh_tree", "euler_angles", "CMU_BONE_NAMES"]
 
