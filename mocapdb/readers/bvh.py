@@ -255,7 +255,8 @@ class _MotionLines:
             values = np.empty((min(self.n_frames - row, self.max_rows(len(block))), n_cols))
             got = parse_rows_into(block, 0, values, self.path, n_rows=self.n_frames, what="channel values",
                                   first_frame=row + 1, allow_nonfinite=True, line_base=self.line_base)
-            self.line_base += block.count(b"\n")
+            if not eof:   # the lines before the next block, for its messages (a pass over the text: not after the last)
+                self.line_base += block.count(b"\n")
             row += got
             if got:
                 yield values[:got]
