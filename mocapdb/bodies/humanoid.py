@@ -607,8 +607,23 @@ MIN_UPRIGHT = 0.05
 _SAMPLE = 512
 
 
-def _length(j, a, b):
-    return np.linalg.norm(j[..., JOINT_INDEX[a], :] - j[..., JOINT_INDEX[b], :], axis=-1)
+#: the distances the human test measures (legs, arms, trunk, hip and shoulder width)
+_PAIRS = (("lhip", "lknee"), ("lknee", "lankle"), ("rhip", "rknee"), ("rknee", "rankle"),
+          ("lshoulder", "lelbow"), ("lelbow", "lwrist"), ("rshoulder", "relbow"), ("relbow", "rwrist"),
+          ("root", "neck"), ("lhip", "rhip"), ("lshoulder", "rshoulder"))
+_PAIR_A = np.array([JOINT_INDEX[a] for a, _ in _PAIRS])
+_PAIR_B = np.array([JOINT_INDEX[b] for _, b in _PAIRS])
+
+
+def _lengths(j) -> dict:
+    """``{(a, b): |j[..., a] − j[..., b]|}`` of every pair of :data:`_PAIRS`, taken in one gather (each
+    value as a norm of its own pair would give: the same differences, squares and sum of three)."""
+    dist = np.linalg.norm(j[..., _PAIR_A, :] - j[..., _PAIR_B, :], axis=-1)
+    return {pair: dist[..., k] for k, pair in enumerate(_PAIRS)}
+
+
+def _leg_lengths(ln) -> np.ndarray:
+    return 0.5 * (ln["lhip", "lknee"] + ln["lknee", "lankle"] + ln["rhip", "rknee"] + ln["rknee", "rankle"])
 
 
 def upright_frames(joints: np.ndarray) -> np.ndarray:
@@ -623,10 +638,13 @@ def upright_frames(joints: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (n_frames,), bool
     """
-    j = joints
+    return _upright(joints, _lengths(joints))
+
+
+def _upright(j, ln) -> np.ndarray:
+    """:func:`upright_frames` of the joints ``j`` with their :func:`_lengths` ``ln``."""
     y = j[..., 1]
-    leg = 0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
-                 + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))
+    leg = _leg_lengths(ln)
     spine = j[:, JOINT_INDEX["neck"]] - j[:, JOINT_INDEX["root"]]
     vertical = spine[:, 1] > np.cos(np.radians(45.0)) * np.linalg.norm(spine, axis=1)
     shoulders = 0.5 * (y[:, JOINT_INDEX["lshoulder"]] + y[:, JOINT_INDEX["rshoulder"]])
@@ -637,25 +655,24 @@ def upright_frames(joints: np.ndarray) -> np.ndarray:
     return vertical & head_up & (hands - feet > 0.25 * leg) & (feet < hips)
 
 
-def _proportions(j, leg) -> dict:
-    """Each measure of :data:`HUMAN_PROPORTIONS`, its median over the joints ``j`` (frames, 24, 3), per
-    median leg ``leg``."""
-    measures = {"arm": 0.5 * (_length(j, "lshoulder", "lelbow") + _length(j, "lelbow", "lwrist")
-                              + _length(j, "rshoulder", "relbow") + _length(j, "relbow", "rwrist")),
-                "trunk": _length(j, "root", "neck"), "hip width": _length(j, "lhip", "rhip"),
-                "shoulder width": _length(j, "lshoulder", "rshoulder")}
+def _proportions(ln, leg) -> dict:
+    """Each measure of :data:`HUMAN_PROPORTIONS`, its median over the frames of the lengths ``ln``
+    (:func:`_lengths`), per median leg ``leg``."""
+    measures = {"arm": 0.5 * (ln["lshoulder", "lelbow"] + ln["lelbow", "lwrist"]
+                              + ln["rshoulder", "relbow"] + ln["relbow", "rwrist"]),
+                "trunk": ln["root", "neck"], "hip width": ln["lhip", "rhip"],
+                "shoulder width": ln["lshoulder", "rshoulder"]}
     return {what: float(np.median(values)) / leg for what, values in measures.items()}
 
 
-def _proportion_problems(j, leg) -> list:
-    """The measures ``(what, ratio, lo, hi)`` of the joints ``j`` outside :data:`HUMAN_PROPORTIONS`."""
-    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(j, leg).items()
+def _proportion_problems(ln, leg) -> list:
+    """The measures ``(what, ratio, lo, hi)`` of the lengths ``ln`` outside :data:`HUMAN_PROPORTIONS`."""
+    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(ln, leg).items()
             if not HUMAN_PROPORTIONS[what][0] <= ratio <= HUMAN_PROPORTIONS[what][1]]
 
 
-def _leg(j) -> float:
-    return float(np.median(0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
-                                  + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))))
+def _leg(ln) -> float:
+    return float(np.median(_leg_lengths(ln)))
 
 
 def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tuple | None:
@@ -685,21 +702,23 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
     """
     step = max(1, len(joints) // _SAMPLE)
     j = joints[::step]
-    leg = _leg(j)
+    ln = _lengths(j)
+    leg = _leg(ln)
     if not leg > 0:
         return "skeleton", "the legs have no length"
-    problems = _proportion_problems(j, leg)
-    stands = float(upright_frames(j).mean())
+    problems = _proportion_problems(ln, leg)
+    stands = float(_upright(j, ln).mean())
     upright = None
     if stands < MIN_UPRIGHT and (rest is None or not upright_frames(rest[None])[0]):
         upright = (f"it stands upright (two legs to the floor, arms off it, head above the shoulders) "
                    f"in {stands:.0%} of the frames and not in its rest pose")
     if not problems and upright is None:
         return None
-    rest_leg = _leg(rest[None]) if rest is not None else 0.0
-    if rest_leg > 0 and not _proportion_problems(rest[None], rest_leg):
+    rest_ln = _lengths(rest[None]) if rest is not None else None
+    rest_leg = _leg(rest_ln) if rest is not None else 0.0
+    if rest_leg > 0 and not _proportion_problems(rest_ln, rest_leg):
         # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
-        at_rest = _proportions(rest[None], rest_leg)
+        at_rest = _proportions(rest_ln, rest_leg)
         why = [upright] if upright else []
         why += [f"{what} {ratio:.2f} × the leg length over the take's frames, {at_rest[what]:.2f} in its rest pose "
                 f"(a human's: {lo}–{hi})" for what, ratio, lo, hi in problems]

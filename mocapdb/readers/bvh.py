@@ -156,7 +156,12 @@ class BvhHierarchy:
         return out
 
     def tree(self) -> SkeletonTree:
-        """Joint origins then End Sites, with rest-pose positions (OFFSETs accumulated)."""
+        """Joint origins then End Sites, with rest-pose positions (OFFSETs accumulated); built once per
+        hierarchy (each take asks two or three times, and an archive's takes share their hierarchy),
+        its arrays read-only."""
+        cached = self.__dict__.get("_tree")
+        if cached is not None:
+            return cached
         nj = len(self.joints)
         names = [j.name for j in self.joints]
         parent = [j.parent for j in self.joints]
@@ -167,9 +172,12 @@ class BvhHierarchy:
         end_rest = np.array([rest[k] + j.end_site for k, j in ends]).reshape(-1, 3)
         names += [f"{j.name}/end" for _, j in ends]
         parent += [k for k, _ in ends]
-        return SkeletonTree(tuple(names), np.array(parent, dtype=np.int64),
-                            np.concatenate([rest, end_rest]),
+        tree = SkeletonTree(tuple(names), np.array(parent, dtype=np.int64), np.concatenate([rest, end_rest]),
                             np.array([True] * nj + [False] * len(ends)))
+        for a in (tree.parent, tree.rest, tree.is_joint):
+            a.setflags(write=False)
+        object.__setattr__(self, "_tree", tree)  # a frozen dataclass: a private memo
+        return tree
 
 
 @dataclass(frozen=True)
