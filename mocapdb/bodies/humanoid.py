@@ -655,24 +655,28 @@ def _upright(j, ln) -> np.ndarray:
     return vertical & head_up & (hands - feet > 0.25 * leg) & (feet < hips)
 
 
-def _proportions(ln, leg) -> dict:
-    """Each measure of :data:`HUMAN_PROPORTIONS`, its median over the frames of the lengths ``ln``
-    (:func:`_lengths`), per median leg ``leg``."""
-    measures = {"arm": 0.5 * (ln["lshoulder", "lelbow"] + ln["lelbow", "lwrist"]
+def _medians(ln) -> dict:
+    """The median over the frames of the leg (:func:`_leg_lengths`) and of each measure of
+    :data:`HUMAN_PROPORTIONS`, from the lengths ``ln`` (:func:`_lengths`): one ``np.median`` over the
+    five columns (each column's median as its own would give)."""
+    measures = {"leg": _leg_lengths(ln),
+                "arm": 0.5 * (ln["lshoulder", "lelbow"] + ln["lelbow", "lwrist"]
                               + ln["rshoulder", "relbow"] + ln["relbow", "rwrist"]),
                 "trunk": ln["root", "neck"], "hip width": ln["lhip", "rhip"],
                 "shoulder width": ln["lshoulder", "rshoulder"]}
-    return {what: float(np.median(values)) / leg for what, values in measures.items()}
+    med = np.median(np.stack(list(measures.values()), axis=-1), axis=0)
+    return {what: float(m) for what, m in zip(measures, med)}
 
 
-def _proportion_problems(ln, leg) -> list:
-    """The measures ``(what, ratio, lo, hi)`` of the lengths ``ln`` outside :data:`HUMAN_PROPORTIONS`."""
-    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(ln, leg).items()
+def _proportions(med) -> dict:
+    """Each measure of :data:`HUMAN_PROPORTIONS` per the leg, from the medians ``med`` (:func:`_medians`)."""
+    return {what: med[what] / med["leg"] for what in HUMAN_PROPORTIONS}
+
+
+def _proportion_problems(med) -> list:
+    """The measures ``(what, ratio, lo, hi)`` of the medians ``med`` outside :data:`HUMAN_PROPORTIONS`."""
+    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(med).items()
             if not HUMAN_PROPORTIONS[what][0] <= ratio <= HUMAN_PROPORTIONS[what][1]]
-
-
-def _leg(ln) -> float:
-    return float(np.median(_leg_lengths(ln)))
 
 
 def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tuple | None:
@@ -703,10 +707,10 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
     step = max(1, len(joints) // _SAMPLE)
     j = joints[::step]
     ln = _lengths(j)
-    leg = _leg(ln)
-    if not leg > 0:
+    med = _medians(ln)
+    if not med["leg"] > 0:
         return "skeleton", "the legs have no length"
-    problems = _proportion_problems(ln, leg)
+    problems = _proportion_problems(med)
     stands = float(_upright(j, ln).mean())
     upright = None
     if stands < MIN_UPRIGHT and (rest is None or not upright_frames(rest[None])[0]):
@@ -714,11 +718,10 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
                    f"in {stands:.0%} of the frames and not in its rest pose")
     if not problems and upright is None:
         return None
-    rest_ln = _lengths(rest[None]) if rest is not None else None
-    rest_leg = _leg(rest_ln) if rest is not None else 0.0
-    if rest_leg > 0 and not _proportion_problems(rest_ln, rest_leg):
+    rest_med = _medians(_lengths(rest[None])) if rest is not None else {"leg": 0.0}
+    if rest_med["leg"] > 0 and not _proportion_problems(rest_med):
         # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
-        at_rest = _proportions(rest_ln, rest_leg)
+        at_rest = _proportions(rest_med)
         why = [upright] if upright else []
         why += [f"{what} {ratio:.2f} × the leg length over the take's frames, {at_rest[what]:.2f} in its rest pose "
                 f"(a human's: {lo}–{hi})" for what, ratio, lo, hi in problems]
