@@ -94,16 +94,17 @@ RENAMED = {"class_name": "--class", "examples": "--example"}
 
 
 def test_the_cli_mirrors_the_api():
-    """Every command calls the mocapdb.api function of the same name, and every option is
-    one of its parameters (sqlite-utils style)."""
+    """Every command calls the mocapdb.api function of the same name (serve: mocapdb.server.serve, the web
+    server above the API), and every option is one of its parameters (sqlite-utils style)."""
     import inspect
 
     from mocapdb import api
+    from mocapdb import server
 
     for name, cmd in main.commands.items():
         if name == "sql":  # mocapdb.connect(...).sql(query)
             continue
-        fn = getattr(api, name.replace("-", "_"), None)
+        fn = server.serve if name == "serve" else getattr(api, name.replace("-", "_"), None)
         assert fn is not None, f"command {name!r} has no mocapdb.api.{name.replace('-', '_')}"
         params = set(inspect.signature(fn).parameters) - {"con"}
         options = {p.name for p in cmd.params} - PRESENTATION

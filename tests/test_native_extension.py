@@ -291,6 +291,29 @@ def test_a_damaged_motion_is_named(archive, native, tmp_path):
     assert got[2]["rows"] == [[1199, 266]]
 
 
+def test_a_damaged_model_names_its_class(archive, native, tmp_path):
+    """annotate reads a model's templates and keyframe queries in one query each, all classes at once:
+    a damaged row is still an error naming its model and class (the single-class readers' messages),
+    and another model is unaffected."""
+    db = tmp_path / "damaged_model.duckdb"
+    shutil.copy(archive, db)
+    got = plain_client(db, native, [
+        "DELETE FROM templates WHERE model = 'toolbox' AND class = 'grabHighR'",
+        "SELECT annotate(1, 'toolbox')",
+        "SELECT annotate(1) IS NOT NULL",
+        "UPDATE templates SET mask = mask | (1::UBIGINT << 50) WHERE model = 'default' AND class = 'squat1Reps' "
+        "AND col = 3",
+        "SELECT annotate(1)",
+        "UPDATE templates SET mask = mask & ~(1::UBIGINT << 50) WHERE model = 'default' AND class = 'squat1Reps'",
+        "UPDATE keyframes SET d_min = 5, d_max = 2 WHERE model = 'default' AND class = 'tpose1000' AND k = 1",
+        "SELECT annotate(1)"], read_only=False)
+    assert "model 'toolbox' has no class 'grabHighR'" in got[1]["error"]
+    assert got[2]["rows"] == [[True]]
+    assert "model 'default', class 'squat1Reps': the stored template is damaged" in got[4]["error"]
+    assert ("model 'default', class 'tpose1000': gap 1 of the stored keyframe query has d_max < d_min"
+            in got[7]["error"])
+
+
 def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, native, tmp_path):
     no_index = tmp_path / "no_index.duckdb"
     shutil.copy(archive, no_index)

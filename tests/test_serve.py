@@ -12,6 +12,7 @@ from urllib.parse import urlencode
 import pytest
 
 import mocapdb
+import mocapdb.server
 from mocapdb.storage.browse import STRIP_BINS
 
 from conftest import run
@@ -345,7 +346,9 @@ def test_serve_refuses_what_it_cannot_do(tmp_path, sample_db):
     r = run(tmp_path / "missing.duckdb", "serve", code=1)
     assert "no such database file" in r.output
     with pytest.raises(mocapdb.ParameterError, match="port must be an integer from 0 to 65535"):
-        mocapdb.api.serve(sample_db, port=70000)
+        mocapdb.server.serve(sample_db, port=70000)
+    with pytest.raises(mocapdb.ParameterError, match="timeout must be a number of seconds > 0"):
+        mocapdb.server.serve(sample_db, timeout=0)
     with pytest.raises(mocapdb.ParameterError, match="lock_wait"):
         mocapdb.connect(sample_db, lock_wait="soon")
     with socket.socket() as taken:

@@ -98,39 +98,43 @@ static named_model *model_of(mdb_state *st, models *ms, const char *name, mdb_er
 	return x;
 }
 
-/* Per-motion work arrays, grown as motions need. */
+/* Per-motion work arrays, grown as motions need, and the scratch of Δ and the hit extraction. */
 typedef struct {
-	double *label_cd, *label_ratio, *class_cd, *class_ratio, *delta, *cd;
-	int64_t *starts;
+	double *label_cd, *label_ratio, *delta, *cd;
+	int64_t *starts, *stamp;
 	size_t frames, cells;
 	mdb_spans slices, iv;
+	mdb_dp_scratch dp;
+	mdb_hit_scratch hits;
 } work;
 
 static void work_free(work *w) {
 	free(w->label_cd);
 	free(w->label_ratio);
-	free(w->class_cd);
-	free(w->class_ratio);
 	free(w->delta);
 	free(w->cd);
 	free(w->starts);
+	free(w->stamp);
 	mdb_spans_free(&w->slices);
 	mdb_spans_free(&w->iv);
+	mdb_dp_scratch_free(&w->dp);
+	mdb_hit_scratch_free(&w->hits);
 }
 
 static int work_reserve(work *w, size_t n, size_t L) {
 	n = n ? n : 1;
 	L = L ? L : 1;
 	if (n > w->frames) {
-		double **d[] = {&w->class_cd, &w->class_ratio, &w->delta, &w->cd};
-		for (size_t i = 0; i < 4; i++) {
-			free(*d[i]);
-			*d[i] = malloc(n * sizeof **d[i]);
-		}
+		free(w->delta);
+		free(w->cd);
 		free(w->starts);
+		free(w->stamp);
+		w->delta = malloc(n * sizeof *w->delta);
+		w->cd = malloc(n * sizeof *w->cd);
 		w->starts = malloc(n * sizeof *w->starts);
+		w->stamp = malloc(n * sizeof *w->stamp);
 		w->frames = n;
-		if (!w->class_cd || !w->class_ratio || !w->delta || !w->cd || !w->starts) {
+		if (!w->delta || !w->cd || !w->starts || !w->stamp) {
 			w->frames = 0;
 			return -1;
 		}
@@ -181,9 +185,11 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 		w->label_cd[i] = INFINITY;
 		w->label_ratio[i] = INFINITY;
 	}
+	for (size_t f = 0; f < n; f++) {
+		w->stamp[f] = -1;
+	}
 	for (size_t k = 0; k < m->n_classes; k++) {
 		double t = tau_given ? tau : m->tau[k];
-		const double *rows[2] = {w->class_cd, w->class_ratio};
 		int rc = 0;
 		if (runs && m->query[k].K > 0) {
 			rc = class_slices(&m->query[k], runs, ra, rb, (int64_t)n, w);
@@ -196,31 +202,32 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 			         rc == -2 ? WHAT ": illegal interval in the reconstruction of a keyframe hit" : WHAT ": out of memory");
 			return -1;
 		}
-		for (size_t f = 0; f < n; f++) {
-			w->class_cd[f] = INFINITY;
-			w->class_ratio[f] = INFINITY;
-		}
-		/* each slice as a document of its own; a later slice overwrites an earlier one */
-		for (size_t q = 0; q < w->slices.n; q++) {
+		/* Each slice is a document of its own, and where slices overlap the class's Δ̄^τ is the later
+		 * one's: so the slices are taken last to first and a frame takes the first value it gets
+		 * (stamp: the last class that gave it one). combine_by_label: the label's row keeps the
+		 * minimum over its classes (the class's rows are +inf outside its slices). */
+		double *label_cd = w->label_cd + (size_t)m->label_of[k] * n;
+		double *label_ratio = w->label_ratio + (size_t)m->label_of[k] * n;
+		for (size_t q = w->slices.n; q-- > 0;) {
 			size_t a = (size_t)w->slices.start[q], len = (size_t)(w->slices.end[q] - w->slices.start[q] + 1);
-			if (mdb_mt_distance(&m->tpl[k], words + a, len, w->delta, w->starts) ||
-			    mdb_classification_delta(w->delta, w->starts, len, t, w->cd)) {
+			if (mdb_mt_distance_in(&m->tpl[k], words + a, len, w->delta, w->starts, &w->dp) ||
+			    mdb_classification_delta(w->delta, w->starts, len, t, w->cd, &w->hits)) {
 				snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 				return -1;
 			}
 			for (size_t j = 0; j < len; j++) {
+				if (w->stamp[a + j] == (int64_t)k) {
+					continue; /* a later slice gave it its value */
+				}
+				w->stamp[a + j] = (int64_t)k;
 				double cd = w->cd[j];
-				w->class_cd[a + j] = cd;
 				/* chain._tau_ratio: at τ = 0 only a perfect match counts, as 0 */
-				w->class_ratio[a + j] = t > 0 ? cd / t : cd <= 0 ? 0.0 : INFINITY;
-			}
-		}
-		/* combine_by_label: the minimum over the label's classes */
-		double *dst[2] = {w->label_cd + (size_t)m->label_of[k] * n, w->label_ratio + (size_t)m->label_of[k] * n};
-		for (size_t r = 0; r < 2; r++) {
-			for (size_t f = 0; f < n; f++) {
-				if (rows[r][f] < dst[r][f]) {
-					dst[r][f] = rows[r][f];
+				double ratio = t > 0 ? cd / t : cd <= 0 ? 0.0 : INFINITY;
+				if (cd < label_cd[a + j]) {
+					label_cd[a + j] = cd;
+				}
+				if (ratio < label_ratio[a + j]) {
+					label_ratio[a + j] = ratio;
 				}
 			}
 		}

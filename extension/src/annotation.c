@@ -27,21 +27,53 @@ static int push(mdb_segments *s, mdb_segment x) {
 	return 0;
 }
 
-typedef struct {
+typedef struct mdb_candidate {
 	double d;
 	size_t j;
 } candidate;
 
-/* (Δ, frame): the order of the kernel's stable sort by Δ */
-static int by_delta(const void *a, const void *b) {
-	const candidate *x = a, *y = b;
-	if (x->d != y->d) {
-		return x->d < y->d ? -1 : 1;
-	}
-	return (x->j > y->j) - (x->j < y->j);
+void mdb_hit_scratch_free(mdb_hit_scratch *s) {
+	free(s->at);
+	free(s->tmp);
+	memset(s, 0, sizeof *s);
 }
 
-int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd) {
+/* Sort c[0 .. m) by Δ, ties in the order they come (frame order, as the kernel's stable sort), with
+ * tmp[0 .. m) to merge into: runs of 16 by insertion, then bottom-up merges. */
+static void sort_candidates(candidate *c, candidate *tmp, size_t m) {
+	const size_t run = 16;
+	for (size_t lo = 0; lo < m; lo += run) {
+		size_t hi = lo + run < m ? lo + run : m;
+		for (size_t i = lo + 1; i < hi; i++) {
+			candidate x = c[i];
+			size_t k = i;
+			while (k > lo && c[k - 1].d > x.d) {
+				c[k] = c[k - 1];
+				k--;
+			}
+			c[k] = x;
+		}
+	}
+	candidate *src = c, *dst = tmp;
+	for (size_t width = run; width < m; width *= 2) {
+		for (size_t lo = 0; lo < m; lo += 2 * width) {
+			size_t mid = lo + width < m ? lo + width : m, hi = lo + 2 * width < m ? lo + 2 * width : m;
+			size_t i = lo, j = mid;
+			for (size_t k = lo; k < hi; k++) {
+				dst[k] = j >= hi || (i < mid && src[i].d <= src[j].d) ? src[i++] : src[j++];
+			}
+		}
+		candidate *swap = src;
+		src = dst;
+		dst = swap;
+	}
+	if (src != c) {
+		memcpy(c, src, m * sizeof *c);
+	}
+}
+
+int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd,
+                             mdb_hit_scratch *s) {
 	size_t m = 0;
 	for (size_t j = 0; j < n; j++) {
 		cd[j] = INFINITY;
@@ -50,31 +82,37 @@ int mdb_classification_delta(const double *delta, const int64_t *starts, size_t 
 	if (m == 0) {
 		return 0;
 	}
-	candidate *c = malloc(m * sizeof *c);
-	if (!c) {
-		return -1;
+	if (m > s->cap) {
+		mdb_hit_scratch_free(s);
+		s->at = malloc(m * sizeof *s->at);
+		s->tmp = malloc(m * sizeof *s->tmp);
+		if (!s->at || !s->tmp) {
+			mdb_hit_scratch_free(s);
+			return -1;
+		}
+		s->cap = m;
 	}
+	candidate *c = s->at;
 	m = 0;
 	for (size_t j = 0; j < n; j++) {
 		if (delta[j] <= tau) {
 			c[m++] = (candidate){delta[j], j};
 		}
 	}
-	qsort(c, m, sizeof *c, by_delta);
+	sort_candidates(c, s->tmp, m);
 	for (size_t k = 0; k < m; k++) {
 		size_t e = c[k].j;
 		if (cd[e] < INFINITY) {
 			continue; /* a hit covers it already */
 		}
 		double cost = delta[e];
-		int64_t s = starts[e] < 0 ? 0 : starts[e]; /* finite Δ always has its start */
-		for (size_t f = (size_t)s; f <= e; f++) {
+		int64_t st = starts[e] < 0 ? 0 : starts[e]; /* finite Δ always has its start */
+		for (size_t f = (size_t)st; f <= e; f++) {
 			if (cd[f] == INFINITY) {
 				cd[f] = cost;
 			}
 		}
 	}
-	free(c);
 	return 0;
 }
 

@@ -32,11 +32,21 @@ typedef struct {
 	double margin;
 } mdb_label_rules;
 
+/* The candidates of mdb_classification_delta and the room to sort them: grown as slices need,
+ * reused across calls (one per thread); zeros to start with. */
+typedef struct {
+	struct mdb_candidate *at, *tmp;
+	size_t cap;
+} mdb_hit_scratch;
+
+void mdb_hit_scratch_free(mdb_hit_scratch *s);
+
 /* Δ̄^τ of one slice (as _extract_hits_kernel without the hits): repeatedly the first minimum of Δ
  * over the frames no hit covers yet, while <= tau; its frames back to the path's start (starts,
  * relative to the slice) that have no value get its cost; +inf elsewhere. 0, or -1 when out of
  * memory. */
-int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd);
+int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd,
+                             mdb_hit_scratch *scratch);
 
 /* Segments of one motion of n frames (chain._segment_labels, then drop_short_segments):
  * label_cd (n_labels rows of n, the label's Δ̄^τ; overwritten) and label_ratio (Δ̄^τ / τ, for the

@@ -22,6 +22,11 @@ DUCKDB_EXTENSION_EXTERN
 #define QUERY_SQL                                                                                                      \
 	"SELECT k.mask, k.value, k.position, k.d_min, k.d_max, q.template_length FROM keyframes k "                        \
 	"JOIN keyframe_queries q USING (model, class) WHERE k.model = $1 AND k.class = $2 ORDER BY k.k"
+/* the same of all of a model's classes, grouped by class (mdb_read_model) */
+#define MODEL_TEMPLATES_SQL "SELECT class, mask, value, weight FROM templates WHERE model = $1 ORDER BY class, col"
+#define MODEL_QUERIES_SQL                                                                                              \
+	"SELECT k.class, k.mask, k.value, k.position, k.d_min, k.d_max, q.template_length FROM keyframes k "               \
+	"JOIN keyframe_queries q USING (model, class) WHERE k.model = $1 ORDER BY k.class, k.k"
 #define HAS_CLASS_SQL "SELECT count(*) FROM classes WHERE model = $1 AND class = $2"
 #define RANGE_SQL "SELECT motion_id, n_frames, fps FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
 #define WORDS_SQL                                                                                                      \
@@ -476,27 +481,102 @@ typedef struct {
 	int bad;
 } template_ctx;
 
-static int template_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+/* Where a query's rows go one at a time: row i of a chunk whose columns start at c0. */
+typedef int (*row_sink)(void *ctx, duckdb_data_chunk chunk, idx_t c0, idx_t i, mdb_error *err);
+
+static int template_row(void *p, duckdb_data_chunk chunk, idx_t c0, idx_t i, mdb_error *err) {
 	template_ctx *c = p;
-	if (c->n + n > c->cap) {
-		c->cap = 2 * (c->n + n);
+	if (c->n == c->cap) {
+		c->cap = 2 * c->n + 64;
 		if (grow(&c->mask, sizeof *c->mask, c->cap) || grow(&c->value, sizeof *c->value, c->cap) ||
 		    grow(&c->weight, sizeof *c->weight, c->cap)) {
 			return out_of_memory(err, "a template");
 		}
 	}
-	COLUMN(chunk, 0, uint64_t, mask, v0);
-	COLUMN(chunk, 1, uint64_t, value, v1);
-	COLUMN(chunk, 2, double, weight, v2);
+	COLUMN(chunk, c0, uint64_t, mask, v0);
+	COLUMN(chunk, c0 + 1, uint64_t, value, v1);
+	COLUMN(chunk, c0 + 2, double, weight, v2);
+	c->bad |= !duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
+	          !duckdb_validity_row_is_valid(v2, i) || (mask[i] & ~FEATURE_BITS) != 0;
+	c->mask[c->n] = mask[i];
+	c->value[c->n] = value[i];
+	c->weight[c->n] = weight[i];
+	c->n++;
+	return 0;
+}
+
+static int template_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
 	for (idx_t i = 0; i < n; i++) {
-		c->bad |= !duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
-		          !duckdb_validity_row_is_valid(v2, i) || (mask[i] & ~FEATURE_BITS) != 0;
-		c->mask[c->n] = mask[i];
-		c->value[c->n] = value[i];
-		c->weight[c->n] = weight[i];
-		c->n++;
+		if (template_row(p, chunk, 0, i, err)) {
+			return -1;
+		}
 	}
 	return 0;
+}
+
+static void template_ctx_free(template_ctx *c) {
+	free(c->mask);
+	free(c->value);
+	free(c->weight);
+}
+
+/* The rows of several classes of a model in one query, whose first column is the class: each row
+ * goes to the context of its class (ctx + k * size for cls[k]); rows of other classes are skipped.
+ * A model's classes are read so, not one query each: a query costs about a millisecond. */
+typedef struct {
+	char *const *cls;
+	size_t n;
+	char *ctx;
+	size_t size;
+	row_sink row;
+	char *last; /* the class of the previous row, and its place (n: not one of cls) */
+	size_t k;
+} by_class;
+
+static int by_class_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	by_class *b = p;
+	duckdb_vector names = duckdb_data_chunk_get_vector(chunk, 0);
+	uint64_t *valid = duckdb_vector_get_validity(names);
+	for (idx_t i = 0; i < n; i++) {
+		if (!duckdb_validity_row_is_valid(valid, i)) {
+			continue;
+		}
+		duckdb_string_t *x = (duckdb_string_t *)duckdb_vector_get_data(names) + i;
+		uint32_t len = duckdb_string_t_length(*x);
+		const char *name = duckdb_string_t_data(x);
+		if (!b->last || strlen(b->last) != len || memcmp(b->last, name, len) != 0) {
+			free(b->last);
+			b->last = mdb_string_at(names, i);
+			if (!b->last) {
+				return out_of_memory(err, "a model");
+			}
+			for (b->k = 0; b->k < b->n && strcmp(b->cls[b->k], b->last) != 0; b->k++) {
+			}
+		}
+		if (b->k < b->n && b->row(b->ctx + b->k * b->size, chunk, 1, i, err)) {
+			return -1;
+		}
+	}
+	return 0;
+}
+
+/* A class's template from its rows (the caller holds the lock). */
+static int template_from_rows(mdb_state *st, const char *model, const char *cls, const template_ctx *c,
+                              mdb_template *out, mdb_error *err) {
+	if (c->n == 0) {
+		unknown_class(st, model, cls, err);
+		return -1;
+	}
+	int prep = c->bad ? -2 : mdb_template_prepare(c->mask, c->value, c->weight, c->n, MAX_COLUMNS, out);
+	if (prep == -2) {
+		snprintf(err->text, sizeof err->text,
+		         "model '%s', class '%s': the stored template is damaged (NULLs, bits past feature 41 or "
+		         "weights not in 0 < w <= %zu); train or install the model again",
+		         model, cls, MAX_COLUMNS);
+	} else if (prep) {
+		out_of_memory(err, "a template");
+	}
+	return prep ? -1 : 0;
 }
 
 int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_template *out, mdb_error *err) {
@@ -506,29 +586,11 @@ int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_tem
 	int rc = -1;
 	memset(out, 0, sizeof *out);
 	pthread_mutex_lock(&st->lock);
-	if (query_rows(st, TEMPLATE_SQL, "templates", key, 2, NULL, 0, want, 3, template_sink, &c, err)) {
-		goto done;
+	if (query_rows(st, TEMPLATE_SQL, "templates", key, 2, NULL, 0, want, 3, template_sink, &c, err) == 0) {
+		rc = template_from_rows(st, model, cls, &c, out, err);
 	}
-	if (c.n == 0) {
-		unknown_class(st, model, cls, err);
-		goto done;
-	}
-	int prep = c.bad ? -2 : mdb_template_prepare(c.mask, c.value, c.weight, c.n, MAX_COLUMNS, out);
-	if (prep == -2) {
-		snprintf(err->text, sizeof err->text,
-		         "model '%s', class '%s': the stored template is damaged (NULLs, bits past feature 41 or "
-		         "weights not in 0 < w <= %zu); train or install the model again",
-		         model, cls, MAX_COLUMNS);
-	} else if (prep) {
-		out_of_memory(err, "a template");
-	} else {
-		rc = 0;
-	}
-done:
 	pthread_mutex_unlock(&st->lock);
-	free(c.mask);
-	free(c.value);
-	free(c.weight);
+	template_ctx_free(&c);
 	return rc;
 }
 
@@ -674,34 +736,42 @@ typedef struct {
 	int bad;
 } query_ctx;
 
-static int query_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+static int query_row(void *p, duckdb_data_chunk chunk, idx_t c0, idx_t i, mdb_error *err) {
 	query_ctx *c = p;
 	(void)err;
-	COLUMN(chunk, 0, uint64_t, mask, v0);
-	COLUMN(chunk, 1, uint64_t, value, v1);
-	COLUMN(chunk, 2, int32_t, pos, v2);
-	COLUMN(chunk, 3, int32_t, d_min, v3);
-	COLUMN(chunk, 4, int32_t, d_max, v4);
-	COLUMN(chunk, 5, int32_t, length, v5);
-	for (idx_t i = 0; i < n; i++, c->rows++) {
-		if (c->rows >= MDB_MAX_KEYFRAMES || !duckdb_validity_row_is_valid(v0, i) ||
-		    !duckdb_validity_row_is_valid(v1, i) || !duckdb_validity_row_is_valid(v2, i) ||
-		    !duckdb_validity_row_is_valid(v5, i) || (mask[i] & ~FEATURE_BITS) || (value[i] & ~mask[i])) {
-			c->bad = 1;
-			return 1;
-		}
-		size_t k = c->rows;
-		c->q->mask[k] = mask[i];
-		c->q->value[k] = value[i];
-		/* the gap to the next keyframe (the last row's bounds are NULL): NULL d_min is 0, NULL d_max
-		 * unbounded, as mocapdb.storage.model_store reads them */
-		c->q->d_min[k] = duckdb_validity_row_is_valid(v3, i) ? d_min[i] : 0;
-		c->q->d_max[k] = duckdb_validity_row_is_valid(v4, i) ? d_max[i] : MDB_UNBOUNDED;
-		if (k == 0) {
-			c->first_pos = pos[i];
-		}
-		c->last_pos = pos[i];
-		c->length = length[i];
+	if (c->bad) {
+		return 0; /* its other rows do not matter */
+	}
+	COLUMN(chunk, c0, uint64_t, mask, v0);
+	COLUMN(chunk, c0 + 1, uint64_t, value, v1);
+	COLUMN(chunk, c0 + 2, int32_t, pos, v2);
+	COLUMN(chunk, c0 + 3, int32_t, d_min, v3);
+	COLUMN(chunk, c0 + 4, int32_t, d_max, v4);
+	COLUMN(chunk, c0 + 5, int32_t, length, v5);
+	if (c->rows >= MDB_MAX_KEYFRAMES || !duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
+	    !duckdb_validity_row_is_valid(v2, i) || !duckdb_validity_row_is_valid(v5, i) || (mask[i] & ~FEATURE_BITS) ||
+	    (value[i] & ~mask[i])) {
+		c->bad = 1;
+		return 0;
+	}
+	size_t k = c->rows++;
+	c->q->mask[k] = mask[i];
+	c->q->value[k] = value[i];
+	/* the gap to the next keyframe (the last row's bounds are NULL): NULL d_min is 0, NULL d_max
+	 * unbounded, as mocapdb.storage.model_store reads them */
+	c->q->d_min[k] = duckdb_validity_row_is_valid(v3, i) ? d_min[i] : 0;
+	c->q->d_max[k] = duckdb_validity_row_is_valid(v4, i) ? d_max[i] : MDB_UNBOUNDED;
+	if (k == 0) {
+		c->first_pos = pos[i];
+	}
+	c->last_pos = pos[i];
+	c->length = length[i];
+	return 0;
+}
+
+static int query_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	for (idx_t i = 0; i < n && !((query_ctx *)p)->bad; i++) {
+		query_row(p, chunk, 0, i, err);
 	}
 	return 0;
 }
@@ -715,25 +785,17 @@ static int count_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err)
 	return 0;
 }
 
-int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, int extend, mdb_query *out,
-                            mdb_error *err) {
-	query_ctx c = {out, 0, 0, 0, 0, 0};
+/* A class's keyframe query from its rows (the caller holds the lock). */
+static int query_from_rows(mdb_state *st, const char *model, const char *cls, int extend, const query_ctx *c,
+                           mdb_query *out, mdb_error *err) {
 	const char *key[2] = {model, cls};
-	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER,
-	                      DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
 	duckdb_type count_type[] = {DUCKDB_TYPE_BIGINT};
 	int64_t has_class = 0;
-	int rc = -1;
-	memset(out, 0, sizeof *out);
-	pthread_mutex_lock(&st->lock);
-	if (query_rows(st, QUERY_SQL, "keyframes", key, 2, NULL, 0, want, 6, query_sink, &c, err) && !c.bad) {
-		goto done;
-	}
-	if (c.bad || c.first_pos < 1 || c.last_pos < c.first_pos || c.length < c.last_pos) {
-		if (c.rows == 0) {
+	if (c->bad || c->first_pos < 1 || c->last_pos < c->first_pos || c->length < c->last_pos) {
+		if (c->rows == 0) {
 			if (query_rows(st, HAS_CLASS_SQL, "classes", key, 2, NULL, 0, count_type, 1, count_sink, &has_class,
 			               err)) {
-				goto done;
+				return -1;
 			}
 			if (has_class) {
 				snprintf(err->text, sizeof err->text,
@@ -748,23 +810,36 @@ int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, i
 			         "words past feature 41 or positions outside the template); learn or install it again",
 			         model, cls, MDB_MAX_KEYFRAMES);
 		}
-		goto done;
+		return -1;
 	}
-	out->K = c.rows;
+	out->K = c->rows;
 	for (size_t g = 0; g + 1 < out->K; g++) {
 		if (out->d_min[g] < 0 || out->d_max[g] < out->d_min[g]) {
 			snprintf(err->text, sizeof err->text,
 			         "model '%s', class '%s': gap %zu of the stored keyframe query has d_max < d_min or d_min < 0", model,
 			         cls, g + 1);
-			goto done;
+			return -1;
 		}
 	}
 	if (extend) { /* mocapdb.keyframes.annot_margins, positions 1-based here */
-		out->ext_l = 2 * (c.first_pos - 1);
-		out->ext_r = 2 * (c.length - c.last_pos);
+		out->ext_l = 2 * (c->first_pos - 1);
+		out->ext_r = 2 * (c->length - c->last_pos);
 	}
-	rc = 0;
-done:
+	return 0;
+}
+
+int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, int extend, mdb_query *out,
+                            mdb_error *err) {
+	query_ctx c = {out, 0, 0, 0, 0, 0};
+	const char *key[2] = {model, cls};
+	duckdb_type want[] = {DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER,
+	                      DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
+	int rc = -1;
+	memset(out, 0, sizeof *out);
+	pthread_mutex_lock(&st->lock);
+	if (query_rows(st, QUERY_SQL, "keyframes", key, 2, NULL, 0, want, 6, query_sink, &c, err) == 0) {
+		rc = query_from_rows(st, model, cls, extend, &c, out, err);
+	}
 	pthread_mutex_unlock(&st->lock);
 	return rc;
 }
@@ -849,6 +924,51 @@ void mdb_model_free(mdb_model *m) {
 	free(m->tpl);
 	free(m->query);
 	memset(m, 0, sizeof *m);
+}
+
+/* The templates and keyframe queries of a model's classes cls[0 .. n), one query for each kind. */
+static int read_classes(mdb_state *st, const char *name, char *const *cls, const char *has_query, size_t n,
+                        mdb_model *out, mdb_error *err) {
+	duckdb_type want_t[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_DOUBLE};
+	duckdb_type want_q[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER,
+	                        DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER};
+	template_ctx *tc = calloc(n, sizeof *tc);
+	query_ctx *qc = calloc(n, sizeof *qc);
+	int rc = -1, any_query = 0;
+	if (!tc || !qc) {
+		free(tc);
+		free(qc);
+		return out_of_memory(err, "a model");
+	}
+	for (size_t k = 0; k < n; k++) {
+		qc[k].q = &out->query[k];
+		any_query |= has_query[k];
+	}
+	by_class bt = {cls, n, (char *)tc, sizeof *tc, template_row, NULL, 0};
+	by_class bq = {cls, n, (char *)qc, sizeof *qc, query_row, NULL, 0};
+	pthread_mutex_lock(&st->lock);
+	if (query_rows(st, MODEL_TEMPLATES_SQL, "templates", &name, 1, NULL, 0, want_t, 4, by_class_sink, &bt, err) ||
+	    (any_query &&
+	     query_rows(st, MODEL_QUERIES_SQL, "keyframes", &name, 1, NULL, 0, want_q, 7, by_class_sink, &bq, err))) {
+		goto done;
+	}
+	for (size_t k = 0; k < n; k++) {
+		if (template_from_rows(st, name, cls[k], &tc[k], &out->tpl[k], err) ||
+		    (has_query[k] && query_from_rows(st, name, cls[k], 1, &qc[k], &out->query[k], err))) {
+			goto done;
+		}
+	}
+	rc = 0;
+done:
+	pthread_mutex_unlock(&st->lock);
+	for (size_t k = 0; k < n; k++) {
+		template_ctx_free(&tc[k]);
+	}
+	free(tc);
+	free(qc);
+	free(bt.last);
+	free(bq.last);
+	return rc;
 }
 
 int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *err) {
@@ -937,13 +1057,9 @@ int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *e
 		snprintf(err->text, sizeof err->text, "model '%s': labels and label ids of its classes disagree", name);
 		goto done;
 	}
-	for (size_t k = 0; k < n; k++) {
-		if (mdb_read_template(st, name, c.cls[k], &out->tpl[k], err) ||
-		    (c.has_query[k] && mdb_read_keyframe_query(st, name, c.cls[k], 1, &out->query[k], err))) {
-			goto done;
-		}
+	if (read_classes(st, name, c.cls, c.has_query, n, out, err) == 0) {
+		rc = 0;
 	}
-	rc = 0;
 done:
 	for (size_t k = 0; k < n; k++) {
 		free(c.cls[k]);

@@ -80,76 +80,88 @@ int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const doub
 	return 0;
 }
 
+/* The DP (distance_dp.h) in the widest vectors the CPU has: 8 rows at a time with AVX-512, 4 with
+ * AVX2, else 2 (SSE2, which every x86-64 has, and NEON): gcc splits a vector wider than the
+ * CPU's into scalar code, slower than the plain loop. The x86-64 builds carry all three and pick
+ * when called; without the CPU's popcnt (every x86-64 since 2008) gcc calls libgcc's software
+ * popcount for every template column and frame, hence its clone of the narrow one. */
+#define PAD 7 /* rows of +inf above row 0: row 1's vector starts on a vector boundary */
+#define MAX_LANES 8
+
+/* the lanes of a where m is set, those of b elsewhere (m: all bits or none, as comparisons give) */
+#define SELECT(m, a, b) (((m) & (a)) | (~(m) & (b)))
+
 #if defined(__x86_64__)
-/* The hardware popcount where the CPU has it (every x86-64 since 2008), chosen when the binary
- * loads: without it gcc calls libgcc's software popcount for every template column and frame,
- * a third of annotate's time. */
-#define MDB_POPCNT __attribute__((target_clones("popcnt", "default")))
+#define DP_LANES 8
+#define DP_FN dp_avx512
+#define DP_ATTR __attribute__((target("avx512f")))
+#include "distance_dp.h"
+#define DP_LANES 4
+#define DP_FN dp_avx2
+#define DP_ATTR __attribute__((target("avx2")))
+#include "distance_dp.h"
+#define DP_LANES 2
+#define DP_FN dp_sse2
+#define DP_ATTR __attribute__((target_clones("popcnt", "default")))
+#include "distance_dp.h"
+
+static void dp(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts, size_t stride,
+               double *buf, int64_t *sbuf) {
+	__builtin_cpu_init();
+	if (__builtin_cpu_supports("avx512f")) {
+		dp_avx512(t, words, n, delta, starts, stride, buf, sbuf);
+	} else if (__builtin_cpu_supports("avx2")) {
+		dp_avx2(t, words, n, delta, starts, stride, buf, sbuf);
+	} else {
+		dp_sse2(t, words, n, delta, starts, stride, buf, sbuf);
+	}
+}
 #else
-#define MDB_POPCNT
+#define DP_LANES 2
+#define DP_FN dp
+#define DP_ATTR
+#include "distance_dp.h"
 #endif
 
-MDB_POPCNT int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
+void mdb_dp_scratch_free(mdb_dp_scratch *s) {
+	free(s->buf);
+	free(s->sbuf);
+	memset(s, 0, sizeof *s);
+}
+
+int mdb_mt_distance_in(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts,
+                       mdb_dp_scratch *s) {
 	size_t K = t->K;
-	/* columns j-2, j-1, j of D and the frame's costs; with starts, columns j-2, j-1, j of the
-	 * start frame of each cell's path (-1: none), following the chosen predecessor */
-	double *buf = malloc(4 * K * sizeof *buf);
-	int64_t *sbuf = starts ? malloc(3 * K * sizeof *sbuf) : NULL;
-	if (!buf || (starts && !sbuf)) {
-		free(buf);
-		free(sbuf);
-		return -1;
+	/* a column: PAD rows, K rows, and the rows the last vector reaches past K-1, rounded up to
+	 * 64 bytes (aligned_alloc takes whole multiples of its alignment) */
+	size_t stride = (PAD + K + MAX_LANES + 7) / 8 * 8;
+	if (stride > s->stride) {
+		/* columns j, j-1, j-2 of D and the frame's costs; columns j, j-1, j-2 of the start frame
+		 * of each cell's path (-1: none), following the chosen predecessor */
+		mdb_dp_scratch_free(s);
+		s->buf = aligned_alloc(64, 4 * stride * sizeof *s->buf);
+		s->sbuf = aligned_alloc(64, 3 * stride * sizeof *s->sbuf);
+		if (!s->buf || !s->sbuf) {
+			mdb_dp_scratch_free(s);
+			return -1;
+		}
+		s->stride = stride;
 	}
-	double *d2 = buf, *d1 = buf + K, *d0 = buf + 2 * K, *c = buf + 3 * K;
-	int64_t *s2 = sbuf, *s1 = sbuf ? sbuf + K : NULL, *s0 = sbuf ? sbuf + 2 * K : NULL;
-	for (size_t i = 0; i < 2 * K; i++) {
-		buf[i] = INFINITY;
-		if (sbuf) {
-			sbuf[i] = -1;
-		}
+	stride = s->stride;
+	for (size_t i = 0; i < 3 * stride; i++) {
+		s->buf[i] = INFINITY;
+		s->sbuf[i] = -1;
 	}
-	for (size_t j = 0; j < n; j++) {
-		uint64_t w = words[j];
-		for (size_t i = 0; i < K; i++) {
-			c[i] = t->table[i * MDB_N_COST + __builtin_popcountll((t->value[i] ^ w) & t->mask[i])];
-		}
-		d0[0] = c[0];
-		if (s0) {
-			s0[0] = (int64_t)j; /* row 0: a path starts here */
-		}
-		for (size_t i = 1; i < K; i++) {
-			double v0 = d1[i - 1];                    /* (1, 1), weight 1 */
-			double v1 = d2[i - 1];                    /* (1, 2), weight 1 */
-			double v2 = i >= 2 ? d1[i - 2] : INFINITY; /* (2, 1), weight 2 */
-			int m1 = v1 < v0;
-			double best = m1 ? v1 : v0, bw = 1.0;
-			int m2 = v2 < best;
-			if (m2) {
-				best = v2;
-				bw = 2.0;
-			}
-			d0[i] = best + bw * c[i];
-			if (s0) {
-				int64_t st = m2 ? s1[i - 2] : m1 ? s2[i - 1] : s1[i - 1];
-				s0[i] = d0[i] < INFINITY ? st : -1;
-			}
-		}
-		delta[j] = d0[K - 1];
-		if (starts) {
-			starts[j] = s0[K - 1];
-		}
-		double *old = d2; /* rotate: j-1 becomes j-2, j becomes j-1 */
-		d2 = d1;
-		d1 = d0;
-		d0 = old;
-		if (sbuf) {
-			int64_t *sold = s2;
-			s2 = s1;
-			s1 = s0;
-			s0 = sold;
-		}
+	for (size_t i = 0; i < stride; i++) {
+		s->buf[3 * stride + i] = 0.0; /* the costs of the rows past K-1 */
 	}
-	free(buf);
-	free(sbuf);
+	dp(t, words, n, delta, starts, stride, s->buf, s->sbuf);
 	return 0;
+}
+
+int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
+	mdb_dp_scratch s = {0};
+	int rc = mdb_mt_distance_in(t, words, n, delta, starts, &s);
+	mdb_dp_scratch_free(&s);
+	return rc;
 }

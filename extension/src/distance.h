@@ -23,9 +23,22 @@ int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const doub
                          size_t max_columns, mdb_template *out);
 void mdb_template_free(mdb_template *t);
 
+/* The ring of columns mdb_mt_distance_in works in: grown as templates need, reused across calls
+ * (one per thread); zeros to start with. */
+typedef struct {
+	double *buf;
+	int64_t *sbuf;
+	size_t stride; /* rows of a column it holds */
+} mdb_dp_scratch;
+
+void mdb_dp_scratch_free(mdb_dp_scratch *s);
+
 /* Δ(j) for j = 0..n-1 into delta (+inf where no path ends) and, when starts is not NULL, the first
  * frame of the path ending at j into starts (-1 where none; the predecessor choice of Δ, as
  * mocapdb.templates.distance with return_starts); 0, or -1 when out of memory. */
+int mdb_mt_distance_in(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts,
+                       mdb_dp_scratch *scratch);
+/* The same with a scratch of its own. */
 int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts);
 
 #endif

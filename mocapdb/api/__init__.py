@@ -20,7 +20,6 @@ CLI                           API
 ``mocapdb similar``            :func:`similar`
 ``mocapdb stats``              :func:`stats`
 ``mocapdb motions``            :func:`motions`
-``mocapdb serve``              :func:`serve`
 ``mocapdb create-index``       :func:`create_index`
 ``mocapdb drop-index``         :func:`drop_index`
 ``mocapdb export-features``    :func:`export_features`
@@ -35,6 +34,9 @@ CLI                           API
 ``mocapdb extension-path``     :func:`extension_path`
 ``mocapdb sql``                ``connect(...).sql(query)``
 =============================  ==========================
+
+``mocapdb serve`` is :func:`mocapdb.server.serve`: the web server is a face on
+this API, as the command line is, so it sits above it and nothing here imports it.
 """
 from mocapdb.api.database import (DeleteReport, attach, connect, convert_labels, create_index, delete, drop_index,
                                   export_features, export_joints, extension_path, import_features, ingest,
@@ -43,7 +45,7 @@ from mocapdb.api.kernels import (background_compile_running, kernels_cold, start
                                  wait_for_background_compile, warmup)
 from mocapdb.api.learning import define_class, learn_keyframes, train
 from mocapdb.api.annotating import BATCH_FILES, BUCKET_MOTIONS, annotate, evaluate, ray_annotate
-from mocapdb.api.outputs import FIGURES, SIMILAR_FORMATS, report, serve, similar, stats, view
+from mocapdb.api.outputs import FIGURES, SIMILAR_FORMATS, report, similar, stats, view
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.api.browsing import (MAX_LIMIT, MOTION_COLUMNS, SORTS, STRIP_BINS, label_colors, label_segments, labels,
                                   motion_info, motions)
@@ -51,6 +53,6 @@ from mocapdb.api.browsing import (MAX_LIMIT, MOTION_COLUMNS, SORTS, STRIP_BINS, 
 #: exactly the commands: ``mocapdb COMMAND`` calls the function of that name (``sql`` is
 #: ``connect(...).sql``); the other names here are what the command line needs besides
 __all__ = ["connect", "ingest", "delete", "train", "learn_keyframes", "define_class", "annotate", "evaluate",
-           "report", "view", "similar", "stats", "motions", "serve", "create_index", "drop_index", "export_features",
+           "report", "view", "similar", "stats", "motions", "create_index", "drop_index", "export_features",
            "import_features", "export_joints", "attach", "ray_annotate", "convert_labels", "relocate",
            "joint_map_template", "warmup", "extension_path"]

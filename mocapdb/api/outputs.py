@@ -1,5 +1,5 @@
-"""What users look at: the paper's figures, viewer pages, query by example, the archive's summary and the
-archive in a browser."""
+"""What users look at: the paper's figures, viewer pages, query by example and the archive's summary (the
+archive in a browser is :func:`mocapdb.server.serve`, a face above this API)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,13 +7,12 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb.api.annotating import evaluate
-from mocapdb.errors import MocapdbError, ParameterError, SchemaError
+from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.storage.browse import MAX_LIMIT
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import DEFAULT_MODEL
 from mocapdb.storage.motions import motion_rows, one_motion
 from mocapdb.storage.names import safe_stem
-from mocapdb.storage.schema import check_database_file
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.stats import archive_stats
 from mocapdb.viewer import motion_view, write_motion_page, write_pages
@@ -247,61 +246,3 @@ def stats(con, *, model=DEFAULT_MODEL):
         ingest log), and the totals ``motions`` and ``hours``.
     """
     return archive_stats(con, model=model)
-
-
-def serve(db, *, host="127.0.0.1", port=8765, model=DEFAULT_MODEL, timeout=None, ready=None):
-    """Serve the archive in ``db`` to a web browser until interrupted (needs the ``serve`` extra).
-
-    Pages: ``/`` every motion with name, format, rate, duration, stored labels
-    and a strip of its label timeline, filtered by label, format, name and
-    duration, sorted and paged; ``/stats`` the summary of :func:`stats` with
-    bars; ``/motion/<id>`` the viewer page of :func:`view` with "find similar"
-    (:func:`similar` on a stretch selected on the timeline) and every segment
-    of a label across the archive. The JSON API the pages use is under
-    ``/api/`` (:mod:`mocapdb.server.app`).
-
-    The server never writes: it opens ``db`` read-only for each request and
-    closes it after, so ``ingest``, ``annotate`` and the other writers can
-    work beside it; while one holds the file, requests answer "busy" and the
-    pages ask again (:mod:`mocapdb.server.archive`).
-
-    Parameters
-    ----------
-    db : str or Path
-        The database file (it must exist).
-    host : str, keyword-only, default "127.0.0.1"
-        The address to listen on: this machine only unless given otherwise.
-    port : int, keyword-only, default 8765
-        0 takes any free port.
-    model : str, keyword-only
-        The model whose stored annotations the pages show.
-    timeout : float, optional, keyword-only
-        Seconds a request may take before its work is stopped and it answers
-        "busy" (default :data:`mocapdb.server.archive.REQUEST_TIMEOUT`, 30 s).
-        Requests are bounded besides (docs/ARCHITECTURE.md, "The archive in a
-        browser"): a query stretch of at
-        most 60 s, pages of at most 500 rows, two heavy requests at once.
-    ready : callable, optional, keyword-only
-        ``ready(url)`` once the server listens. On ``0.0.0.0`` or ``::`` the
-        server warns that the archive is open to the network.
-    """
-    if timeout is not None and (isinstance(timeout, bool) or not isinstance(timeout, (int, float))
-                                or not 0 < timeout < float("inf")):
-        raise ParameterError(f"timeout must be a number of seconds > 0, got {timeout!r}")
-    if not Path(db).is_file():
-        raise SchemaError(f"{db}: no such database file (a mistyped --db? `mocapdb ingest` creates one)")
-    check_database_file(db)   # a CSV or Parquet named as --db: refused before any request opens it
-    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
-        raise ParameterError(f"port must be an integer from 0 to 65535, got {port!r}")
-    try:
-        # the web stack itself, now: mocapdb.server imports it only where it is used, so a missing
-        # uvicorn would otherwise surface mid-start as "No module named 'uvicorn'"
-        import starlette  # noqa: F401
-        import uvicorn  # noqa: F401
-
-        from mocapdb.server import serve as run
-    except ImportError as exc:
-        missing = exc.name or "starlette or uvicorn"
-        raise MocapdbError(f"mocapdb serve needs the serve extra, which is not installed ({missing} is missing): "
-                           f"pip install \"mocapdb[serve]\" (Starlette and uvicorn)") from None
-    run(db, host=host, port=port, model=model, ready=ready, **({} if timeout is None else {"timeout": timeout}))

@@ -34,7 +34,7 @@ import duckdb
 
 from mocapdb.errors import MocapdbError, SchemaError
 from mocapdb.storage.cache import ConnectionCache, share_cache
-from mocapdb.storage.schema import DatabaseLockedError, open_database
+from mocapdb.storage.schema import DatabaseLockedError, check_database_file, open_database
 
 __all__ = ["SharedReader", "Request", "RequestCancelled", "DatabaseLockedError"]
 
@@ -133,12 +133,18 @@ class SharedReader:
         :class:`~mocapdb.storage.schema.DatabaseLockedError`.
     memory_limit : str, optional, keyword-only
         DuckDB's memory limit of each request's connection.
+
+    Raises
+    ------
+    SchemaError
+        No file at ``path``, or one that is not a DuckDB database.
     """
 
     def __init__(self, path, *, wait=1.0, memory_limit=None):
         self.path = Path(path)
         if not self.path.is_file():
-            raise SchemaError(f"{self.path}: no such database file (a mistyped --db?)")
+            raise SchemaError(f"{self.path}: no such database file (a mistyped --db? `mocapdb ingest` creates one)")
+        check_database_file(self.path)   # a CSV or Parquet named as --db: refused before any request opens it
         self.wait = float(wait)
         self.memory_limit = memory_limit
         self._reader = _RequestConnection()

@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
+from mocapdb.bodies.units import leg_length
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
            "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP", "humanoid_problem", "upright_frames",
@@ -622,10 +623,6 @@ def _lengths(j) -> dict:
     return {pair: dist[..., k] for k, pair in enumerate(_PAIRS)}
 
 
-def _leg_lengths(ln) -> np.ndarray:
-    return 0.5 * (ln["lhip", "lknee"] + ln["lknee", "lankle"] + ln["rhip", "rknee"] + ln["rknee", "rankle"])
-
-
 def upright_frames(joints: np.ndarray) -> np.ndarray:
     """Per frame: does the body stand like a human — two legs to the floor, two arms off it, the
     head above the shoulders, the trunk within 45° of vertical (Y up)?
@@ -644,7 +641,7 @@ def upright_frames(joints: np.ndarray) -> np.ndarray:
 def _upright(j, ln) -> np.ndarray:
     """:func:`upright_frames` of the joints ``j`` with their :func:`_lengths` ``ln``."""
     y = j[..., 1]
-    leg = _leg_lengths(ln)
+    leg = 0.5 * (ln["lhip", "lknee"] + ln["lknee", "lankle"] + ln["rhip", "rknee"] + ln["rknee", "rankle"])
     spine = j[:, JOINT_INDEX["neck"]] - j[:, JOINT_INDEX["root"]]
     vertical = spine[:, 1] > np.cos(np.radians(45.0)) * np.linalg.norm(spine, axis=1)
     shoulders = 0.5 * (y[:, JOINT_INDEX["lshoulder"]] + y[:, JOINT_INDEX["rshoulder"]])
@@ -656,11 +653,10 @@ def _upright(j, ln) -> np.ndarray:
 
 
 def _medians(ln) -> dict:
-    """The median over the frames of the leg (:func:`_leg_lengths`) and of each measure of
-    :data:`HUMAN_PROPORTIONS`, from the lengths ``ln`` (:func:`_lengths`): one ``np.median`` over the
-    five columns (each column's median as its own would give)."""
-    measures = {"leg": _leg_lengths(ln),
-                "arm": 0.5 * (ln["lshoulder", "lelbow"] + ln["lelbow", "lwrist"]
+    """The median over the frames of each measure of :data:`HUMAN_PROPORTIONS`, from the lengths ``ln``
+    (:func:`_lengths`): one ``np.median`` over the four columns (each column's median as its own would
+    give)."""
+    measures = {"arm": 0.5 * (ln["lshoulder", "lelbow"] + ln["lelbow", "lwrist"]
                               + ln["rshoulder", "relbow"] + ln["relbow", "rwrist"]),
                 "trunk": ln["root", "neck"], "hip width": ln["lhip", "rhip"],
                 "shoulder width": ln["lshoulder", "rshoulder"]}
@@ -668,14 +664,15 @@ def _medians(ln) -> dict:
     return {what: float(m) for what, m in zip(measures, med)}
 
 
-def _proportions(med) -> dict:
-    """Each measure of :data:`HUMAN_PROPORTIONS` per the leg, from the medians ``med`` (:func:`_medians`)."""
-    return {what: med[what] / med["leg"] for what in HUMAN_PROPORTIONS}
+def _proportions(med, leg) -> dict:
+    """Each measure of :data:`HUMAN_PROPORTIONS` per the median leg ``leg``, from the medians ``med``
+    (:func:`_medians`)."""
+    return {what: med[what] / leg for what in HUMAN_PROPORTIONS}
 
 
-def _proportion_problems(med) -> list:
+def _proportion_problems(med, leg) -> list:
     """The measures ``(what, ratio, lo, hi)`` of the medians ``med`` outside :data:`HUMAN_PROPORTIONS`."""
-    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(med).items()
+    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(med, leg).items()
             if not HUMAN_PROPORTIONS[what][0] <= ratio <= HUMAN_PROPORTIONS[what][1]]
 
 
@@ -706,11 +703,11 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
     """
     step = max(1, len(joints) // _SAMPLE)
     j = joints[::step]
-    ln = _lengths(j)
-    med = _medians(ln)
-    if not med["leg"] > 0:
+    leg = leg_length(j)   # the one median leg: the unit of a BVH take is decided on it too
+    if not leg > 0:
         return "skeleton", "the legs have no length"
-    problems = _proportion_problems(med)
+    ln = _lengths(j)
+    problems = _proportion_problems(_medians(ln), leg)
     stands = float(_upright(j, ln).mean())
     upright = None
     if stands < MIN_UPRIGHT and (rest is None or not upright_frames(rest[None])[0]):
@@ -718,10 +715,11 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
                    f"in {stands:.0%} of the frames and not in its rest pose")
     if not problems and upright is None:
         return None
-    rest_med = _medians(_lengths(rest[None])) if rest is not None else {"leg": 0.0}
-    if rest_med["leg"] > 0 and not _proportion_problems(rest_med):
+    rest_leg = leg_length(rest[None]) if rest is not None else 0.0
+    rest_med = _medians(_lengths(rest[None])) if rest_leg > 0 else None
+    if rest_leg > 0 and not _proportion_problems(rest_med, rest_leg):
         # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
-        at_rest = _proportions(rest_med)
+        at_rest = _proportions(rest_med, rest_leg)
         why = [upright] if upright else []
         why += [f"{what} {ratio:.2f} × the leg length over the take's frames, {at_rest[what]:.2f} in its rest pose "
                 f"(a human's: {lo}–{hi})" for what, ratio, lo, hi in problems]

@@ -1,4 +1,4 @@
-"""Commands that draw, show and search (:mod:`mocapdb.api.outputs`)."""
+"""Commands that draw, show and search (:mod:`mocapdb.api.outputs`), and ``serve`` (:func:`mocapdb.server.serve`)."""
 from __future__ import annotations
 
 import os
@@ -10,6 +10,7 @@ from pathlib import Path
 import click
 
 import mocapdb.api as api
+import mocapdb.server as server
 from mocapdb.cli.options import (FORMATS, keyframes_option, make_parent, map_option, model_option, silent_option,
                                  tau_option, truth_help)
 from mocapdb.cli.group import command, open_db, progress_bar, bar_progress
@@ -222,7 +223,8 @@ def stats(ctx, model, table, fmt):
               help="Address to listen on (the default answers this machine only; 0.0.0.0 opens it to the network).")
 @click.option("--port", type=int, default=8765, show_default=True, help="Port (0: any free port).")
 @model_option("Model whose stored annotations the pages show.")
-@click.option("--timeout", type=float, help="Seconds a request may take before its work is stopped (default 30).")
+@click.option("--timeout", type=float, default=server.REQUEST_TIMEOUT, show_default=True,
+              help="Seconds a request may take before its work is stopped.")
 @click.pass_context
 def serve(ctx, host, port, model, timeout):
     """Browse the archive in a web browser (needs the 'serve' extra: pip install 'mocapdb[serve]').
@@ -244,5 +246,7 @@ def serve(ctx, host, port, model, timeout):
     db = ctx.obj.get("db")
     if db is None:
         raise click.UsageError("this command needs a database: mocapdb --db FILE …")
-    api.serve(db, host=host, port=port, model=model, timeout=timeout,
-              ready=lambda url: click.echo(f"Serving {db} at {url} (read only; Ctrl-C stops)"))
+    # the server is a face on the API as this command line is, so the CLI starts it itself (nothing in
+    # mocapdb.api imports the server)
+    server.serve(db, host=host, port=port, model=model, timeout=timeout,
+                 ready=lambda url: click.echo(f"Serving {db} at {url} (read only; Ctrl-C stops)"))

@@ -28,8 +28,6 @@ from __future__ import annotations
 import threading
 import time
 
-import anyio
-import anyio.to_thread
 import duckdb
 
 from mocapdb.api import DEFAULT_MODEL
@@ -107,6 +105,11 @@ class Archive(SharedReader):
         RequestCancelled
             The time ran out (or the client left) and the work was interrupted.
         """
+        # anyio comes with starlette (the serve extra): imported here, so the package imports without it and
+        # mocapdb.server.serve names the missing extra
+        import anyio
+        import anyio.to_thread
+
         if heavy and not self._heavy.acquire(blocking=False):
             raise Overloaded(f"{self.heavy_requests} heavy request(s) (find similar, a motion's page) are running, "
                              "the most mocapdb serve answers at once")

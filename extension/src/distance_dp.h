@@ -1,0 +1,96 @@
+/* Δ's DP over DP_LANES template rows at a time, for distance.c, which includes this file once per
+ * vector width with DP_LANES, the function's name DP_FN and its target attributes DP_ATTR defined
+ * (gcc's vector extensions: the widest the CPU runs in one instruction, chosen when called).
+ *
+ * Each lane does the scalar row loop's operations in the same order — the comparisons with strict
+ * "<", the selects, the multiplication by the step weight and the addition — so every double is
+ * the one the scalar loop gives. Row i of frame j reads only rows i-1 and i-2 of frames j-1 and j-2,
+ * so the rows of a frame are independent. A column of the ring holds PAD rows of +inf above row 0
+ * (the predecessors that do not exist) and room past row K-1 for a last vector: those rows cost 0
+ * and hold values nothing reads. */
+#define DP_CAT_(a, b) a##b
+#define DP_CAT(a, b) DP_CAT_(a, b)
+#define DP_VD DP_CAT(vd, DP_LANES)
+#define DP_VI DP_CAT(vi, DP_LANES)
+
+typedef double DP_VD __attribute__((vector_size(DP_LANES * sizeof(double))));
+typedef int64_t DP_VI __attribute__((vector_size(DP_LANES * sizeof(int64_t))));
+
+/* One frame's rows 1 .. K-1: p0/q0 the column of frame j (D, starts), p1/q1 of j-1, p2/q2 of
+ * j-2, each at row 0; c the frame's costs. */
+static inline __attribute__((always_inline)) void DP_CAT(dp_column, DP_LANES)(size_t K, const double *c, double *p0,
+                                                                             const double *p1, const double *p2,
+                                                                             int64_t *q0, const int64_t *q1,
+                                                                             const int64_t *q2, const int with_starts) {
+	const DP_VD zero = {0.0}, one = zero + 1.0, two = zero + 2.0, inf = zero + INFINITY;
+	const DP_VI none = (DP_VI){0} - 1;
+	for (size_t i = 1; i < K; i += DP_LANES) {
+		DP_VD v0, v1, v2, ci;
+		memcpy(&v0, p1 + i - 1, sizeof v0); /* (1, 1), weight 1 */
+		memcpy(&v1, p2 + i - 1, sizeof v1); /* (1, 2), weight 1 */
+		memcpy(&v2, p1 + i - 2, sizeof v2); /* (2, 1), weight 2; row -1 is +inf */
+		memcpy(&ci, c + i, sizeof ci);
+		DP_VI m1 = v1 < v0;
+		DP_VD best = (DP_VD)SELECT(m1, (DP_VI)v1, (DP_VI)v0);
+		DP_VI m2 = v2 < best;
+		best = (DP_VD)SELECT(m2, (DP_VI)v2, (DP_VI)best);
+		DP_VD bw = (DP_VD)SELECT(m2, (DP_VI)two, (DP_VI)one);
+		DP_VD d = best + bw * ci;
+		memcpy(p0 + i, &d, sizeof d);
+		if (with_starts) {
+			DP_VI t0, t1, t2;
+			memcpy(&t0, q1 + i - 1, sizeof t0);
+			memcpy(&t1, q2 + i - 1, sizeof t1);
+			memcpy(&t2, q1 + i - 2, sizeof t2);
+			DP_VI st = SELECT(m2, t2, SELECT(m1, t1, t0));
+			DP_VI reached = d < inf;
+			st = SELECT(reached, st, none);
+			memcpy(q0 + i, &st, sizeof st);
+		}
+	}
+}
+
+static inline __attribute__((always_inline)) void DP_CAT(dp_frames, DP_LANES)(const mdb_template *t,
+                                                                             const uint64_t *words, size_t n,
+                                                                             double *delta, int64_t *starts,
+                                                                             size_t stride, double *buf,
+                                                                             int64_t *sbuf, const int with_starts) {
+	size_t K = t->K;
+	double *c = buf + 3 * stride;
+	double *col[3] = {buf + PAD, buf + stride + PAD, buf + 2 * stride + PAD}; /* frames j, j-1, j-2 at row 0 */
+	int64_t *scol[3] = {sbuf + PAD, sbuf + stride + PAD, sbuf + 2 * stride + PAD};
+	for (size_t j = 0; j < n; j++) {
+		uint64_t w = words[j];
+		if (j == 0 || w != words[j - 1]) { /* a word often lasts a few frames: its costs are the same */
+			for (size_t i = 0; i < K; i++) {
+				c[i] = t->table[i * MDB_N_COST + (size_t)__builtin_popcountll((t->value[i] ^ w) & t->mask[i])];
+			}
+		}
+		size_t r0 = j % 3, r1 = (j + 2) % 3, r2 = (j + 1) % 3;
+		col[r0][0] = c[0];
+		if (with_starts) {
+			scol[r0][0] = (int64_t)j; /* row 0: a path starts here */
+		}
+		DP_CAT(dp_column, DP_LANES)(K, c, col[r0], col[r1], col[r2], scol[r0], scol[r1], scol[r2], with_starts);
+		delta[j] = col[r0][K - 1];
+		if (with_starts) {
+			starts[j] = scol[r0][K - 1];
+		}
+	}
+}
+
+/* Δ (and the starts when not NULL) of n frames, in the ring buf / sbuf of columns of stride rows */
+DP_ATTR static void DP_FN(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts,
+                          size_t stride, double *buf, int64_t *sbuf) {
+	if (starts) {
+		DP_CAT(dp_frames, DP_LANES)(t, words, n, delta, starts, stride, buf, sbuf, 1);
+	} else {
+		DP_CAT(dp_frames, DP_LANES)(t, words, n, delta, NULL, stride, buf, sbuf, 0);
+	}
+}
+
+#undef DP_VD
+#undef DP_VI
+#undef DP_LANES
+#undef DP_FN
+#undef DP_ATTR
