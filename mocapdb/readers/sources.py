@@ -303,6 +303,15 @@ class _Stream(io.RawIOBase):
         return True
 
     def read(self, size=-1):
+        if (size is None or size < 0) and self.cap is None:
+            # nothing inflates here (a plain file, a stored zip member): one read, sized by the file
+            # (1 MiB pieces gathered in a BytesIO cost a short take's reading twice over)
+            try:
+                data = self.inner.read()
+            except _DECODE_ERRORS as exc:
+                raise OSError(f"corrupt compressed data ({exc})") from None
+            self.count += len(data)
+            return data
         if size is None or size < 0:
             # read all, a bounded piece at a time: one unbounded read of a bomb would inflate it whole
             out = io.BytesIO()
