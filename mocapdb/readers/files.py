@@ -32,8 +32,8 @@ from mocapdb.bodies.kinematics import asf_forward_kinematics, joint_node_indices
 from mocapdb.bodies.motion import Motion, check_finite_motion
 from mocapdb.readers.textscan import longest_line
 from mocapdb.readers.options import ReaderOptions
-from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix, open_stream,
-                                     special_kind, split_archive)
+from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, max_decompressed, motion_stem,
+                                     motion_suffix, open_stream, special_kind, split_archive)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
            "load_skeleton", "SUPPORTED_EXTENSIONS"]
@@ -66,6 +66,9 @@ def check_start(path) -> None:
     ext = motion_suffix(path)
     if ext not in (".bvh", ".amc", ".asf"):
         return
+    key = _start_key(path)
+    if key is not None and key in _STARTS_PASSED:
+        return
     with open_stream(path) as fh:   # an OSError (unreadable, over the cap) is the caller's to word
         head = fh.read(START_BYTES)
     if ext == ".bvh":
@@ -74,6 +77,30 @@ def check_start(path) -> None:
         raise ParseError(path, None, f"a line longer than {MAX_HEADER_LINE:,} bytes within its first "
                          f"{START_BYTES:,} (an {ext[1:].upper()} file's lines are short: not an {ext[1:].upper()} "
                          "file?)")
+    if key is not None:
+        if len(_STARTS_PASSED) >= 4096:
+            _STARTS_PASSED.clear()
+        _STARTS_PASSED.add(key)
+
+
+#: files whose start passed :func:`check_start`, by path, size, mtime and the decompression cap: ingest
+#: checks a take before hashing it and again before reading it, in the same process when on threads
+_STARTS_PASSED = set()
+
+
+def _start_key(path):
+    """The key of a plain (or compressed) file for :data:`_STARTS_PASSED`, or None: a zip member, a file
+    that cannot be looked at, or one changed in the last two seconds (a change within the file system's
+    clock tick would leave its mtime as it was)."""
+    if split_archive(path)[1] is not None:
+        return None
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    if time.time_ns() - st.st_mtime_ns < _RACY_NS:
+        return None
+    return str(path), st.st_size, st.st_mtime_ns, max_decompressed()
 
 
 def skeleton_candidates(amc_path) -> list:
@@ -154,8 +181,8 @@ class _Names:
 
 #: folder -> ((size, mtime), its _Names); like _FOLDER_ASF
 _FOLDER_NAMES = {}
-#: a folder changed this recently is not listed for the cache: an entry made within the file system's
-#: clock tick after the listing would leave its mtime as it was (git's "racy" files)
+#: a folder (or file) changed this recently is not cached: a change within the file system's clock tick
+#: after the look would leave its mtime as it was (git's "racy" files)
 _RACY_NS = 2_000_000_000
 
 
