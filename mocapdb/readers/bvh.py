@@ -156,9 +156,8 @@ class BvhHierarchy:
         return out
 
     def tree(self) -> SkeletonTree:
-        """Joint origins then End Sites, with rest-pose positions (OFFSETs accumulated); built once per
-        hierarchy (each take asks two or three times, and an archive's takes share their hierarchy),
-        its arrays read-only."""
+        """Joint origins then End Sites, rest-pose positions (OFFSETs accumulated); once per hierarchy
+        (asked per take, shared by an archive's takes), arrays read-only."""
         cached = self.__dict__.get("_tree")
         if cached is not None:
             return cached
@@ -223,9 +222,7 @@ class _MotionLines:
     def __init__(self, fh, path, size):
         self.fh, self.path = fh, str(path)
         path = self.path
-        # a take shorter than a block is asked for by its size: a read of the whole block allocates it
-        # (4 MiB per take, half the cost of reading a short take's bytes); at least 64 KiB (a size that
-        # lies costs a few more reads), never more than the block
+        # a short take is read by its size (≥ 64 KiB): reading a whole block allocated 4 MiB per take
         first = _READ_BLOCK if size is None else min(_READ_BLOCK, max(size + 1, 1 << 16))
         head, self.eof = read_head(fh, path, first)
         if head.startswith(b"\xef\xbb\xbf"):
