@@ -14,6 +14,7 @@ shared machine), the rows (which must agree) and the process's peak RSS.
 """
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -84,8 +85,10 @@ def annotate_sql(keyframes):
 def side(name, db, ext, queries, passes):
     """One side's figures; ``queries`` is a list, or a dict of lists by side (SQL that differs)."""
     queries = queries[name] if isinstance(queries, dict) else queries
+    # the Python side keeps mocapdb.connect from loading the extension: its UDFs answer
+    env = dict(os.environ, MOCAPDB_NATIVE="0") if name == "python" else None
     run = subprocess.run([sys.executable, "-c", SIDE, name, str(db), str(ext), str(passes)],
-                         input=json.dumps(queries), capture_output=True, text=True, check=True)
+                         input=json.dumps(queries), capture_output=True, text=True, check=True, env=env)
     return json.loads(run.stdout)
 
 

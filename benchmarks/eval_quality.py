@@ -32,6 +32,9 @@ without each lab in turn (HDM05, CMU, bandai2_dev, accad_dev) annotates that
 lab — what a stranger with another lab's recordings sees —, with and
 without keyframes; per fold its figures, inside the fold per actor / document
 / style, and the spread (min–max) across folds.
+The segments' confidence is judged there twice: the raw score, and
+calibrated — each lab's segments through confidence maps fitted on the other
+labs' segments only (:func:`lab.calibration.calibrated_by_lab`).
 
 ``--shipped`` also scores the shipped models themselves (the previous one
 from git, the new one from the package) on every set — the figures the
@@ -62,7 +65,7 @@ from mocapdb.storage.model_store import fingerprint
 from timing import model_at, model_dir
 
 sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
-from lab.calibration import confidence_calibration, segment_verdicts
+from lab.calibration import calibrated_by_lab, confidence_calibration, held_out_segments
 from lab.development import SETTINGS, development_data, development_evaluation
 from lab.records import guard, headline_figures, raised_records, read_records, write_records
 from lab.studio import studio_measures
@@ -78,8 +81,6 @@ RECORDS = REPO / "tests" / "quality_records.json"
 PAPER = {"total, without keyframes": (0.60, 0.70), "total, with keyframes": (0.74, 0.82),
          "CMU, with keyframes": (0.70, 0.76)}
 MODES = {"keyframes": {}, "no keyframes": {"keyframes": False}}
-#: the sets whose segments' confidence is judged (each annotated as such, not joined from others)
-CALIBRATED = ("loao", "loao_mirrored", "cmu86_09", "mocap6", "bandai2", "accad")
 
 
 def previous_recipe(rev):
@@ -242,9 +243,16 @@ def print_lolo(folds_by_mode):
                       f"(sd {np.std(list(vals.values())):.3f})")
 
 
-def calibration_rows(res):
-    """Per judged set and pooled: the confidence's calibration (segments ≥ 0.5 right, AUC)."""
-    parts = {s: segment_verdicts(res, s) for s in CALIBRATED if s in res.auto}
+def calibration_rows(res, calibrated=False):
+    """Per judged set and pooled: the confidence's calibration (segments ≥ 0.5 right, AUC).
+
+    ``calibrated``: each lab's segments through confidence maps fitted on the other labs' (the raw score of
+    models without maps otherwise: the evaluation trains its models without them)."""
+    parts = held_out_segments(res)
+    if calibrated:
+        parts = calibrated_by_lab(PAPER_LABELS, parts)
+    else:
+        parts = {s: (c, r) for s, (_, c, r) in parts.items()}
     out = {s: confidence_calibration(*v) for s, v in parts.items()}
     if parts:
         out["pooled"] = confidence_calibration(np.concatenate([c for c, _ in parts.values()]),
@@ -324,10 +332,15 @@ def main():
         print_lolo(folds)
         print_lab({f"lolo {m}": r for m, r in lolo.items()})
         calibration = {m: calibration_rows(r) for m, r in lolo.items()}
-        print_calibration("Confidence, leave-one-lab-out", calibration)
+        print_calibration("Confidence (raw score), leave-one-lab-out", calibration)
+        calibrated = {m: calibration_rows(r, calibrated=True) for m, r in lolo.items()}
+        print_calibration("Confidence calibrated (each lab's maps fitted on the other labs' segments), "
+                          "leave-one-lab-out", calibrated)
         out["lolo"] = folds
         out["lolo_calibration"] = {m: {s: dataclasses.asdict(c) for s, c in rows.items()}
                                    for m, rows in calibration.items()}
+        out["lolo_calibrated"] = {m: {s: dataclasses.asdict(c) for s, c in rows.items()}
+                                  for m, rows in calibrated.items()}
     if args.shipped:
         t = time.perf_counter()
         shipped = {"previous shipped": model_at(args.previous),

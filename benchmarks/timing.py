@@ -42,7 +42,7 @@ def model_dir(path, name=None):
 
     import pyarrow.parquet as pq
 
-    from mocapdb.storage.model_store import model_from_tables
+    from mocapdb.storage.model_store import MODEL_TABLES, model_from_tables
 
     model = model_from_tables({p.stem: pq.read_table(p) for p in Path(path).glob("*.parquet")})
     return model if name is None else dataclasses.replace(model, name=name)
@@ -57,7 +57,7 @@ def model_at(rev, name=None):
 
     import pyarrow.parquet as pq
 
-    from mocapdb.storage.model_store import model_from_tables
+    from mocapdb.storage.model_store import MODEL_TABLES, model_from_tables
 
     repo = Path(__file__).resolve().parents[1]
     # the shipped models lived in mocapdb/models/ before they moved to mocapdb/shipped_models/
@@ -65,9 +65,10 @@ def model_at(rev, name=None):
                   if subprocess.run(["git", "-C", str(repo), "cat-file", "-e", f"{rev}:{f}/default"],
                                     capture_output=True).returncode == 0)
     tables = {}
-    for table in ("models", "classes", "templates", "keyframe_queries", "keyframes", "ga_statistics"):
+    for table in MODEL_TABLES:
         blob = subprocess.run(["git", "-C", str(repo), "show", f"{rev}:{folder}/default/{table}.parquet"],
-                              check=True, capture_output=True).stdout
-        tables[table] = pq.read_table(io.BytesIO(blob))
+                              capture_output=True)
+        if blob.returncode == 0:  # a table newer than the revision (confidence_maps) is absent there
+            tables[table] = pq.read_table(io.BytesIO(blob.stdout))
     model = model_from_tables(tables)
     return model if name is None else dataclasses.replace(model, name=name)

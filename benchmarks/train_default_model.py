@@ -11,7 +11,10 @@ Run: ``python benchmarks/train_default_model.py [--runs 20] [--seed 0] [--jobs N
   (:func:`lab.recipe.default_recipe`); designed keyframe
   queries (``--ga``: also robust GA queries), τ per class and minimum
   segment lengths
-  (:func:`lab.default_model.train_recipe`). Every random step
+  (:func:`lab.default_model.train_recipe`), and its calibrated confidence:
+  per label a map from the raw score to the share of right segments, fitted
+  on a leave-one-lab-out evaluation of the recipe
+  (:func:`lab.calibration.recipe_confidence_maps`). Every random step
   is seeded: the same seed gives the same Parquet files, whatever ``--jobs``.
 * ``toolbox`` — the 11 HDM05 templates, identical to the authors' toolbox
   templates (../shared/oracle/templates), τ = 0.13, no keyframe queries: the
@@ -21,6 +24,7 @@ Writes each model's rows as Parquet files (the shipped-model format,
 :func:`mocapdb.storage.model_store.export_model`).
 """
 import argparse
+import dataclasses
 import os
 import tempfile
 import time
@@ -32,6 +36,7 @@ from mocapdb.api import train
 from mocapdb.storage.model_store import export_model, save_model
 
 sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
+from lab.calibration import recipe_confidence_maps
 from lab.development import development_data
 from lab.default_model import train_recipe
 from lab.recipe import PAPER_LABELS, default_recipe
@@ -73,6 +78,10 @@ def main():
                                    progress=lambda what: print(f"  {what} ({time.perf_counter() - t:.0f} s)",
                                                                flush=True))
             model = trained.model
+            maps = recipe_confidence_maps(DATA, data, default_recipe(), model.labels, vocabulary=PAPER_LABELS,
+                                          seed=args.seed)
+            model = dataclasses.replace(model, confidence_maps=maps)
+            print(f"  confidence maps from leave-one-lab-out segments ({time.perf_counter() - t:.0f} s)", flush=True)
             stats = {}
             for c in model.classes:
                 if c.keyframe_query is None:
@@ -89,7 +98,8 @@ def main():
             save_model(con, model, replace=True, keyframe_stats=stats, ga_statistics=ga,
                        description="The paper's 15 labels (Table 1): HDM05 and CMU classes learned from "
                                    "../shared/data, mirrored, reversed and designed classes, designed keyframe "
-                                   "queries, tau per class, minimum segment lengths",
+                                   "queries, tau per class, minimum segment lengths, confidence calibrated on "
+                                   "leave-one-lab-out segments",
                        source=f"benchmarks/train_default_model.py: {n_clips} clips (hdm05_cut, CMU stretches), "
                               f"class and keyframe definitions mocapdb/shipped_models/classes"
                               + (f", GA {args.runs} runs x {args.generations} generations (inner "

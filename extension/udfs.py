@@ -302,7 +302,11 @@ def inline_query(masks, values, gap_min, gap_max) -> KeyframeQuery:
                          np.array([UNBOUNDED if x is None else x for x in gap_max], np.float64), K)
 
 
-def register(con, *, cache=None):
+#: how every UDF is registered: Arrow in and out, NULLs passed in (a NULL motion is a NULL answer)
+_UDF_OPTIONS = {"type": "arrow", "null_handling": "special", "side_effects": False}
+
+
+def register(con, *, cache=None, native=False):
     """Register the mocapdb UDFs and temporary macros on a connection.
 
     Parameters
@@ -310,43 +314,55 @@ def register(con, *, cache=None):
     con : duckdb.DuckDBPyConnection
     cache : ConnectionCache, optional, keyword-only
         The cache the UDFs answer from (default: the connection's own).
+    native : bool, keyword-only
+        The database loaded the native extension (:mod:`mocapdb.extension.connection`): only the
+        UDFs of the functions it lacks are registered (``similar_to``'s), and the macros call the
+        native functions. False: every function is a Python UDF (the fallback).
 
     Returns
     -------
     tuple of callable
-        The UDFs. DuckDB registers them with the database instance, for every
-        connection of it, but lets go of the Python functions when ``con``
-        closes: whoever keeps the instance open keeps them alive
+        The UDFs registered. DuckDB registers them with the database instance,
+        for every connection of it, but lets go of the Python functions when
+        ``con`` closes: whoever keeps the instance open keeps them alive
         (:mod:`mocapdb.extension.connection`).
     """
     udfs = make_udfs(connection_cache(con) if cache is None else cache)
     annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, similar_udf = udfs
-    common = {"type": "arrow", "null_handling": "special", "side_effects": False}
-    con.create_function("mocap_annotate", annotate_udf,
-                        [T.INTEGER, T.VARCHAR, T.VARCHAR, T.DOUBLE, T.BOOLEAN, T.BIGINT],
-                        duckdb.list_type(SEGMENT_TYPE), **common)
-    con.create_function("mocap_mt_distance", mt_distance_udf, [T.INTEGER, T.VARCHAR, T.VARCHAR, T.VARCHAR],
-                        duckdb.list_type(T.DOUBLE), **common)
-    con.create_function("mocap_keyframe_search", keyframe_search_udf,
-                        [T.VARCHAR, T.VARCHAR, T.VARCHAR, T.BOOLEAN, T.BIGINT], duckdb.list_type(HIT_TYPE),
-                        **common)
-    con.create_function("mocap_keyframe_search_words", keyframe_search_words_udf,
-                        [duckdb.list_type(T.UBIGINT), duckdb.list_type(T.UBIGINT), duckdb.list_type(T.BIGINT),
-                         duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
-                        duckdb.list_type(HIT_TYPE), **common)
+    if not native:
+        register_python_functions(con, udfs)
     con.create_function("mocap_similar", similar_udf,
                         [T.VARCHAR, T.VARCHAR, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT],
                         duckdb.list_type(SIMILAR_TYPE),
-                        **common)
-    register_macros(con)
-    return udfs
+                        **_UDF_OPTIONS)
+    register_macros(con, native=native)
+    return (similar_udf,) if native else udfs
 
 
-def register_macros(con) -> None:
+def register_python_functions(con, udfs) -> None:
+    """Register the Python UDFs of the functions the native extension has (``make_udfs``'s first four)."""
+    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, _ = udfs
+    con.create_function("mocap_annotate", annotate_udf,
+                        [T.INTEGER, T.VARCHAR, T.VARCHAR, T.DOUBLE, T.BOOLEAN, T.BIGINT],
+                        duckdb.list_type(SEGMENT_TYPE), **_UDF_OPTIONS)
+    con.create_function("mocap_mt_distance", mt_distance_udf, [T.INTEGER, T.VARCHAR, T.VARCHAR, T.VARCHAR],
+                        duckdb.list_type(T.DOUBLE), **_UDF_OPTIONS)
+    con.create_function("mocap_keyframe_search", keyframe_search_udf,
+                        [T.VARCHAR, T.VARCHAR, T.VARCHAR, T.BOOLEAN, T.BIGINT], duckdb.list_type(HIT_TYPE),
+                        **_UDF_OPTIONS)
+    con.create_function("mocap_keyframe_search_words", keyframe_search_words_udf,
+                        [duckdb.list_type(T.UBIGINT), duckdb.list_type(T.UBIGINT), duckdb.list_type(T.BIGINT),
+                         duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
+                        duckdb.list_type(HIT_TYPE), **_UDF_OPTIONS)
+
+
+def register_macros(con, *, native=False) -> None:
     """Install the temporary macros (``annotate``, ``mt_distance``, …) on a connection whose
-    database instance has the UDFs (macros are per connection, UDFs per instance)."""
-    con.execute(sql_text("macros.sql"))
+    database instance has the functions (macros are per connection, UDFs per instance): over the
+    native functions (``native``) or the Python UDFs."""
+    con.execute(sql_text("native_macros.sql" if native else "macros.sql"))
+    con.execute(sql_text("similar_macros.sql"))
 
 
-__all__ = ["register", "register_macros", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "SIMILAR_TYPE",
+__all__ = ["register", "register_macros", "register_python_functions", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "SIMILAR_TYPE",
            "MAX_KEYFRAMES", "MAX_GAP"]

@@ -1,17 +1,9 @@
 -- How a plain DuckDB user finds the SQL functions (run on every read-write
 -- open, after schema.sql and views.sql, which recreate the views).
 --
--- The SQL functions are Python UDFs on connections from mocapdb.connect and native in the
--- extension (LOAD it in any other DuckDB client); every table says where it comes from
+-- The SQL functions are native in the extension (mocapdb.connect loads it; LOAD it in any other
+-- DuckDB client; Python UDFs where it is missing); every table says where it comes from
 -- (SELECT table_name, comment FROM duckdb_tables()).
-
--- annotate(), mt_distance(), keyframe_search() and keyframe_search_words() are native: the
--- extension that `mocapdb extension-path` names has them (LOAD it; docs/EXTENSION.md). A persisted
--- macro of one of those names would hide it, so the stand-ins that older versions wrote go.
-DROP MACRO IF EXISTS annotate;
-DROP MACRO IF EXISTS mt_distance;
-DROP MACRO TABLE IF EXISTS keyframe_search;
-DROP MACRO TABLE IF EXISTS keyframe_search_words;
 
 COMMENT ON TABLE motions IS 'mocapdb: one row per recording. The SQL functions annotate(), mt_distance(), keyframe_search(), keyframe_search_words() are on connections from mocapdb.connect() (Python) and in the native extension (LOAD the file `mocapdb extension-path` prints).';
 COMMENT ON TABLE features IS 'mocapdb: the 40 relational features of every 30 Hz frame, packed (bit k-1 = feature k). annotate() and the other SQL functions: open the file with mocapdb.connect(), `mocapdb --db FILE sql`, or LOAD the native extension.';
@@ -22,6 +14,7 @@ COMMENT ON TABLE classes IS 'mocapdb: the fine classes of each model with label,
 COMMENT ON TABLE templates IS 'mocapdb: motion template columns of each class, quantized as (mask, value) words.';
 COMMENT ON TABLE keyframe_queries IS 'mocapdb: one keyframe query per class and model.';
 COMMENT ON TABLE keyframes IS 'mocapdb: the keyframes of each keyframe query, with gap bounds in 30 Hz frames.';
+COMMENT ON TABLE confidence_maps IS 'mocapdb: per label of a model, the step function from a segment''s raw score to its calibrated confidence (share right on held-out recordings).';
 COMMENT ON TABLE ga_statistics IS 'mocapdb: per-generation statistics of the genetic algorithm that learned keyframe queries.';
 COMMENT ON TABLE annotations IS 'mocapdb: stored results of `mocapdb annotate`; fresh ones from annotate(motion_id) on a connection from mocapdb.connect() or `mocapdb --db FILE sql`.';
 COMMENT ON TABLE ingest_log IS 'mocapdb: one row per file an ingest or import-features looked at: path, archive member, outcome (ingested, skipped, failed, not a motion file), reason, the reader''s notes, motion_id, time; run_id groups a call.';

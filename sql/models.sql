@@ -82,3 +82,12 @@ DELETE FROM ga_statistics WHERE model = $model;
 
 -- name: insert_ga_statistics
 INSERT INTO ga_statistics BY NAME SELECT * FROM mocap_new_rows;
+
+-- name: rows_confidence_maps
+SELECT * FROM confidence_maps WHERE model = $model;
+
+-- name: delete_confidence_maps
+DELETE FROM confidence_maps WHERE model = $model;
+
+-- name: insert_confidence_maps
+INSERT INTO confidence_maps BY NAME SELECT * FROM mocap_new_rows;

@@ -113,6 +113,21 @@ CREATE TABLE IF NOT EXISTS keyframes (
     PRIMARY KEY (model, class, k)
 );
 
+-- Calibrated confidence (beyond the paper): per label and shortest segment length a step function
+-- from a segment's raw score (1 − Δ̄^τ/τ at its best frame) to the share of right segments seen at
+-- that score and length on recordings the model was not trained on. A segment takes its label's map
+-- with the largest min_length it reaches; step k holds from raw score `cut` up to the next step's.
+-- A label without rows keeps the raw score (the toolbox model has none).
+CREATE TABLE IF NOT EXISTS confidence_maps (
+    model      VARCHAR NOT NULL,
+    label      VARCHAR NOT NULL,
+    min_length INTEGER NOT NULL,           -- 30 Hz frames
+    k          INTEGER NOT NULL,           -- 1-based step number, cuts ascending
+    cut        DOUBLE NOT NULL,
+    value      DOUBLE NOT NULL,            -- the confidence from this cut on, in [0, 1]
+    PRIMARY KEY (model, label, min_length, k)
+);
+
 -- Per-generation statistics of the GA runs that learned a model's keyframe
 -- queries (population averages: paper Fig. 5; `mocapdb report --figure ga`).
 CREATE TABLE IF NOT EXISTS ga_statistics (

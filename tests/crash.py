@@ -57,6 +57,7 @@ INVARIANTS = {
         UNION SELECT model FROM keyframe_queries WHERE model NOT IN (SELECT model FROM models)
         UNION SELECT model FROM keyframes WHERE model NOT IN (SELECT model FROM models)
         UNION SELECT model FROM ga_statistics WHERE model NOT IN (SELECT model FROM models)
+        UNION SELECT model FROM confidence_maps WHERE model NOT IN (SELECT model FROM models)
         UNION SELECT model FROM templates t WHERE NOT EXISTS (
             SELECT 1 FROM classes c WHERE c.model = t.model AND c.class = t.class)""",
 }

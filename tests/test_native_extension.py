@@ -10,6 +10,8 @@ of seeded random calls.
 """
 from __future__ import annotations
 
+import contextlib
+import gc
 import json
 import os
 import shutil
@@ -17,10 +19,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import duckdb
 import numpy as np
 import pytest
 
 import mocapdb
+from mocapdb.extension.connection import NATIVE_ENV
+from mocapdb.storage.schema import connect_raw
 from mocapdb.extension.native_build import BINARY_NAME, MISSING_NAME, build, build_or_explain
 from conftest import DATA, run
 
@@ -52,6 +57,30 @@ def plain_client(db, ext, queries, env=None, read_only=True):
                          capture_output=True, text=True, env=env, timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     return json.loads(run.stdout)
+
+
+@contextlib.contextmanager
+def python_udfs(path):
+    """A read-only mocapdb.connect whose SQL functions are the Python UDFs (the numba kernels: the
+    reference), as where the native extension is missing: MOCAPDB_NATIVE=0 skips the LOAD."""
+    old = os.environ.get(NATIVE_ENV)
+    os.environ[NATIVE_ENV] = "0"
+    try:
+        with mocapdb.connect(path, read_only=True) as con:
+            assert python_functions(con) == 5
+            yield con
+    finally:
+        if old is None:
+            del os.environ[NATIVE_ENV]
+        else:
+            os.environ[NATIVE_ENV] = old
+
+
+def python_functions(con):
+    """How many of the SQL functions' Python UDFs the connection's database has."""
+    return con.execute("SELECT count(DISTINCT function_name) FROM duckdb_functions() WHERE function_name IN "
+                       "('mocap_annotate', 'mocap_mt_distance', 'mocap_keyframe_search', "
+                       "'mocap_keyframe_search_words', 'mocap_similar')").fetchall()[0][0]
 
 
 def words_query(masks, vals, gap_min, gap_max, left, right):
@@ -113,7 +142,7 @@ def random_queries(path, n, seed):
 def test_keyframe_search_words_equals_the_python_udf(archive, native):
     """Seeded random queries over real recordings: the native rows are the numba kernels' rows."""
     queries = random_queries(archive, 300, seed=31)
-    with mocapdb.connect(archive, read_only=True) as con:
+    with python_udfs(archive) as con:
         want = [[list(r) for r in con.execute(q).fetchall()] for q in queries]
     got = plain_client(archive, native, queries)
     assert [g.get("error") for g in got] == [None] * len(queries)
@@ -126,7 +155,7 @@ def test_keyframe_search_words_equals_the_python_udf(archive, native):
 def test_keyframe_search_equals_the_python_udf(archive, native):
     """Every class of the shipped default model with a keyframe query, with and without the
     annotation margins, and the toolbox's classes, which have none (an error naming the class)."""
-    with mocapdb.connect(archive, read_only=True) as con:
+    with python_udfs(archive) as con:
         classes = [c for c, in con.execute("SELECT class FROM keyframe_queries WHERE model = 'default' "
                                            "ORDER BY class").fetchall()]
         queries = [f"SELECT * FROM keyframe_search('{c}', extend := {e}) ORDER BY ALL"
@@ -150,7 +179,7 @@ def test_keyframe_search_equals_the_python_udf(archive, native):
 def test_mt_distance_equals_the_python_udf_bit_for_bit(archive, native):
     """Δ of every class of both shipped models on every motion: the same doubles, bit for bit (the
     C kernel does numba's operations in numba's order, without fused multiply-add), inf included."""
-    with mocapdb.connect(archive, read_only=True) as con:
+    with python_udfs(archive) as con:
         classes = con.execute("SELECT model, class FROM classes WHERE model IN ('default', 'toolbox') "
                               "ORDER BY ALL").fetchall()
         queries = [f"SELECT motion_id, mt_distance(motion_id, '{c}', '{m}') FROM motions ORDER BY motion_id"
@@ -197,7 +226,7 @@ def test_annotate_equals_the_python_udf(archive, native):
     doubles (the C chain does numba's comparisons and float operations in the same order)."""
     native_q = [f"SELECT motion_id, annotate(motion_id, '{m}', {t}, {k}) FROM motions ORDER BY motion_id"
                 for m, t, k in ANNOTATE_SETTINGS]
-    with mocapdb.connect(archive, read_only=True) as con:
+    with python_udfs(archive) as con:
         want = [[[mid, segs] for mid, segs in con.execute(
             f"SELECT motion_id, annotate(motion_id, model := '{m}', tau := {t}, keyframes := {k}) FROM motions "
             "ORDER BY motion_id").fetchall()] for m, t, k in ANNOTATE_SETTINGS]
@@ -211,6 +240,36 @@ def test_annotate_equals_the_python_udf(archive, native):
     assert len({lab for m, lab in labels if m == "default"}) >= 4, labels
     assert len({lab for m, lab in labels if m == "toolbox"}) >= 3, labels
     assert ("default", "turn") in labels and want[0] != want[2]  # preselection changes something
+    # the default model's confidence is calibrated: every segment's is a value of its stored maps
+    with mocapdb.connect(archive, read_only=True) as con:
+        values = {v for v, in con.execute("SELECT value FROM confidence_maps WHERE model = 'default'").fetchall()}
+    assert len(values) > 3 and {s["confidence"] for _, segs in want[0] for s in segs} <= values
+
+
+def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
+    """A confidence map whose values fall is an error naming the model and the table; a database from before
+    calibrated confidence (no table confidence_maps) gives the raw score, as the Python UDF gives it under the
+    model without its maps."""
+    import dataclasses
+
+    from mocapdb.storage.model_store import load_model, save_model
+
+    db = tmp_path / "maps.duckdb"
+    shutil.copy(archive, db)
+    with mocapdb.connect(db) as con:
+        model = load_model(con, "default")
+        assert model.confidence_maps
+        save_model(con, dataclasses.replace(model, name="raw", confidence_maps=()))
+        want = con.execute("SELECT motion_id, annotate(motion_id, model := 'raw') FROM motions "
+                           "ORDER BY motion_id").fetchall()
+    got = plain_client(db, native, [
+        "UPDATE confidence_maps SET value = 0 WHERE model = 'default' AND k = 2",
+        "SELECT annotate(1, 'default')",
+        "DROP TABLE confidence_maps",
+        "SELECT motion_id, annotate(motion_id, 'default') FROM motions ORDER BY motion_id"], read_only=False)
+    assert "model 'default': its confidence_maps rows are damaged" in got[1]["error"]
+    assert got[3]["rows"] == [list(r) for r in want]
+    assert any(s["confidence"] not in (0.0, 1.0) for _, segs in want for s in segs)
 
 
 def test_annotate_arguments(archive, native):
@@ -327,6 +386,103 @@ def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, nati
     assert "table motions does not exist" in err and "`mocapdb ingest` creates it" in err
 
 
+# Another process writes the file: it can only if this one closed it.
+WRITER = r"""
+import sys, duckdb
+con = duckdb.connect(sys.argv[1])
+con.execute("CREATE OR REPLACE TABLE closed_check AS SELECT 1 AS x")
+con.close()
+"""
+
+
+def another_process_writes(db):
+    run = subprocess.run([sys.executable, "-c", WRITER, str(db)], capture_output=True, text=True, timeout=120)
+    return run.returncode == 0 or run.stderr[-500:]
+
+
+def test_mocapdb_connect_answers_with_the_native_functions(archive, native):
+    """A mocapdb.connect connection (and its cursors) has the native functions: no Python UDF of
+    theirs is registered (similar_to's only), the macros keep the named arguments and give the
+    Python UDFs' answers (MOCAPDB_NATIVE=0: the fallback where the extension is missing)."""
+    queries = ["SELECT motion_id, annotate(motion_id, model := 'toolbox', keyframes := false), "
+               "annotate(motion_id, tau := 0.1) FROM motions ORDER BY motion_id",
+               "SELECT motion_id, mt_distance(motion_id, 'squat1Reps', model := 'default') FROM motions "
+               "ORDER BY motion_id",
+               "SELECT * FROM keyframe_search('squat1Reps', extend := true) ORDER BY ALL",
+               "SELECT * FROM keyframe_search_words([3, 12], [1, 0], [0], [NULL], extend_left := 3) ORDER BY ALL"]
+    with python_udfs(archive) as con:
+        want = [con.execute(q).fetchall() for q in queries]
+    with mocapdb.connect(archive, read_only=True) as con:
+        cur = con.cursor()
+        assert python_functions(con) == 1  # mocap_similar
+        assert con.execute("SELECT count(*) FROM duckdb_functions() WHERE function_name = 'mocapdb_release'"
+                           ).fetchall() == [(1,)]
+        assert [con.execute(q).fetchall() for q in queries] == want
+        assert [cur.execute(q).fetchall() for q in queries] == want
+        with pytest.raises(duckdb.Error, match="model 'default' has no class 'nope'"):
+            con.execute("SELECT mt_distance(1, 'nope')").fetchall()
+    assert want[0] and any(w[1] for w in want[1]) and want[2] and want[3]  # real answers were compared
+
+
+def test_the_last_connection_closed_closes_the_file(archive, native, tmp_path):
+    """The extension's own connection no longer keeps the file open: when the last mocapdb
+    connection of it is closed (its cursors with it) or garbage-collected, the keeper releases the
+    extension and the file opens read-only in this process and for writing in another."""
+    db = tmp_path / "closing.duckdb"
+    shutil.copy(archive, db)
+    con = mocapdb.connect(db)
+    cur = con.cursor()
+    want = cur.execute("SELECT annotate(1)").fetchall()
+    con.close()  # closes cur too
+    with mocapdb.connect(db, read_only=True) as ro:  # a config DuckDB refuses while the file is open
+        assert ro.execute("SELECT annotate(1)").fetchall() == want
+    assert another_process_writes(db) is True
+
+    def forgotten():
+        c = mocapdb.connect(db)
+        c.execute("SELECT len(annotate(1)), len(mt_distance(1, 'squat1Reps'))").fetchall()
+
+    forgotten()
+    gc.collect()
+    assert another_process_writes(db) is True
+
+
+def test_an_instance_kept_open_after_the_release_falls_back_to_the_python_udfs(archive, native, tmp_path):
+    """A plain DuckDB connection keeps the instance after the last mocapdb connection closed (the
+    extension released): calling the native functions there is a clear error, and the next
+    mocapdb.connect gets the Python UDFs, with the same answers."""
+    db = tmp_path / "kept.duckdb"
+    shutil.copy(archive, db)
+    plain = connect_raw(db)
+    with mocapdb.connect(db) as con:
+        want = con.execute("SELECT annotate(2, model := 'toolbox')").fetchall()
+    with pytest.raises(duckdb.Error, match="the extension was released on this database"):
+        plain.execute("SELECT annotate(2)").fetchall()
+    with mocapdb.connect(db) as con:
+        assert python_functions(con) == 5
+        assert con.execute("SELECT annotate(2, model := 'toolbox')").fetchall() == want
+    plain.close()
+    assert another_process_writes(db) is True
+
+
+def test_older_stand_ins_go_and_a_loaded_instance_opens_again(archive, native, tmp_path):
+    """The persisted stand-in macros an older mocapdb wrote would hide the native functions: a
+    read-write open drops them, and a second open of the loaded instance (where the bare names are
+    the native functions, which DuckDB refuses to drop) works."""
+    db = tmp_path / "stand_ins.duckdb"
+    shutil.copy(archive, db)
+    raw = connect_raw(db)
+    raw.execute("CREATE MACRO annotate(m) AS 'stand-in'")
+    raw.execute("CREATE MACRO keyframe_search(c) AS TABLE SELECT 'stand-in' AS x")
+    raw.close()
+    with mocapdb.connect(db) as first, mocapdb.connect(db) as second:
+        for con in (first, second):
+            assert con.execute("SELECT typeof(annotate(1))").fetchall()[0][0].startswith("STRUCT")
+        assert second.execute("SELECT count(*) FROM duckdb_functions() WHERE database_name = current_database() "
+                              "AND function_type IN ('macro', 'table_macro')").fetchall() == [(0,)]
+        assert second.execute("SELECT count(*) FROM keyframe_search('squat1Reps')").fetchall()[0][0] > 0
+
+
 @pytest.fixture(scope="module")
 def archive_v15(archive):
     """The archive as mocapdb wrote it: in DuckDB 1.5's storage format (mocapdb.storage.schema.STORAGE_VERSION),
@@ -378,7 +534,7 @@ def test_the_duckdb_cli_annotates_as_mocapdb_annotate(archive, archive_v15, nati
                          capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
     rows = list(csv.DictReader(io.StringIO(run.stdout)))
-    with mocapdb.connect(archive, read_only=True) as con:
+    with python_udfs(archive) as con:
         want = mocapdb.api.annotate(con, store=False).to_pylist()
     got = sorted((r["name"], r["label"], int(r["start_frame"]), int(r["end_frame"]), r) for r in rows)
     want = sorted((w["document"], w["label"], w["start_frame"], w["end_frame"], w) for w in want)
@@ -447,11 +603,19 @@ def test_a_machine_without_a_c_compiler_still_installs(tmp_path, monkeypatch):
 FUZZ_CLIENT = r"""
 import json, random, sys
 import duckdb
-db, ext, seed, n = json.load(sys.stdin)
+db, db2, ext, seed, n = json.load(sys.stdin)
 rng = random.Random(seed)
-con = duckdb.connect(db, read_only=True, config={"allow_unsigned_extensions": "true"})
-con.execute("SET enable_progress_bar = false")
-con.execute(f"LOAD '{ext}'")
+def open_loaded(path):
+    c = duckdb.connect(path, read_only=True, config={"allow_unsigned_extensions": "true"})
+    c.execute("SET enable_progress_bar = false")
+    c.execute(f"LOAD '{ext}'")
+    return c
+# two databases in one process, each with the extension's state of its own; the second is released
+# now and then (its calls are then errors saying so), closed and opened again (a fresh LOAD)
+con = open_loaded(db)
+cons = [con, open_loaded(db2)]
+released = False
+n_released = 0
 SCALARS = ["NULL", "0", "1", "-1", "3", "1023", "1099511627775", "1099511627776", "9223372036854775807",
            "-9223372036854775808", "18446744073709551615", "108000", "108001", "2.5", "'x'", "true", "[]", "[[1]]"]
 def value():
@@ -504,19 +668,32 @@ for i in range(n):
                 break
         q = (f"SELECT count(*), sum(len(s)) FROM (SELECT annotate({', '.join(args)}) AS s "
              "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
+    r = rng.random()
+    if r < 0.01 and not released:
+        assert cons[1].execute("SELECT mocapdb_release()").fetchall() == [(True,)]
+        released = True
+    elif r < 0.03 and released:
+        cons[1].close()  # the file closes: nothing else holds it
+        cons[1] = open_loaded(db2)
+        released = False
+    c = rng.choice(cons)
     try:
-        con.execute(q).fetchall()
+        c.execute(q).fetchall()
         n_rows += 1
-    except duckdb.Error:
+        assert not (released and c is cons[1]), "a call answered after mocapdb_release(): " + q
+    except duckdb.Error as e:
         n_errors += 1
-print(json.dumps([n_rows, n_errors]))
+        n_released += released and c is cons[1] and "was released on this database" in str(e)
+print(json.dumps([n_rows, n_errors, n_released]))
 """
 
 
 @pytest.mark.slow  # subprocesses: another client, a sanitizer build
 def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     """A build with -fsanitize=address,undefined (UBSan aborting on the first finding) LOADed into
-    Python duckdb with libasan preloaded: 3,000 seeded random calls, none may crash."""
+    Python duckdb with libasan preloaded, in two databases of one process: 3,000 seeded random calls,
+    none may crash; after mocapdb_release() every call on that database is refused, and it opens
+    and loads again once closed."""
     cc = os.environ.get("CC") or shutil.which("gcc")
     assert cc, "the sanitizer test needs gcc"
     asan = subprocess.run([cc, "-print-file-name=libasan.so"], capture_output=True, text=True).stdout.strip()
@@ -526,9 +703,12 @@ def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     # leaks: CPython and DuckDB keep memory at exit by design; the extension's own are bounded by LOAD
     env = dict(os.environ, LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
                UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
-    run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT], input=json.dumps([str(archive), str(ext), 31, 3000]),
+    second = shutil.copyfile(archive, tmp_path / "second.duckdb")
+    run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT],
+                         input=json.dumps([str(archive), str(second), str(ext), 31, 3000]),
                          capture_output=True, text=True, env=env, timeout=1200)
     assert run.returncode == 0, run.stderr[-4000:]
     assert len(run.stdout.splitlines()) == 1, run.stdout[:3000]
-    n_rows, n_errors = json.loads(run.stdout)
+    n_rows, n_errors, n_released = json.loads(run.stdout)
     assert n_rows + n_errors == 3000 and n_rows > 500 and n_errors > 500  # both paths were exercised
+    assert n_released > 50  # calls after mocapdb_release() were made, and refused

@@ -232,7 +232,8 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 			}
 		}
 	}
-	mdb_label_rules rules = {L, m->concurrent, nm->min_frames, nm->min_won, m->margin};
+	mdb_label_rules rules = {L, m->concurrent, nm->min_frames, nm->min_won, m->margin,
+	                         m->conf_n, m->conf_cut, m->conf_value, m->conf_min_length};
 	if (mdb_label_segments(w->label_cd, w->label_ratio, n, &rules, out)) {
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 		return -1;
@@ -516,7 +517,7 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 		snprintf(err.text, sizeof err.text, WHAT ": out of memory");
 		goto done;
 	}
-	if (collect(st, input, n, &ms, items, &n_items, out_valid, &err)) {
+	if (mdb_check_live(st, &err) || collect(st, input, n, &ms, items, &n_items, out_valid, &err)) {
 		goto done;
 	}
 	qsort(items, n_items, sizeof *items, by_motion);
@@ -617,7 +618,7 @@ static duckdb_scalar_function annotate_function(mdb_state *st, int n_args) {
 	/* NULLs come in: a NULL motion is a NULL answer, a NULL tau or keyframes the default */
 	duckdb_scalar_function_set_special_handling(f);
 	duckdb_scalar_function_set_volatile(f);
-	duckdb_scalar_function_set_extra_info(f, st, NULL);
+	duckdb_scalar_function_set_extra_info(f, mdb_state_ref(st), mdb_state_unref);
 	duckdb_scalar_function_set_function(f, annotate_fn);
 	return f;
 }

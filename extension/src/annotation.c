@@ -291,6 +291,22 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 		}
 		double conf = 1.0 - best;
 		x.confidence = conf < 0.0 ? 0.0 : conf > 1.0 ? 1.0 : conf;
+		/* postprocess.calibrate_confidence: of the label's map with the largest min_length the
+		 * segment reaches, the value of the last step whose cut is <= the raw score */
+		size_t steps = rules->conf_n[x.label], g = steps;
+		const int64_t *min_length = steps ? rules->conf_min_length[x.label] : NULL;
+		for (size_t j = 0; j < steps; j++) {
+			if (min_length[j] <= x.end - x.start + 1 && (g == steps || min_length[j] > min_length[g])) {
+				g = j;
+			}
+		}
+		if (g < steps) {
+			const double *cut = rules->conf_cut[x.label];
+			while (g + 1 < steps && min_length[g + 1] == min_length[g] && cut[g + 1] <= x.confidence) {
+				g++;
+			}
+			x.confidence = rules->conf_value[x.label][g];
+		}
 		/* drop_short_segments */
 		if (x.end - x.start + 1 >= rules->min_frames[x.label] && push(out, x)) {
 			goto done;

@@ -23,13 +23,18 @@ void mdb_segments_free(mdb_segments *s);
 
 /* How a model turns per-label rows into segments: per label whether it is concurrent
  * (annotated on its own beside the others), its minimum length and the frames it must win
- * (0: none); the margin (0: none). */
+ * (0: none); the margin (0: none); per label its confidence maps (conf_n steps in all, sorted by
+ * (conf_min_length, cut): from raw score conf_cut[k] on, confidence conf_value[k], for segments of
+ * at least conf_min_length[k] frames; 0 steps: the raw score). */
 typedef struct {
 	size_t n_labels;
 	const char *concurrent;
 	const int64_t *min_frames;
 	const int64_t *min_won;
 	double margin;
+	const size_t *conf_n;
+	double *const *conf_cut, *const *conf_value;
+	int64_t *const *conf_min_length;
 } mdb_label_rules;
 
 /* The candidates of mdb_classification_delta and the room to sort them: grown as slices need,

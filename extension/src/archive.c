@@ -4,6 +4,7 @@
  * the command that creates it. */
 #include "archive.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,7 +41,13 @@ DUCKDB_EXTENSION_EXTERN
 
 /* The error of a failed query, with the table it needed named when it is missing. */
 static void query_error(const char *what, const char *table, const char *detail, mdb_error *err) {
-	if (detail && strstr(detail, "does not exist")) {
+	if (detail && strstr(detail, "does not exist") && strncmp(table, "mocap_index.", 12) == 0) {
+		/* the words of mocapdb.storage.cache.NO_INDEX, with the table named */
+		snprintf(err->text, sizeof err->text,
+		         "%s: this database has no keyframe index (table %s does not exist); build it with `mocapdb "
+		         "create-index` (mocapdb.api.create_index), or annotate without keyframes (keyframes := false)",
+		         what, table);
+	} else if (detail && strstr(detail, "does not exist")) {
 		snprintf(err->text, sizeof err->text,
 		         "%s: table %s does not exist in this database: `mocapdb ingest` creates it (an archive whose "
 		         "keyframe index was dropped gets it back with `mocapdb create-index`)",
@@ -84,12 +91,36 @@ static int grow(void *pp, size_t elem, size_t cap) {
 	return 0;
 }
 
+/* Whether the extension still holds its connection (mocapdb_release() lets it go: state.c); the
+ * liveness belongs here, with the reads that need the connection. */
+#define RELEASED_ERROR                                                                                                 \
+	"mocapdb: the extension was released on this database (mocapdb_release()); open the database again to use " \
+	"its functions"
+
+int mdb_state_live(mdb_state *st, mdb_error *err) {
+	if (!st->released && st->con) {
+		return 0;
+	}
+	snprintf(err->text, sizeof err->text, "%s", RELEASED_ERROR);
+	return -1;
+}
+
+int mdb_check_live(mdb_state *st, mdb_error *err) {
+	pthread_mutex_lock(&st->lock);
+	int rc = mdb_state_live(st, err);
+	pthread_mutex_unlock(&st->lock);
+	return rc;
+}
+
 /* A query with text parameters, then integer ones ($1, $2, … in that order), executed on the
  * extension's connection (the caller holds the lock); 0, or -1 with err naming the table. */
 static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
                      const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
 	duckdb_prepared_statement stmt = NULL;
 	int rc = -1;
+	if (mdb_state_live(st, err)) {
+		return -1;
+	}
 	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
 		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
 		duckdb_destroy_prepare(&stmt);
@@ -355,12 +386,13 @@ static size_t batch_bytes(const mdb_batch *b) {
 	return sizeof *b + b->runs.cap * (sizeof(int32_t) + sizeof(uint64_t) + 2 * sizeof(int64_t));
 }
 
-/* Drop the cached batches of other versions (those in use go when released). */
-static void drop_stale(mdb_state *st, int64_t version) {
+/* Drop the cached batches of other versions, or all of them (every = 1); those in use go when
+ * released. */
+static void drop_batches(mdb_state *st, int64_t version, int every) {
 	mdb_batch **p = &st->cache;
 	while (*p) {
 		mdb_batch *b = *p;
-		if (b->version == version) {
+		if (!every && b->version == version) {
 			p = &b->next;
 			continue;
 		}
@@ -373,6 +405,10 @@ static void drop_stale(mdb_state *st, int64_t version) {
 	}
 }
 
+void mdb_drop_cache(mdb_state *st) {
+	drop_batches(st, 0, 1);
+}
+
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err) {
 	int64_t version;
 	mdb_batch *b = NULL;
@@ -380,7 +416,7 @@ mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *er
 	if (index_version(st, &version, err)) {
 		goto done;
 	}
-	drop_stale(st, version);
+	drop_batches(st, version, 0);
 	for (b = st->cache; b; b = b->next) {
 		if (b->lo == lo && b->hi == hi) {
 			b->refs++;
@@ -909,7 +945,116 @@ static int model_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err)
 	return 0;
 }
 
+/* calibrated confidence: a database from before it has no table confidence_maps (raw scores) */
+#define HAS_MAPS_SQL                                                                                                   \
+	"SELECT count(*) FROM duckdb_tables() WHERE table_name = 'confidence_maps' "                                      \
+	"AND database_name = current_database() AND schema_name = current_schema()"
+#define MAPS_SQL                                                                                                       \
+	"SELECT label, cut, value, min_length FROM confidence_maps WHERE model = $1 ORDER BY label, min_length, k"
+
+typedef struct {
+	mdb_model *m;
+	size_t *cap; /* per label */
+	int bad;
+} maps_ctx;
+
+static int maps_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
+	maps_ctx *c = p;
+	mdb_model *m = c->m;
+	duckdb_vector label_v = duckdb_data_chunk_get_vector(chunk, 0);
+	uint64_t *v0 = duckdb_vector_get_validity(label_v);
+	COLUMN(chunk, 1, double, cut, v1);
+	COLUMN(chunk, 2, double, value, v2);
+	COLUMN(chunk, 3, int32_t, min_length, v3);
+	for (idx_t i = 0; i < n; i++) {
+		if (!duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
+		    !duckdb_validity_row_is_valid(v2, i) || !duckdb_validity_row_is_valid(v3, i) || min_length[i] < 0) {
+			c->bad = 1;
+			return 1;
+		}
+		char *label = mdb_string_at(label_v, i);
+		if (!label) {
+			return out_of_memory(err, "a confidence map");
+		}
+		size_t p = 0;
+		while (p < m->n_labels && strcmp(m->label[p], label) != 0) {
+			p++;
+		}
+		free(label);
+		if (p == m->n_labels) { /* a map of a label the model does not have */
+			c->bad = 1;
+			return 1;
+		}
+		size_t k = m->conf_n[p];
+		if (k == c->cap[p]) {
+			c->cap[p] = 2 * k + 4;
+			if (grow(&m->conf_cut[p], sizeof **m->conf_cut, c->cap[p]) ||
+			    grow(&m->conf_value[p], sizeof **m->conf_value, c->cap[p]) ||
+			    grow(&m->conf_min_length[p], sizeof **m->conf_min_length, c->cap[p])) {
+				return out_of_memory(err, "a confidence map");
+			}
+		}
+		/* ConfidenceMap's rules, within a map (a label's steps of one min_length): finite ascending
+		 * cuts, non-decreasing values in [0, 1] */
+		int same = k > 0 && m->conf_min_length[p][k - 1] == min_length[i];
+		if (!isfinite(cut[i]) || !(value[i] >= 0.0 && value[i] <= 1.0) ||
+		    (same && !(cut[i] > m->conf_cut[p][k - 1] && value[i] >= m->conf_value[p][k - 1]))) {
+			c->bad = 1;
+			return 1;
+		}
+		m->conf_cut[p][k] = cut[i];
+		m->conf_value[p][k] = value[i];
+		m->conf_min_length[p][k] = min_length[i];
+		m->conf_n[p] = k + 1;
+	}
+	return 0;
+}
+
+/* The model's confidence maps, per label (its labels read already); 0 or -1. */
+static int read_confidence_maps(mdb_state *st, const char *name, mdb_model *m, mdb_error *err) {
+	size_t L = m->n_labels ? m->n_labels : 1;
+	m->conf_n = calloc(L, sizeof *m->conf_n);
+	m->conf_cut = calloc(L, sizeof *m->conf_cut);
+	m->conf_value = calloc(L, sizeof *m->conf_value);
+	m->conf_min_length = calloc(L, sizeof *m->conf_min_length);
+	maps_ctx c = {m, calloc(L, sizeof(size_t)), 0};
+	if (!m->conf_n || !m->conf_cut || !m->conf_value || !m->conf_min_length || !c.cap) {
+		free(c.cap);
+		return out_of_memory(err, "a model");
+	}
+	duckdb_type count_type[] = {DUCKDB_TYPE_BIGINT};
+	duckdb_type want[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_INTEGER};
+	int64_t has_maps = 0;
+	int rc = 0;
+	pthread_mutex_lock(&st->lock);
+	if (query_rows(st, HAS_MAPS_SQL, "duckdb_tables()", NULL, 0, NULL, 0, count_type, 1, count_sink, &has_maps,
+	               err)) {
+		rc = -1;
+	} else if (has_maps) {
+		rc = query_rows(st, MAPS_SQL, "confidence_maps", &name, 1, NULL, 0, want, 4, maps_sink, &c, err);
+	}
+	pthread_mutex_unlock(&st->lock);
+	free(c.cap);
+	if (c.bad) {
+		snprintf(err->text, sizeof err->text,
+		         "model '%s': its confidence_maps rows are damaged (NULLs, a label it lacks, cuts not ascending or "
+		         "values not rising within [0, 1]); train or install the model again",
+		         name);
+		rc = -1;
+	}
+	return rc;
+}
+
 void mdb_model_free(mdb_model *m) {
+	for (size_t p = 0; m->conf_n && p < m->n_labels; p++) { /* the four are allocated together */
+		free(m->conf_cut ? m->conf_cut[p] : NULL);
+		free(m->conf_value ? m->conf_value[p] : NULL);
+		free(m->conf_min_length ? m->conf_min_length[p] : NULL);
+	}
+	free(m->conf_n);
+	free(m->conf_cut);
+	free(m->conf_value);
+	free(m->conf_min_length);
 	for (size_t k = 0; k < m->n_classes; k++) {
 		free(m->label[k]);
 		if (m->tpl) {
@@ -1055,6 +1200,9 @@ int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *e
 	free(ids);
 	if (disagree) {
 		snprintf(err->text, sizeof err->text, "model '%s': labels and label ids of its classes disagree", name);
+		goto done;
+	}
+	if (read_confidence_maps(st, name, out, err)) {
 		goto done;
 	}
 	if (read_classes(st, name, c.cls, c.has_query, n, out, err) == 0) {

@@ -10,9 +10,16 @@
 #include "distance.h"
 #include "duckdb_extension.h"
 
-/* What a loaded extension keeps per database: a connection of its own (opened at
- * LOAD; the C API hands the database out only then) and the lock that serialises
- * its use (a DuckDB connection runs one query at a time). */
+/* What a loaded extension keeps per database instance (the functions' extra info, never a
+ * global: two databases of one process may each load it): a connection of its own (opened at
+ * LOAD; the C API hands the database out only then), the lock that serialises its use (a DuckDB
+ * connection runs one query at a time) and the index cache. mocapdb_release() disconnects and
+ * frees the cache (state.c); the struct itself goes with the last function holding it. */
+/* Error text of the archive functions (set when they return non-zero). */
+typedef struct {
+	char text[512];
+} mdb_error;
+
 struct mdb_batch;
 
 typedef struct {
@@ -20,7 +27,23 @@ typedef struct {
 	pthread_mutex_t lock;
 	struct mdb_batch *cache; /* index batches read, newest first (see mdb_acquire_runs) */
 	size_t cache_bytes;
+	int released;            /* mocapdb_release() ran: con is gone, every call is an error */
+	int refs;                /* the registered functions holding it (and LOAD while it runs) */
 } mdb_state;
+
+/* A new state holding one reference (LOAD's), or NULL when out of memory. */
+mdb_state *mdb_state_new(void);
+/* Another reference, for a function's extra info; mdb_state_unref is its destroy callback. */
+mdb_state *mdb_state_ref(mdb_state *st);
+void mdb_state_unref(void *st);
+/* Disconnect the extension's connection and free the cache; 1 when it did, 0 when done before. */
+int mdb_state_release(mdb_state *st);
+/* 0 while the extension's connection is open, else -1 with the error a released function gives
+ * (the caller holds the lock). */
+int mdb_state_live(mdb_state *st, mdb_error *err);
+/* The same, taking the lock: for the functions' entry points. */
+int mdb_check_live(mdb_state *st, mdb_error *err);
+int mdb_register_release(duckdb_connection con, mdb_state *st);
 
 /* The stored motions, ascending ids, with their 30 Hz frame counts. */
 typedef struct {
@@ -50,11 +73,6 @@ typedef struct mdb_batch {
 	struct mdb_batch *next;
 } mdb_batch;
 
-/* Error text of the archive functions (set when they return non-zero). */
-typedef struct {
-	char text[512];
-} mdb_error;
-
 /* A VARCHAR of a flat vector's row as a NUL-terminated copy (NULL when out of memory). */
 char *mdb_string_at(duckdb_vector v, idx_t row);
 
@@ -65,6 +83,8 @@ void mdb_motions_free(mdb_motions *m);
  * mdb_release_runs. */
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err);
 void mdb_release_runs(mdb_state *st, mdb_batch *b);
+/* Drop every cached batch (the caller holds the lock; those in use go when released). */
+void mdb_drop_cache(mdb_state *st);
 void mdb_runs_free(mdb_runs *r);
 
 /* A class's quantized template of a model, prepared for mdb_mt_distance. An unknown model or
@@ -104,7 +124,8 @@ int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int
 
 /* A stored model as annotation needs it: classes in class_id order with their template, τ,
  * minimum length and keyframe query (K = 0: none, margins of annotation applied); labels in
- * label_id order (the Δarg tie order) with whether each is concurrent; the margin. */
+ * label_id order (the Δarg tie order) with whether each is concurrent and its confidence map;
+ * the margin. */
 typedef struct {
 	size_t n_classes, n_labels;
 	char **label;         /* per label */
@@ -115,6 +136,9 @@ typedef struct {
 	mdb_template *tpl;    /* per class */
 	mdb_query *query;     /* per class */
 	double margin;
+	size_t *conf_n;       /* per label: steps of its confidence map (0: the raw score) */
+	double **conf_cut, **conf_value; /* per label: the steps (mocapdb.annotation.ConfidenceMap) */
+	int64_t **conf_min_length;       /* per label and step: its map's shortest segment */
 } mdb_model;
 
 void mdb_model_free(mdb_model *m);

@@ -361,7 +361,7 @@ static void query_fn(duckdb_function_info info, duckdb_data_chunk output) {
 	query_scan *s = duckdb_function_get_init_data(info);
 	mdb_error err = {{0}};
 	if (!s->loaded) {
-		if (mdb_read_motion_range(st, INT32_MIN, INT32_MAX, &s->motions, &err)) {
+		if (mdb_check_live(st, &err) || mdb_read_motion_range(st, INT32_MIN, INT32_MAX, &s->motions, &err)) {
 			duckdb_function_set_error(info, err.text);
 			return;
 		}
@@ -407,7 +407,7 @@ static int register_search(duckdb_connection con, mdb_state *st, const char *nam
 		}
 		duckdb_destroy_logical_type(&t);
 	}
-	duckdb_table_function_set_extra_info(f, st, NULL);
+	duckdb_table_function_set_extra_info(f, mdb_state_ref(st), mdb_state_unref);
 	duckdb_table_function_set_bind(f, bind);
 	duckdb_table_function_set_init(f, query_init_fn);
 	duckdb_table_function_set_function(f, query_fn);

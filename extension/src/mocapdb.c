@@ -4,7 +4,7 @@
  * The C API gives an extension its database only while it loads. So LOAD opens one
  * connection that the functions keep for reading the archive (models, features,
  * postings) and registers the functions with the database (every connection sees them).
- * That connection holds the database: it stays open until the process ends. */
+ * That connection holds the database until `SELECT mocapdb_release()` (state.c). */
 #define DUCKDB_EXTENSION_NAME mocapdb
 #include <stdlib.h>
 
@@ -16,23 +16,28 @@ DUCKDB_EXTENSION_ENTRYPOINT_CUSTOM(duckdb_extension_info info, struct duckdb_ext
 	if (!db) {
 		return false; /* DuckDB set the error */
 	}
-	mdb_state *st = calloc(1, sizeof *st);
+	mdb_state *st = mdb_state_new();
 	duckdb_connection reg = NULL;
-	if (!st || pthread_mutex_init(&st->lock, NULL)) {
-		free(st);
+	const char *error = NULL;
+	if (!st) {
 		access->set_error(info, "mocapdb: out of memory");
 		return false;
 	}
 	if (duckdb_connect(*db, &st->con) == DuckDBError || duckdb_connect(*db, &reg) == DuckDBError) {
-		access->set_error(info, "mocapdb: could not open a connection to the database");
-		return false;
+		error = "mocapdb: could not open a connection to the database";
+	} else if (mdb_register_keyframe_words(reg, st) || mdb_register_keyframe_search(reg, st) ||
+	           mdb_register_mt_distance(reg, st) || mdb_register_annotate(reg, st) ||
+	           mdb_register_release(reg, st)) {
+		error = "mocapdb: registering the SQL functions failed (are they loaded already?)";
 	}
-	int failed = mdb_register_keyframe_words(reg, st) || mdb_register_keyframe_search(reg, st) ||
-	             mdb_register_mt_distance(reg, st) || mdb_register_annotate(reg, st);
-	duckdb_disconnect(&reg);
-	if (failed) {
-		access->set_error(info, "mocapdb: registering the SQL functions failed (are they loaded already?)");
-		return false;
+	if (reg) {
+		duckdb_disconnect(&reg);
 	}
-	return true;
+	if (error) {
+		/* the functions registered before the failure keep the state, released */
+		mdb_state_release(st);
+		access->set_error(info, error);
+	}
+	mdb_state_unref(st); /* LOAD's reference: the registered functions hold theirs */
+	return error == NULL;
 }

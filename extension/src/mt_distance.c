@@ -149,7 +149,7 @@ static void mt_distance_fn(duckdb_function_info info, duckdb_data_chunk input, d
 		snprintf(err.text, sizeof err.text, "mt_distance: out of memory");
 		goto done;
 	}
-	if (collect(st, input, n, &ts, items, &n_items, out_valid, &err)) {
+	if (mdb_check_live(st, &err) || collect(st, input, n, &ts, items, &n_items, out_valid, &err)) {
 		goto done;
 	}
 	qsort(items, n_items, sizeof *items, by_motion);
@@ -219,7 +219,7 @@ static duckdb_scalar_function mt_distance_function(mdb_state *st, int with_model
 	duckdb_scalar_function_set_special_handling(f);
 	/* it reads the database: never folded into a constant at planning */
 	duckdb_scalar_function_set_volatile(f);
-	duckdb_scalar_function_set_extra_info(f, st, NULL);
+	duckdb_scalar_function_set_extra_info(f, mdb_state_ref(st), mdb_state_unref);
 	duckdb_scalar_function_set_function(f, mt_distance_fn);
 	duckdb_destroy_logical_type(&i64);
 	duckdb_destroy_logical_type(&text);

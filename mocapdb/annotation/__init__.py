@@ -6,7 +6,7 @@
 (label rows and label files: the shape of segments and ground truth) and
 :mod:`~mocapdb.annotation.elan` (ELAN ``.eaf`` files in and out).
 """
-from mocapdb.annotation.model import (DEFAULT_DELTA, DEFAULT_TAU, ClassModel, Model)
+from mocapdb.annotation.model import (DEFAULT_DELTA, DEFAULT_TAU, ClassModel, ConfidenceMap, Model)
 from mocapdb.annotation.chain import (HIT_DTYPE, MATCH_NUM_MAX, SEGMENT_DTYPE, Annotation, annotate, annotate_sweep, combine_by_label, extract_hits, form_segments, frame_labels)
 from mocapdb.annotation.preselection import (index_parts, keyframe_preselection, model_index_parts, preselection_for,
                                             preselection_slices, uses_keyframes)

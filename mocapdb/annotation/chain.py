@@ -24,7 +24,7 @@ from mocapdb.annotation.chain_kernels import (_count_candidates_kernel, _extract
 from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.annotation.model import DEFAULT_TAU, Model
 from mocapdb.annotation.postprocess import (apply_margin, drop_short_segments, drop_unwon_segments, label_min_frames,
-                                           label_min_won, segment_confidence)
+                                           label_min_won, segment_confidence, calibrate_confidence)
 from mocapdb.features import as_words as _as_words
 from mocapdb.templates import ANNOTATION_STEPS, DEFAULT_CHUNK, mt_distance_slices
 
@@ -38,7 +38,8 @@ __all__ = ["Annotation", "HIT_DTYPE", "SEGMENT_DTYPE", "MATCH_NUM_MAX", "annotat
 MATCH_NUM_MAX = 2000
 
 #: ``confidence`` (0–1): how far below τ the segment's best hit lies, 1 − Δ̄^τ / τ at its
-#: best frame (:func:`mocapdb.annotation.postprocess.segment_confidence`); 1 is a perfect match, 0 a match at τ
+#: best frame (:func:`mocapdb.annotation.postprocess.segment_confidence`); 1 is a perfect match, 0 a match at τ;
+#: under a model with ``confidence_maps`` the share of such segments found right on held-out recordings
 SEGMENT_DTYPE = np.dtype([("label", object), ("doc", np.int64), ("start", np.int64),
                           ("end", np.int64), ("cost", np.float64), ("confidence", np.float64)])
 #: hits: ``class_id`` indexes :attr:`Annotation.class_names` (hits are many)
@@ -551,6 +552,8 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
             segments = _sort_by_label(segments, labels)
         if min_frames is not None:
             segments = drop_short_segments(segments, labels, min_frames)
+        if model.confidence_maps:
+            segments["confidence"] = calibrate_confidence(segments, segments["confidence"], model.confidence_maps)
         hits = np.empty(0, dtype=HIT_DTYPE)
         if keep_hits:
             # tasks are class-major, then document / slice order (the preselection's);

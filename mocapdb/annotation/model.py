@@ -14,7 +14,7 @@ import numpy as np
 from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.templates import MotionTemplate, QuantizedTemplate
 
-__all__ = ["ClassModel", "Model", "DEFAULT_DELTA", "DEFAULT_TAU"]
+__all__ = ["ClassModel", "ConfidenceMap", "Model", "DEFAULT_DELTA", "DEFAULT_TAU"]
 
 #: quantization threshold δ used by the annotation scripts (TEMPLATES.md §8)
 DEFAULT_DELTA = 0.05
@@ -84,6 +84,57 @@ class ClassModel:
 
 
 @dataclass(frozen=True, eq=False)
+class ConfidenceMap:
+    """Calibrated confidence of a label's segments of some length: a rising step function of the raw score.
+
+    The raw score of a segment is ``1 − Δ̄^τ/τ`` at its best frame
+    (:func:`mocapdb.annotation.postprocess.segment_confidence`). A segment
+    takes the map of its label with the largest ``min_length`` it reaches
+    (none: it keeps the raw score); its confidence is ``values[j]`` for the
+    last ``j`` with ``cuts[j] <= raw`` (``values[0]`` below ``cuts[0]``): the
+    share of right segments seen at that raw score and length on recordings
+    the model was not trained on
+    (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`). A step
+    function, not an interpolation, so that every implementation (the native
+    extension too) gives the same number bit for bit.
+
+    Attributes
+    ----------
+    label : str
+    cuts : tuple of float
+        Ascending raw scores where a step starts.
+    values : tuple of float
+        Non-decreasing confidences in [0, 1], one per cut.
+    min_length : int, default 0
+        Shortest segment (30 Hz frames) the map is for.
+    """
+
+    label: str
+    cuts: tuple
+    values: tuple
+    min_length: int = 0
+
+    def __post_init__(self):
+        cuts = tuple(float(x) for x in self.cuts)
+        values = tuple(float(x) for x in self.values)
+        if not cuts or len(cuts) != len(values):
+            raise ParameterError(f"confidence map of {self.label!r}: cuts and values must be non-empty and "
+                                 f"as many, got {len(cuts)} and {len(values)}")
+        if any(not b > a for a, b in zip(cuts, cuts[1:])) or not all(np.isfinite(cuts)):
+            raise ParameterError(f"confidence map of {self.label!r}: cuts must be finite and ascending, got {cuts}")
+        if any(not 0.0 <= v <= 1.0 for v in values) or any(b < a for a, b in zip(values, values[1:])):
+            raise ParameterError(f"confidence map of {self.label!r}: values must be non-decreasing in [0, 1], "
+                                 f"got {values}")
+        if isinstance(self.min_length, bool) or not isinstance(self.min_length, (int, np.integer)) \
+                or self.min_length < 0:
+            raise ParameterError(f"confidence map of {self.label!r}: min_length must be a non-negative integer, "
+                                 f"got {self.min_length!r}")
+        object.__setattr__(self, "cuts", cuts)
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "min_length", int(self.min_length))
+
+
+@dataclass(frozen=True, eq=False)
 class Model:
     """An annotation model: classes plus the order of their labels.
 
@@ -104,6 +155,10 @@ class Model:
         them (beyond the paper, whose segmenter gives each frame one label):
         a walker who turns round is walking and turning, so ``turn`` takes no
         frame from ``move``. Each must be a label of the model; () is the paper.
+    confidence_maps : tuple of ConfidenceMap, default ()
+        Per label and shortest segment length the map from a segment's raw
+        score to its calibrated confidence (beyond the paper), kept in label
+        and length order; a label without one keeps the raw score.
     """
 
     name: str
@@ -111,6 +166,7 @@ class Model:
     labels: tuple | None = None
     margin: float = 0.0
     concurrent_labels: tuple = ()
+    confidence_maps: tuple = ()
 
     def __post_init__(self):
         classes = tuple(self.classes)
@@ -139,6 +195,15 @@ class Model:
         if stray:
             raise ParameterError(f"concurrent_labels {stray} are not labels of the model {labels}")
         object.__setattr__(self, "concurrent_labels", concurrent)
+        maps = tuple(self.confidence_maps)
+        if any(not isinstance(m, ConfidenceMap) for m in maps):
+            raise ParameterError("confidence_maps must be ConfidenceMap objects")
+        mapped = [(m.label, m.min_length) for m in maps]
+        if len(set(mapped)) != len(mapped) or {lab for lab, _ in mapped} - set(labels):
+            raise ParameterError(f"confidence_maps must be for labels of the model {labels}, one per label and "
+                                 f"min_length, got {mapped}")
+        object.__setattr__(self, "confidence_maps",
+                           tuple(sorted(maps, key=lambda m: (labels.index(m.label), m.min_length))))
         object.__setattr__(self, "classes", classes)
         object.__setattr__(self, "labels", labels)
         object.__setattr__(self, "margin", float(self.margin))

@@ -15,7 +15,9 @@
   over a squat) becomes a segment as long as a real one. What it won is
   what the annotation knows of it.
 * **confidence** (:func:`segment_confidence`): not a filter — each
-  segment's ``1 − Δ̄^τ/τ`` at its best frame, so users can filter;
+  segment's ``1 − Δ̄^τ/τ`` at its best frame, so users can filter; a model
+  with ``confidence_maps`` turns it into the share of right segments seen at
+  that score on held-out recordings (:func:`calibrate_confidence`);
 * **margin** (:func:`apply_margin`): a frame where the best label's Δ̄^τ
   beats the second best by less than ``Model.margin`` is left unlabelled —
   two labels fit about equally well, so neither is trusted.
@@ -30,7 +32,7 @@ from mocapdb.annotation.chain_kernels import _margin_kernel, _segment_min_kernel
 from mocapdb.errors import ParameterError, check_nonnegative
 
 __all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
-           "apply_margin", "segment_confidence", "WON_FRACTION"]
+           "apply_margin", "segment_confidence", "calibrate_confidence", "WON_FRACTION"]
 
 #: a segment's label must win (be Δarg on) this share of its ``min_frames``
 #: (development evaluation, RESULTS.md issue 11: 1/4 to 1/3 best everywhere)
@@ -138,6 +140,39 @@ def segment_confidence(segments, label_ratio, doc_bounds, labels) -> np.ndarray:
     best = np.empty(segments.size)
     _segment_min_kernel(ratio, lab, first, last, best)
     return np.clip(1.0 - best, 0.0, 1.0)
+
+
+def calibrate_confidence(segments, raw, maps) -> np.ndarray:
+    """Segments' confidences through their :class:`~mocapdb.annotation.ConfidenceMap` (raw where none).
+
+    Parameters
+    ----------
+    segments : ndarray of SEGMENT_DTYPE
+        Their labels and lengths (``end − start + 1``, 30 Hz frames) choose the map.
+    raw : (n,) float64
+        Each segment's raw score (:func:`segment_confidence`).
+    maps : sequence of ConfidenceMap
+        ``Model.confidence_maps``.
+
+    Returns
+    -------
+    (n,) float64
+        Per segment, of its label's map with the largest ``min_length`` ≤ its length, ``values[j]`` for the
+        last ``j`` with ``cuts[j] <= raw``, ``values[0]`` below the first cut (extension/src/annotation.c does
+        the same comparisons); the raw score where no map applies.
+    """
+    raw = np.asarray(raw, dtype=np.float64)
+    out = raw.copy()
+    labels = np.asarray(segments["label"])
+    length = np.asarray(segments["end"] - segments["start"] + 1, dtype=np.int64)
+    chosen = np.full(raw.size, -1, dtype=np.int64)         # min_length of the map each segment takes
+    for m in maps:
+        on = (labels == m.label) & (length >= m.min_length) & (m.min_length > chosen)
+        if on.any():
+            j = np.searchsorted(np.asarray(m.cuts), raw[on], side="right") - 1
+            out[on] = np.asarray(m.values)[np.maximum(j, 0)]
+            chosen[on] = m.min_length
+    return out
 
 
 def drop_unwon_segments(segments, label_cd, doc_bounds, labels, min_won):

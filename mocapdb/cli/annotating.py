@@ -38,8 +38,11 @@ def annotate(ctx, motions, model, tau, keyframes, min_length, min_won, margin, f
     document,label,start_frame,end_frame,fps,start_s,end_s,cost,confidence,
     where fps (30) is the rate of the frames: the file reads back as --truth
     or --labels onto exactly its frames. Seconds are rounded to 0.1 ms;
-    confidence (0-1) says how far the segment's best match lies below τ
-    (1 − cost/τ): filter on it to keep the surest segments.
+    confidence (0-1) is, under the default model, the share of segments of
+    that length and match quality found right on recordings of labs the
+    model never saw (docs/MODEL.md); under a model without calibration, how
+    far the best match lies below τ (1 − cost/τ). Filter on it to keep the
+    surest segments.
 
     \b
     Examples:

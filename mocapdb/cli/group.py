@@ -15,8 +15,10 @@ import mocapdb.api as api
 from mocapdb.errors import MocapdbError, clip_message, os_error_text
 
 
-_UDF_WRAPPER = re.compile(r"^Invalid Input Error: Python exception occurred while executing the UDF: "
-                          r"(SchemaError|ParameterError|ParseError|MocapdbError): ")
+#: DuckDB's wrapping of an error raised inside a SQL function: a Python UDF's library error, or the
+#: native extension's message (its functions' errors are Invalid Input Errors)
+_UDF_WRAPPER = re.compile(r"^Invalid Input Error: (Python exception occurred while executing the UDF: "
+                          r"(SchemaError|ParameterError|ParseError|MocapdbError): )?")
 
 
 def _errors_as_one_line(fn):

@@ -1,7 +1,7 @@
 """Class models in the database: one codec, save, load, and the models shipped with the package.
 
 A model occupies rows of ``models``, ``classes``, ``templates``,
-``keyframe_queries``, ``keyframes`` and ``ga_statistics`` (sql/schema.sql),
+``keyframe_queries``, ``keyframes``, ``confidence_maps`` and ``ga_statistics`` (sql/schema.sql),
 all keyed by the model name. :func:`model_tables` encodes a
 :class:`~mocapdb.annotation.Model` as Arrow tables of exactly those rows and
 :func:`model_from_tables` decodes them — the one codec, used for the
@@ -24,7 +24,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mocapdb.annotation import ClassModel, Model
+from mocapdb.annotation import ClassModel, ConfidenceMap, Model
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.keyframes import UNBOUNDED, KeyframeQuery
 from mocapdb.storage.sqltext import statement
@@ -35,7 +35,7 @@ DEFAULT_MODEL = "default"
 #: models that ship with the package, installed into every database
 SHIPPED_MODELS = ("default", "toolbox")
 #: the model tables, in dependency order
-MODEL_TABLES = ("models", "classes", "templates", "keyframe_queries", "keyframes", "ga_statistics")
+MODEL_TABLES = ("models", "classes", "templates", "keyframe_queries", "keyframes", "confidence_maps", "ga_statistics")
 
 
 def _sql(name):
@@ -64,6 +64,8 @@ def fingerprint(model: Model) -> str:
             h.update(repr(kq.feature_sets).encode() + str(kq.template_length).encode())
             for a in (kq.mask, kq.value, kq.positions, kq.d_min, kq.d_max):
                 h.update(np.ascontiguousarray(a).tobytes())
+    for m in model.confidence_maps:  # models without maps keep their fingerprints
+        h.update(f"confidence|{m.label}|{m.min_length}|{m.cuts!r}|{m.values!r}".encode())
     return h.hexdigest()[:16]
 
 
@@ -115,6 +117,9 @@ def model_tables(model: Model, *, description=None, source=None, keyframe_stats=
             keyframes.append((name, c.name, k + 1, kq.feature_sets[k], int(kq.mask[k]), int(kq.value[k]),
                               int(kq.positions[k]) + 1, None if last else int(kq.d_min[k]), d_max))
 
+    maps = [(name, m.label, m.min_length, k + 1, cut, value) for m in model.confidence_maps
+            for k, (cut, value) in enumerate(zip(m.cuts, m.values))]
+
     def table(rows, schema):
         return pa.Table.from_pylist([dict(zip(schema.names, r)) for r in rows], schema=schema)
 
@@ -126,6 +131,7 @@ def model_tables(model: Model, *, description=None, source=None, keyframe_stats=
         "templates": table(templates, _SCHEMAS["templates"]),
         "keyframe_queries": table(queries, _SCHEMAS["keyframe_queries"]),
         "keyframes": table(keyframes, _SCHEMAS["keyframes"]),
+        "confidence_maps": table(maps, _SCHEMAS["confidence_maps"]),
         "ga_statistics": table([(name, *r) for r in (ga_statistics or [])], _SCHEMAS["ga_statistics"]),
     }
 
@@ -145,6 +151,8 @@ _SCHEMAS = {
                                    ("precision", _F64), ("recall", _F64)]),
     "keyframes": pa.schema([("model", _STR), ("class", _STR), ("k", _I32), ("feature_set", _STR), ("mask", _U64),
                             ("value", _U64), ("position", _I32), ("d_min", _I32), ("d_max", _I32)]),
+    "confidence_maps": pa.schema([("model", _STR), ("label", _STR), ("min_length", _I32), ("k", _I32),
+                                  ("cut", _F64), ("value", _F64)]),
     "ga_statistics": pa.schema([("model", _STR), ("class", _STR), ("run", _I32), ("generation", _I32),
                                 ("mean_precision", _F64), ("mean_recall", _F64), ("mean_fitness", _F64),
                                 ("best_fitness", _F64), ("mean_keyframes", _F64)]),
@@ -212,8 +220,18 @@ def model_from_tables(tables: dict) -> Model:
     # models stored before concurrent labels have none (the paper's segmenter)
     concurrent = (models.column("concurrent_labels")[0].as_py() if "concurrent_labels" in models.column_names
                   else None)
+    # models stored before calibrated confidence have no maps (the raw score)
+    maps = tables.get("confidence_maps")
+    steps = {}
+    order = [(c, "ascending") for c in ("label", "min_length", "k")]
+    for r in (maps.sort_by(order).to_pylist() if maps is not None else ()):
+        steps.setdefault((r["label"], r["min_length"]), []).append((r["cut"], r["value"]))
+    stray = sorted({lab for lab, _ in steps} - set(labels))
+    if stray:
+        raise SchemaError(f"model {name!r}: confidence maps of labels it lacks: {stray}")
+    conf = tuple(ConfidenceMap(lab, *zip(*rows), min_length=lo) for (lab, lo), rows in steps.items())
     return Model(name, tuple(out), labels=tuple(labels), margin=float(margin or 0.0),
-                 concurrent_labels=tuple(concurrent or ()))
+                 concurrent_labels=tuple(concurrent or ()), confidence_maps=conf)
 
 
 # -- the database ---------------------------------------------------------------
@@ -409,8 +427,9 @@ def export_model(con, name: str, directory) -> Path:
     d.mkdir(parents=True, exist_ok=True)
     for table, rows in read_model_tables(con, name).items():
         keep = [c for c in _SCHEMAS[table].names]
-        order = [("class", "ascending")] if "class" in keep else []
-        order += [(c, "ascending") for c in ("class_id", "col", "k", "run", "generation") if c in keep]
+        # rows by class (a confidence map's: by label), then by their number
+        order = [(c, "ascending") for c in ("class", "label") if c in keep][:1]
+        order += [(c, "ascending") for c in ("class_id", "col", "min_length", "k", "run", "generation") if c in keep]
         pq.write_table(rows.select(keep).cast(_SCHEMAS[table]).sort_by(order) if order else
                        rows.select(keep).cast(_SCHEMAS[table]), str(d / f"{table}.parquet"))
     return d

@@ -100,7 +100,8 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
     ----------
     path : str or Path
         Database file; created with the schema if it does not exist.
-        ``":memory:"`` gives a throw-away database.
+        ``":memory:"`` gives a throw-away database (``":memory:<name>"`` one that other
+        connections of this process can open by that name).
     read_only : bool, keyword-only
         Open the file read-only (it must exist; nothing is created).
     memory_limit : str, optional, keyword-only
@@ -123,15 +124,12 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
     """
     path = str(path)
     check_database_file(path)
-    if read_only and path != ":memory:" and not Path(path).exists():
+    if read_only and not path.startswith(":memory:") and not Path(path).exists():
         raise SchemaError(f"{path}: no such database file (read_only=True cannot create it)")
     deadline = time.monotonic() + wait
-    # on every open, not only the first: DuckDB refuses a second connection to a file of this process
-    # with other settings, and on a file of a newer format the setting changes nothing
-    config = {"storage_compatibility_version": STORAGE_VERSION}
     while True:
         try:
-            con = duckdb.connect(path, read_only=read_only, config=config)
+            con = connect_raw(path, read_only=read_only)
             break
         except duckdb.IOException as exc:
             m = _LOCK.search(str(exc))
@@ -159,6 +157,20 @@ def open_database(path=":memory:", *, read_only: bool = False, memory_limit=None
         con.close()
         raise
     return con
+
+
+#: the settings of every mocapdb open, not only the first: DuckDB refuses a second connection to a file
+#: of this process with other settings. Archives are written in DuckDB 1.5's format (on a file of a
+#: newer format the setting changes nothing); unsigned extensions are allowed because
+#: mocapdb.connect LOADs its own native extension, which is unsigned (docs/EXTENSION.md).
+OPEN_CONFIG = {"storage_compatibility_version": STORAGE_VERSION, "allow_unsigned_extensions": "true"}
+
+
+def connect_raw(path, *, read_only: bool = False) -> duckdb.DuckDBPyConnection:
+    """A plain DuckDB connection to ``path`` with mocapdb's settings (:data:`OPEN_CONFIG`): no
+    schema, memory limit or lock wait. For another connection to a database this process has open
+    (:func:`open_database` opened it first); DuckDB's errors are the caller's."""
+    return duckdb.connect(str(path), read_only=read_only, config=OPEN_CONFIG)
 
 
 def is_attached(con) -> bool:
@@ -189,6 +201,12 @@ def require_own_tables(con, what: str) -> None:
                           "database of its own (import-features loads the archive into one)")
 
 
+def _drop_stand_ins(con) -> None:
+    """Drop the persisted stand-in macros an older mocapdb wrote (``sql/stand_ins.sql`` says why)."""
+    for name, in con.execute(statement("stand_ins.sql", "present")).fetchall():
+        con.execute(statement("stand_ins.sql", name))
+
+
 def create_schema(con) -> None:
     """Create the mocapdb tables, views, keyframe index and shipped models where missing (idempotent).
 
@@ -203,11 +221,12 @@ def create_schema(con) -> None:
     with transaction(con):
         for name in SCHEMA_FILES:
             con.execute(sql_text(name))
+        _drop_stand_ins(con)
         create_index_schema(con)
     if new:
         create_index(con)
     install_shipped_models(con)
 
 
-__all__ = ["open_database", "check_database_file", "create_schema", "is_attached", "attached_archive", "require_own_tables", "DatabaseLockedError", "SCHEMA_FILES", "DEFAULT_MEMORY_LIMIT",
+__all__ = ["open_database", "connect_raw", "OPEN_CONFIG", "check_database_file", "create_schema", "is_attached", "attached_archive", "require_own_tables", "DatabaseLockedError", "SCHEMA_FILES", "DEFAULT_MEMORY_LIMIT",
            "MEMORY_LIMIT_ENV"]

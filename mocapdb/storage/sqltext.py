@@ -23,8 +23,9 @@ INDEX_SCHEMA = "mocap_index"
 
 #: the only placeholders the SQL files may use, and their values
 PLACEHOLDERS = {"index_schema": INDEX_SCHEMA}
-#: placeholders filled per statement with a value inside a string literal (DDL only)
-LITERALS = ("archive",)
+#: placeholders filled per statement with a value inside a string literal (DDL and LOAD only: they
+#: take no parameters)
+LITERALS = ("archive", "extension")
 
 _NAME = re.compile(r"^--\s*name:\s*(\w+)\s*$", re.M)
 _PLACEHOLDER = re.compile(r"%(\w+)%")
