@@ -91,6 +91,27 @@ static int grow(void *pp, size_t elem, size_t cap) {
 	return 0;
 }
 
+/* Whether the extension still holds its connection (mocapdb_release() lets it go: state.c); the
+ * liveness belongs here, with the reads that need the connection. */
+#define RELEASED_ERROR                                                                                                 \
+	"mocapdb: the extension was released on this database (mocapdb_release()); open the database again to use " \
+	"its functions"
+
+int mdb_state_live(mdb_state *st, mdb_error *err) {
+	if (!st->released && st->con) {
+		return 0;
+	}
+	snprintf(err->text, sizeof err->text, "%s", RELEASED_ERROR);
+	return -1;
+}
+
+int mdb_check_live(mdb_state *st, mdb_error *err) {
+	pthread_mutex_lock(&st->lock);
+	int rc = mdb_state_live(st, err);
+	pthread_mutex_unlock(&st->lock);
+	return rc;
+}
+
 void mdb_drop_prepared(mdb_state *st) {
 	for (size_t k = 0; k < st->n_prepared; k++) {
 		duckdb_destroy_prepare(&st->stmt[k]);

@@ -7,17 +7,12 @@
  * (DuckDB cannot unregister them): after the release each call is an error saying to open the
  * database again. The state is freed by the destroy callback of the last function holding it,
  * when DuckDB drops the database's catalog. */
-#include <stdio.h>
 #include <stdlib.h>
 
 #include "archive.h"
 #include "functions.h"
 
 DUCKDB_EXTENSION_EXTERN
-
-#define RELEASED_ERROR                                                                                                 \
-	"mocapdb: the extension was released on this database (mocapdb_release()); open the database again to use " \
-	"its functions"
 
 mdb_state *mdb_state_new(void) {
 	mdb_state *st = calloc(1, sizeof *st);
@@ -61,21 +56,6 @@ int mdb_state_release(mdb_state *st) {
 	}
 	pthread_mutex_unlock(&st->lock);
 	return was_live;
-}
-
-int mdb_state_live(mdb_state *st, mdb_error *err) {
-	if (!st->released && st->con) {
-		return 0;
-	}
-	snprintf(err->text, sizeof err->text, "%s", RELEASED_ERROR);
-	return -1;
-}
-
-int mdb_check_live(mdb_state *st, mdb_error *err) {
-	pthread_mutex_lock(&st->lock);
-	int rc = mdb_state_live(st, err);
-	pthread_mutex_unlock(&st->lock);
-	return rc;
 }
 
 /* mocapdb_release() → BOOLEAN: true when this call released the extension, false when it was

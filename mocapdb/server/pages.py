@@ -4,7 +4,7 @@ Every page is self-contained as the viewer's pages are — CSS and JavaScript
 inline, no library, no network resource but the server's own ``/api/``
 answers. The archive page and the summary are the same for every request
 (their rows come from ``/api/motions`` and ``/api/stats``); a motion's page
-is the viewer page of :func:`mocapdb.viewer.render_page` (the skeleton re-read
+is the viewer page of :func:`mocapdb.api.pages.render_page` (the skeleton re-read
 from its source file, the annotation, Δ̄ per label) with the panel of
 ``panel.html`` under it: find similar, and a label's segments across the
 archive.
@@ -15,8 +15,7 @@ import html
 import re
 from importlib import resources
 
-from mocapdb.viewer import motion_poses, motion_view, render_page
-from mocapdb.viewer.encoding import error_script, json_script, page_html
+from mocapdb.api.pages import error_script, json_script, page_html, render_page, stored_motion_view
 
 __all__ = ["archive_page", "stats_page", "motion_page", "message_page", "FAVICON"]
 
@@ -75,9 +74,7 @@ def motion_page(con, motion_id, *, model, all_labels, n_frames) -> str:
     ParseError, OSError
         Its source file cannot be read again (moved, or never a file).
     """
-    # the source first: a motion without one (moved, or stored as words) fails before it is annotated
-    joints = motion_poses(con, int(motion_id), n_frames)
-    view = motion_view(con, int(motion_id), model=model)
+    view, joints = stored_motion_view(con, motion_id, model=model, n_frames=n_frames)
     found = sorted({str(x) for x in view.segments["label"]}, key=list(view.labels).index)
     data = {"motion_id": view.motion_id, "name": view.name, "n": view.n_frames, "fps": view.fps, "model": model,
             "labels": found, "all_labels": list(all_labels)}
