@@ -395,6 +395,25 @@ def test_define_class_attaches_keyframes_to_a_model_s_classes(tmp_path):
             define_class(con, [SHIPPED / "kick.toml", SHIPPED / "turn.toml"], model="empty")
 
 
+def _covered_by(data_dir, path, prefix):
+    """Frames of a clip that the shipped default's classes named ``prefix…`` annotate (keyframe preselection on),
+    and the clip's length."""
+    import mocapdb
+    from mocapdb.annotation import Model
+    from mocapdb.features import motion_features
+    from mocapdb.readers import read_motion
+    from mocapdb.storage.model_store import load_model
+
+    with mocapdb.connect() as con:
+        shipped = load_model(con, "default")
+    designed = Model(prefix, tuple(c for c in shipped.classes if c.name.startswith(prefix)))
+    assert len(designed.classes) == 2
+    words = motion_features(read_motion(data_dir / path))
+    ann = annotate(words, designed, doc_lengths=[words.size],
+                   preselection=preselection_for(words, [words.size], designed))
+    return int((ann.segments["end"] - ann.segments["start"] + 1).sum()), words.size
+
+
 @pytest.mark.shared
 @pytest.mark.parametrize("path, walks", [
     *((f"bandai2_dev/dataset-2_walk_{style}_001.bvh.gz", True)
@@ -412,17 +431,26 @@ def test_the_designed_gait_finds_any_walker_and_no_step_in_place(data_dir, path,
     """gaitRightLeft / gaitLeftRight (move.toml), as shipped (τ, query): walks and runs of three labs (every acting
     style of the studio, backwards, carrying a box) are move over most of their frames through the keyframe
     preselection; an elbow-to-knee exercise (one foot swings, the root still), a kick and a wave are not."""
-    import mocapdb
-    from mocapdb.annotation import Model
-    from mocapdb.features import motion_features
-    from mocapdb.readers import read_motion
-    from mocapdb.storage.model_store import load_model
+    covered, n = _covered_by(data_dir, path, "gait")
+    assert (covered >= 0.75 * n) if walks else covered == 0, (path, covered, n)
 
-    with mocapdb.connect() as con:
-        shipped = load_model(con, "default")
-    gait = Model("gait", tuple(c for c in shipped.classes if c.name.startswith("gait")))
-    assert len(gait.classes) == 2
-    words = motion_features(read_motion(data_dir / path))
-    ann = annotate(words, gait, doc_lengths=[words.size], preselection=preselection_for(words, [words.size], gait))
-    covered = int((ann.segments["end"] - ann.segments["start"] + 1).sum())
-    assert (covered >= 0.75 * words.size) if walks else covered == 0, (path, covered, words.size)
+
+@pytest.mark.shared
+@pytest.mark.parametrize("path, side_step", [
+    ("accad_dev/Male1_B22_SideStepLeft.bvh.gz", True),
+    ("accad_dev/Male1_B23_SideStepRight.bvh.gz", True),
+    ("accad_dev/Male1_B3_Walk.bvh.gz", False),
+    ("bandai2_dev/dataset-2_walk_normal_001.bvh.gz", False),
+    ("hdm05_cut/kickLFront1Reps/HDM_bd_kickLFront1Reps_004_120.amc", False),
+    ("hdm05_cut/kickLFront1Reps/HDM_dg_kickLFront1Reps_014_120.amc", False),
+    ("hdm05_cut/hopBothLegs1hops/HDM_bd_hopBothLegs1hops_001_120.amc", False),
+    ("hdm05_cut/squat1Reps/HDM_bd_squat1Reps_001_120.amc", False),
+    ("bandai2_dev/dataset-2_wave-both-hands_masculine_001.bvh.gz", False),
+])
+def test_the_designed_side_step_finds_side_steps_and_no_step_into_a_kick(data_dir, path, side_step):
+    """sideStepLeft / sideStepRight (move.toml), as shipped: ACCAD's side steps (one step each, in a take that
+    mostly stands) are move for the step — about a second; a walk (the feet within the hips' width), a step into a
+    front kick (the feet move apart, then together, but never wider than the hips), a hop, a squat and a wave are
+    not side steps."""
+    covered, n = _covered_by(data_dir, path, "sideStep")
+    assert (covered >= 30) if side_step else covered == 0, (path, covered, n)
