@@ -1,6 +1,7 @@
--- similar_to: temporary macros over the Python UDF mocap_similar (not native yet), installed on every
--- mocapdb.connect connection whether or not the native extension is loaded (see macros.sql for why
--- macros and UDFs read their own rows).
+-- similar_to: temporary macros over the Python UDF mocap_similar, installed with macros.sql on the
+-- mocapdb.connect connections without the native extension (MOCAPDB_NATIVE=0, no C compiler at install);
+-- native_macros.sql has their twins over the native similar_to (see macros.sql for why macros and UDFs
+-- read their own rows).
 
 -- Query by example: the stretches of every motion most like frames
 -- first_frame..last_frame (1-based inclusive at 30 Hz; the whole motion without

@@ -13,6 +13,7 @@ int mdb_register_keyframe_words(duckdb_connection con, mdb_state *st);
 int mdb_register_keyframe_search(duckdb_connection con, mdb_state *st);
 int mdb_register_mt_distance(duckdb_connection con, mdb_state *st);
 int mdb_register_annotate(duckdb_connection con, mdb_state *st);
+int mdb_register_similar(duckdb_connection con, mdb_state *st);
 
 /* Intervals of matching frames of one keyframe (word & mask == value) in one motion's runs
  * r[a..b), appended to iv; 0, or -1 when out of memory. */
