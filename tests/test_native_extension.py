@@ -402,7 +402,7 @@ def another_process_writes(db):
 
 def test_mocapdb_connect_answers_with_the_native_functions(archive, native):
     """A mocapdb.connect connection (and its cursors) has the native functions: no Python UDF of
-    theirs is registered (similar_to's only), the macros keep the named arguments and give the
+    theirs is registered, the macros keep the named arguments and give the
     Python UDFs' answers (MOCAPDB_NATIVE=0: the fallback where the extension is missing)."""
     queries = ["SELECT motion_id, annotate(motion_id, model := 'toolbox', keyframes := false), "
                "annotate(motion_id, tau := 0.1) FROM motions ORDER BY motion_id",
@@ -414,7 +414,7 @@ def test_mocapdb_connect_answers_with_the_native_functions(archive, native):
         want = [con.execute(q).fetchall() for q in queries]
     with mocapdb.connect(archive, read_only=True) as con:
         cur = con.cursor()
-        assert python_functions(con) == 1  # mocap_similar
+        assert python_functions(con) == 0  # similar_to is native too (tests/test_native_similar.py)
         assert con.execute("SELECT count(*) FROM duckdb_functions() WHERE function_name = 'mocapdb_release'"
                            ).fetchall() == [(1,)]
         assert [con.execute(q).fetchall() for q in queries] == want
@@ -668,6 +668,13 @@ for i in range(n):
                 break
         q = (f"SELECT count(*), sum(len(s)) FROM (SELECT annotate({', '.join(args)}) AS s "
              "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
+    if rng.random() < 0.04:  # similar_to: motions by id, name and other types, ranges good and bad, k
+        motion = rng.choice(["NULL", "1", "3", "5", "0", "-1", "2147483648", "18446744073709551615::UBIGINT",
+                             "'86_09'", "'5'", "''", "'nope'", "3.7", "true", "motion_id", "name"])
+        first, last = (rng.choice(["NULL", "1", "0", "-5", "10", "40", "2147483647"]) for _ in range(2))
+        k = rng.choice(["NULL", "0", "-1", "1", "3", "10", "2147483647"])
+        q = (f"SELECT count(*), sum(len(s)) FROM (SELECT similar_to({motion}, {first}, {last}, {k}) AS s "
+             "FROM (SELECT motion_id, name FROM motions ORDER BY n_frames LIMIT 3))")
     r = rng.random()
     if r < 0.01 and not released:
         assert cons[1].execute("SELECT mocapdb_release()").fetchall() == [(True,)]

@@ -161,7 +161,11 @@ static int version_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *er
 /* ---------------------------------------------------------------------------------------------
  * the query */
 
-/* the motion argument of a row: an id (*id, 1), a name (*name, 2), NULL (0), another type (-1) */
+/* an integer id beyond int64: no motion has it */
+#define BEYOND INT64_MIN
+
+/* the motion argument of a row: an id (*id, 1; BEYOND for an integer beyond int64), a
+ * name (*name, 2), NULL (0), another type (-1) */
 static int motion_arg(duckdb_vector v, duckdb_type type, idx_t row, int64_t *id, char **name) {
 	if (!duckdb_validity_row_is_valid(duckdb_vector_get_validity(v), row)) {
 		return 0;
@@ -177,17 +181,23 @@ static int motion_arg(duckdb_vector v, duckdb_type type, idx_t row, int64_t *id,
 	case DUCKDB_TYPE_UINTEGER: *id = ((uint32_t *)d)[row]; return 1;
 	case DUCKDB_TYPE_UBIGINT: {
 		uint64_t x = ((uint64_t *)d)[row];
-		*id = x > INT64_MAX ? -1 : (int64_t)x; /* beyond any id: no such motion */
+		*id = x > INT64_MAX ? BEYOND : (int64_t)x;
 		return 1;
 	}
 	case DUCKDB_TYPE_HUGEINT: {
 		duckdb_hugeint x = ((duckdb_hugeint *)d)[row];
-		*id = (x.upper == 0 && x.lower <= INT64_MAX) ? (int64_t)x.lower : -1;
+		if (x.upper == 0 && x.lower <= INT64_MAX) {
+			*id = (int64_t)x.lower;
+		} else if (x.upper == -1 && x.lower > INT64_MAX) {
+			*id = (int64_t)x.lower; /* a negative int64 */
+		} else {
+			*id = BEYOND;
+		}
 		return 1;
 	}
 	case DUCKDB_TYPE_UHUGEINT: {
 		duckdb_uhugeint x = ((duckdb_uhugeint *)d)[row];
-		*id = (x.upper == 0 && x.lower <= INT64_MAX) ? (int64_t)x.lower : -1;
+		*id = (x.upper == 0 && x.lower <= INT64_MAX) ? (int64_t)x.lower : BEYOND;
 		return 1;
 	}
 	case DUCKDB_TYPE_VARCHAR: *name = mdb_string_at(v, row); return *name ? 2 : -2;
@@ -245,8 +255,13 @@ static int query_stretch(mdb_state *st, int64_t id, int has_first, int32_t first
 		return -1;
 	}
 	if (!m.found) {
-		snprintf(err->text, sizeof err->text, WHAT ": no motion with id %" PRId64 " (see: SELECT motion_id, name FROM "
-		         "motions)", id);
+		if (id == BEYOND) {
+			snprintf(err->text, sizeof err->text, WHAT ": no motion has that id (ids are 32-bit; see: SELECT "
+			         "motion_id, name FROM motions)");
+		} else {
+			snprintf(err->text, sizeof err->text, WHAT ": no motion with id %" PRId64 " (see: SELECT motion_id, name "
+			         "FROM motions)", id);
+		}
 		goto done;
 	}
 	int64_t n = m.n_frames;
@@ -391,7 +406,7 @@ static int level_segments(const mdb_query *q, const mdb_runs *runs, const size_t
 
 /* One batch of motions ids[a .. b): its words from the index, preselected or whole, ranked. */
 static int search_batch(mdb_state *st, const id_list *motions, size_t a, size_t b, int64_t n_frames,
-                        const mdb_sim_ranker *r, const mdb_query *levels, int n_levels, int64_t q_id, int64_t q_first,
+                        int64_t budget, const mdb_sim_ranker *r, const mdb_query *levels, int n_levels, int64_t q_id, int64_t q_first,
                         int64_t q_last, int64_t limit, mdb_sim_hits *found, mdb_error *err) {
 	size_t m = b - a;
 	int rc = -1;
@@ -461,8 +476,8 @@ static int search_batch(mdb_state *st, const id_list *motions, size_t a, size_t 
 	} else {
 		/* preselect(force=True): the most lenient level within the batch's share of the budget, else
 		 * the strictest; the share int(CELL_BUDGET · frames / n_frames), a correctly rounded quotient
-		 * (both operands below 2^53) truncated as Python's int() does */
-		int64_t share = (int64_t)((double)(MDB_SIM_CELL_BUDGET * batch_frames) / (double)n_frames);
+		 * (exact operands below 2^53) truncated as Python's int() does */
+		int64_t share = (int64_t)((double)(budget * batch_frames) / (double)n_frames);
 		for (int l = 0; l < n_levels; l++) {
 			int64_t frames;
 			if (level_segments(&levels[l], runs, ra, motions->len + a, m, &segs, &frames, err)) {
@@ -515,6 +530,28 @@ done:
 	return rc;
 }
 
+/* CELL_BUDGET: MOCAPDB_CELL_BUDGET when a positive integer below 2^31 (as mocapdb.retrieval.search
+ * reads it) */
+static int64_t cell_budget(void) {
+	const char *text = getenv("MOCAPDB_CELL_BUDGET");
+	if (!text) {
+		return MDB_SIM_CELL_BUDGET;
+	}
+	while (*text == ' ' || *text == '\t' || *text == '\n') {
+		text++;
+	}
+	int64_t v = 0;
+	const char *p = text;
+	for (; *p >= '0' && *p <= '9' && v <= INT32_MAX; p++) {
+		v = 10 * v + (*p - '0');
+	}
+	while (*p == ' ' || *p == '\t' || *p == '\n') {
+		p++;
+	}
+	/* below 2^31: budget · frames stays below 2^53 for batches of up to 2^22 frames (exact) */
+	return *text == 0 ? MDB_SIM_CELL_BUDGET : (*p == 0 && p > text && v > 0 && v <= INT32_MAX ? v : MDB_SIM_CELL_BUDGET);
+}
+
 /* search_archive for one query stretch: the best limit hits of the archive, doc = motion id */
 static int search_archive(mdb_state *st, int64_t q_id, int64_t q_first, const uint64_t *q_words, size_t K,
                           int64_t limit, mdb_sim_hits *found, mdb_error *err) {
@@ -523,6 +560,7 @@ static int search_archive(mdb_state *st, int64_t q_id, int64_t q_first, const ui
 	mdb_sim_template t = {0}, sparse = {0};
 	mdb_query levels[MDB_SIM_LEVELS];
 	int n_levels = 0, has_version = 0, rc = -1;
+	int64_t budget = cell_budget();
 	duckdb_type vtype[] = {DUCKDB_TYPE_BIGINT};
 	if (mdb_query_rows(st, VERSION_SQL, "mocap_index.state", NULL, 0, NULL, 0, vtype, 1, version_sink, &has_version,
 	                   err)) {
@@ -577,7 +615,7 @@ static int search_archive(mdb_state *st, int64_t q_id, int64_t q_first, const ui
 		r.sparse = &sparse;
 	}
 	/* the archive within the budget: no preselection, and no keyframes to take from the query */
-	if (mdb_sim_rank_cells(n_frames, K) > MDB_SIM_CELL_BUDGET) {
+	if (mdb_sim_rank_cells(n_frames, K) > budget) {
 		n_levels = mdb_sim_keyframes(&t, sample.w, sample.n, levels);
 		if (n_levels < 0) {
 			oom(err);
@@ -592,8 +630,8 @@ static int search_archive(mdb_state *st, int64_t q_id, int64_t q_first, const ui
 		while (b < motions.n && frames + motions.len[b] <= MDB_BATCH_FRAMES) {
 			frames += motions.len[b++];
 		}
-		if (search_batch(st, &motions, a, b, n_frames, &r, levels, n_levels, q_id, q_first, q_first + (int64_t)K - 1,
-		                 limit, found, err)) {
+		if (search_batch(st, &motions, a, b, n_frames, budget, &r, levels, n_levels, q_id, q_first,
+		                 q_first + (int64_t)K - 1, limit, found, err)) {
 			goto done;
 		}
 		a = b;
