@@ -29,7 +29,7 @@ from mocapdb.storage.annotations import annotate_motions
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.motions import iter_documents, one_motion
 from mocapdb.storage.retrieval import query_stretch, search_archive
-from mocapdb.storage.sqltext import sql_text
+from mocapdb.storage.sqltext import sql_text, statement
 from mocapdb.templates import mt_distance
 
 #: limits of an inline keyframe query (keyframe_search_words): they bound the
@@ -360,11 +360,13 @@ def register_macros(con, *, native=False) -> None:
     """Install the temporary macros (``annotate``, ``mt_distance``, …) on a connection whose
     database instance has the functions (macros are per connection, UDFs per instance): over the
     native functions (``native``) or the Python UDFs."""
+    con.execute(statement("similar_rows.sql", "view"))
     if native:
         con.execute(sql_text("native_macros.sql"))
     else:
         con.execute(sql_text("macros.sql"))
         con.execute(sql_text("similar_macros.sql"))
+    con.execute(statement("similar_rows.sql", "overloads"))
 
 
 __all__ = ["register", "register_macros", "register_python_functions", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "SIMILAR_TYPE",

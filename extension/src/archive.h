@@ -122,6 +122,9 @@ void mdb_words_batch_free(mdb_words_batch *b);
 int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items,
                    size_t *i, int64_t max_frames, mdb_words_batch *b, mdb_error *err);
 
+/* Grow the array *pp to cap elements of elem bytes; 0, or -1 leaving it as it was. */
+int mdb_grow(void *pp, size_t elem, size_t cap);
+
 /* Where a query's rows go, a chunk of n at a time: 0 to go on, non-zero to stop (err set). */
 typedef int (*mdb_chunk_sink)(void *ctx, duckdb_data_chunk chunk, idx_t n, mdb_error *err);
 /* Run a query on the extension's connection under its lock, with text parameters, then integer

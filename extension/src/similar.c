@@ -57,15 +57,7 @@ static void ids_free(id_list *l) {
 static int ids_push(id_list *l, int32_t id, int64_t len) {
 	if (l->n == l->cap) {
 		size_t cap = l->cap ? 2 * l->cap : 256;
-		int32_t *i = realloc(l->id, cap * sizeof *i);
-		if (i) {
-			l->id = i;
-		}
-		int64_t *n = realloc(l->len, cap * sizeof *n);
-		if (n) {
-			l->len = n;
-		}
-		if (!i || !n) {
+		if (mdb_grow(&l->id, sizeof *l->id, cap) || mdb_grow(&l->len, sizeof *l->len, cap)) {
 			return -1;
 		}
 		l->cap = cap;
@@ -117,11 +109,9 @@ static int words_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err)
 	uint64_t *valid = duckdb_vector_get_validity(v);
 	if (w->n + n > w->cap) {
 		size_t cap = 2 * (w->n + n);
-		uint64_t *grown = realloc(w->w, cap * sizeof *grown);
-		if (!grown) {
+		if (mdb_grow(&w->w, sizeof *w->w, cap)) {
 			return oom(err);
 		}
-		w->w = grown;
 		w->cap = cap;
 	}
 	for (idx_t i = 0; i < n; i++) {
@@ -340,19 +330,8 @@ static int segments_reserve(segments *s, size_t n) {
 	if (n <= s->cap) {
 		return 0;
 	}
-	int64_t *d = realloc(s->doc, n * sizeof *d);
-	if (d) {
-		s->doc = d;
-	}
-	int64_t *a = realloc(s->start, n * sizeof *a);
-	if (a) {
-		s->start = a;
-	}
-	int64_t *b = realloc(s->stop, n * sizeof *b);
-	if (b) {
-		s->stop = b;
-	}
-	if (!d || !a || !b) {
+	if (mdb_grow(&s->doc, sizeof *s->doc, n) || mdb_grow(&s->start, sizeof *s->start, n) ||
+	    mdb_grow(&s->stop, sizeof *s->stop, n)) {
 		return -1;
 	}
 	s->cap = n;
@@ -504,17 +483,10 @@ static int search_batch(mdb_state *st, const id_list *motions, size_t a, size_t 
 	for (size_t h = 0; h < hits.n; h++) {
 		mdb_sim_hit x = hits.at[h];
 		x.doc = motions->id[a + (size_t)x.doc];
-		if (found->n == found->cap) {
-			size_t cap = found->cap ? 2 * found->cap : 64;
-			mdb_sim_hit *grown = realloc(found->at, cap * sizeof *grown);
-			if (!grown) {
-				oom(err);
-				goto done;
-			}
-			found->at = grown;
-			found->cap = cap;
+		if (mdb_sim_hits_push(found, x)) {
+			oom(err);
+			goto done;
 		}
-		found->at[found->n++] = x;
 	}
 	mdb_sim_hits_best(found, limit);
 	rc = 0;

@@ -13,7 +13,7 @@ void mdb_sim_hits_free(mdb_sim_hits *h) {
 	memset(h, 0, sizeof *h);
 }
 
-static int hits_push(mdb_sim_hits *h, mdb_sim_hit x) {
+int mdb_sim_hits_push(mdb_sim_hits *h, mdb_sim_hit x) {
 	if (h->n == h->cap) {
 		size_t cap = h->cap ? 2 * h->cap : 64;
 		mdb_sim_hit *grown = realloc(h->at, cap * sizeof *grown);
@@ -132,7 +132,7 @@ static int rank_pass(const mdb_sim_template *t, double tau, const uint64_t *word
 				continue;
 			}
 			memset(m + st, 1, (size_t)(e - st + 1));
-			if (hits_push(out, (mdb_sim_hit){(int64_t)q, ta[q] + st, ta[q] + e, d[e]})) {
+			if (mdb_sim_hits_push(out, (mdb_sim_hit){(int64_t)q, ta[q] + st, ta[q] + e, d[e]})) {
 				return -1;
 			}
 			h++;
@@ -250,7 +250,7 @@ int mdb_sim_rank_slices(const mdb_sim_ranker *r, const uint64_t *words, size_t n
 		mdb_sim_hits_best(&hits, limit);
 	}
 	for (size_t i = 0; i < hits.n; i++) {
-		if (hits_push(out, hits.at[i])) {
+		if (mdb_sim_hits_push(out, hits.at[i])) {
 			goto done;
 		}
 	}
@@ -330,7 +330,7 @@ int mdb_sim_search_segments(const mdb_sim_ranker *r, mdb_sim_fetch fetch, void *
 			size_t k = (size_t)hits.at[i].doc;
 			mdb_sim_hit h = {doc[a + k], hits.at[i].start + start[a + k] - base[k], hits.at[i].end + start[a + k] - base[k],
 			                 hits.at[i].cost};
-			if (hits_push(out, h)) {
+			if (mdb_sim_hits_push(out, h)) {
 				goto done;
 			}
 		}

@@ -22,6 +22,8 @@ typedef struct {
 } mdb_sim_hits;
 
 void mdb_sim_hits_free(mdb_sim_hits *h);
+/* Append one hit; 0, or -1 when out of memory. */
+int mdb_sim_hits_push(mdb_sim_hits *h, mdb_sim_hit x);
 /* Sort by (cost, doc, start) and keep the first limit (best_hits). */
 void mdb_sim_hits_best(mdb_sim_hits *h, int64_t limit);
 
