@@ -9,14 +9,17 @@ bone order, line endings).
 import csv
 import lzma
 import math
+import os
 import re
+import shutil
+import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from conftest import DATA, HAVE_SHARED, ORACLE, SAMPLE_86_09, SAMPLE_86_ASF, humerus, shared_cases
-from mocapdb.readers.textscan import NUM_BAD, NUM_OK, NUM_SLOW, parse_numbers
+from mocapdb.readers.textscan import NUM_BAD, NUM_OK, NUM_SLOW, longest_line, parse_numbers
 from mocapdb.bodies.acclaim import column_layout
 from mocapdb.readers.amc import parse_amc, read_amc
 from mocapdb.readers.asf import parse_asf, read_asf
@@ -508,3 +511,37 @@ def test_a_folders_only_asf_is_the_skeleton(tmp_path):
     assert find_skeleton(amc) == tmp_path / "subject.asf"
     (tmp_path / "other.asf").write_bytes(MASS_KG.read_bytes())
     assert find_skeleton(amc) is None  # two candidates: no guess
+
+
+def test_longest_line_equals_its_definition_on_random_bytes():
+    """The header check's one-pass line scan against the definition: line ends are LF or CR, the first
+    line continues ``carry`` bytes, the last may be unfinished (issue 35 made it a kernel)."""
+    rng = np.random.default_rng(35)
+    for _ in range(5000):
+        chunk = bytes(rng.choice([10, 13, 32, 65], size=int(rng.integers(0, 40)), p=[.15, .05, .3, .5])
+                      .astype(np.uint8))
+        carry = int(rng.integers(0, 5))
+        text = "A" * carry + chunk.decode().replace("\r", "\n")
+        lines = text.split("\n")
+        assert longest_line(chunk, carry) == (max(len(x) for x in lines), len(lines[-1])), (chunk, carry)
+
+
+@pytest.mark.shared
+def test_the_skeleton_rule_sees_a_new_asf_in_a_listed_folder(tmp_path):
+    """The named candidates are checked against the folder's listing, kept while the folder is unchanged:
+    an ASF added later (the folder's mtime moves) is found, one removed is not, and on a case-insensitive
+    file system a differently cased name is still probed."""
+    amc = tmp_path / "07_01.amc"
+    shutil.copyfile(DATA / "cmu/02/02_01.amc", amc)
+    shutil.copyfile(DATA / "cmu/02/02.asf", tmp_path / "07.asf")
+    past = time.time() - 60
+    os.utime(tmp_path, (past, past))   # an old folder: its listing is kept
+    assert find_skeleton(amc) == tmp_path / "07.asf"
+    shutil.copyfile(DATA / "cmu/02/02.asf", tmp_path / "07_01.asf")
+    assert find_skeleton(amc) == tmp_path / "07_01.asf"
+    (tmp_path / "07_01.asf").unlink()
+    os.utime(tmp_path, (past + 1, past + 1))
+    assert find_skeleton(amc) == tmp_path / "07.asf"
+    (tmp_path / "07.asf").rename(tmp_path / "07.ASF")
+    os.utime(tmp_path, (past + 2, past + 2))
+    assert find_skeleton(amc) == tmp_path / "07.ASF"

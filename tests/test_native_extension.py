@@ -344,10 +344,42 @@ def test_a_damaged_motion_is_named(archive, native, tmp_path):
     shutil.copy(archive, db)
     got = plain_client(db, native, ["DELETE FROM features WHERE motion_id = 2 AND frame = 5",
                                     "SELECT mt_distance(2, 'squat1Reps')",
-                                    "SELECT len(mt_distance(1, 'squat1Reps')), len(mt_distance(3, 'squat1Reps'))"],
+                                    "SELECT len(mt_distance(1, 'squat1Reps')), len(mt_distance(3, 'squat1Reps'))",
+                                    # the words are read unordered, each row into its frame's slot: a frame
+                                    # twice (n rows all the same) and one past n_frames are caught too
+                                    "UPDATE features SET frame = 4 WHERE motion_id = 4 AND frame = 5",
+                                    "SELECT annotate(4)",
+                                    "UPDATE features SET frame = frame + 1 WHERE motion_id = 5 AND frame = "
+                                    "(SELECT n_frames FROM motions WHERE motion_id = 5)",
+                                    "SELECT annotate(5, 'default', NULL, false)",
+                                    "SELECT len(annotate(3)) > 0"],
                        read_only=False)
     assert "motion 2 has feature rows that are not its frames" in got[1]["error"]
     assert got[2]["rows"] == [[1199, 266]]
+    assert "motion 4 has feature rows that are not its frames" in got[4]["error"]
+    assert "motion 5 has feature rows that are not its frames" in got[6]["error"]
+    assert got[7]["rows"] == [[True]]
+
+
+def test_kept_statements_follow_the_catalog(archive, native, tmp_path):
+    """The extension prepares each of its queries once per database and keeps it: a table dropped
+    and created again, or its rows changed, under a kept statement gives what a fresh statement
+    would (DuckDB binds a kept statement again when the catalog changed)."""
+    db = tmp_path / "recreated.duckdb"
+    shutil.copy(archive, db)
+    got = plain_client(db, native, ["SELECT len(mt_distance(3, 'squat1Reps'))",
+                                    "CREATE TABLE features_away AS SELECT * FROM features",
+                                    "DROP TABLE features",
+                                    "CREATE TABLE features AS SELECT * FROM features_away WHERE motion_id <> 3 "
+                                    "OR frame <= 200",
+                                    "SELECT len(mt_distance(3, 'squat1Reps'))",
+                                    "INSERT INTO features SELECT * FROM features_away WHERE motion_id = 3 "
+                                    "AND frame > 200",
+                                    "SELECT len(mt_distance(3, 'squat1Reps'))"],
+                       read_only=False)
+    assert got[0]["rows"] == [[266]]
+    assert "motion 3 has feature rows that are not its frames" in got[4]["error"]
+    assert got[6]["rows"] == [[266]]
 
 
 def test_a_damaged_model_names_its_class(archive, native, tmp_path):

@@ -354,3 +354,37 @@ def test_unsupported_extension(tmp_path):
     with pytest.raises(ParseError, match=re.escape(f"{p}: unsupported file type '.c3x'")):
         read_motion(p)
     assert issubclass(ParseError, MocapdbError)
+
+
+@pytest.mark.shared
+def test_a_start_checked_once_is_checked_again_when_the_file_changes(tmp_path, monkeypatch):
+    """Ingest checks a take's first bytes before hashing it and again before reading it; the second
+    check of an unchanged file is remembered, not read again (issue 35) — but a file rewritten since,
+    or changed within the last two seconds, is read again and refused when its start says so."""
+    import os
+    import time
+
+    import mocapdb.readers.files as files
+
+    amc = tmp_path / "take.amc"
+    shutil.copyfile(AMC, amc)
+    past = time.time() - 60
+    os.utime(amc, (past, past))
+    opened = []
+    real = files.open_stream
+    monkeypatch.setattr(files, "open_stream", lambda p: opened.append(p) or real(p))
+    files.check_start(amc)
+    files.check_start(amc)
+    assert len(opened) == 1   # the unchanged file's start is remembered
+    amc.write_bytes(b"1\n" + b"x" * (1 << 15) + b"\n")   # rewritten: one line longer than any AMC line
+    with pytest.raises(ParseError, match="a line longer than"):
+        files.check_start(amc)
+    os.utime(amc, (past, past))   # an old mtime again: a failed start is never remembered
+    with pytest.raises(ParseError, match="a line longer than"):
+        files.check_start(amc)
+    recent = tmp_path / "recent.amc"
+    shutil.copyfile(AMC, recent)   # just written: checked each time
+    opened.clear()
+    files.check_start(recent)
+    files.check_start(recent)
+    assert len(opened) == 2

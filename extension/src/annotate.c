@@ -402,20 +402,6 @@ typedef struct {
 	int failed;
 } job;
 
-/* the first index of the ascending a[0 .. n) that is >= x */
-static size_t lower_bound(const int32_t *a, size_t n, int32_t x) {
-	size_t lo = 0, hi = n;
-	while (lo < hi) {
-		size_t mid = lo + (hi - lo) / 2;
-		if (a[mid] < x) {
-			lo = mid + 1;
-		} else {
-			hi = mid;
-		}
-	}
-	return lo;
-}
-
 static void *run_job(void *p) {
 	job *j = p;
 	batch_work *bw = j->bw;
@@ -425,7 +411,7 @@ static void *run_job(void *p) {
 			break;
 		}
 		const item *it = &bw->items[q];
-		size_t k = lower_bound(bw->wb->id, bw->wb->n, it->motion);
+		size_t k = mdb_lower_bound(bw->wb->id, bw->wb->n, it->motion);
 		if (k == bw->wb->n || bw->wb->id[k] != it->motion) {
 			continue; /* not stored: NULL */
 		}
@@ -435,7 +421,7 @@ static void *run_job(void *p) {
 		const mdb_runs *runs = it->preselect ? bw->runs : NULL;
 		size_t ra = 0, rb = 0;
 		if (runs) {
-			ra = lower_bound(runs->motion, runs->n, it->motion);
+			ra = mdb_lower_bound(runs->motion, runs->n, it->motion);
 			for (rb = ra; rb < runs->n && runs->motion[rb] == it->motion; rb++) {
 			}
 		}

@@ -30,8 +30,8 @@ DUCKDB_EXTENSION_EXTERN
 	"JOIN keyframe_queries q USING (model, class) WHERE k.model = $1 ORDER BY k.class, k.k"
 #define HAS_CLASS_SQL "SELECT count(*) FROM classes WHERE model = $1 AND class = $2"
 #define RANGE_SQL "SELECT motion_id, n_frames, fps FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
-#define WORDS_SQL                                                                                                      \
-	"SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id, frame"
+/* no ORDER BY: each row has its slot (words_sink) */
+#define WORDS_SQL "SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $1 AND $2"
 /* 41 feature bits (40 + the heading feature): a template column may fix no other */
 #define FEATURE_BITS ((((uint64_t)1) << (MDB_N_COST - 1)) - 1)
 /* more expanded columns than any template has (the longest are a few hundred) */
@@ -112,34 +112,83 @@ int mdb_check_live(mdb_state *st, mdb_error *err) {
 	return rc;
 }
 
-/* A query with text parameters, then integer ones ($1, $2, … in that order), executed on the
- * extension's connection (the caller holds the lock); 0, or -1 with err naming the table. */
-static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
-                     const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
-	duckdb_prepared_statement stmt = NULL;
-	int rc = -1;
-	if (mdb_state_live(st, err)) {
-		return -1;
+void mdb_drop_prepared(mdb_state *st) {
+	for (size_t k = 0; k < st->n_prepared; k++) {
+		duckdb_destroy_prepare(&st->stmt[k]);
 	}
+	st->n_prepared = 0;
+}
+
+/* sql's statement on the extension's connection: the kept one (fresh: prepared again), or a new
+ * one kept while there is room; NULL with err set when it does not prepare. *made: prepared now;
+ * *owned: the caller destroys it (not kept). */
+static duckdb_prepared_statement prepared(mdb_state *st, const char *sql, const char *table, int fresh,
+                                          int *made, int *owned, mdb_error *err) {
+	size_t k = 0;
+	while (k < st->n_prepared && st->sql[k] != sql) {
+		k++;
+	}
+	if (k < st->n_prepared && !fresh) {
+		*made = 0;
+		*owned = 0;
+		duckdb_clear_bindings(st->stmt[k]);
+		return st->stmt[k];
+	}
+	duckdb_prepared_statement stmt = NULL;
 	if (duckdb_prepare(st->con, sql, &stmt) == DuckDBError) {
 		query_error("mocapdb", table, duckdb_prepare_error(stmt), err);
 		duckdb_destroy_prepare(&stmt);
+		return NULL;
+	}
+	*made = 1;
+	if (k < st->n_prepared) { /* replaces the kept one */
+		duckdb_destroy_prepare(&st->stmt[k]);
+		st->stmt[k] = stmt;
+		*owned = 0;
+	} else if (st->n_prepared < MDB_MAX_PREPARED) {
+		st->sql[st->n_prepared] = sql;
+		st->stmt[st->n_prepared++] = stmt;
+		*owned = 0;
+	} else {
+		*owned = 1;
+	}
+	return stmt;
+}
+
+/* A query with text parameters, then integer ones ($1, $2, … in that order), executed on the
+ * extension's connection (the caller holds the lock); 0, or -1 with err naming the table. A kept
+ * statement that fails is prepared and executed once more, so that a kept plan never turns into an
+ * error a fresh one would not give. */
+static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                     const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
+	if (mdb_state_live(st, err)) {
 		return -1;
 	}
-	for (idx_t i = 0; i < n_texts; i++) {
-		duckdb_bind_varchar(stmt, i + 1, texts[i]);
+	for (int fresh = 0; fresh < 2; fresh++) {
+		int made = 0, owned = 0;
+		duckdb_prepared_statement stmt = prepared(st, sql, table, fresh, &made, &owned, err);
+		if (!stmt) {
+			return -1;
+		}
+		for (idx_t i = 0; i < n_texts; i++) {
+			duckdb_bind_varchar(stmt, i + 1, texts[i]);
+		}
+		for (idx_t i = 0; i < n_ints; i++) {
+			duckdb_bind_int32(stmt, n_texts + i + 1, ints[i]);
+		}
+		int failed = duckdb_execute_prepared(stmt, res) == DuckDBError;
+		if (failed) {
+			query_error("mocapdb", table, duckdb_result_error(res), err);
+			duckdb_destroy_result(res);
+		}
+		if (owned) {
+			duckdb_destroy_prepare(&stmt);
+		}
+		if (!failed || made) {
+			return failed ? -1 : 0; /* a statement prepared just now fails as it is */
+		}
 	}
-	for (idx_t i = 0; i < n_ints; i++) {
-		duckdb_bind_int32(stmt, n_texts + i + 1, ints[i]);
-	}
-	if (duckdb_execute_prepared(stmt, res) == DuckDBError) {
-		query_error("mocapdb", table, duckdb_result_error(res), err);
-		duckdb_destroy_result(res);
-	} else {
-		rc = 0;
-	}
-	duckdb_destroy_prepare(&stmt);
-	return rc;
+	return -1;
 }
 
 /* Where a query's rows go, a chunk of n at a time: 0 to go on, non-zero to stop (err set). */
@@ -630,15 +679,32 @@ int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_tem
 	return rc;
 }
 
+/* Where the words query's rows go. No ORDER BY: DuckDB's sort of every row cost about as much as
+ * the DP with keyframes (`perf`); a row's (motion, frame) is its slot, off[k] + frame - 1, and a
+ * bit per slot proves each slot filled exactly once, so the order of the rows does not matter. */
 typedef struct {
-	const int32_t *want;
+	const int32_t *want; /* ascending */
 	const int64_t *n_frames;
 	const size_t *off;
-	size_t n_want, k;
-	size_t *count; /* rows stored per wanted motion */
+	size_t n_want, k;    /* k: the last row's motion, tried first (rows come in insertion order) */
+	size_t *count;       /* rows stored per wanted motion */
+	uint64_t *filled;    /* a bit per slot of words */
 	uint64_t *words;
-	int32_t bad;   /* a motion whose rows are not its frames 1, 2, …; 0: none */
+	int32_t bad;         /* a motion whose rows are not its frames 1, 2, …; 0: none */
 } words_ctx;
+
+size_t mdb_lower_bound(const int32_t *a, size_t n, int32_t x) {
+	size_t lo = 0, hi = n;
+	while (lo < hi) {
+		size_t mid = lo + (hi - lo) / 2;
+		if (a[mid] < x) {
+			lo = mid + 1;
+		} else {
+			hi = mid;
+		}
+	}
+	return lo;
+}
 
 static int words_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
 	words_ctx *c = p;
@@ -650,19 +716,27 @@ static int words_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err)
 		if (!duckdb_validity_row_is_valid(v0, i)) {
 			continue;
 		}
-		while (c->k < c->n_want && c->want[c->k] < mid[i]) {
-			c->k++;
-		}
 		if (c->k == c->n_want || c->want[c->k] != mid[i]) {
-			continue; /* a motion of the range that was not asked for */
+			c->k = mdb_lower_bound(c->want, c->n_want, mid[i]);
+			if (c->k == c->n_want || c->want[c->k] != mid[i]) {
+				c->k = c->n_want;
+				continue; /* a motion of the range that was not asked for */
+			}
 		}
-		size_t k = c->k, at = c->count[k];
-		if ((int64_t)at >= c->n_frames[k] || !duckdb_validity_row_is_valid(v1, i) ||
-		    !duckdb_validity_row_is_valid(v2, i) || frame[i] != (int64_t)at + 1) {
+		size_t k = c->k;
+		if (!duckdb_validity_row_is_valid(v1, i) || !duckdb_validity_row_is_valid(v2, i) || frame[i] < 1 ||
+		    frame[i] > c->n_frames[k]) {
 			c->bad = mid[i];
 			return 1;
 		}
-		c->words[c->off[k] + at] = bits[i];
+		size_t at = c->off[k] + (size_t)frame[i] - 1;
+		uint64_t bit = (uint64_t)1 << (at & 63);
+		if (c->filled[at >> 6] & bit) {
+			c->bad = mid[i]; /* a frame twice */
+			return 1;
+		}
+		c->filled[at >> 6] |= bit;
+		c->words[at] = bits[i];
 		c->count[k]++;
 	}
 	return 0;
@@ -684,15 +758,20 @@ int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *ou
 
 int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, const int64_t *n_frames,
                    const size_t *off, size_t n_want, uint64_t *words, mdb_error *err) {
-	words_ctx c = {want, n_frames, off, n_want, 0, calloc(n_want ? n_want : 1, sizeof(size_t)), words, 0};
+	size_t slots = off[n_want];
+	words_ctx c = {want,   n_frames, off,  n_want, 0, calloc(n_want ? n_want : 1, sizeof(size_t)),
+	               calloc(slots / 64 + 1, sizeof(uint64_t)), words, 0};
 	int32_t range[2] = {lo, hi};
 	duckdb_type cols[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT};
-	if (!c.count) {
+	if (!c.count || !c.filled) {
+		free(c.count);
+		free(c.filled);
 		return out_of_memory(err, "motions");
 	}
 	pthread_mutex_lock(&st->lock);
 	int rc = query_rows(st, WORDS_SQL, "features", NULL, 0, range, 2, cols, 3, words_sink, &c, err);
 	pthread_mutex_unlock(&st->lock);
+	/* no frame twice and none out of 1 … n_frames: n_frames rows fill every slot */
 	for (size_t k = 0; k < n_want && !c.bad; k++) {
 		if ((int64_t)c.count[k] != n_frames[k]) {
 			c.bad = want[k];
@@ -707,6 +786,7 @@ int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, c
 		rc = -1;
 	}
 	free(c.count);
+	free(c.filled);
 	return rc;
 }
 

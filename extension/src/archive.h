@@ -22,8 +22,17 @@ typedef struct {
 
 struct mdb_batch;
 
+/* more than the distinct queries of archive.c */
+#define MDB_MAX_PREPARED 24
+
 typedef struct {
 	duckdb_connection con;
+	/* Each query of archive.c prepared once on con (parsing and planning cost more than reading
+	 * a model's rows) and kept by its text's address; DuckDB re-binds a kept statement itself when
+	 * the catalog changed, and a statement that fails is prepared afresh once (run_query). */
+	const char *sql[MDB_MAX_PREPARED];
+	duckdb_prepared_statement stmt[MDB_MAX_PREPARED];
+	size_t n_prepared;
 	pthread_mutex_t lock;
 	struct mdb_batch *cache; /* index batches read, newest first (see mdb_acquire_runs) */
 	size_t cache_bytes;
@@ -36,6 +45,8 @@ mdb_state *mdb_state_new(void);
 /* Another reference, for a function's extra info; mdb_state_unref is its destroy callback. */
 mdb_state *mdb_state_ref(mdb_state *st);
 void mdb_state_unref(void *st);
+/* Destroy the kept prepared statements (the caller holds the lock). */
+void mdb_drop_prepared(mdb_state *st);
 /* Disconnect the extension's connection and free the cache; 1 when it did, 0 when done before. */
 int mdb_state_release(mdb_state *st);
 /* 0 while the extension's connection is open, else -1 with the error a released function gives
@@ -95,11 +106,13 @@ int mdb_read_template(mdb_state *st, const char *model, const char *cls, mdb_tem
  * query, is an error naming it. */
 int mdb_read_keyframe_query(mdb_state *st, const char *model, const char *cls, int extend, mdb_query *out,
                             mdb_error *err);
+/* the first index of the ascending a[0 .. n) that is >= x */
+size_t mdb_lower_bound(const int32_t *a, size_t n, int32_t x);
 /* The stored motions with ids lo .. hi, ascending, with their frame counts. */
 int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *out, mdb_error *err);
 /* The packed 30 Hz words of the motions want[0 .. n_want) (ascending ids within lo .. hi, each of
- * n_frames[i] frames) into words + off[i]. A motion whose features are not its frames 1 .. n is an
- * error naming it. */
+ * n_frames[i] frames) into words + off[i] (off[n_want]: the words in all). A motion whose features
+ * are not its frames 1 .. n, each once, is an error naming it. */
 int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, const int64_t *n_frames,
                    const size_t *off, size_t n_want, uint64_t *words, mdb_error *err);
 

@@ -74,14 +74,13 @@ int mdb_chain_document(size_t K, const int64_t *iv_start, const int64_t *iv_end,
 		}
 		return 0;
 	}
-	int rc = -1;
-	size_t *ptr = malloc(K * sizeof *ptr);
-	int64_t *xs = malloc(K * sizeof *xs), *xe = malloc(K * sizeof *xe);
-	int64_t *lo = malloc(K * sizeof *lo), *hi = malloc(K * sizeof *hi);
-	char *found = calloc(K, 1);
-	if (!ptr || !xs || !xe || !lo || !hi || !found) {
-		goto done;
+	if (K > MDB_MAX_KEYFRAMES) {
+		return -2; /* no mdb_query holds more */
 	}
+	/* on the stack: this runs per document and class, and a malloc each cost more than the search */
+	size_t ptr[MDB_MAX_KEYFRAMES];
+	int64_t xs[MDB_MAX_KEYFRAMES], xe[MDB_MAX_KEYFRAMES], lo[MDB_MAX_KEYFRAMES], hi[MDB_MAX_KEYFRAMES];
+	char found[MDB_MAX_KEYFRAMES] = {0};
 	for (size_t k = 1; k < K; k++) {
 		ptr[k] = off[k];
 	}
@@ -119,13 +118,12 @@ int mdb_chain_document(size_t K, const int64_t *iv_start, const int64_t *iv_end,
 				for (size_t g = K - 1; g-- > 0;) {
 					int64_t js = max64(h_s - d_max[g], xs[g]);
 					if (js > min64(h_s - d_min[g], xe[g])) {
-						rc = -2;
-						goto done;
+						return -2;
 					}
 					h_s = js;
 				}
 				if (emit(out, base, h_s, xe[k], n_frames, ext_l, ext_r)) {
-					goto done;
+					return -1;
 				}
 				continue;
 			}
@@ -140,13 +138,5 @@ int mdb_chain_document(size_t K, const int64_t *iv_start, const int64_t *iv_end,
 			ptr[level]++;
 		}
 	}
-	rc = 0;
-done:
-	free(ptr);
-	free(xs);
-	free(xe);
-	free(lo);
-	free(hi);
-	free(found);
-	return rc;
+	return 0;
 }

@@ -42,7 +42,7 @@ int mdb_spans_push(mdb_spans *s, int64_t start, int64_t end);
  * clamped to 0 .. n_frames-1, and merged with the segment before it when they
  * overlap (only segments appended by this call are merged with).
  * Returns 0, -1 when out of memory, -2 on an inconsistent chain (the
- * toolbox's "illegal interval", impossible for valid input). */
+ * toolbox's "illegal interval", impossible for valid input; or more than MDB_MAX_KEYFRAMES). */
 int mdb_chain_document(size_t K, const int64_t *iv_start, const int64_t *iv_end, const size_t *off,
                        const int64_t *d_min, const int64_t *d_max, int64_t n_frames, int64_t ext_l,
                        int64_t ext_r, mdb_spans *out);

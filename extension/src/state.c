@@ -47,6 +47,7 @@ int mdb_state_release(mdb_state *st) {
 	pthread_mutex_lock(&st->lock);
 	int was_live = !st->released;
 	if (was_live) {
+		mdb_drop_prepared(st);
 		if (st->con) {
 			duckdb_disconnect(&st->con);
 		}

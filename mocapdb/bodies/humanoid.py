@@ -608,8 +608,19 @@ MIN_UPRIGHT = 0.05
 _SAMPLE = 512
 
 
-def _length(j, a, b):
-    return np.linalg.norm(j[..., JOINT_INDEX[a], :] - j[..., JOINT_INDEX[b], :], axis=-1)
+#: the distances the human test measures (legs, arms, trunk, hip and shoulder width)
+_PAIRS = (("lhip", "lknee"), ("lknee", "lankle"), ("rhip", "rknee"), ("rknee", "rankle"),
+          ("lshoulder", "lelbow"), ("lelbow", "lwrist"), ("rshoulder", "relbow"), ("relbow", "rwrist"),
+          ("root", "neck"), ("lhip", "rhip"), ("lshoulder", "rshoulder"))
+_PAIR_A = np.array([JOINT_INDEX[a] for a, _ in _PAIRS])
+_PAIR_B = np.array([JOINT_INDEX[b] for _, b in _PAIRS])
+
+
+def _lengths(j) -> dict:
+    """``{(a, b): |j[..., a] − j[..., b]|}`` of every pair of :data:`_PAIRS`, taken in one gather (each
+    value as a norm of its own pair would give: the same differences, squares and sum of three)."""
+    dist = np.linalg.norm(j[..., _PAIR_A, :] - j[..., _PAIR_B, :], axis=-1)
+    return {pair: dist[..., k] for k, pair in enumerate(_PAIRS)}
 
 
 def upright_frames(joints: np.ndarray) -> np.ndarray:
@@ -624,10 +635,13 @@ def upright_frames(joints: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (n_frames,), bool
     """
-    j = joints
+    return _upright(joints, _lengths(joints))
+
+
+def _upright(j, ln) -> np.ndarray:
+    """:func:`upright_frames` of the joints ``j`` with their :func:`_lengths` ``ln``."""
     y = j[..., 1]
-    leg = 0.5 * (_length(j, "lhip", "lknee") + _length(j, "lknee", "lankle")
-                 + _length(j, "rhip", "rknee") + _length(j, "rknee", "rankle"))
+    leg = 0.5 * (ln["lhip", "lknee"] + ln["lknee", "lankle"] + ln["rhip", "rknee"] + ln["rknee", "rankle"])
     spine = j[:, JOINT_INDEX["neck"]] - j[:, JOINT_INDEX["root"]]
     vertical = spine[:, 1] > np.cos(np.radians(45.0)) * np.linalg.norm(spine, axis=1)
     shoulders = 0.5 * (y[:, JOINT_INDEX["lshoulder"]] + y[:, JOINT_INDEX["rshoulder"]])
@@ -638,19 +652,27 @@ def upright_frames(joints: np.ndarray) -> np.ndarray:
     return vertical & head_up & (hands - feet > 0.25 * leg) & (feet < hips)
 
 
-def _proportions(j, leg) -> dict:
-    """Each measure of :data:`HUMAN_PROPORTIONS`, its median over the joints ``j`` (frames, 24, 3), per
-    median leg ``leg``."""
-    measures = {"arm": 0.5 * (_length(j, "lshoulder", "lelbow") + _length(j, "lelbow", "lwrist")
-                              + _length(j, "rshoulder", "relbow") + _length(j, "relbow", "rwrist")),
-                "trunk": _length(j, "root", "neck"), "hip width": _length(j, "lhip", "rhip"),
-                "shoulder width": _length(j, "lshoulder", "rshoulder")}
-    return {what: float(np.median(values)) / leg for what, values in measures.items()}
+def _medians(ln) -> dict:
+    """The median over the frames of each measure of :data:`HUMAN_PROPORTIONS`, from the lengths ``ln``
+    (:func:`_lengths`): one ``np.median`` over the four columns (each column's median as its own would
+    give)."""
+    measures = {"arm": 0.5 * (ln["lshoulder", "lelbow"] + ln["lelbow", "lwrist"]
+                              + ln["rshoulder", "relbow"] + ln["relbow", "rwrist"]),
+                "trunk": ln["root", "neck"], "hip width": ln["lhip", "rhip"],
+                "shoulder width": ln["lshoulder", "rshoulder"]}
+    med = np.median(np.stack(list(measures.values()), axis=-1), axis=0)
+    return {what: float(m) for what, m in zip(measures, med)}
 
 
-def _proportion_problems(j, leg) -> list:
-    """The measures ``(what, ratio, lo, hi)`` of the joints ``j`` outside :data:`HUMAN_PROPORTIONS`."""
-    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(j, leg).items()
+def _proportions(med, leg) -> dict:
+    """Each measure of :data:`HUMAN_PROPORTIONS` per the median leg ``leg``, from the medians ``med``
+    (:func:`_medians`)."""
+    return {what: med[what] / leg for what in HUMAN_PROPORTIONS}
+
+
+def _proportion_problems(med, leg) -> list:
+    """The measures ``(what, ratio, lo, hi)`` of the medians ``med`` outside :data:`HUMAN_PROPORTIONS`."""
+    return [(what, ratio, *HUMAN_PROPORTIONS[what]) for what, ratio in _proportions(med, leg).items()
             if not HUMAN_PROPORTIONS[what][0] <= ratio <= HUMAN_PROPORTIONS[what][1]]
 
 
@@ -684,8 +706,9 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
     leg = leg_length(j)   # the one median leg: the unit of a BVH take is decided on it too
     if not leg > 0:
         return "skeleton", "the legs have no length"
-    problems = _proportion_problems(j, leg)
-    stands = float(upright_frames(j).mean())
+    ln = _lengths(j)
+    problems = _proportion_problems(_medians(ln), leg)
+    stands = float(_upright(j, ln).mean())
     upright = None
     if stands < MIN_UPRIGHT and (rest is None or not upright_frames(rest[None])[0]):
         upright = (f"it stands upright (two legs to the floor, arms off it, head above the shoulders) "
@@ -693,9 +716,10 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
     if not problems and upright is None:
         return None
     rest_leg = leg_length(rest[None]) if rest is not None else 0.0
-    if rest_leg > 0 and not _proportion_problems(rest[None], rest_leg):
+    rest_med = _medians(_lengths(rest[None])) if rest_leg > 0 else None
+    if rest_leg > 0 and not _proportion_problems(rest_med, rest_leg):
         # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
-        at_rest = _proportions(rest[None], rest_leg)
+        at_rest = _proportions(rest_med, rest_leg)
         why = [upright] if upright else []
         why += [f"{what} {ratio:.2f} × the leg length over the take's frames, {at_rest[what]:.2f} in its rest pose "
                 f"(a human's: {lo}–{hi})" for what, ratio, lo, hi in problems]

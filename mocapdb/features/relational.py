@@ -262,7 +262,6 @@ def _smoothed_velocity_kernel(joints, q, p, windows, out):  # pragma: no cover
         inv_w = 1.0 / w
         v = np.empty(m)
         u = np.empty(m + 2 * half)
-        acc = np.empty(n)
         for c in range(3):
             # 1. forward difference of the trajectory, last value duplicated
             for t in range(n - 1):
@@ -275,15 +274,37 @@ def _smoothed_velocity_kernel(joints, q, p, windows, out):  # pragma: no cover
             # 2. files shorter than the window: extend at the end
             for t in range(n, m):
                 v[t] = v[_symmetric_index(t, n)]
-            # 3. pad ceil(w/2) on both sides, centred box average
-            for i in range(m + 2 * half):
+            # 3. pad ceil(w/2) on both sides, centred box average (the middle copied straight: an
+            #    integer division per sample for the padding's index was a third of the kernel)
+            for i in range(half):
                 u[i] = v[_symmetric_index(i - half, m)]
-            acc[:] = 0.0
-            for j in range(w):
-                for t in range(n):
-                    acc[t] = u[t + 1 + j] * inv_w + acc[t]
-            for t in range(n):
-                out[k, t, c] = acc[t]
+            for i in range(m):
+                u[half + i] = v[i]
+            for i in range(m + half, m + 2 * half):
+                u[i] = v[_symmetric_index(i - half, m)]
+            # four outputs at a time, each its own sum in the order above: independent chains (the
+            # sums of one output are sequential), no temporary array; 1.6x the speed of summing into an
+            # array a window offset at a time (eight at a time was slower)
+            t = 0
+            while t + 4 <= n:
+                a0 = a1 = a2 = a3 = 0.0
+                for j in range(w):
+                    b = t + 1 + j
+                    a0 = u[b] * inv_w + a0
+                    a1 = u[b + 1] * inv_w + a1
+                    a2 = u[b + 2] * inv_w + a2
+                    a3 = u[b + 3] * inv_w + a3
+                out[k, t, c] = a0
+                out[k, t + 1, c] = a1
+                out[k, t + 2, c] = a2
+                out[k, t + 3, c] = a3
+                t += 4
+            while t < n:
+                a0 = 0.0
+                for j in range(w):
+                    a0 = u[t + 1 + j] * inv_w + a0
+                out[k, t, c] = a0
+                t += 1
 
 
 @jit

@@ -286,13 +286,7 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     elif unit != skeleton.angle_unit:
         log.warning("%s: AMC angles in %s but the ASF says %s; using the AMC's unit",
                     path, unit, skeleton.angle_unit)
-    names, ndof, col_start, columns, dof_names = column_layout(skeleton)
-    lower = [n.lower() for n in names]
-    enc = [n.encode("latin-1") for n in lower]
-    name_len = np.array([len(n) for n in enc], dtype=np.int64)
-    name_start = np.zeros(len(enc), dtype=np.int64)
-    name_start[1:] = np.cumsum(name_len)[:-1]
-    name_buf = np.frombuffer(b"".join(enc), dtype=np.uint8)
+    names, ndof, col_start, columns, dof_names, ndof_of, name_buf, name_start, name_len = _kernel_layout(skeleton)
     buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
 
     if start >= len(data):
@@ -302,7 +296,6 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     # bones of frame 1 (the kernel enforces it) with their values, so it has
     # at least as many bytes as the shortest spelling of frame 1; +1 for a
     # truncated last frame. np.zeros is lazy: untouched slack costs nothing.
-    ndof_of = {n: int(k) for n, k in zip(lower, ndof)}
     n_rows = (len(data) - start) // _min_frame_bytes(data, start, ndof_of) + 1
     ncols = int(ndof.sum())
     cap = 1024
@@ -336,6 +329,26 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     out = out[:int(status[7])]
     return AmcMotion(values=out, columns=columns, dof_names=dof_names, fps=fps,
                      angle_unit=unit, first_frame=first, path=path, meta={"fps_source": fps_source})
+
+
+def _kernel_layout(skeleton: Skeleton) -> tuple:
+    """The skeleton's column layout (:func:`column_layout`), DOFs per lower-case name and its bone names as
+    the kernel reads them (lower case, back to back): built once per skeleton, not per take (a skeleton
+    is immutable; an archive's takes share a few)."""
+    cached = skeleton.__dict__.get("_amc_layout")
+    if cached is not None:
+        return cached
+    names, ndof, col_start, columns, dof_names = column_layout(skeleton)
+    lower = [n.lower() for n in names]
+    enc = [n.encode("latin-1") for n in lower]
+    name_len = np.array([len(n) for n in enc], dtype=np.int64)
+    name_start = np.zeros(len(enc), dtype=np.int64)
+    name_start[1:] = np.cumsum(name_len)[:-1]
+    name_buf = np.frombuffer(b"".join(enc), dtype=np.uint8)
+    ndof_of = {n: int(k) for n, k in zip(lower, ndof)}
+    out = (names, ndof, col_start, columns, dof_names, ndof_of, name_buf, name_start, name_len)
+    object.__setattr__(skeleton, "_amc_layout", out)  # a frozen dataclass: a private memo
+    return out
 
 
 def _min_frame_bytes(data: bytes, start: int, ndof_of: dict) -> int:

@@ -156,7 +156,11 @@ class BvhHierarchy:
         return out
 
     def tree(self) -> SkeletonTree:
-        """Joint origins then End Sites, with rest-pose positions (OFFSETs accumulated)."""
+        """Joint origins then End Sites, rest-pose positions (OFFSETs accumulated); once per hierarchy
+        (asked per take, shared by an archive's takes), arrays read-only."""
+        cached = self.__dict__.get("_tree")
+        if cached is not None:
+            return cached
         nj = len(self.joints)
         names = [j.name for j in self.joints]
         parent = [j.parent for j in self.joints]
@@ -167,9 +171,12 @@ class BvhHierarchy:
         end_rest = np.array([rest[k] + j.end_site for k, j in ends]).reshape(-1, 3)
         names += [f"{j.name}/end" for _, j in ends]
         parent += [k for k, _ in ends]
-        return SkeletonTree(tuple(names), np.array(parent, dtype=np.int64),
-                            np.concatenate([rest, end_rest]),
+        tree = SkeletonTree(tuple(names), np.array(parent, dtype=np.int64), np.concatenate([rest, end_rest]),
                             np.array([True] * nj + [False] * len(ends)))
+        for a in (tree.parent, tree.rest, tree.is_joint):
+            a.setflags(write=False)
+        object.__setattr__(self, "_tree", tree)  # a frozen dataclass: a private memo
+        return tree
 
 
 @dataclass(frozen=True)
@@ -215,7 +222,9 @@ class _MotionLines:
     def __init__(self, fh, path, size):
         self.fh, self.path = fh, str(path)
         path = self.path
-        head, self.eof = read_head(fh, path, _READ_BLOCK)
+        # a short take is read by its size (≥ 64 KiB): reading a whole block allocated 4 MiB per take
+        first = _READ_BLOCK if size is None else min(_READ_BLOCK, max(size + 1, 1 << 16))
+        head, self.eof = read_head(fh, path, first)
         if head.startswith(b"\xef\xbb\xbf"):
             head = head[3:]
             size = None if size is None else size - 3
@@ -255,7 +264,8 @@ class _MotionLines:
             values = np.empty((min(self.n_frames - row, self.max_rows(len(block))), n_cols))
             got = parse_rows_into(block, 0, values, self.path, n_rows=self.n_frames, what="channel values",
                                   first_frame=row + 1, allow_nonfinite=True, line_base=self.line_base)
-            self.line_base += block.count(b"\n")
+            if not eof:   # the lines before the next block, for its messages (a pass over the text: not after the last)
+                self.line_base += block.count(b"\n")
             row += got
             if got:
                 yield values[:got]

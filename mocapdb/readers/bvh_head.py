@@ -30,6 +30,8 @@ READ_BLOCK = 1 << 22
 #: "line" of megabytes (a file of NUL bytes) is no BVH, refused at once instead of read to its end
 MAX_HEADER_LINE = 1 << 14
 _WORD = re.compile(rb"[^\s\x00]{1,16}")
+#: what a UTF-8 byte-order mark is made of (stripped before the first word)
+_BOM_BYTES = re.compile(rb"[\xef\xbb\xbf]*")
 
 
 def read_head(fh, path, block=READ_BLOCK):
@@ -50,7 +52,8 @@ def read_head(fh, path, block=READ_BLOCK):
         head += chunk
         if not decided and (len(head) >= 1024 or not chunk):   # the first word, once there are bytes enough
             decided = True
-            first = _WORD.search(head.lstrip(b"\xef\xbb\xbf"))
+            # the first word after the byte-order mark's bytes, searched in place (lstrip copied the head)
+            first = _WORD.search(head, _BOM_BYTES.match(head).end())
             if first is not None and first.group().upper() != b"HIERARCHY":
                 raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
         if not chunk:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mocapdb._numba import jit
 from mocapdb.errors import ParseError
 from mocapdb.readers.gaps import MAX_GAP_S, frames_text, longest_part, max_gap_frames, runs
 
@@ -34,6 +35,8 @@ def lost_samples(values: np.ndarray, hier: BvhHierarchy) -> np.ndarray | None:
     _, _, _, _, kinds, _, _, _ = hier.arrays()
     size = float(np.ptp(hier.tree().rest, axis=0).max()) or 1.0
     limit = np.where(kinds == 1, MAX_ANGLE_DEG, MAX_POSITION_SIZES * size)
+    if values.shape[1] == limit.shape[0] and not _any_lost(values, limit):
+        return None   # the usual take: one pass, no temporaries
     bad = None
     with np.errstate(invalid="ignore"):
         for a in range(0, values.shape[0], _SCAN_BLOCK):
@@ -43,6 +46,16 @@ def lost_samples(values: np.ndarray, hier: BvhHierarchy) -> np.ndarray | None:
                     bad = np.zeros(values.shape, dtype=bool)
                 bad[a:a + _SCAN_BLOCK] = block
     return bad
+
+
+@jit
+def _any_lost(values, limit):  # pragma: no cover - numba
+    """Whether any ``values[f, c]`` is not within ``±limit[c]`` (NaN is not): :func:`lost_samples`'s test."""
+    for f in range(values.shape[0]):
+        for c in range(values.shape[1]):
+            if not abs(values[f, c]) <= limit[c]:
+                return True
+    return False
 
 
 def pose_frame(values, bad) -> int:

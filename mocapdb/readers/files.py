@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +32,8 @@ from mocapdb.bodies.kinematics import asf_forward_kinematics, joint_node_indices
 from mocapdb.bodies.motion import Motion, check_finite_motion
 from mocapdb.readers.textscan import longest_line
 from mocapdb.readers.options import ReaderOptions
-from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, motion_stem, motion_suffix, open_stream,
-                                     special_kind, split_archive)
+from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, max_decompressed, motion_stem,
+                                     motion_suffix, open_stream, special_kind, split_archive)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
            "load_skeleton", "SUPPORTED_EXTENSIONS"]
@@ -65,6 +66,9 @@ def check_start(path) -> None:
     ext = motion_suffix(path)
     if ext not in (".bvh", ".amc", ".asf"):
         return
+    key = _start_key(path)
+    if key is not None and key in _STARTS_PASSED:
+        return
     with open_stream(path) as fh:   # an OSError (unreadable, over the cap) is the caller's to word
         head = fh.read(START_BYTES)
     if ext == ".bvh":
@@ -73,6 +77,30 @@ def check_start(path) -> None:
         raise ParseError(path, None, f"a line longer than {MAX_HEADER_LINE:,} bytes within its first "
                          f"{START_BYTES:,} (an {ext[1:].upper()} file's lines are short: not an {ext[1:].upper()} "
                          "file?)")
+    if key is not None:
+        if len(_STARTS_PASSED) >= 4096:
+            _STARTS_PASSED.clear()
+        _STARTS_PASSED.add(key)
+
+
+#: files whose start passed :func:`check_start`, by path, size, mtime and the decompression cap: ingest
+#: checks a take before hashing it and again before reading it, in the same process when on threads
+_STARTS_PASSED = set()
+
+
+def _start_key(path):
+    """The key of a plain (or compressed) file for :data:`_STARTS_PASSED`, or None: a zip member, a file
+    that cannot be looked at, or one changed in the last two seconds (a change within the file system's
+    clock tick would leave its mtime as it was)."""
+    if split_archive(path)[1] is not None:
+        return None
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    if time.time_ns() - st.st_mtime_ns < _RACY_NS:
+        return None
+    return str(path), st.st_size, st.st_mtime_ns, max_decompressed()
 
 
 def skeleton_candidates(amc_path) -> list:
@@ -136,6 +164,51 @@ def _folder_asf(folder):
 _FOLDER_ASF = {}
 
 
+class _Names:
+    """The entry names of a folder, to rule out candidates without a ``stat`` each (an archive's AMC takes
+    asked ~10 each: a sixth of a short take's reading)."""
+
+    def __init__(self, names):
+        self.names = frozenset(names)
+        self.folded = frozenset(n.lower() for n in self.names)
+
+    def may_hold(self, name: str) -> bool:
+        """False only when no entry can be ``name``: on a case-insensitive file system a differently cased
+        entry answers too, so those (and any non-ASCII name, which such a system may also normalise) are
+        still probed."""
+        return name in self.names or not name.isascii() or name.lower() in self.folded
+
+
+#: folder -> ((size, mtime), its _Names); like _FOLDER_ASF
+_FOLDER_NAMES = {}
+#: a folder (or file) changed this recently is not cached: a change within the file system's clock tick
+#: after the look would leave its mtime as it was (git's "racy" files)
+_RACY_NS = 2_000_000_000
+
+
+def _entry_names(folder) -> _Names | None:
+    """The names in a plain folder (listed once while it does not change), or None: unreadable, inside a
+    zip archive, or changed in the last two seconds (then every candidate is probed)."""
+    try:
+        st = os.stat(folder)
+    except OSError:   # also a folder inside a zip archive: its members are probed
+        return None
+    key, version = str(folder), (st.st_size, st.st_mtime_ns)
+    hit = _FOLDER_NAMES.get(key)
+    if hit is not None and hit[0] == version:
+        return hit[1]
+    if time.time_ns() - st.st_mtime_ns < _RACY_NS:
+        return None
+    try:
+        names = _Names(os.listdir(folder))
+    except OSError:
+        return None
+    if len(_FOLDER_NAMES) >= 256:
+        _FOLDER_NAMES.clear()
+    _FOLDER_NAMES[key] = (version, names)
+    return names
+
+
 def find_skeleton(amc_path) -> Path | None:
     """The ASF skeleton of an AMC file by the dataset conventions, or None.
 
@@ -145,7 +218,10 @@ def find_skeleton(amc_path) -> Path | None:
     """
     named = _named_candidates(amc_path)
     for c in named:
+        names = _entry_names(c.parent)
         for cand in (c, c.with_suffix(".ASF"), *(c.with_name(c.name + z) for z in COMPRESSED)):
+            if names is not None and not names.may_hold(cand.name):
+                continue
             if is_file(cand):
                 return cand
     own = _folder_asf(Path(amc_path).parent)

@@ -134,13 +134,19 @@ def _is_zip(p: Path) -> bool:
     return p.suffix.lower() in ARCHIVES
 
 
+def _as_path(path) -> Path:
+    """``path`` as a Path, not parsed again when it is one (a per-file helper is asked ~20 times per take,
+    and ``Path(a_path)`` parses the whole path anew)."""
+    return path if isinstance(path, Path) else Path(path)
+
+
 def split_archive(path) -> tuple:
     """``(archive, member)`` when ``path`` runs through a zip archive (a regular file), else ``(path, None)``.
 
     ``/d/a.zip/x/y.amc`` → ``(Path("/d/a.zip"), "x/y.amc")``; ``/d/a.zip`` itself →
     ``(Path("/d/a.zip"), "")``.
     """
-    p = Path(path)
+    p = _as_path(path)
     text = str(path).lower()
     if not any(a in text for a in ARCHIVES):   # the common case, asked per file many times: no path walk
         return p, None
@@ -158,12 +164,12 @@ def split_archive(path) -> tuple:
 
 def plain_file(path) -> bool:
     """True when ``path`` is read as it is on disk (not compressed, not inside a zip archive)."""
-    return split_archive(path)[1] is None and Path(path).suffix.lower() not in COMPRESSED
+    return split_archive(path)[1] is None and _as_path(path).suffix.lower() not in COMPRESSED
 
 
 def motion_suffix(path) -> str:
     """The motion format's suffix, lower case: ``walk.BVH.gz`` → ``.bvh``."""
-    p = Path(path)
+    p = _as_path(path)
     suffix = p.suffix.lower()
     if suffix in COMPRESSED:
         suffix = Path(p.stem).suffix.lower()
@@ -175,10 +181,10 @@ def motion_stem(path) -> str:
 
     A stem of dots only (``...bvh`` → ``..``) is no name a motion can carry out and back in (a file
     name, ``import-features``): its dots become ``_``."""
-    p = Path(path)
+    p = _as_path(path)
     if p.suffix.lower() in COMPRESSED:
         p = Path(p.stem)
-    stem = Path(p.name).stem
+    stem = p.stem
     return stem if stem.strip(".") else "_" * max(len(stem), 1)
 
 
@@ -297,6 +303,15 @@ class _Stream(io.RawIOBase):
         return True
 
     def read(self, size=-1):
+        if (size is None or size < 0) and self.cap is None:
+            # nothing inflates here (a plain file, a stored zip member): one read, sized by the file
+            # (1 MiB pieces gathered in a BytesIO cost a short take's reading twice over)
+            try:
+                data = self.inner.read()
+            except _DECODE_ERRORS as exc:
+                raise OSError(f"corrupt compressed data ({exc})") from None
+            self.count += len(data)
+            return data
         if size is None or size < 0:
             # read all, a bounded piece at a time: one unbounded read of a bomb would inflate it whole
             out = io.BytesIO()
@@ -326,7 +341,7 @@ def open_stream(path):
     """A binary stream of the recording's bytes (decompressed); close it after use. Damaged
     compressed data, and decompressed bytes past :func:`max_decompressed`, raise OSError."""
     raw, inflated = _raw_stream(path)
-    module = COMPRESSED.get(Path(path).suffix.lower())
+    module = COMPRESSED.get(_as_path(path).suffix.lower())
     # zipfile stops a member at its declared size (checked above) and then checks its CRC; the count
     # guards the compressed file's own stream
     return _Stream(raw if module is None else module.open(raw),
@@ -336,7 +351,7 @@ def open_stream(path):
 def stream_size(path) -> int | None:
     """The recording's size in bytes when known without reading it (a plain file, a zip member), else None."""
     archive, member = split_archive(path)
-    if Path(path).suffix.lower() in COMPRESSED:
+    if _as_path(path).suffix.lower() in COMPRESSED:
         return None
     if member is None:
         return os.stat(path).st_size
@@ -368,7 +383,7 @@ def is_file(path) -> bool:
     """True for a regular file, or a member of a zip archive."""
     archive, member = split_archive(path)
     if member is None:
-        return Path(path).is_file()
+        return _as_path(path).is_file()
     if not member:
         return False
     try:

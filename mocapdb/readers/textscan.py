@@ -393,15 +393,32 @@ def truncation_hint(data: bytes, pos: int) -> str:
     return " (the last line is incomplete: the file may be truncated)"
 
 
+@jit
+def _line_ends_kernel(a):  # pragma: no cover - numba
+    """``(first line end, last line end, longest gap between two line ends)`` of the bytes ``a`` (LF or
+    CR; -1, -1, 0 when there is none): one pass, no temporaries (a take's header is checked per file)."""
+    first = -1
+    prev = -1
+    gap = 0
+    for i in range(a.shape[0]):
+        c = a[i]
+        if c == 10 or c == 13:
+            if first < 0:
+                first = i
+            elif i - prev > gap:
+                gap = i - prev
+            prev = i
+    return first, prev, gap
+
+
 def longest_line(chunk, carry: int = 0) -> tuple:
     """``(longest line, length of the unfinished last line)`` of the bytes ``chunk`` (LF or CR ends), its
     first line continuing one of ``carry`` bytes: linear in the chunk, whatever its lines (a "line" of
     megabytes of NUL bytes is found in one pass, not by a scanner waiting for its end)."""
     a = np.frombuffer(chunk, np.uint8)
-    ends = np.flatnonzero((a == 10) | (a == 13))
-    if ends.size == 0:
+    first, last_end, gap = _line_ends_kernel(a)
+    if first < 0:
         return carry + a.size, carry + a.size
-    last = int(a.size - ends[-1] - 1)
-    inner = int(np.diff(ends).max()) - 1 if ends.size > 1 else 0
-    return max(carry + int(ends[0]), inner, last), last
-
+    last = int(a.size - last_end - 1)
+    inner = int(gap) - 1 if last_end > first else 0
+    return max(carry + int(first), inner, last), last

@@ -54,26 +54,9 @@ def stats_page(db) -> str:
 
 
 def motion_page(con, motion_id, *, model, all_labels, n_frames) -> str:
-    """The viewer page of a stored motion with the server's panel under it.
-
-    Parameters
-    ----------
-    con : duckdb.DuckDBPyConnection
-    motion_id : int
-    model : str
-        The model that annotates the motion on the page.
-    all_labels : sequence of str
-        Every label the panel offers (the motion's own first).
-    n_frames : int
-        The motion's stored feature frames (its source must give as many).
-
-    Raises
-    ------
-    SchemaError
-        No such motion, or its source gives other frames than were stored.
-    ParseError, OSError
-        Its source file cannot be read again (moved, or never a file).
-    """
+    """The viewer page of a stored motion (:func:`mocapdb.api.pages.stored_motion_view`, whose arguments
+    ``motion_id``, ``model`` and ``n_frames`` are, and whose errors it raises) with the server's panel under it,
+    which offers ``all_labels`` (the motion's own first)."""
     view, joints = stored_motion_view(con, motion_id, model=model, n_frames=n_frames)
     found = sorted({str(x) for x in view.segments["label"]}, key=list(view.labels).index)
     data = {"motion_id": view.motion_id, "name": view.name, "n": view.n_frames, "fps": view.fps, "model": model,

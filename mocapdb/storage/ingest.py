@@ -8,21 +8,19 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
 import logging
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 
 from mocapdb.errors import MocapdbError, ParameterError
-from mocapdb.features import FEATURE_RATE, feature_frame_count, motion_features
-from mocapdb.readers import ReaderOptions, find_skeleton, motion_files, read_motion, skeleton_note
-from mocapdb.readers.files import check_start
-from mocapdb.readers.sources import motion_stem, motion_suffix, sha256, special_kind, stream_size
+from mocapdb.features import FEATURE_RATE, feature_frame_count
+from mocapdb.readers import ReaderOptions, motion_files
+from mocapdb.readers.sources import motion_stem, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
+from mocapdb.storage.ingest_read import _compute_slim, _prepare_or_error
 from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
@@ -69,117 +67,6 @@ class IngestReport:
         return out
 
 
-@dataclass
-class _Prepared:
-    path: Path
-    sha256: str
-    skeleton_path: Path | None
-    skeleton_sha256: str | None
-    motion: object = None
-    words: np.ndarray | None = None
-    error: str | None = None
-    options: ReaderOptions = field(default_factory=ReaderOptions)   # how it is read (the skeleton: skeleton_path)
-    reader_options: str | None = None  # JSON stored in motions.reader_options: its options, the reader's notes
-    replaces: int | None = None  # the stored motion of the same bytes this one replaces (replace=True,
-    #                              or its stored features are incomplete)
-    notes: list = field(default_factory=list)   # what the reader decided (stored under reader_options "notes")
-    log_reason: str | None = None   # the ingest_log reason of a stored file: the motion it replaces
-
-
-def _fingerprint(path: Path, asf) -> _Prepared:
-    """The file's and its skeleton's hashes: the key that makes re-ingest a no-op."""
-    kind = special_kind(path)
-    if kind is not None:   # opening a FIFO would block, a device never end
-        raise MocapdbError(f"{path}: {kind}, not a motion file")
-    skel = None
-    if motion_suffix(path) == ".amc":
-        skel = Path(asf) if asf is not None else find_skeleton(path)
-    try:
-        check_start(path)   # what its first bytes refuse is not hashed whole first (a gigabyte of NUL bytes)
-        digest = sha256(path)
-    except OSError as exc:
-        raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-    try:
-        skel_digest = sha256(skel) if skel is not None else None
-    except OSError as exc:
-        # the skeleton is what cannot be read: say so under its name
-        raise MocapdbError(f"{skel}: cannot read this skeleton of {path} ({exc.strerror or exc})") from None
-    return _Prepared(path, digest, skel, skel_digest)
-
-
-def prepare_file(path, options=None):
-    """Fingerprint one file as ingest does, before reading it.
-
-    Parameters
-    ----------
-    path : str or Path
-    options : ReaderOptions, optional
-        How files are read (:class:`mocapdb.readers.ReaderOptions`; its
-        ``asf``, else the AMC's skeleton by the dataset conventions). Its
-        decompression cap applies to the hashing: a compression bomb stops
-        here.
-
-    Returns
-    -------
-    record
-        ``path``, ``sha256``, ``skeleton_path`` and ``skeleton_sha256`` (the
-        ``motions`` key), ``options`` and ``reader_options`` (what the
-        motion stores); the input of :func:`compute_motion`.
-
-    Raises
-    ------
-    MocapdbError
-        If an AMC file's skeleton cannot be found, or the file cannot be read.
-    """
-    options = options or ReaderOptions()
-    with options.capped():
-        prep = _fingerprint(Path(path), options.asf)
-    prep.options = options
-    prep.reader_options = options.stored(prep.path)
-    return prep
-
-
-def compute_motion(prep):
-    """Read a prepared file and compute its 30 Hz feature words, as ingest does.
-
-    Sets ``prep.motion`` (:class:`mocapdb.bodies.Motion`) and ``prep.words``
-    ((n_frames,) uint64), or ``prep.error`` (the reader's message) when the
-    file cannot be read; returns ``prep``.
-    """
-    # any failure stays with its file: a reader raises only MocapdbError, but a
-    # bug must not stop the other files of an archive (READERS.md §4)
-    try:
-        prep.motion = read_motion(prep.path, prep.options.replace(asf=prep.skeleton_path))
-        prep.words = motion_features(prep.motion)
-        prep.notes = _notes(prep)
-        if prep.notes or prep.motion.meta.get("frames", (1, None))[0] != 1:
-            # kept with the motion; the re-read path (storage.motions.source_motion) gives only the
-            # reader's own options back to the reader (ReaderOptions.from_stored)
-            options = prep.options.for_file(prep.path)
-            options["notes"] = prep.notes
-            first, last = prep.motion.meta.get("frames", (1, prep.motion.n_frames))
-            options["source_frames"] = [int(first), int(last)]
-            prep.reader_options = json.dumps(options, sort_keys=True)
-    except MocapdbError as exc:
-        prep.error = str(exc)
-    except Exception as exc:  # noqa: BLE001 - reported per file, never raised
-        log.warning("internal error reading %s", prep.path, exc_info=True)
-        prep.error = f"{prep.path}: internal error while reading ({type(exc).__name__}: {exc}); please report it"
-    if prep.error is not None:
-        prep.motion = prep.words = None
-    return prep
-
-
-def _notes(prep) -> list:
-    """The reader's notes for a computed file, with the skeleton found by the folder rule."""
-    notes = list(prep.motion.meta.get("notes", ()))
-    if prep.skeleton_path is not None and motion_suffix(prep.path) == ".amc":
-        note = skeleton_note(prep.path, prep.skeleton_path)
-        if note and note not in notes:
-            notes.insert(0, note)
-    return notes
-
-
 def _sql(name):
     return statement("motions.sql", name)
 
@@ -190,7 +77,7 @@ def _stored_keys(con) -> dict:
 
 
 def motions_table(preps) -> pa.Table:
-    """The ``motions`` rows of computed files (:func:`compute_motion`), without
+    """The ``motions`` rows of computed files (:func:`~mocapdb.storage.ingest_read.compute_motion`), without
     ``motion_id`` and ``ingested_at``.
 
     Raises
@@ -503,35 +390,6 @@ def _size(path) -> int:
         return 0
 
 
-def _prepare_or_error(item):
-    """:func:`prepare_file` of ``(path, options)`` in a pool: the record, or the one-line reason it failed."""
-    path, options = item
-    try:
-        return prepare_file(path, options)
-    except MocapdbError as exc:
-        return str(exc)
-
-
-@dataclass(frozen=True)
-class _Computed:
-    """What storing a computed file needs of its :class:`~mocapdb.bodies.Motion`: a pool's worker sends
-    this back, never the joints."""
-    name: str | None
-    source_format: str
-    fps: float
-    n_frames: int
-    skeleton: str | None
-
-
-def _compute_slim(prep):
-    """:func:`compute_motion` with the motion reduced to :class:`_Computed`."""
-    compute_motion(prep)
-    m = prep.motion
-    if m is not None:
-        prep.motion = _Computed(m.name, m.source_format, float(m.fps), int(m.n_frames), m.skeleton)
-    return prep
-
-
 def _ticker(progress, total):
     """``tick(path)``: one more file of ``total`` done, told to ``progress``."""
     done = 0
@@ -571,4 +429,4 @@ def remove_motions(con, motion_ids) -> int:
 
 
 __all__ = ["ingest_files", "IngestReport", "store_motions", "store_words", "delete_motions", "remove_motions",
-           "insert_motions", "insert_features", "prepare_file", "compute_motion", "motions_table"]
+           "insert_motions", "insert_features", "motions_table"]
