@@ -308,8 +308,10 @@ static int fetch_words(void *p, const int64_t *doc, const int64_t *start, const 
 	const batch_words *b = p;
 	for (size_t k = 0; k < n; k++) {
 		size_t len = (size_t)(stop[k] - start[k]);
-		memcpy(out, b->words + b->off[doc[k]] + start[k], len * sizeof *out);
-		out += len;
+		if (len) {
+			memcpy(out, b->words + b->off[doc[k]] + start[k], len * sizeof *out);
+			out += len;
+		}
 	}
 	return 0;
 }

@@ -39,7 +39,9 @@ static int by_cost_doc_start(const void *a, const void *b) {
 }
 
 void mdb_sim_hits_best(mdb_sim_hits *h, int64_t limit) {
-	qsort(h->at, h->n, sizeof *h->at, by_cost_doc_start);
+	if (h->n > 1) { /* qsort's base must not be NULL, even for no elements */
+		qsort(h->at, h->n, sizeof *h->at, by_cost_doc_start);
+	}
 	if ((int64_t)h->n > limit) {
 		h->n = (size_t)limit;
 	}
@@ -313,7 +315,9 @@ int mdb_sim_search_segments(const mdb_sim_ranker *r, mdb_sim_fetch fetch, void *
 			goto done;
 		}
 		int any = 0;
-		memset(taken, 0, N ? N : 0);
+		if (N) {
+			memset(taken, 0, N);
+		}
 		for (size_t k = 0; k < m; k++) {
 			if (doc[a + k] == ex_doc && start[a + k] <= ex_last && stop[a + k] > ex_first) {
 				int64_t lo = ex_first > start[a + k] ? ex_first : start[a + k];
