@@ -9,6 +9,7 @@ with the whole archive ranked and with the keyframe preselection (a small cell b
 from __future__ import annotations
 
 import math
+import os
 import random
 import shutil
 import subprocess
@@ -81,11 +82,7 @@ def python_lists(path, cases, monkeypatch, budget=None):
 
 def native_lists(path, ext, cases, budget=None):
     """The native function's lists, from a client that never imported mocapdb."""
-    env = None
-    if budget is not None:
-        import os
-
-        env = dict(os.environ, **{CELL_BUDGET_ENV: str(budget)})
+    env = None if budget is None else dict(os.environ, **{CELL_BUDGET_ENV: str(budget)})
     queries = [f"SELECT r.rank, r.motion_id, r.start_frame, r.end_frame, r.cost FROM "
                f"(SELECT unnest(similar_to({m}, {sql(a)}, {sql(b)}, {k})) AS r)" for m, a, b, k in cases]
     got = plain_client(path, ext, queries, env=env)
