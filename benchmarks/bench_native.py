@@ -6,7 +6,7 @@ Archives: real documents of ../shared (the HDM05 documents, CMU subjects 02 and 
 the paper's 74 minutes (133,019 frames, as bench_sql.py) and to 10 hours (1,080,000 frames), with
 the keyframe index built. Queries: the shipped default model's keyframe queries, inline (``keyframe_search_words`` with the
 stored masks, values and gap bounds), each run once per pass; and ``mt_distance`` of three classes
-(short, middle, long templates) on every motion.
+(short, middle, long templates) on every motion; ``similar_to`` of 1–4 s stretches (k = 10).
 Every side runs in a process of its own (Python duckdb; the native side never imports mocapdb)
 and reports the first pass (cold: the Python side parses nothing, but loads index batches),
 the best of the next passes, the least CPU time (all threads) of those passes (a ratio that holds on a
@@ -92,13 +92,21 @@ def side(name, db, ext, queries, passes):
     return json.loads(run.stdout)
 
 
+def similar_sql(ranges):
+    """similar_to of query stretches (motion, first, last), k = 10: the Python UDF behind the macro and
+    the native function, both returning the ranked list."""
+    return {"python": [f"SELECT mocap_similar('{m}', 'INTEGER', {a}, {b}, 10, (SELECT version FROM mocap_index.state))"
+                       for m, a, b in ranges],
+            "native": [f"SELECT similar_to({m}, {a}, {b}, 10)" for m, a, b in ranges]}
+
+
 def main():
     import mocapdb
     from mocapdb.api import create_index
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="74 minutes only, fewer passes")
-    ap.add_argument("--only", choices=("keyframe_search_words", "mt_distance", "annotate"),
+    ap.add_argument("--only", choices=("keyframe_search_words", "mt_distance", "annotate", "similar_to"),
                     help="one function only")
     args = ap.parse_args()
     machine_header("bench_native" + (" --quick" if args.quick else ""))
@@ -125,6 +133,10 @@ def main():
                          (f"mt_distance ×{len(delta)} classes", delta)]
             if n_frames == PAPER_FRAMES:
                 functions += [(f"annotate, keyframes {k}", annotate_sql(k)) for k in ("on", "off")]
+            # query stretches of 1, 2 and 4 s from the first motions (whose stretches recur in the repeats)
+            ranges = [(m, 31 + 90 * m, 31 + 90 * m + 30 * s - 1) for m in range(1, 5) for s in (1, 2, 4)
+                      if 31 + 90 * m + 30 * s - 1 <= lens[m - 1]]
+            functions.append((f"similar_to ×{len(ranges)}", similar_sql(ranges)))
             for what, qs in functions:
                 if args.only and not what.startswith(args.only):
                     continue

@@ -20,9 +20,10 @@ recognised by a token UDF, ``mocap_instance()``. The macros (``annotate``,
 
 **The native extension.** Where it is installed (:func:`mocapdb.extension.native.extension_path`)
 and not turned off (``MOCAPDB_NATIVE=0``), the first connection of an instance LOADs it through a
-hidden connection of its own, the *keeper*: ``annotate``, ``mt_distance``, ``keyframe_search`` and
-``keyframe_search_words`` are then the native functions (the macros of ``sql/native_macros.sql``
-keep the named arguments), and only ``similar_to`` is a Python UDF. The extension's own connection
+hidden connection of its own, the *keeper*: ``annotate``, ``mt_distance``, ``keyframe_search``,
+``keyframe_search_words`` and ``similar_to`` are then the native functions (the macros of
+``sql/native_macros.sql`` keep the named arguments and ``similar_to``'s rows), and no Python UDF is
+registered. The extension's own connection
 holds the instance; when the last user connection of it closes or is garbage-collected, the keeper
 calls ``mocapdb_release()`` and closes, so the file is really closed. An instance whose extension
 was released while something else kept it open (a plain ``duckdb.connect`` of the same file) gets

@@ -29,7 +29,7 @@ from mocapdb.storage.annotations import annotate_motions
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.motions import iter_documents, one_motion
 from mocapdb.storage.retrieval import query_stretch, search_archive
-from mocapdb.storage.sqltext import sql_text
+from mocapdb.storage.sqltext import sql_text, statement
 from mocapdb.templates import mt_distance
 
 #: limits of an inline keyframe query (keyframe_search_words): they bound the
@@ -315,33 +315,30 @@ def register(con, *, cache=None, native=False):
     cache : ConnectionCache, optional, keyword-only
         The cache the UDFs answer from (default: the connection's own).
     native : bool, keyword-only
-        The database loaded the native extension (:mod:`mocapdb.extension.connection`): only the
-        UDFs of the functions it lacks are registered (``similar_to``'s), and the macros call the
-        native functions. False: every function is a Python UDF (the fallback).
+        The database loaded the native extension (:mod:`mocapdb.extension.connection`): no UDF is
+        registered, and the macros call the native functions. False: every function is a Python
+        UDF (the fallback, and the reference the native functions are tested against).
 
     Returns
     -------
     tuple of callable
-        The UDFs registered. DuckDB registers them with the database instance,
+        The UDFs registered (none when native). DuckDB registers them with the database instance,
         for every connection of it, but lets go of the Python functions when
         ``con`` closes: whoever keeps the instance open keeps them alive
         (:mod:`mocapdb.extension.connection`).
     """
+    if native:
+        register_macros(con, native=True)
+        return ()
     udfs = make_udfs(connection_cache(con) if cache is None else cache)
-    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, similar_udf = udfs
-    if not native:
-        register_python_functions(con, udfs)
-    con.create_function("mocap_similar", similar_udf,
-                        [T.VARCHAR, T.VARCHAR, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT],
-                        duckdb.list_type(SIMILAR_TYPE),
-                        **_UDF_OPTIONS)
-    register_macros(con, native=native)
-    return (similar_udf,) if native else udfs
+    register_python_functions(con, udfs)
+    register_macros(con)
+    return udfs
 
 
 def register_python_functions(con, udfs) -> None:
-    """Register the Python UDFs of the functions the native extension has (``make_udfs``'s first four)."""
-    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, _ = udfs
+    """Register the Python UDFs of the functions the native extension has (all of ``make_udfs``'s)."""
+    annotate_udf, mt_distance_udf, keyframe_search_udf, keyframe_search_words_udf, similar_udf = udfs
     con.create_function("mocap_annotate", annotate_udf,
                         [T.INTEGER, T.VARCHAR, T.VARCHAR, T.DOUBLE, T.BOOLEAN, T.BIGINT],
                         duckdb.list_type(SEGMENT_TYPE), **_UDF_OPTIONS)
@@ -354,14 +351,22 @@ def register_python_functions(con, udfs) -> None:
                         [duckdb.list_type(T.UBIGINT), duckdb.list_type(T.UBIGINT), duckdb.list_type(T.BIGINT),
                          duckdb.list_type(T.BIGINT), T.BIGINT, T.BIGINT, T.BIGINT],
                         duckdb.list_type(HIT_TYPE), **_UDF_OPTIONS)
+    con.create_function("mocap_similar", similar_udf,
+                        [T.VARCHAR, T.VARCHAR, T.INTEGER, T.INTEGER, T.INTEGER, T.BIGINT],
+                        duckdb.list_type(SIMILAR_TYPE), **_UDF_OPTIONS)
 
 
 def register_macros(con, *, native=False) -> None:
     """Install the temporary macros (``annotate``, ``mt_distance``, …) on a connection whose
     database instance has the functions (macros are per connection, UDFs per instance): over the
     native functions (``native``) or the Python UDFs."""
-    con.execute(sql_text("native_macros.sql" if native else "macros.sql"))
-    con.execute(sql_text("similar_macros.sql"))
+    con.execute(statement("similar_rows.sql", "view"))
+    if native:
+        con.execute(sql_text("native_macros.sql"))
+    else:
+        con.execute(sql_text("macros.sql"))
+        con.execute(sql_text("similar_macros.sql"))
+    con.execute(statement("similar_rows.sql", "overloads"))
 
 
 __all__ = ["register", "register_macros", "register_python_functions", "make_udfs", "inline_query", "SEGMENT_TYPE", "HIT_TYPE", "SIMILAR_TYPE",

@@ -434,7 +434,7 @@ def another_process_writes(db):
 
 def test_mocapdb_connect_answers_with_the_native_functions(archive, native):
     """A mocapdb.connect connection (and its cursors) has the native functions: no Python UDF of
-    theirs is registered (similar_to's only), the macros keep the named arguments and give the
+    theirs is registered, the macros keep the named arguments and give the
     Python UDFs' answers (MOCAPDB_NATIVE=0: the fallback where the extension is missing)."""
     queries = ["SELECT motion_id, annotate(motion_id, model := 'toolbox', keyframes := false), "
                "annotate(motion_id, tau := 0.1) FROM motions ORDER BY motion_id",
@@ -446,7 +446,7 @@ def test_mocapdb_connect_answers_with_the_native_functions(archive, native):
         want = [con.execute(q).fetchall() for q in queries]
     with mocapdb.connect(archive, read_only=True) as con:
         cur = con.cursor()
-        assert python_functions(con) == 1  # mocap_similar
+        assert python_functions(con) == 0  # similar_to is native too (tests/test_native_similar.py)
         assert con.execute("SELECT count(*) FROM duckdb_functions() WHERE function_name = 'mocapdb_release'"
                            ).fetchall() == [(1,)]
         assert [con.execute(q).fetchall() for q in queries] == want
@@ -633,7 +633,7 @@ def test_a_machine_without_a_c_compiler_still_installs(tmp_path, monkeypatch):
 
 # Thousands of seeded random calls, valid and not: every one must end in rows or a DuckDB error.
 FUZZ_CLIENT = r"""
-import json, random, sys
+import json, os, random, sys
 import duckdb
 db, db2, ext, seed, n = json.load(sys.stdin)
 rng = random.Random(seed)
@@ -662,7 +662,7 @@ def a_list():
     items = [value() for _ in range(n)]
     cast = rng.choice(["", "::UBIGINT[]", "::BIGINT[]", "::INTEGER[]", "::VARCHAR[]"])
     return "[" + ", ".join(items) + "]" + cast
-n_rows = n_errors = 0
+n_rows = n_errors = n_similar = 0
 for i in range(n):
     k = rng.choice([1, 2, 3, 4, 32])
     if rng.random() < 0.5:  # a well-formed query with random words and bounds
@@ -700,6 +700,19 @@ for i in range(n):
                 break
         q = (f"SELECT count(*), sum(len(s)) FROM (SELECT annotate({', '.join(args)}) AS s "
              "FROM (SELECT motion_id FROM motions ORDER BY n_frames LIMIT 4))")
+    similar = rng.random() < 0.08
+    if similar:  # similar_to: motions by id, name and other types, ranges good and bad, k, cell budgets
+        motion = rng.choice(["1", "'86_09'", "motion_id", "name", "'5'", "5::UTINYINT"] * 2
+                            + ["NULL", "0", "-1", "2147483648", "18446744073709551615::UBIGINT", "''", "'nope'",
+                               "3.7", "true"])
+        first, last = rng.choice([("NULL", "NULL")] * 3 + [("1", "15"), ("1", "NULL"), ("NULL", "20"), ("30", "10"),
+                                                            ("0", "20"), ("-5", "NULL"), ("1", "2147483647"),
+                                                            ("5", "6")])
+        k = rng.choice(["1", "3", "10", "2147483647"] * 2 + ["NULL", "0", "-1"])
+        # the native function reads the budget at each call: small ones preselect with keyframes
+        os.environ["MOCAPDB_CELL_BUDGET"] = rng.choice(["", "1", "5000", "300000", "200000000", "x", "-3"])
+        q = (f"SELECT count(*), sum(len(s)) FROM (SELECT similar_to({motion}, {first}, {last}, {k}) AS s "
+             "FROM (SELECT motion_id, name FROM motions WHERE n_frames >= 15 ORDER BY n_frames LIMIT 3))")
     r = rng.random()
     if r < 0.01 and not released:
         assert cons[1].execute("SELECT mocapdb_release()").fetchall() == [(True,)]
@@ -712,11 +725,12 @@ for i in range(n):
     try:
         c.execute(q).fetchall()
         n_rows += 1
+        n_similar += similar
         assert not (released and c is cons[1]), "a call answered after mocapdb_release(): " + q
     except duckdb.Error as e:
         n_errors += 1
         n_released += released and c is cons[1] and "was released on this database" in str(e)
-print(json.dumps([n_rows, n_errors, n_released]))
+print(json.dumps([n_rows, n_errors, n_released, n_similar]))
 """
 
 
@@ -741,6 +755,7 @@ def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
                          capture_output=True, text=True, env=env, timeout=1200)
     assert run.returncode == 0, run.stderr[-4000:]
     assert len(run.stdout.splitlines()) == 1, run.stdout[:3000]
-    n_rows, n_errors, n_released = json.loads(run.stdout)
+    n_rows, n_errors, n_released, n_similar = json.loads(run.stdout)
     assert n_rows + n_errors == 3000 and n_rows > 500 and n_errors > 500  # both paths were exercised
+    assert n_similar > 25  # similar_to answered, not only refused
     assert n_released > 50  # calls after mocapdb_release() were made, and refused

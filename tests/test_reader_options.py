@@ -17,7 +17,8 @@ from mocapdb.cli import main
 from mocapdb.distributed import MotionWorker, ray_annotate
 from mocapdb.errors import ParameterError
 from mocapdb.readers import READER_OPTIONS, ReaderOptions, read_motion
-from mocapdb.storage.ingest import compute_motion, ingest_files, prepare_file
+from mocapdb.storage.ingest import ingest_files
+from mocapdb.storage.ingest_read import compute_motion, prepare_file
 from mocapdb.storage.motions import source_motion
 
 from conftest import SAMPLE_86_ASF, SAMPLE_86_09, SAMPLE_BVH, SAMPLE_C3D

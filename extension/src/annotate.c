@@ -576,17 +576,7 @@ static duckdb_logical_type segment_type(void) {
 	const char *names[] = {"label", "start_frame", "end_frame", "cost", "start_s", "end_s", "confidence"};
 	duckdb_type ids[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_DOUBLE,
 	                     DUCKDB_TYPE_DOUBLE,  DUCKDB_TYPE_DOUBLE,  DUCKDB_TYPE_DOUBLE};
-	duckdb_logical_type members[7];
-	for (size_t i = 0; i < 7; i++) {
-		members[i] = duckdb_create_logical_type(ids[i]);
-	}
-	duckdb_logical_type s = duckdb_create_struct_type(members, names, 7);
-	for (size_t i = 0; i < 7; i++) {
-		duckdb_destroy_logical_type(&members[i]);
-	}
-	duckdb_logical_type list = duckdb_create_list_type(s);
-	duckdb_destroy_logical_type(&s);
-	return list;
+	return mdb_struct_list_type(names, ids, 7);
 }
 
 static duckdb_scalar_function annotate_function(mdb_state *st, int n_args) {

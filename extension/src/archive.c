@@ -1300,3 +1300,16 @@ done:
 	}
 	return rc;
 }
+
+int mdb_grow(void *pp, size_t elem, size_t cap) {
+	return grow(pp, elem, cap);
+}
+
+int mdb_query_rows(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                   const int32_t *ints, idx_t n_ints, const duckdb_type *want, idx_t n_cols, mdb_chunk_sink sink,
+                   void *ctx, mdb_error *err) {
+	pthread_mutex_lock(&st->lock);
+	int rc = query_rows(st, sql, table, texts, n_texts, ints, n_ints, want, n_cols, sink, ctx, err);
+	pthread_mutex_unlock(&st->lock);
+	return rc;
+}

@@ -135,6 +135,18 @@ void mdb_words_batch_free(mdb_words_batch *b);
 int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items,
                    size_t *i, int64_t max_frames, mdb_words_batch *b, mdb_error *err);
 
+/* Grow the array *pp to cap elements of elem bytes; 0, or -1 leaving it as it was. */
+int mdb_grow(void *pp, size_t elem, size_t cap);
+
+/* Where a query's rows go, a chunk of n at a time: 0 to go on, non-zero to stop (err set). */
+typedef int (*mdb_chunk_sink)(void *ctx, duckdb_data_chunk chunk, idx_t n, mdb_error *err);
+/* Run a query on the extension's connection under its lock, with text parameters, then integer
+ * ones ($1, $2, … in that order), and hand its rows to sink once its columns have the types want;
+ * 0, or -1 with err naming the table (a missing one with the command that creates it). */
+int mdb_query_rows(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                   const int32_t *ints, idx_t n_ints, const duckdb_type *want, idx_t n_cols, mdb_chunk_sink sink,
+                   void *ctx, mdb_error *err);
+
 /* A stored model as annotation needs it: classes in class_id order with their template, τ,
  * minimum length and keyframe query (K = 0: none, margins of annotation applied); labels in
  * label_id order (the Δarg tie order) with whether each is concurrent and its confidence map;

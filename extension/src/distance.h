@@ -15,6 +15,9 @@ typedef struct {
 	size_t K;
 	uint64_t *mask, *value;
 	double *table; /* K x MDB_N_COST: cost of column i at c mismatching features, 1/K folded in */
+	/* NULL, or K x 5 x 256 feature-weighted costs (similar_plan.c): column i's cost of a word is the
+	 * sum of its five bytes' entries, in byte order (weighted_cost_tables); table is then unused */
+	const double *btable;
 } mdb_template;
 
 /* Expand columns 0..n-1 and tabulate their costs; 0, -1 when out of memory, -2 when a weight

@@ -61,7 +61,14 @@ static inline __attribute__((always_inline)) void DP_CAT(dp_frames, DP_LANES)(co
 	int64_t *scol[3] = {sbuf + PAD, sbuf + stride + PAD, sbuf + 2 * stride + PAD};
 	for (size_t j = 0; j < n; j++) {
 		uint64_t w = words[j];
-		if (j == 0 || w != words[j - 1]) { /* a word often lasts a few frames: its costs are the same */
+		if ((j == 0 || w != words[j - 1]) && t->btable) { /* a word often lasts a few frames: its costs are the same */
+			const size_t b0 = w & 255, b1 = 256 + ((w >> 8) & 255), b2 = 512 + ((w >> 16) & 255),
+			             b3 = 768 + ((w >> 24) & 255), b4 = 1024 + ((w >> 32) & 255);
+			for (size_t i = 0; i < K; i++) {
+				const double *r = t->btable + i * 5 * 256;
+				c[i] = r[b0] + r[b1] + r[b2] + r[b3] + r[b4];
+			}
+		} else if (j == 0 || w != words[j - 1]) {
 			for (size_t i = 0; i < K; i++) {
 				c[i] = t->table[i * MDB_N_COST + (size_t)__builtin_popcountll((t->value[i] ^ w) & t->mask[i])];
 			}

@@ -27,6 +27,7 @@ DUCKDB_EXTENSION_ENTRYPOINT_CUSTOM(duckdb_extension_info info, struct duckdb_ext
 		error = "mocapdb: could not open a connection to the database";
 	} else if (mdb_register_keyframe_words(reg, st) || mdb_register_keyframe_search(reg, st) ||
 	           mdb_register_mt_distance(reg, st) || mdb_register_annotate(reg, st) ||
+	           mdb_register_similar(reg, st) ||
 	           mdb_register_release(reg, st)) {
 		error = "mocapdb: registering the SQL functions failed (are they loaded already?)";
 	}

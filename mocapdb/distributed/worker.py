@@ -1,8 +1,8 @@
 """What runs on the Ray workers: the actor that turns a batch of files into the rows
 of the archive.
 
-It calls the single-machine code — :func:`mocapdb.storage.ingest.prepare_file`,
-:func:`~mocapdb.storage.ingest.compute_motion` and
+It calls the single-machine code — :func:`mocapdb.storage.ingest_read.prepare_file`,
+:func:`~mocapdb.storage.ingest_read.compute_motion` and
 :func:`~mocapdb.storage.ingest.motions_table` for reading and features,
 :func:`mocapdb.storage.postings.postings_table` for the index,
 :func:`mocapdb.annotation.annotate` (with
@@ -23,7 +23,8 @@ from mocapdb.annotation import SEGMENT_DTYPE, Model, annotate, preselection_for,
 from mocapdb.distributed.layout import (DATASETS, ERRORS_SCHEMA, PARTITIONED, bucket_of, part_name, part_path,
                                         write_part)
 from mocapdb.errors import MocapdbError
-from mocapdb.storage.ingest import compute_motion, motions_table, prepare_file
+from mocapdb.storage.ingest import motions_table
+from mocapdb.storage.ingest_read import compute_motion, prepare_file
 from mocapdb.storage.postings import postings_table
 
 #: what :class:`MotionWorker` returns: one row per file of the batch
@@ -77,7 +78,7 @@ class MotionWorker:
     bucket_motions : int
         Motions per bucket of the partitioned datasets.
     options : ReaderOptions, optional
-        How files are read, as :func:`mocapdb.storage.ingest.prepare_file`
+        How files are read, as :func:`mocapdb.storage.ingest_read.prepare_file`
         (:class:`mocapdb.readers.ReaderOptions`; the driver's value, as ``ingest`` has it).
     threads : int
         Threads of the parallel kernels: the actor's CPUs (the actors already

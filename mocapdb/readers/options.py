@@ -5,7 +5,7 @@ functions, the viewer re-reading a stored motion — reads files with the same
 options. They are checked once, where they enter (:class:`ReaderOptions` validates
 itself on construction: a mapping file is read and checked, a rule set named,
 a size parsed), and the value travels as it is: through ``storage.ingest``
-(:func:`~mocapdb.storage.ingest.prepare_file`), Ray's workers
+(:func:`~mocapdb.storage.ingest_read.prepare_file`), Ray's workers
 (``distributed``) and :func:`~mocapdb.readers.files.read_motion`, so a file
 reads the same whichever command reads it.
 

@@ -31,6 +31,8 @@ R-precision's cut) costs more than 0.72 × chance.
 """
 from __future__ import annotations
 
+import logging
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,10 +65,29 @@ COARSE_COLUMNS = 24
 #: what Δ costs per frame besides its columns (cost, ring and output), in cells: a DP over
 #: a short template is bound by its frames
 FRAME_CELLS = 32
+#: the environment variable that sets :data:`CELL_BUDGET` (read at import; the native ``similar_to``,
+#: extension/src/similar.c, reads it at each call)
+CELL_BUDGET_ENV = "MOCAPDB_CELL_BUDGET"
+
+
+def _cell_budget(default=200_000_000) -> int:
+    """:data:`CELL_BUDGET`: ``MOCAPDB_CELL_BUDGET`` when it is a positive integer below 2**31, else
+    ``default`` (the native function's bound: its batch share stays an exact double product)."""
+    text = os.environ.get(CELL_BUDGET_ENV, "").strip()
+    if not text:
+        return default
+    if text.isascii() and text.isdigit() and 0 < int(text) < 1 << 31:
+        return int(text)
+    logging.getLogger("mocapdb").warning("%s=%r is not a positive integer below 2**31: the cell budget stays %d",
+                                         CELL_BUDGET_ENV, text, default)
+    return default
+
+
 #: Δ cells (:func:`rank_cells`) a query may rank: the preselection takes the most lenient keyframe
 #: level that stays below (about half a second on two cores; the speed and the quality it costs at
-#: 100 h: benchmarks/RESULTS.md)
-CELL_BUDGET = 200_000_000
+#: 100 h: benchmarks/RESULTS.md). A smaller budget (:data:`CELL_BUDGET_ENV`) preselects smaller
+#: archives too: faster queries on a slow machine, fewer matches where the keyframes miss.
+CELL_BUDGET = _cell_budget()
 
 #: a retrieval result: ``doc`` a document (or motion id), frames 0-based inclusive
 RESULT_DTYPE = np.dtype([("doc", np.int64), ("start", np.int64), ("end", np.int64), ("cost", np.float64)])
@@ -380,4 +401,4 @@ def search_documents(words, doc_lengths, query: RetrievalQuery, *, limit, index=
 
 __all__ = ["RetrievalQuery", "RESULT_DTYPE", "TAU_FACTOR", "MIN_QUERY_S", "SAMPLE_FRAMES", "sample_step", "archive_sample",
            "plan_query", "template_query", "preselect", "rank_slices", "search_segments", "search_documents",
-           "BATCH_FRAMES", "CELL_BUDGET", "COARSE_FACTOR", "COARSE_MIN_COLUMNS", "COARSE_COLUMNS", "FRAME_CELLS", "coarse_step", "rank_cells"]
+           "BATCH_FRAMES", "CELL_BUDGET", "CELL_BUDGET_ENV", "COARSE_FACTOR", "COARSE_MIN_COLUMNS", "COARSE_COLUMNS", "FRAME_CELLS", "coarse_step", "rank_cells"]

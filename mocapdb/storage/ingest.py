@@ -20,7 +20,7 @@ from mocapdb.features import FEATURE_RATE, feature_frame_count
 from mocapdb.readers import ReaderOptions, motion_files
 from mocapdb.readers.sources import motion_stem, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
-from mocapdb.storage.ingest_read import _compute_slim, _prepare_or_error, compute_motion, prepare_file
+from mocapdb.storage.ingest_read import _compute_slim, _prepare_or_error
 from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
@@ -77,7 +77,7 @@ def _stored_keys(con) -> dict:
 
 
 def motions_table(preps) -> pa.Table:
-    """The ``motions`` rows of computed files (:func:`compute_motion`), without
+    """The ``motions`` rows of computed files (:func:`~mocapdb.storage.ingest_read.compute_motion`), without
     ``motion_id`` and ``ingested_at``.
 
     Raises
@@ -429,4 +429,4 @@ def remove_motions(con, motion_ids) -> int:
 
 
 __all__ = ["ingest_files", "IngestReport", "store_motions", "store_words", "delete_motions", "remove_motions",
-           "insert_motions", "insert_features", "prepare_file", "compute_motion", "motions_table"]
+           "insert_motions", "insert_features", "motions_table"]
