@@ -131,8 +131,7 @@ def main():
             con.close()
             functions = [(f"keyframe_search_words ×{len(queries)}", queries),
                          (f"mt_distance ×{len(delta)} classes", delta)]
-            if n_frames == PAPER_FRAMES:
-                functions += [(f"annotate, keyframes {k}", annotate_sql(k)) for k in ("on", "off")]
+            functions += [(f"annotate, keyframes {k}", annotate_sql(k)) for k in ("on", "off")]
             # query stretches of 1, 2 and 4 s from the first motions (whose stretches recur in the repeats)
             ranges = [(m, 31 + 90 * m, 31 + 90 * m + 30 * s - 1) for m in range(1, 5) for s in (1, 2, 4)
                       if 31 + 90 * m + 30 * s - 1 <= lens[m - 1]]
