@@ -108,8 +108,10 @@ def main():
     ap.add_argument("--quick", action="store_true", help="74 minutes only, fewer passes")
     ap.add_argument("--only", choices=("keyframe_search_words", "mt_distance", "annotate", "similar_to"),
                     help="one function only")
+    ap.add_argument("--hours", type=float, nargs="+", help="archives of these many hours instead of 74 min and 10 h "
+                    "(e.g. --hours 100: memory flat in archive size)")
     args = ap.parse_args()
-    machine_header("bench_native" + (" --quick" if args.quick else ""))
+    machine_header("bench_native" + (" --quick" if args.quick else "") + (f" --hours {args.hours}" if args.hours else ""))
     ext = mocapdb.api.extension_path()
     passes = 3 if args.quick else 5
     with tempfile.TemporaryDirectory(prefix="bench_native_") as tmp:
@@ -123,7 +125,10 @@ def main():
         print(f"{len(queries)} keyframe queries (the default model's, inline); mt_distance of {len(delta)} classes")
         print("| archive | function | side | first pass s | best pass s | best pass CPU s | rows | peak RSS MB |")
         print("|---|---|---|---|---|---|---|---|")
-        for label, n_frames in (("74 min", PAPER_FRAMES), ("10 h", HOURS_10))[:1 if args.quick else 2]:
+        sizes = (("74 min", PAPER_FRAMES), ("10 h", HOURS_10))[:1 if args.quick else 2]
+        if args.hours:
+            sizes = [(f"{h:g} h", int(30 * 3600 * h)) for h in args.hours]
+        for label, n_frames in sizes:
             w, lens = repeat_documents(words, lengths, n_frames)
             path = Path(tmp) / f"{n_frames}.duckdb"
             con, _ = synthetic_db(path, w, lens)

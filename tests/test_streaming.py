@@ -12,6 +12,7 @@ import pytest
 
 import mocapdb
 from mocapdb import api
+from mocapdb.extension.connection import NATIVE_ENV
 from mocapdb.storage import cache as cache_module
 from mocapdb.storage import motions as motions_module
 from mocapdb.storage.cache import connection_cache
@@ -70,6 +71,8 @@ def _longest(con):
 
 
 def test_sql_functions_read_a_batch_of_motions_at_a_time(db, monkeypatch):
+    # the Python UDFs' batches (the native functions read batches of ≤ 10⁶ frames: bench_native.py crosses one)
+    monkeypatch.setenv(NATIVE_ENV, "0")
     with mocapdb.connect(db, read_only=True) as con:
         whole = {k: con.execute(q).fetchall() for k, q in QUERIES.items()}
         total = con.execute("SELECT sum(n_frames) FROM motions").fetchall()[0][0]
@@ -88,7 +91,8 @@ def test_sql_functions_read_a_batch_of_motions_at_a_time(db, monkeypatch):
 def test_a_pass_larger_than_the_index_cache_finds_its_first_batches_again(db, monkeypatch):
     """The cache keeps the first batches of a pass (it evicts the batch used last): the second
     pass over an archive larger than the cache reads only the batches that did not fit, and a
-    pass within the cache reads nothing."""
+    pass within the cache reads nothing (the Python UDFs' cache)."""
+    monkeypatch.setenv(NATIVE_ENV, "0")
     con = mocapdb.connect(db, read_only=True)
     try:
         cache = connection_cache(con)

@@ -30,6 +30,7 @@ DUCKDB_EXTENSION_EXTERN
 	"JOIN keyframe_queries q USING (model, class) WHERE k.model = $1 ORDER BY k.class, k.k"
 #define HAS_CLASS_SQL "SELECT count(*) FROM classes WHERE model = $1 AND class = $2"
 #define RANGE_SQL "SELECT motion_id, n_frames, fps FROM motions WHERE motion_id BETWEEN $1 AND $2 ORDER BY motion_id"
+#define NAME_SQL "SELECT name FROM motions WHERE motion_id = $1"
 /* no ORDER BY: each row has its slot (words_sink) */
 #define WORDS_SQL "SELECT motion_id, frame, bits FROM features WHERE motion_id BETWEEN $1 AND $2"
 /* 41 feature bits (40 + the heading feature): a template column may fix no other */
@@ -778,11 +779,20 @@ int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, c
 		}
 	}
 	if (c.bad) {
-		/* the words of mocapdb.storage.motions.incomplete_reason */
+		/* named as mocapdb.storage.motions.incomplete_reason names it: id and name (a user knows the name) */
+		char name[200] = "";
+		duckdb_result res;
+		mdb_error ignored;
+		pthread_mutex_lock(&st->lock);
+		if (!run_query(st, NAME_SQL, "motions", NULL, 0, &c.bad, 1, &res, &ignored)) {
+			first_text(&res, name, sizeof name);
+			duckdb_destroy_result(&res);
+		}
+		pthread_mutex_unlock(&st->lock);
 		snprintf(err->text, sizeof err->text,
-		         "motion %d has feature rows that are not its frames 1…n_frames: ingest or import it again to "
+		         "motion %d (%s) has feature rows that are not its frames 1…n_frames: ingest or import it again to "
 		         "repair it",
-		         c.bad);
+		         c.bad, name[0] ? name : "no name stored");
 		rc = -1;
 	}
 	free(c.count);

@@ -244,8 +244,8 @@ int mdb_sim_query_stretch(mdb_state *st, int64_t id, int has_first, int32_t firs
 	}
 	if ((int64_t)w->n < *last + 1) {
 		snprintf(err->text, sizeof err->text,
-		         "motion %" PRId64 " has feature rows that are not its frames 1…n_frames: ingest or import it again to "
-		         "repair it", id);
+		         "motion %" PRId64 " (%s) has feature rows that are not its frames 1…n_frames: ingest or import it "
+		         "again to repair it", id, m.name);
 		goto done;
 	}
 	rc = 0;
