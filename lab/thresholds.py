@@ -340,7 +340,9 @@ def _class_tau(k, c, m, owner, own_label, own_best, grid, beta, max_false_rate) 
         return float(grid[int(np.flatnonzero(f == f.max())[-1])])  # ties: the larger τ
     # no held-out clips of its own (designed, reversed, one group): its own τ at most, few false claims
     allowed = grid[(fp <= max_false_rate * max(1, neg.sum())) & (grid <= c.tau + 1e-12)]
-    return float(allowed.max()) if allowed.size else float(grid.min())
+    # none allowed: the grid's smallest, never above the definition's own τ (a design below the grid, whose
+    # exact match is what tells it from its neighbours, keeps it)
+    return float(allowed.max()) if allowed.size else min(float(grid.min()), float(c.tau))
 
 
 def with_taus(model: Model, taus) -> Model:
