@@ -57,19 +57,42 @@ class TrainedModel:
     query_source: dict
 
 
-def half_median_template(model: Model) -> Model:
-    """``min_frames`` of every class: half the median template length of its label.
+def half_median_template(model: Model, designed=()) -> Model:
+    """``min_frames`` of every class: half the median *learned* template length of its label.
 
     A full match of a template of K columns covers at least K/2 frames (the
     DTW steps shrink it at most twice); a run of the label shorter than half
-    its typical (median) template is a leftover between other labels. A
-    class that already has a longer minimum (a class definition's shortest
-    duration) keeps it.
+    its typical (median) template is a leftover between other labels.
+    Typical means measured: only learned (and mirrored, reversed) templates
+    count, whose length is the mean duration of their training clips. A
+    designed class's template length is a choice of its author (phases long
+    enough to tell it from its neighbours), not a duration seen: counted, two
+    new side-step designs moved ``move``'s minimum in every fold (RESULTS.md,
+    issue 32). A design counts by the shortest duration it states (its
+    ``min_frames``, the phases' shortest durations summed): the label's
+    minimum never falls below its designs' shortest, so a label whose learned
+    classes are short (``move`` without HDM05's sneaks and circle jogs: 14
+    frames) keeps the 24 its designs require, and a new design states a
+    duration at least that long or lowers it knowingly. A label of designed
+    classes only keeps half the median of their templates (they are all it
+    has). A class with a longer minimum of its own keeps it.
+
+    Parameters
+    ----------
+    model : Model
+    designed : collection of str, optional
+        Names of the designed classes (default none: every template is learned).
     """
-    lengths = {}
+    lengths, designs, floor = {}, {}, {}
     for c in model.classes:
-        lengths.setdefault(c.label, []).append(len(c.quantized.expand()))
-    need = {lab: int(math.ceil(float(np.median(v)) / 2)) for lab, v in lengths.items()}
+        k = len(c.quantized.expand())
+        if c.name in designed:
+            designs.setdefault(c.label, []).append(k)
+            floor[c.label] = min(floor.get(c.label, c.min_frames), c.min_frames)
+        else:
+            lengths.setdefault(c.label, []).append(k)
+    need = {lab: max(int(math.ceil(float(np.median(lengths.get(lab) or designs[lab])) / 2)), floor.get(lab, 0))
+            for lab in model.labels}
     return dataclasses.replace(model, classes=tuple(dataclasses.replace(c, min_frames=max(c.min_frames, need[c.label]))
                                                     for c in model.classes))
 
@@ -149,7 +172,7 @@ def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=1
         if progress is not None:
             progress("tau")
     if min_length:
-        model = half_median_template(model)
+        model = half_median_template(model, {d.name for d in recipe.definitions})
     model = dataclasses.replace(model, margin=float(margin))
     source = {}
     mirrored = {m: c for c, m in recipe.mirrors.items()}

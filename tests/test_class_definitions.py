@@ -478,3 +478,24 @@ def test_the_designed_hop_finds_hops_inside_locomotion_and_no_run(data_dir, path
     turn and a decelerating run (their flights run together over one-frame stances), a walk and a kick are not."""
     covered, n = _covered_by(data_dir, path, "hopInStride")
     assert (covered >= 15) if hops else covered == 0, (path, covered, n)
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("path, quick", [
+    ("accad_dev/Male1_C24_QuickSideStepLeft.bvh.gz", True),
+    ("accad_dev/Male1_C25_QuickSideStepRight.bvh.gz", True),
+    ("accad_dev/Male1_B17_Walk2Hop2Walk.bvh.gz", False),
+    ("accad_dev/Male1_C03_Run.bvh.gz", False),
+    ("accad_dev/Male1_B3_Walk.bvh.gz", False),
+    ("bandai2_dev/dataset-2_walk_masculine_002.bvh.gz", False),
+    ("hdm05_cut/kickLFront1Reps/HDM_dg_kickLFront1Reps_013_120.amc", False),
+    ("hdm05_cut/hopBothLegs1hops/HDM_bd_hopBothLegs1hops_001_120.amc", False),
+    ("cmu/02/02_02.amc", False),
+])
+def test_the_designed_quick_side_step_finds_quick_side_steps_and_no_hop(data_dir, path, quick):
+    """quickSideStepLeft / quickSideStepRight (move.toml), as shipped: ACCAD's quick side steps (one step in 0.6 s)
+    are move for more than a second of the body moving; a hop inside a walk (the same order of feet, both in the air
+    for 12 frames, one thigh in), a run, a walk, a studio walk (the nearest other clip, Δ 0.029), the kick nearest to
+    the slow side step and a two-footed hop are not."""
+    covered, n = _covered_by(data_dir, path, "quickSideStep")
+    assert (covered >= 36) if quick else covered == 0, (path, covered, n)
