@@ -191,6 +191,47 @@ def test_the_toolbox_model_ignores_the_filters(cut_clips, data_dir):
                                                               for x in short["label"]])).all()
 
 
+def test_designs_do_not_move_a_label_s_minimum_segment_length():
+    """half_median_template counts learned templates only: designed ones, however many and long, leave a
+    label's minimum where the learned ones put it; the shortest duration a design states is its floor; a label
+    of designs only takes half the median of theirs."""
+    from mocapdb.api import connect
+    from mocapdb.learning.class_definitions import compile_definition
+    from mocapdb.storage.model_store import load_model
+
+    with connect() as con:
+        shipped = load_model(con, "default")
+    own = {d.name: compile_definition(d).min_frames for d in default_recipe().definitions}
+    fresh = dataclasses.replace(shipped, classes=tuple(dataclasses.replace(c, min_frames=own.get(c.name, 0))
+                                                       for c in shipped.classes))
+    designed = set(own)
+
+    def minimum(model, designs, label):
+        return int(label_min_frames(half_median_template(model, designs))[model.labels.index(label)])
+
+    learned = [len(c.quantized.expand()) for c in fresh.classes if c.label == "move" and c.name not in designed]
+    half = int(np.ceil(np.median(learned) / 2))
+    assert minimum(fresh, designed, "move") == max(half, min(own[c.name] for c in fresh.classes
+                                                              if c.label == "move" and c.name in designed))
+    # ten more long designs (the gait's 54 columns, stating 40 frames): the minimum does not move; counted as
+    # learned, they would lift it
+    gait = fresh.classes[fresh.class_names.index("gaitRightLeft")]
+    extra = tuple(dataclasses.replace(gait, name=f"longGait{i}", min_frames=40) for i in range(10))
+    more = dataclasses.replace(fresh, classes=fresh.classes + extra)
+    assert minimum(more, designed | {c.name for c in extra}, "move") == minimum(fresh, designed, "move")
+    assert minimum(more, designed, "move") > minimum(fresh, designed, "move")
+    # a lab left out with its long learned templates (HDM05's sneaks and circle jogs): the designs' floor holds
+    fewer = dataclasses.replace(fresh, classes=tuple(c for c in fresh.classes if not c.name.startswith(("sneak", "jog"))))
+    assert minimum(fewer, designed, "move") == min(own[c.name] for c in fresh.classes
+                                                   if c.label == "move" and c.name in designed) > \
+        int(np.ceil(np.median([k for k in learned if k < 59]) / 2))
+    # designs only: half their median template, never below their shortest stated duration
+    punch = [c for c in fresh.classes if c.label == "punch"]
+    assert minimum(fresh, designed, "punch") == max(int(np.ceil(np.median([len(c.quantized.expand())
+                                                                           for c in punch]) / 2)),
+                                                     min(c.min_frames for c in punch))
+
+
 @pytest.mark.slow
 @pytest.mark.shared
 def test_taus_per_class(cut_clips):
