@@ -484,10 +484,12 @@ def identity(path) -> tuple:
     """A key that changes when the recording's bytes may have changed (for caches)."""
     archive, member = split_archive(path)
     st = os.stat(archive)
+    # the file itself by device and inode (what a symlink or a relative path leads to), not by a resolved
+    # path: resolving walks every component (a lstat each), asked per take for its skeleton
     if member is None:
-        return (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+        return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
     info = _member_info(archive, member)
-    return (str(archive.resolve()), member, st.st_size, st.st_mtime_ns, info.CRC)
+    return (st.st_dev, st.st_ino, member, st.st_size, st.st_mtime_ns, info.CRC)
 
 
 class FileCache:

@@ -189,9 +189,10 @@ def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: 
 #: computed files are stored in batches, one transaction per batch, once a batch
 #: holds this many files or source frames (a commit and a batch's inserts cost
 #: milliseconds whatever its size, and the parent that stores shares the cores
-#: with the workers: fewer, larger batches; 10⁶ frames keep a batch's words at 2 MB)
-BATCH_FILES = 256
-BATCH_FRAMES = 1_000_000
+#: with the workers: fewer, larger batches — 1,024 files spend ~0.2 CPU-s less per 2,470 than 256 did;
+#: 4·10⁶ source frames keep a batch's words at 8 MB)
+BATCH_FILES = 1024
+BATCH_FRAMES = 4_000_000
 
 
 def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, replace: bool = False,

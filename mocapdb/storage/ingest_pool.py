@@ -40,7 +40,7 @@ PROCESS_MIN_BYTES = 512 << 20
 #: the folder holding the mocapdb package that runs here
 _PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 #: tasks in flight per worker: enough to keep a worker busy while the parent stores
-_WINDOW_PER_WORKER = 3
+_WINDOW_PER_WORKER = 4
 #: files per task sent to a worker process
 _CHUNK = 16
 

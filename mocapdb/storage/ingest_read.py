@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from mocapdb.errors import MocapdbError
 from mocapdb.features import motion_features
 from mocapdb.readers import ReaderOptions, find_skeleton, read_motion, skeleton_note
 from mocapdb.readers.files import check_start
-from mocapdb.readers.sources import holding, motion_suffix, read_held, sha256, special_kind
+from mocapdb.readers.sources import FileCache, holding, motion_suffix, read_held, sha256, special_kind
 
 log = logging.getLogger("mocapdb")
 
@@ -40,6 +41,18 @@ class _Prepared:
     deferred: bool = False   # fingerprinted only, not read (its bytes may be stored already: _read_new)
 
 
+#: skeletons' SHA-256 by file identity (path, size, mtime; a member's CRC), like the skeletons themselves
+_SKELETON_SHA256 = FileCache(64)
+
+
+def _skeleton_sha256(skel) -> str:
+    """The skeleton's SHA-256, from :data:`_SKELETON_SHA256` when its file has not changed."""
+    try:
+        return _SKELETON_SHA256.get(skel, sha256)
+    except (KeyError, zipfile.BadZipFile):   # a member that is not there, a damaged archive: as sha256 words it
+        return sha256(skel)
+
+
 def _fingerprint(path: Path, asf) -> _Prepared:
     """The file's and its skeleton's hashes: the key that makes re-ingest a no-op."""
     kind = special_kind(path)
@@ -54,7 +67,8 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     except OSError as exc:
         raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
     try:
-        skel_digest = sha256(skel) if skel is not None else None
+        # an actor's skeleton is hashed once per ingest (per worker), not once per take
+        skel_digest = _skeleton_sha256(skel) if skel is not None else None
     except OSError as exc:
         # the skeleton is what cannot be read: say so under its name
         raise MocapdbError(f"{skel}: cannot read this skeleton of {path} ({exc.strerror or exc})") from None
