@@ -292,7 +292,12 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
         with executor(workers, processes, setup) as pool:
             window, chunk = window_for(workers), chunk_for(processes)
             results = ordered(pool, _read_new, [(f, options, token) for f in files], window=window, chunk=chunk)
-            for path, prep in zip(files, results):
+            # once every file left is in flight, the batch is stored while the pool reads them: what is stored
+            # after the pool's last file (the cores' idle end) is at most the files in flight
+            tail = len(files) - window * chunk
+            for i, (path, prep) in enumerate(zip(files, results)):
+                if i == tail:
+                    batches.flush()
                 if isinstance(prep, (str, WorkerDied)):   # a compression bomb stops here, while it is hashed
                     report.failed.append((str(path), prep if isinstance(prep, str) else f"{path}: {prep}"))
                     tick(path)

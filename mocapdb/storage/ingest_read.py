@@ -182,6 +182,7 @@ def remember_stored(task):
 
 
 def forget_stored(token):
+    """Drop what :func:`remember_stored` kept under ``token`` (the ingest is over)."""
     _STORED.pop(token, None)
 
 
