@@ -196,3 +196,21 @@ def test_stored_bytes_read_with_another_skeleton_are_read_again(tmp_path, open_d
     got = con.execute(words, [second.ingested[0][1]]).fetchone()[0]
     assert got == fresh.execute("SELECT list(bits ORDER BY frame) FROM features").fetchone()[0]
     assert got != con.execute(words, [first.ingested[0][1]]).fetchone()[0]
+
+
+@pytest.mark.shared
+def test_a_copy_of_a_take_in_the_same_ingest_is_only_hashed(tmp_path, monkeypatch, open_db):
+    """The pool remembers what it read in this ingest: a later copy of the same bytes is hashed, not read
+    (one worker here, so the order is the files'), and skipped as a copy."""
+    import mocapdb.storage.ingest_read as ingest_read
+    from mocapdb.storage.ingest import ingest_files
+
+    root = tmp_path / "takes"
+    shutil.copytree(DATA / "cmu" / "86", root / "a")
+    shutil.copyfile(root / "a" / "86_09.amc", root / "a" / "86_99.amc")
+    read, read_motion = [], ingest_read.read_motion
+    monkeypatch.setattr(ingest_read, "read_motion", lambda p, o: read.append(p.name) or read_motion(p, o))
+    report = ingest_files(open_db(), [root], workers=1)
+    assert "86_09.amc" in read and "86_99.amc" not in read and len(read) == len(set(read))
+    assert [(os.path.basename(p), r) for p, r in report.skipped] == [
+        ("86_99.amc", f"same bytes as {root / 'a' / '86_09.amc'} of this ingest")]

@@ -164,7 +164,7 @@ def _read_new(item):
             prep = prepare_file(path, options)
         except MocapdbError as exc:
             return str(exc)
-        if _maybe_stored(token, prep.sha256):
+        if _maybe_stored(token, prep.sha256) or _seen(token, (prep.sha256, prep.skeleton_sha256)):
             prep.deferred = True
             return prep
         return _compute_slim(prep)
@@ -172,6 +172,11 @@ def _read_new(item):
 
 #: the stored files' SHA-256 prefixes (sorted uint64) of the ingests running here, by token
 _STORED = {}
+#: the keys (file and skeleton SHA-256) this process has read in each ingest, by token: a later copy of the
+#: same bytes is only fingerprinted (ingest skips it, or reads it after the pass if it was the first in file
+#: order after all); at most :data:`_SEEN_MAX` per ingest (then it starts over: a copy is read and dropped)
+_SEEN = {}
+_SEEN_MAX = 1 << 16
 
 
 def remember_stored(task):
@@ -184,6 +189,18 @@ def remember_stored(task):
 def forget_stored(token):
     """Drop what :func:`remember_stored` kept under ``token`` (the ingest is over)."""
     _STORED.pop(token, None)
+    _SEEN.pop(token, None)
+
+
+def _seen(token, key) -> bool:
+    """Whether this process read a file of ``key`` in the ingest ``token`` already (and note that it has)."""
+    seen = _SEEN.setdefault(token, set())
+    if key in seen:
+        return True
+    if len(seen) >= _SEEN_MAX:
+        seen.clear()
+    seen.add(key)
+    return False
 
 
 def stored_prefixes(digests) -> np.ndarray:
