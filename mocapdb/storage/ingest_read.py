@@ -156,7 +156,7 @@ def _read_new(item):
     path, options, token = item
     path = Path(path)
     try:
-        data = read_held(path) if special_kind(path) is None else None
+        data = read_held(path)   # None for a FIFO or device (looked at before it is opened), as for a large file
     except OSError:
         data = None   # the fingerprint reads it again and words what fails
     with holding(path, data):
