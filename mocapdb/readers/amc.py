@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mocapdb._numba import jit
+from mocapdb._numba import address, jit
 from mocapdb.readers.textscan import (_CLASS, _is_space, _scan_number, fix_slow_numbers, line_of,
                         number_error, token_at, truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
@@ -72,6 +72,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
     listed in ``fb_*`` (flat index into ``out``, byte range) for Python.
     """
     size = buf.shape[0]
+    base = address(buf)
     nb = name_start.shape[0]
     ncols = out.shape[1]
     nrows = out.shape[0]
@@ -202,7 +203,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
                 while i < size and _CLASS[buf[i]] == 0:
                     i += 1
             else:
-                v, st, i = _scan_number(buf, i, size)
+                v, st, i = _scan_number(base, i, size)
                 if st == 2:  # NUM_BAD
                     status[0] = 1  # _E_NUMBER
                     status[1] = s
