@@ -82,7 +82,7 @@ def _store_i64_intrinsic(typingctx, addr, value):
 
 
 def _store_i64_python(addr, value):  # pragma: no cover - only under NUMBA_DISABLE_JIT
-    ctypes.c_int64.from_address(addr).value = int(value)
+    ctypes.c_int64.from_address(int(addr)).value = int(value)
 
 
 def _address_python(buf):  # pragma: no cover - only under NUMBA_DISABLE_JIT
@@ -90,11 +90,11 @@ def _address_python(buf):  # pragma: no cover - only under NUMBA_DISABLE_JIT
 
 
 def _load_u64_python(addr):  # pragma: no cover - only under NUMBA_DISABLE_JIT
-    return int.from_bytes(ctypes.string_at(addr, 8), "little")
+    return int.from_bytes(ctypes.string_at(int(addr), 8), "little")
 
 
 def _load_u8_python(addr):  # pragma: no cover - only under NUMBA_DISABLE_JIT
-    return ctypes.string_at(addr, 1)[0]
+    return ctypes.string_at(int(addr), 1)[0]
 
 
 def _tz_python(x):  # pragma: no cover - only under NUMBA_DISABLE_JIT
