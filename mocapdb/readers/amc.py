@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb._numba import address, jit
-from mocapdb.readers.textscan import (_CLASS, _is_space, _scan_number, fix_slow_numbers, line_of,
+from mocapdb.readers.textscan import (_CLASS, _is_space, _scan_number, _token_end, fix_slow_numbers, line_of,
                         number_error, token_at, truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
 from mocapdb.readers.sources import read_bytes
@@ -148,8 +148,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
             status[1] = line_start
             break
         s = i
-        while i < size and _CLASS[buf[i]] == 0:
-            i += 1
+        i = _token_end(base, i, size)
         e = i
         bone = -1
         cand = nxt[last]

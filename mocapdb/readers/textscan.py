@@ -187,6 +187,26 @@ def _scan_number(base, i, end):  # pragma: no cover - numba
     return (-v if neg else v), NUM_OK, i
 
 
+_SPACE8 = _U(0x2020202020202020)
+_AT_MOST_0D = _U(0x7F7F7F7F7F7F7F7F - 0x0D0D0D0D0D0D0D0D)   # per byte 0x7F - 0x0D
+_AT_MOST_08 = _U(0x7F7F7F7F7F7F7F7F - 0x0808080808080808)
+
+
+@inline_jit
+def _token_end(base, i, end):  # pragma: no cover - numba
+    """The index of the first byte from ``i`` on that ends a token (a blank or LF, as :data:`_CLASS`
+    says: TAB, LF, VT, FF, CR, space), or ``end``: eight bytes a step, no branch per byte."""
+    while i < end:
+        w = _word_at(base, i, end)
+        stop = (_at_most(w ^ _SPACE8, _LOW7)
+                | (_at_most(w, _AT_MOST_0D) & ~_at_most(w, _AT_MOST_08)))
+        n = np.int64(trailing_zeros(stop) >> _U3)
+        if n < 8:
+            return min(i + n, end)
+        i += 8
+    return end
+
+
 @jit
 def _parse_number(buf, s, e):  # pragma: no cover - numba
     """Parse the whole of ``buf[s:e]``; returns ``(value, status)`` as :func:`_scan_number`."""
