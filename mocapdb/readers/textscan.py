@@ -342,6 +342,18 @@ def _nonfinite_token(buf, s, e):  # pragma: no cover - numba
 
 
 @jit
+def _note_slow(fb_index, fb_start, fb_end, nfb, flat, s, e):  # pragma: no cover - numba
+    """List the token ``s … e-1`` (flat index ``flat`` of the output) for ``float()`` (outside the exact
+    fast path); returns the new count. Past the lists' size it is only counted: the caller runs again
+    with room for them all."""
+    if nfb < fb_index.shape[0]:
+        fb_index[nfb] = flat
+        fb_start[nfb] = s
+        fb_end[nfb] = e
+    return nfb + 1
+
+
+@jit
 def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allow_nonfinite):  # pragma: no cover
     """Read lines of exactly ``out.shape[1]`` numbers from byte ``start`` into ``out``.
 
@@ -356,7 +368,6 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allo
     size = buf.shape[0]
     ncols = out.shape[1]
     nrows = out.shape[0]
-    fb_cap = fb_index.shape[0]
     pos = np.empty(ncols + 1, dtype=np.int64)   # token starts of a line (one more: a count too large)
     base = address(buf)
     pos_at = address(pos)
@@ -387,11 +398,7 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allo
                     ok = False
                     break
                 if st == 1:
-                    if nfb < fb_cap:
-                        fb_index[nfb] = row * ncols + k
-                        fb_start[nfb] = s
-                        fb_end[nfb] = j
-                    nfb += 1
+                    nfb = _note_slow(fb_index, fb_start, fb_end, nfb, row * ncols + k, s, j)
                 out[row, k] = v
             if ok:
                 row += 1
@@ -423,11 +430,7 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allo
                     failed = True
                     break
                 if st == 1:
-                    if nfb < fb_cap:
-                        fb_index[nfb] = row * ncols + count
-                        fb_start[nfb] = s
-                        fb_end[nfb] = i
-                    nfb += 1
+                    nfb = _note_slow(fb_index, fb_start, fb_end, nfb, row * ncols + count, s, i)
                 out[row, count] = v
             count += 1
         if failed:
