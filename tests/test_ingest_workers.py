@@ -151,3 +151,66 @@ def test_the_folder_listing_behind_the_skeleton_rule_sees_new_entries(tmp_path):
     assert find_skeleton(take) is None
     (tmp_path / "subject.asf").unlink()
     assert find_skeleton(take) == tmp_path / "other.asf"
+
+
+@pytest.mark.shared
+def test_a_take_is_read_once_and_a_stored_one_only_hashed(tmp_path, monkeypatch, open_db):
+    """Issue 35: ingest hashes a plain take and reads it from the same bytes (one read of the file);
+    a re-ingest hashes the takes and reads none of them."""
+    import mocapdb.readers.sources as sources
+    import mocapdb.storage.ingest_read as ingest_read
+
+    root = tmp_path / "takes"
+    shutil.copytree(DATA / "cmu" / "86", root / "cmu86")
+    shutil.copyfile(DATA / "foreign" / "bvh" / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh", root / "walk.bvh")
+    takes = sorted(str(p) for p in root.rglob("*") if p.suffix in (".amc", ".bvh"))
+    streamed, held, read = [], [], []
+    raw, read_held, read_motion = sources._raw_stream, sources.read_held, ingest_read.read_motion
+    monkeypatch.setattr(sources, "_raw_stream", lambda p: streamed.append(str(p)) or raw(p))
+    monkeypatch.setattr(ingest_read, "read_held", lambda p: held.append(str(p)) or read_held(p))
+    monkeypatch.setattr(ingest_read, "read_motion", lambda p, o: read.append(str(p)) or read_motion(p, o))
+    con = open_db()
+    report = mocapdb.ingest(con, [root])   # a few files: on threads, in this process
+    assert sorted(p for p, _, _ in report.ingested) == takes and not report.failed
+    assert sorted(held) == takes and sorted(read) == takes
+    assert not set(streamed) & set(takes)   # no take opened again: hash and reader had the one read's bytes
+    assert any(p.endswith(".asf") for p in streamed)   # the skeleton is read as before
+    held.clear(), read.clear()
+    again = mocapdb.ingest(con, [root])
+    assert not again.ingested and len(again.skipped) == len(takes)
+    assert sorted(held) == takes and read == []   # hashed, not read
+
+
+@pytest.mark.shared
+def test_stored_bytes_read_with_another_skeleton_are_read_again(tmp_path, open_db):
+    """A take whose bytes are stored, given another skeleton, is a new motion: its hash prefix is among the
+    stored ones, so the pool holds it back, and ingest reads it after the pass (the words of that skeleton)."""
+    take = DATA / "cmu" / "86" / "86_09.amc"
+    con = open_db(tmp_path / "a.duckdb")
+    first = mocapdb.ingest(con, [take])
+    second = mocapdb.ingest(con, [take], asf=DATA / "cmu" / "02" / "02.asf")
+    assert len(first.ingested) == len(second.ingested) == 1 and not second.skipped
+    fresh = open_db(tmp_path / "b.duckdb")
+    mocapdb.ingest(fresh, [take], asf=DATA / "cmu" / "02" / "02.asf")
+    words = "SELECT list(bits ORDER BY frame) FROM features WHERE motion_id = ?"
+    got = con.execute(words, [second.ingested[0][1]]).fetchone()[0]
+    assert got == fresh.execute("SELECT list(bits ORDER BY frame) FROM features").fetchone()[0]
+    assert got != con.execute(words, [first.ingested[0][1]]).fetchone()[0]
+
+
+@pytest.mark.shared
+def test_a_copy_of_a_take_in_the_same_ingest_is_only_hashed(tmp_path, monkeypatch, open_db):
+    """The pool remembers what it read in this ingest: a later copy of the same bytes is hashed, not read
+    (one worker here, so the order is the files'), and skipped as a copy."""
+    import mocapdb.storage.ingest_read as ingest_read
+    from mocapdb.storage.ingest import ingest_files
+
+    root = tmp_path / "takes"
+    shutil.copytree(DATA / "cmu" / "86", root / "a")
+    shutil.copyfile(root / "a" / "86_09.amc", root / "a" / "86_99.amc")
+    read, read_motion = [], ingest_read.read_motion
+    monkeypatch.setattr(ingest_read, "read_motion", lambda p, o: read.append(p.name) or read_motion(p, o))
+    report = ingest_files(open_db(), [root], workers=1)
+    assert "86_09.amc" in read and "86_99.amc" not in read and len(read) == len(set(read))
+    assert [(os.path.basename(p), r) for p, r in report.skipped] == [
+        ("86_99.amc", f"same bytes as {root / 'a' / '86_09.amc'} of this ingest")]

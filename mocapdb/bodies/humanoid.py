@@ -652,6 +652,12 @@ def _upright(j, ln) -> np.ndarray:
     return vertical & head_up & (hands - feet > 0.25 * leg) & (feet < hips)
 
 
+def _median_leg(ln) -> float:
+    """:func:`~mocapdb.bodies.units.leg_length` from the lengths ``ln`` (:func:`_lengths`: the same norms)."""
+    return float(np.median(np.concatenate([ln["lhip", "lknee"] + ln["lknee", "lankle"],
+                                           ln["rhip", "rknee"] + ln["rknee", "rankle"]])))
+
+
 def _medians(ln) -> dict:
     """The median over the frames of each measure of :data:`HUMAN_PROPORTIONS`, from the lengths ``ln``
     (:func:`_lengths`): one ``np.median`` over the four columns (each column's median as its own would
@@ -676,7 +682,7 @@ def _proportion_problems(med, leg) -> list:
             if not HUMAN_PROPORTIONS[what][0] <= ratio <= HUMAN_PROPORTIONS[what][1]]
 
 
-def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tuple | None:
+def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None, *, leg: float | None = None) -> tuple | None:
     """Why a mapped skeleton is not a human, or None when it is one.
 
     A human has plausible proportions (:data:`HUMAN_PROPORTIONS`, from the
@@ -694,6 +700,9 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
         The canonical joints of the take, Y up.
     rest : ndarray, shape (24, 3), optional
         The canonical joints in the skeleton's rest pose, Y up.
+    leg : float, optional, keyword-only
+        ``leg_length(joints)`` when the caller has it (the BVH reader decides the unit on it): used when
+        the test sees every frame (a take under 2 × 512 frames), else measured on the frames it samples.
 
     Returns
     -------
@@ -703,10 +712,11 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None) -> tupl
     """
     step = max(1, len(joints) // _SAMPLE)
     j = joints[::step]
-    leg = leg_length(j)   # the one median leg: the unit of a BVH take is decided on it too
+    ln = _lengths(j)
+    # the one median leg: the unit of a BVH take is decided on it too
+    leg = _median_leg(ln) if leg is None or step > 1 else leg
     if not leg > 0:
         return "skeleton", "the legs have no length"
-    ln = _lengths(j)
     problems = _proportion_problems(_medians(ln), leg)
     stands = float(_upright(j, ln).mean())
     upright = None

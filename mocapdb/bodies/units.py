@@ -53,9 +53,10 @@ def leg_length(joints) -> float:
     return float(np.median(np.concatenate(legs)))
 
 
-def bvh_unit(joints, bone_names=()) -> tuple:
-    """``(unit name, reason)`` for a BVH take's joints (in the file's unit) and its hierarchy's names."""
-    leg = leg_length(joints)
+def bvh_unit(joints, bone_names=(), *, leg=None) -> tuple:
+    """``(unit name, reason)`` for a BVH take's joints (in the file's unit) and its hierarchy's names
+    (``leg``: their :func:`leg_length`, when the caller measured it already)."""
+    leg = leg_length(joints) if leg is None else leg
     if not (math.isfinite(leg) and leg > 0.0):
         return "m", "m assumed (the legs have no length)"
     fits = [u for u, s in UNITS.items() if LEG_BAND[0] <= leg * s <= LEG_BAND[1]]

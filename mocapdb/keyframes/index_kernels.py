@@ -3,20 +3,9 @@
 No validation or allocation here: the callers in index.py and search.py pass
 checked, contiguous arrays and their output buffers.
 """
-import numba
 import numpy as np
-from numba.cpython.unsafe.numbers import trailing_zeros as _tz_intrinsic  # count-trailing-zeros
 
-from mocapdb._numba import jit
-
-
-def _tz_python(x):  # pragma: no cover - only under NUMBA_DISABLE_JIT
-    x = int(x)
-    return (x & -x).bit_length() - 1
-
-
-# an intrinsic cannot run as plain Python (the NUMBA_DISABLE_JIT job of CI)
-trailing_zeros = _tz_python if numba.config.DISABLE_JIT else _tz_intrinsic
+from mocapdb._numba import jit, trailing_zeros
 
 
 

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mocapdb._numba import jit
-from mocapdb.readers.textscan import (_CLASS, _is_space, _scan_number, fix_slow_numbers, line_of,
+from mocapdb._numba import address, jit
+from mocapdb.readers.textscan import (_CLASS, _is_space, _note_slow, _scan_number, _token_end, fix_slow_numbers, line_of,
                         number_error, token_at, truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
 from mocapdb.readers.sources import read_bytes
@@ -72,10 +72,10 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
     listed in ``fb_*`` (flat index into ``out``, byte range) for Python.
     """
     size = buf.shape[0]
+    base = address(buf)
     nb = name_start.shape[0]
     ncols = out.shape[1]
     nrows = out.shape[0]
-    fb_cap = fb_index.shape[0]
     # predicted next bone: after bone b comes nxt[b]; nxt[nb] = first bone of a frame
     nxt = np.full(nb + 1, -1, dtype=np.int64)
     last = nb
@@ -147,8 +147,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
             status[1] = line_start
             break
         s = i
-        while i < size and _CLASS[buf[i]] == 0:
-            i += 1
+        i = _token_end(base, i, size)
         e = i
         bone = -1
         cand = nxt[last]
@@ -202,7 +201,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
                 while i < size and _CLASS[buf[i]] == 0:
                     i += 1
             else:
-                v, st, i = _scan_number(buf, i, size)
+                v, st, i = _scan_number(base, i, size)
                 if st == 2:  # NUM_BAD
                     status[0] = 1  # _E_NUMBER
                     status[1] = s
@@ -210,13 +209,8 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
                     status[3] = bone
                     failed = True
                     break
-                flat = frame * ncols + col + count
                 if st == 1:  # NUM_SLOW
-                    if nfb < fb_cap:
-                        fb_index[nfb] = flat
-                        fb_start[nfb] = s
-                        fb_end[nfb] = i
-                    nfb += 1
+                    nfb = _note_slow(fb_index, fb_start, fb_end, nfb, frame * ncols + col + count, s, i)
                 out[frame, col + count] = v
             count += 1
         if failed:

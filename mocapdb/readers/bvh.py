@@ -65,7 +65,7 @@ from mocapdb.bodies.motion import Motion, check_finite_motion, snap_rate
 from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
                                      stream_size)
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
-from mocapdb.bodies.units import bvh_unit
+from mocapdb.bodies.units import bvh_unit, leg_length
 
 __all__ = ["BvhJoint", "BvhHierarchy", "BvhData", "read_bvh", "parse_bvh", "parse_bvh_stream", "bvh_node_positions",
            "bvh_to_motion", "bvh_joint_map", "joint_map_template", "fps_from_frame_time", "MAX_DEPTH"]
@@ -836,15 +836,15 @@ def _motion(joints, rot, jm, hier, frame_time, path, joint_map, skip_rest_frame,
         meta["rest_frame_skipped"] = True
         start += 1
     check_finite_motion(joints, path)
+    leg = leg_length(joints)   # measured once: the unit's, and the human test's when it sees every frame
     if kind == "humanoid":
         # the mapper finds legs, arms and a head; whether they make a human is the body's to say
         rest = jm.weights @ hier.tree().rest
-        problem = humanoid_problem(joints, rest @ up.T if up is not None else rest)
+        problem = humanoid_problem(joints, rest @ up.T if up is not None else rest, leg=leg)
         if problem:
             raise ParseError(path, None, "not a human {}: {}".format(*problem))
-    meta["frames"] = (start + 1, stop)
-    # BVH declares no unit: decided once here, so ingest_log's notes and every export say the same
-    meta["unit"], meta["unit_reason"] = bvh_unit(joints, [j.name for j in hier.joints])
+    meta["frames"] = (start + 1, stop)   # BVH declares no unit: decided once here (notes, every export agree)
+    meta["unit"], meta["unit_reason"] = bvh_unit(joints, [j.name for j in hier.joints], leg=leg)
     meta["notes"] = notes + [f"unit {meta['unit_reason']}"]
     return Motion(joints=np.ascontiguousarray(joints), root_rotation=rot if asf_axes else None,
                   fps=fps, name=name, skeleton=f"bvh:{kind}", source_format="bvh", meta=meta)

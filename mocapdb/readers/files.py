@@ -126,17 +126,22 @@ def skeleton_candidates(amc_path) -> list:
 
 def _named_candidates(amc_path) -> list:
     """Rules 1–3 of :func:`skeleton_candidates`: the name patterns."""
+    return [folder / name for folder, name in _named_places(amc_path)]
+
+
+def _named_places(amc_path) -> list:
+    """:func:`_named_candidates` as ``(folder, name)`` pairs (no path built per candidate)."""
     p = Path(amc_path)
     d = p.parent
     stem = motion_stem(p)
-    out = [d / f"{stem}.asf"]
+    out = [(d, f"{stem}.asf")]
     m = _CMU_TAKE.match(stem)
     if m:
-        out.append(d / f"{m.group(1)}.asf")
+        out.append((d, f"{m.group(1)}.asf"))
     m = _HDM_TAKE.match(stem)
     if m:
-        out.append(d / f"HDM_{m.group(1)}.asf")
-        out.append(d.parent / f"HDM_{m.group(1)}.asf")
+        out.append((d, f"HDM_{m.group(1)}.asf"))
+        out.append((d.parent, f"HDM_{m.group(1)}.asf"))
     return out
 
 
@@ -216,16 +221,18 @@ def find_skeleton(amc_path) -> Path | None:
     compressed skeletons (``.asf.gz``, ``.bz2``, ``.xz``) are accepted too.
     The folder is listed (rule 4) only when no name pattern matches.
     """
-    named = _named_candidates(amc_path)
-    for c in named:
-        names = _entry_names(c.parent)
-        for cand in (c, c.with_suffix(".ASF"), *(c.with_name(c.name + z) for z in COMPRESSED)):
-            if names is not None and not names.may_hold(cand.name):
+    places = _named_places(amc_path)
+    for folder, name in places:
+        names = _entry_names(folder)
+        # the spellings are ruled out by name against the folder's listing before a path is built
+        for spelling in (name, name[:-4] + ".ASF", *(name + z for z in COMPRESSED)):
+            if names is not None and not names.may_hold(spelling):
                 continue
+            cand = folder / spelling
             if is_file(cand):
                 return cand
     own = _folder_asf(Path(amc_path).parent)
-    return own if own is not None and own not in named else None
+    return own if own is not None and own not in [folder / name for folder, name in places] else None
 
 
 def skeleton_note(amc_path, asf_path) -> str | None:

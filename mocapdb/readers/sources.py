@@ -55,7 +55,7 @@ from mocapdb.errors import ParameterError
 __all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
            "sha256", "stream_size", "is_file", "list_dir", "identity", "FileCache", "bytes_file", "special_kind",
            "zip_members", "member_problem", "DEFAULT_MAX_DECOMPRESSED", "max_decompressed", "decompression_cap",
-           "parse_size", "format_size"]
+           "parse_size", "format_size", "HOLD_MAX", "read_held", "holding"]
 
 #: compression suffix → the module that opens it as a stream
 COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
@@ -337,9 +337,65 @@ class _Stream(io.RawIOBase):
         super().close()
 
 
+#: a plain file up to this size is read whole, once, when ingest hashes it (:func:`read_held`), and its
+#: reader is served from those bytes (:func:`holding`); a larger one is hashed and read as a stream
+HOLD_MAX = 64 << 20
+#: the bytes :func:`holding` serves in this thread, by path
+_HELD = threading.local()
+
+
+def read_held(path) -> bytes | None:
+    """The bytes of a plain regular file of at most :data:`HOLD_MAX` bytes, in one read; None for
+    anything else (compressed, a zip member, larger, not a regular file: those are streamed).
+
+    Raises
+    ------
+    OSError
+        The file cannot be read.
+    """
+    if not plain_file(path):
+        return None
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode) or st.st_size > HOLD_MAX:   # opening a FIFO would block
+        return None
+    with open(path, "rb", buffering=0) as fh:
+        data = fh.read(st.st_size + 1)   # sized by the file: a larger request allocates its size first
+    return data if len(data) <= st.st_size else None   # grown since: streamed
+
+
+@contextlib.contextmanager
+def holding(path, data):
+    """Within the block (this thread), :func:`open_stream`, :func:`read_bytes`, :func:`sha256` and
+    :func:`stream_size` of ``path`` give ``data`` (its bytes, read once: ingest hashes a take and reads it
+    from the same bytes) instead of reading the file; ``data`` None changes nothing."""
+    if data is None:
+        yield
+        return
+    held = _HELD.__dict__.setdefault("items", {})
+    key = str(path)
+    before = held.get(key)
+    held[key] = data
+    try:
+        yield
+    finally:
+        if before is None:
+            del held[key]
+        else:
+            held[key] = before
+
+
+def _held(path):
+    """What :func:`holding` serves for ``path`` in this thread, or None."""
+    held = getattr(_HELD, "items", None)
+    return held.get(str(path)) if held else None
+
+
 def open_stream(path):
     """A binary stream of the recording's bytes (decompressed); close it after use. Damaged
     compressed data, and decompressed bytes past :func:`max_decompressed`, raise OSError."""
+    data = _held(path)
+    if data is not None:
+        return _Stream(io.BytesIO(data))
     raw, inflated = _raw_stream(path)
     module = COMPRESSED.get(_as_path(path).suffix.lower())
     # zipfile stops a member at its declared size (checked above) and then checks its CRC; the count
@@ -350,6 +406,9 @@ def open_stream(path):
 
 def stream_size(path) -> int | None:
     """The recording's size in bytes when known without reading it (a plain file, a zip member), else None."""
+    data = _held(path)
+    if data is not None:
+        return len(data)
     archive, member = split_archive(path)
     if _as_path(path).suffix.lower() in COMPRESSED:
         return None
@@ -366,12 +425,18 @@ def read_bytes(path) -> bytes:
     OSError
         Missing or unreadable file, bad archive or compressed stream.
     """
+    data = _held(path)
+    if data is not None:
+        return data
     with open_stream(path) as fh:
         return fh.read()
 
 
 def sha256(path) -> str:
     """SHA-256 of the recording's bytes, read in 1 MiB chunks (memory does not grow with the file)."""
+    data = _held(path)
+    if data is not None:
+        return hashlib.sha256(data).hexdigest()
     h = hashlib.sha256()
     with open_stream(path) as fh:
         for chunk in iter(lambda: fh.read(_CHUNK), b""):
@@ -419,10 +484,12 @@ def identity(path) -> tuple:
     """A key that changes when the recording's bytes may have changed (for caches)."""
     archive, member = split_archive(path)
     st = os.stat(archive)
+    # the file itself by device and inode (what a symlink or a relative path leads to), not by a resolved
+    # path: resolving walks every component (a lstat each), asked per take for its skeleton
     if member is None:
-        return (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+        return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
     info = _member_info(archive, member)
-    return (str(archive.resolve()), member, st.st_size, st.st_mtime_ns, info.CRC)
+    return (st.st_dev, st.st_ino, member, st.st_size, st.st_mtime_ns, info.CRC)
 
 
 class FileCache:

@@ -10,6 +10,7 @@ import contextlib
 import hashlib
 import logging
 import os
+import uuid
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +21,7 @@ from mocapdb.features import FEATURE_RATE, feature_frame_count
 from mocapdb.readers import ReaderOptions, motion_files
 from mocapdb.readers.sources import motion_stem, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
-from mocapdb.storage.ingest_read import _compute_slim, _prepare_or_error
+from mocapdb.storage.ingest_read import _compute_slim, _read_new, forget_stored, remember_stored, stored_prefixes
 from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
@@ -188,9 +189,10 @@ def store_words(con, words_by_name: dict, *, fps: float = FEATURE_RATE, source: 
 #: computed files are stored in batches, one transaction per batch, once a batch
 #: holds this many files or source frames (a commit and a batch's inserts cost
 #: milliseconds whatever its size, and the parent that stores shares the cores
-#: with the workers: fewer, larger batches; 10⁶ frames keep a batch's words at 2 MB)
-BATCH_FILES = 256
-BATCH_FRAMES = 1_000_000
+#: with the workers: fewer, larger batches — 1,024 files spend ~0.2 CPU-s less per 2,470 than 256 did;
+#: 4·10⁶ source frames keep a batch's words at 8 MB)
+BATCH_FILES = 1024
+BATCH_FRAMES = 4_000_000
 
 
 def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, replace: bool = False,
@@ -276,30 +278,49 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
     walk_refused = len(report.failed)
     tick = _ticker(progress, len(files))
     stored = _stored_keys(con)
-    todo = []
-    already = []      # (path, prep, key) of files whose bytes are stored: decided after the loop
+    late = []         # files to read after the pass: stored ones read again, and any a stored prefix held back
+    already = []      # (path, prep, key) of files whose bytes are stored: decided after the pass
     first_of = {}     # key -> the first file of this ingest with those bytes
     duplicates = []   # (path, key): decided once the first file is read
     processes = use_processes(len(files), sum(_size(f) for f in files), workers)
-    with executor(workers, processes) as pool:
-        # hashing and the skeleton lookup run in the pool; the decisions below stay in file order
-        fingerprints = ordered(pool, _prepare_or_error, [(f, options) for f in files], window=window_for(workers),
-                               chunk=chunk_for(processes))
-        for path, prep in zip(files, fingerprints):
-            if isinstance(prep, (str, WorkerDied)):   # a compression bomb stops here, while it is hashed
-                report.failed.append((str(path), prep if isinstance(prep, str) else f"{path}: {prep}"))
-                tick(path)
-                continue
-            key = (prep.sha256, prep.skeleton_sha256)
-            if key in stored:
-                already.append((path, prep, key))
-            elif key in first_of:
-                duplicates.append((path, key))
-            else:
-                first_of[key] = str(path)
-                todo.append(prep)
-        _decide_stored(con, report, already, stored, first_of, duplicates, todo, replace, tick)
-        _compute_and_store(con, pool, report, log, todo, workers, chunk_for(processes), tick)
+    batches = _Batches(con, report, log, tick)
+    # one pass: each file is hashed, and read unless its bytes may be stored, in the pool, from one read;
+    # the decisions below stay in file order (a later copy of a file's bytes is read and dropped)
+    token = uuid.uuid4().hex
+    setup = (remember_stored, (token, stored_prefixes(k[0] for k in stored)))
+    try:
+        with executor(workers, processes, setup) as pool:
+            window, chunk = window_for(workers), chunk_for(processes)
+            results = ordered(pool, _read_new, [(f, options, token) for f in files], window=window, chunk=chunk)
+            # once every file left is in flight, the batch is stored while the pool reads them: what is stored
+            # after the pool's last file (the cores' idle end) is at most the files in flight
+            tail = len(files) - window * chunk
+            for i, (path, prep) in enumerate(zip(files, results)):
+                if i == tail:
+                    batches.flush()
+                if isinstance(prep, (str, WorkerDied)):   # a compression bomb stops here, while it is hashed
+                    report.failed.append((str(path), prep if isinstance(prep, str) else f"{path}: {prep}"))
+                    tick(path)
+                    continue
+                key = (prep.sha256, prep.skeleton_sha256)
+                if key in stored:
+                    already.append((path, prep, key))
+                elif key in first_of:
+                    duplicates.append((path, key))
+                else:
+                    first_of[key] = str(path)
+                    if prep.deferred:
+                        late.append(prep)
+                    else:
+                        batches.add(prep)
+            _decide_stored(con, report, already, stored, first_of, duplicates, late, replace, tick)
+            for sent, prep in zip(late, ordered(pool, _compute_slim, late, window=window, chunk=chunk)):
+                if isinstance(prep, WorkerDied):
+                    prep, sent.error = sent, f"{sent.path}: {prep}"
+                batches.add(prep)
+            batches.flush()
+    finally:
+        forget_stored(token)
     # a copy of a stored file is skipped; a copy of a broken one is as broken
     failed = dict(report.failed[walk_refused:])
     for path, key in duplicates:
@@ -335,51 +356,55 @@ def _decide_stored(con, report, already, stored, first_of, duplicates, todo, rep
             todo.append(prep)
 
 
+class _Batches:
+    """Computed files stored a batch (one transaction) at a time, in the order they are added."""
 
-def _compute_and_store(con, pool, report, log, todo, workers, chunk, tick):
-    """Compute the files to store in the pool, in order, and store them a batch (one transaction) at a time."""
-    batch = []
+    def __init__(self, con, report, log, tick):
+        self.con, self.report, self.log, self.tick = con, report, log, tick
+        self.batch = []
+        self.frames = 0
 
-    def flush():
+    def add(self, prep):
+        """One computed file: a failed one is reported, a read one stored with its batch."""
+        if prep.error is not None:
+            self.report.failed.append((str(prep.path), prep.error))
+            self.tick(prep.path)
+            return
+        self.batch.append(prep)
+        self.frames += prep.motion.n_frames
+        if len(self.batch) >= BATCH_FILES or self.frames >= BATCH_FRAMES:
+            self.flush()
+
+    def flush(self):
+        """Store the batch: one transaction; if it fails, one per file, so a failure stays with its file."""
+        batch, report, log = self.batch, self.report, self.log
+        if not batch:
+            return
         try:
-            ids = store_motions(con, batch, log=log)
+            ids = store_motions(self.con, batch, log=log)
         except Exception:  # noqa: BLE001 - retried file by file below
             ids = []
             for p in batch:  # one transaction each: a failure stays with its file
                 try:
-                    ids.extend(store_motions(con, [p], log=log))
+                    ids.extend(store_motions(self.con, [p], log=log))
                 except Exception as exc:  # noqa: BLE001 - reported per file
                     report.failed.append((str(p.path), f"{p.path}: not stored ({exc})"))
                     ids.append(None)
+        repaired = {r[0] for r in report.repaired}
         for p, mid in zip(batch, ids):
             if mid is not None:
                 report.ingested.append((str(p.path), mid, int(p.words.shape[0])))
-                if p.replaces is not None and str(p.path) not in {r[0] for r in report.repaired}:
+                if p.replaces is not None and str(p.path) not in repaired:
                     report.replaced.append((str(p.path), p.replaces))
                 report.source_frames += p.motion.n_frames
                 report.notes.extend((str(p.path), note) for note in p.notes)
-            tick(p.path)
+            self.tick(p.path)
             p.motion = p.words = None  # free memory early on big archives
-        batch.clear()
+        self.batch = []
+        self.frames = 0
         # the rows of the files that failed or were skipped so far, after the batch's commit
         log.add_report(report)
         log.flush()
-
-    frames = 0
-    for sent, prep in zip(todo, ordered(pool, _compute_slim, todo, window=window_for(workers), chunk=chunk)):
-        if isinstance(prep, WorkerDied):
-            prep, sent.error = sent, f"{sent.path}: {prep}"
-        if prep.error is not None:
-            report.failed.append((str(prep.path), prep.error))
-            tick(prep.path)
-            continue
-        batch.append(prep)
-        frames += prep.motion.n_frames
-        if len(batch) >= BATCH_FILES or frames >= BATCH_FRAMES:
-            flush()
-            frames = 0
-    if batch:
-        flush()
 
 
 def _size(path) -> int:

@@ -25,7 +25,7 @@ from pathlib import Path
 import pyarrow as pa
 
 from mocapdb.errors import ParameterError
-from mocapdb.readers.sources import split_archive
+from mocapdb.readers.sources import ARCHIVES, split_archive
 from mocapdb.storage.sqltext import statement
 from mocapdb.storage.transaction import registered, transaction
 
@@ -47,6 +47,8 @@ def location(path) -> tuple:
     (``/etc/passwd``, ``../x.bvh``: :func:`mocapdb.readers.sources.member_problem`) keeps it.
     """
     text = str(path)
+    if not any(a in text.lower() for a in ARCHIVES):   # the common case, per file of an archive: no path parsed
+        return os.path.abspath(text), None
     archive, member = split_archive(text)
     if member:
         i = text.lower().find(".zip/")

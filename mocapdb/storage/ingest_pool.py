@@ -40,7 +40,7 @@ PROCESS_MIN_BYTES = 512 << 20
 #: the folder holding the mocapdb package that runs here
 _PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 #: tasks in flight per worker: enough to keep a worker busy while the parent stores
-_WINDOW_PER_WORKER = 3
+_WINDOW_PER_WORKER = 4
 #: files per task sent to a worker process
 _CHUNK = 16
 
@@ -110,9 +110,11 @@ class _Worker:
 class _ProcessPool:
     """``submit(fn, arg)`` as a thread pool's, each thread handing its tasks to a worker process of its own.
 
-    The workers start at once: their imports overlap the parent's look at the database."""
+    The workers start at once: their imports overlap the parent's look at the database. ``setup``
+    ``(fn, arg)`` runs in each worker before its first task (also in one started after a worker died)."""
 
-    def __init__(self, workers: int):
+    def __init__(self, workers: int, setup=None):
+        self._setup = setup
         self._idle = deque(_Worker() for _ in range(workers))
         self._workers = list(self._idle)
         self._threads = ThreadPoolExecutor(max_workers=workers)
@@ -129,6 +131,10 @@ class _ProcessPool:
                 with self._lock:
                     self._workers.append(w)
             self._local.worker = w
+            if self._setup is not None:
+                done = w.call(*self._setup)
+                if isinstance(done, WorkerDied):
+                    return done
         return w.call(fn, arg)
 
     def submit(self, fn, arg):
@@ -141,14 +147,19 @@ class _ProcessPool:
 
 
 @contextmanager
-def executor(workers: int, processes: bool):
-    """A pool of ``workers`` worker processes, or of threads; ``submit(fn, arg)`` returns a future."""
+def executor(workers: int, processes: bool, setup=None):
+    """A pool of ``workers`` worker processes, or of threads; ``submit(fn, arg)`` returns a future.
+
+    ``setup`` ``(fn, arg)``: ``fn(arg)`` runs once in each worker process before its first task, or
+    once here for threads (what the tasks share, sent to a process once rather than with every task)."""
     workers = max(1, int(workers))
     if not processes:
+        if setup is not None:
+            setup[0](setup[1])
         with ThreadPoolExecutor(max_workers=workers) as pool:
             yield pool
         return
-    pool = _ProcessPool(workers)
+    pool = _ProcessPool(workers, setup)
     try:
         yield pool
     finally:

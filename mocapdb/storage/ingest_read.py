@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from mocapdb.errors import MocapdbError
 from mocapdb.features import motion_features
 from mocapdb.readers import ReaderOptions, find_skeleton, read_motion, skeleton_note
 from mocapdb.readers.files import check_start
-from mocapdb.readers.sources import motion_suffix, sha256, special_kind
+from mocapdb.readers.sources import FileCache, holding, motion_suffix, read_held, sha256, special_kind
 
 log = logging.getLogger("mocapdb")
 
@@ -37,6 +38,19 @@ class _Prepared:
     #                              or its stored features are incomplete)
     notes: list = field(default_factory=list)   # what the reader decided (stored under reader_options "notes")
     log_reason: str | None = None   # the ingest_log reason of a stored file: the motion it replaces
+    deferred: bool = False   # fingerprinted only, not read (its bytes may be stored already: _read_new)
+
+
+#: skeletons' SHA-256 by file identity (path, size, mtime; a member's CRC), like the skeletons themselves
+_SKELETON_SHA256 = FileCache(64)
+
+
+def _skeleton_sha256(skel) -> str:
+    """The skeleton's SHA-256, from :data:`_SKELETON_SHA256` when its file has not changed."""
+    try:
+        return _SKELETON_SHA256.get(skel, sha256)
+    except (KeyError, zipfile.BadZipFile):   # a member that is not there, a damaged archive: as sha256 words it
+        return sha256(skel)
 
 
 def _fingerprint(path: Path, asf) -> _Prepared:
@@ -53,7 +67,8 @@ def _fingerprint(path: Path, asf) -> _Prepared:
     except OSError as exc:
         raise MocapdbError(f"{path}: cannot read it ({exc.strerror or exc})") from None
     try:
-        skel_digest = sha256(skel) if skel is not None else None
+        # an actor's skeleton is hashed once per ingest (per worker), not once per take
+        skel_digest = _skeleton_sha256(skel) if skel is not None else None
     except OSError as exc:
         # the skeleton is what cannot be read: say so under its name
         raise MocapdbError(f"{skel}: cannot read this skeleton of {path} ({exc.strerror or exc})") from None
@@ -133,13 +148,76 @@ def _notes(prep) -> list:
     return notes
 
 
-def _prepare_or_error(item):
-    """:func:`prepare_file` of ``(path, options)`` in a pool: the record, or the one-line reason it failed."""
-    path, options = item
+def _read_new(item):
+    """What ingest's pool runs per file, ``(path, options, token)``: its fingerprint and — unless its bytes
+    may be stored already (:func:`remember_stored` under ``token``) — its motion and words, hashed and read
+    from one read of the file (a plain file up to :data:`~mocapdb.readers.sources.HOLD_MAX`); the record
+    (``deferred`` when not read), or the one-line reason its fingerprint failed."""
+    path, options, token = item
+    path = Path(path)
     try:
-        return prepare_file(path, options)
-    except MocapdbError as exc:
-        return str(exc)
+        data = read_held(path)   # None for a FIFO or device (looked at before it is opened), as for a large file
+    except OSError:
+        data = None   # the fingerprint reads it again and words what fails
+    with holding(path, data):
+        try:
+            prep = prepare_file(path, options)
+        except MocapdbError as exc:
+            return str(exc)
+        if _maybe_stored(token, prep.sha256) or _seen(token, (prep.sha256, prep.skeleton_sha256)):
+            prep.deferred = True
+            return prep
+        return _compute_slim(prep)
+
+
+#: the stored files' SHA-256 prefixes (sorted uint64) of the ingests running here, by token
+_STORED = {}
+#: the keys (file and skeleton SHA-256) this process has read in each ingest, by token: a later copy of the
+#: same bytes is only fingerprinted (ingest skips it, or reads it after the pass if it was the first in file
+#: order after all); at most :data:`_SEEN_MAX` per ingest (then it starts over: a copy is read and dropped)
+_SEEN = {}
+_SEEN_MAX = 1 << 16
+
+
+def remember_stored(task):
+    """``(token, prefixes)``: the first 64 bits of every stored file's SHA-256 (sorted uint64), which
+    :func:`_read_new` of that ingest's files consults (in a worker process, set once per worker)."""
+    token, prefixes = task
+    _STORED[token] = prefixes
+
+
+def forget_stored(token):
+    """Drop what :func:`remember_stored` kept under ``token`` (the ingest is over)."""
+    _STORED.pop(token, None)
+    _SEEN.pop(token, None)
+
+
+def _seen(token, key) -> bool:
+    """Whether this process read a file of ``key`` in the ingest ``token`` already (and note that it has)."""
+    seen = _SEEN.setdefault(token, set())
+    if key in seen:
+        return True
+    if len(seen) >= _SEEN_MAX:
+        seen.clear()
+    seen.add(key)
+    return False
+
+
+def stored_prefixes(digests) -> np.ndarray:
+    """The sorted unique first 64 bits of SHA-256 hex digests (what :func:`remember_stored` takes)."""
+    return np.unique(np.array([int(d[:16], 16) for d in digests if isinstance(d, str) and len(d) >= 16],
+                              dtype=np.uint64))
+
+
+def _maybe_stored(token, digest) -> bool:
+    """Whether a file of this digest may be stored already (its 64-bit prefix is): such a file is only
+    fingerprinted; the caller decides whether to read it (a prefix shared by other bytes is read then)."""
+    prefixes = _STORED.get(token)
+    if prefixes is None or not len(prefixes):
+        return False
+    v = np.uint64(int(digest[:16], 16))
+    i = int(np.searchsorted(prefixes, v))
+    return i < len(prefixes) and prefixes[i] == v
 
 
 @dataclass(frozen=True)
@@ -162,4 +240,4 @@ def _compute_slim(prep):
     return prep
 
 
-__all__ = ["prepare_file", "compute_motion"]
+__all__ = ["prepare_file", "compute_motion", "remember_stored", "forget_stored", "stored_prefixes"]
