@@ -407,7 +407,7 @@ def _covered_by(data_dir, path, prefix):
     with mocapdb.connect() as con:
         shipped = load_model(con, "default")
     designed = Model(prefix, tuple(c for c in shipped.classes if c.name.startswith(prefix)))
-    assert len(designed.classes) == (1 if prefix == "hopInStride" else 2)
+    assert len(designed.classes) == (1 if prefix in ("hopInStride", "turnHeading") else 2)
     words = motion_features(read_motion(data_dir / path))
     ann = annotate(words, designed, doc_lengths=[words.size],
                    preselection=preselection_for(words, [words.size], designed))
@@ -499,3 +499,21 @@ def test_the_designed_quick_side_step_finds_quick_side_steps_and_no_hop(data_dir
     the slow side step and a two-footed hop are not."""
     covered, n = _covered_by(data_dir, path, "quickSideStep")
     assert (covered >= 36) if quick else covered == 0, (path, covered, n)
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("path, turns", [
+    ("accad_dev/Male1_B12_WalkTurnRight90.bvh.gz", True),
+    ("accad_dev/Male1_B9_WalkToTurnLeft90.bvh.gz", True),
+    ("accad_dev/Male1_C18_RunTurnChangeDirection.bvh.gz", True),
+    ("bandai2_dev/dataset-2_walk-turn-right_exhausted_001.bvh.gz", True),
+    ("accad_dev/Male1_B13_WalkTurnRight45.bvh.gz", False),
+    ("accad_dev/Male1_B10_WalkTurnLeft45.bvh.gz", False),
+    ("accad_dev/Male1_B3_Walk.bvh.gz", False),
+])
+def test_the_designed_turn_lasts_a_second(data_dir, path, turns):
+    """turnHeading (turn.toml), as shipped: turns of 90° or more while walking or running (feature 41 held for 54
+    frames or more; the studio's shortest, 59) are turn for at least a second; a walk turning 45° (ACCAD's B13:
+    feature 41 on for 22 frames of swaying steps) and a straight walk are not."""
+    covered, n = _covered_by(data_dir, path, "turnHeading")
+    assert (covered >= 30) if turns else covered == 0, (path, covered, n)
