@@ -11,7 +11,7 @@ from mocapdb.annotation import ConfidenceMap
 from mocapdb.annotation.postprocess import calibrate_confidence
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.annotation import SEGMENT_DTYPE
-from mocapdb.learning.confidence_maps import LENGTH_EDGES, MIN_STEP, PRIOR_SEGMENTS, fit_confidence_maps
+from mocapdb.learning.confidence_maps import CAUTION, LENGTH_EDGES, MIN_STEP, PRIOR_SEGMENTS, fit_confidence_maps
 from mocapdb.storage.model_store import fingerprint, load_model, model_from_tables, model_tables, save_model
 
 
@@ -47,8 +47,8 @@ def test_a_map_is_a_rising_step_function_per_length():
 
 
 def test_fitted_maps_rise_and_follow_the_share_right():
-    """Isotonic steps per length band, shrunk towards the band's share: rising, within [0, 1], right on average;
-    every label of the model gets them."""
+    """Isotonic steps per length band, each a cautious share right: rising, within [0, 1], below the share right
+    of the segments it was fitted to but not far; every label of the model gets them."""
     rng = np.random.default_rng(0)
     raw = rng.random(400)
     lengths = rng.integers(10, 200, 400)
@@ -60,14 +60,18 @@ def test_fitted_maps_rise_and_follow_the_share_right():
     for m in maps:
         assert all(b >= a for a, b in zip(m.values, m.values[1:])) and 0 <= m.values[0] <= m.values[-1] <= 1
     got = calibrate_confidence(segs, raw, maps)
-    assert abs(got.mean() - right.mean()) < 0.02                    # calibrated on what it was fitted to
+    # cautious on what it was fitted to: each step a user trusts (≥ 0.5) below its segments' share right,
+    # not by much overall
+    for v in np.unique(got[got >= 0.5]):
+        assert right[got == v].mean() >= v
+    assert 0 < right.mean() - got.mean() < 0.1
     longer = lengths >= 90
-    assert got[longer & (raw > 0.7)].mean() > 0.8 > 0.3 > got[~longer & (raw < 0.3)].mean()
+    assert got[longer & (raw > 0.7)].mean() > 0.7 > 0.3 > got[~longer & (raw < 0.3)].mean()
     with pytest.raises(ParameterError, match="held-out segments"):
         fit_confidence_maps(("move",), segs[:0], raw[:0], right[:0])
     with pytest.raises(ParameterError, match="length_edges"):
         fit_confidence_maps(("move",), segs, raw, right, length_edges=(10, 5))
-    assert PRIOR_SEGMENTS > 0 and MIN_STEP > 1
+    assert PRIOR_SEGMENTS > 0 and MIN_STEP > 1 and CAUTION > 0
 
 
 def test_the_maps_are_stored_and_change_the_fingerprint(default, tmp_path):

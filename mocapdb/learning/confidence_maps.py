@@ -11,8 +11,16 @@ annotated on recordings left out of its training (leave-one-lab-out folds,
 each judged right or wrong), for each length band (:data:`LENGTH_EDGES`) a
 non-decreasing step function of the raw score — isotonic regression (pool
 adjacent violators) of right-or-wrong on the raw score, its steps joined
-until each stands on :data:`MIN_STEP` segments, each shrunk towards the
-band's share right by :data:`PRIOR_SEGMENTS` pseudo-segments. The bands pool
+until each stands on :data:`MIN_STEP` segments; a step's value is a cautious
+share right: the posterior of its segments (a Beta, with the band's share
+right as :data:`PRIOR_SEGMENTS` pseudo-segments) less :data:`CAUTION`
+standard deviations, so a step that stands on few segments claims less. The
+point estimate alone made the maps fragile: a handful of right segments at
+one raw score moved a whole step across 0.5 on the next lab (held out, the
+share right of segments ≥ 0.5 swung 0.80–0.91 with a design added or the
+step size moved, RESULTS.md issue 32); the cautious value holds 0.91–0.93
+over those changes. A confidence of 0.8 thus reads "of held-out segments
+like this one, at least about 80 % were right". The bands pool
 all labels: maps per label, fitted on the other labs, were worse on the lab
 left out than none (a label's reliability is its lab's: `move` is right on
 every studio walk and on half of HDM05's, whose truth calls the steps around
@@ -27,12 +35,15 @@ import numpy as np
 from mocapdb.annotation.model import ConfidenceMap
 from mocapdb.errors import ParameterError
 
-__all__ = ["fit_confidence_maps", "PRIOR_SEGMENTS", "MIN_STEP", "LENGTH_EDGES"]
+__all__ = ["fit_confidence_maps", "PRIOR_SEGMENTS", "MIN_STEP", "CAUTION", "LENGTH_EDGES"]
 
 #: weight, in segments, of the prior each step is shrunk towards (a label's share right, all labels' share)
 PRIOR_SEGMENTS = 4.0
 #: fewest held-out segments a step of the map stands on (isotonic regression alone makes steps of one or two)
-MIN_STEP = 10
+MIN_STEP = 5
+#: standard deviations of a step's posterior share right taken off its mean (one: a step's value is exceeded
+#: by its true share right about five times in six)
+CAUTION = 1.0
 #: the length bands (shortest segment of each, 30 Hz frames): under 1.5 s, 1.5–3 s, longer (RESULTS.md issue 32:
 #: of the bands tried, the best held out)
 LENGTH_EDGES = (0, 45, 90)
@@ -73,16 +84,20 @@ def _coarsen(starts, means, weights):
 
 
 def _step_map(raw, right, prior):
-    """(cuts, values): isotonic steps over raw scores, each shrunk towards ``prior``."""
+    """(cuts, values): isotonic steps over raw scores, each the cautious share right of its posterior."""
     order = np.argsort(raw, kind="stable")
     x, y = raw[order], right[order].astype(np.float64)
     # equal raw scores form one point: a step cannot split them
     ux, first, counts = np.unique(x, return_index=True, return_counts=True)
     sums = np.add.reduceat(y, first)
     starts, means, weights = _coarsen(*_pav(sums / counts, counts))
-    shrunk = (means * weights + PRIOR_SEGMENTS * prior) / (weights + PRIOR_SEGMENTS)
-    # shrinking by unequal weights may break the order: pool again
-    s2, m2, _ = _pav(shrunk, weights + PRIOR_SEGMENTS)
+    # Beta(a, b): the step's right and wrong segments plus the prior's pseudo-segments
+    a = means * weights + PRIOR_SEGMENTS * prior
+    b = (1.0 - means) * weights + PRIOR_SEGMENTS * (1.0 - prior)
+    n = a + b
+    cautious = a / n - CAUTION * np.sqrt(a * b / (n * n * (n + 1.0)))
+    # steps of unequal weights may fall out of order: pool again
+    s2, m2, _ = _pav(cautious, n)
     cuts = ux[starts[s2]]
     cuts[0] = min(cuts[0], 0.0)
     return tuple(cuts.tolist()), tuple(np.clip(m2, 0.0, 1.0).tolist())
