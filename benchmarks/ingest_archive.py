@@ -10,8 +10,13 @@ idempotency check stores every one:
   class folders, the CMU subjects' beside their takes; cmu/13 and cmu/14 get
   02.asf under their subject's name, as they were published without one);
 * ``bvh``: each take written as BVH (cmuconvert names, ``%.6g``-style 6
-  significant digits as MotionBuilder-like writers do), the root moved by
-  k cm along x in copy k — one rig per actor, as in a studio's archive;
+  significant digits as MotionBuilder-like writers do) in copy 0; copy k is
+  copy 0 with the root's ``OFFSET`` moved by k units along x (the root's
+  position channels are added to it: the same take k units aside) — one rig
+  per actor, as in a studio's archive. Writing a BVH copy from the takes costs
+  minutes, editing one line costs a file copy, so a 10-hour archive is
+  built in seconds (archives built before 2026-12-07 moved the root channel
+  itself: the same numbers of bytes, the same words);
 * ``amass``: each take written as an AMASS-format SMPL-H ``.npz``
   (:mod:`lab.amass_write`), the root moved as for BVH;
 * ``c3d``: the real 120 Hz C3D recordings of ``cmu/c3d`` and ``hdm05_full``
@@ -88,6 +93,9 @@ def _write_copy(folder: Path, k: int, fmt: str) -> None:
         for c3d in sorted((DATA / "cmu" / "c3d").glob("*.c3d")) + sorted((DATA / "hdm05_full").glob("*.c3d")):
             shutil.copyfile(c3d, folder / c3d.name)
         return
+    if fmt == "bvh" and k > 0:
+        _shift_bvh_copy(folder.parent / "copy000", folder, k)
+        return
     for amc, sub, asf, asf_as in takes():
         (folder / sub).mkdir(parents=True, exist_ok=True)
         if fmt == "amc":
@@ -105,3 +113,18 @@ def _write_copy(folder: Path, k: int, fmt: str) -> None:
                 write_bvh(folder / sub / (amc.stem + ".bvh"), skel, m, layout="cmu", precision=6)
             else:
                 write_amass(folder / sub / (amc.stem + ".npz"), skel, m)
+
+
+def _shift_bvh_copy(first: Path, folder: Path, k: int) -> None:
+    """Copy ``first`` (copy 0, built) to ``folder`` with each take's root OFFSET moved by k along x."""
+    if not (first / ".done").exists():
+        _write_copy(first, 0, "bvh")
+        (first / ".done").touch()
+    for src in sorted(first.rglob("*.bvh")):
+        text = src.read_bytes()
+        at = text.index(b"OFFSET")             # the root's: the hierarchy's first
+        end = text.index(b"\n", at)
+        x, y, z = (float(v) for v in text[at:end].split()[1:4])
+        dst = folder / src.relative_to(first)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_bytes(text[:at] + f"OFFSET {x + k:g} {y:g} {z:g}".encode() + text[end:])
