@@ -214,6 +214,10 @@ def lolo_folds(res, studio):
                     for style in sorted(set(studio.styles))}
         out["bandai2"]["move per style"] = {k: v.move_share for k, v in by_style.items()}
         out["bandai2"]["gesture frames labelled per style"] = {k: v.gesture_wrong for k, v in by_style.items()}
+        # which labels fire on the gestures, over all styles and per style (what a fix must silence)
+        out["bandai2"]["gesture frames by label"] = dict(st.wrong_by_label)
+        for style, v in by_style.items():
+            out["bandai2"][f"gesture frames by label, {style}"] = dict(v.wrong_by_label)
     if res.lab is not None:
         a = fig["accad"]
         out["accad"] = {"clips right": a["clips_right"], "move": a["move_share"],
@@ -229,7 +233,9 @@ def print_lolo(folds_by_mode):
         for lab, figs in folds.items():
             parts = []
             for k, v in figs.items():
-                if isinstance(v, dict):
+                if isinstance(v, dict) and not v:
+                    parts.append(f"{k} none")
+                elif isinstance(v, dict):
                     vals = list(v.values())
                     parts.append(f"{k} {min(vals):.3f}–{max(vals):.3f} (" + ", ".join(f"{g} {x:.3f}"
                                                                                      for g, x in v.items()) + ")")
