@@ -72,11 +72,21 @@ def _idle_cores() -> float:
         return 0.0
 
 
+#: bytes of freed memory a worker process keeps for its next files instead of returning them to the system
+_KEEP_FREED = 64 << 20
+
+
 class _Worker:
     """One worker process: ``call(fn, arg)`` runs ``fn(arg)`` there (``fn`` a module-level function)."""
 
     def __init__(self):
         env = dict(os.environ, NUMBA_NUM_THREADS="1")   # the parallelism is the workers themselves
+        # glibc hands a freed block of over 128 KiB back to the system at once, so every take's bytes and
+        # arrays (a few hundred KiB each) were fresh pages faulted in and zeroed again, file after file: keeping
+        # up to _KEEP_FREED per worker saves 7-10 % of a worker's CPU on BVH (RESULTS.md, issue 35). Other C
+        # libraries ignore these variables; a caller's own setting wins.
+        for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_"):
+            env.setdefault(name, str(_KEEP_FREED))
         # the worker imports this very mocapdb, however the caller found it (an install, a checkout on sys.path)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [_PACKAGE_ROOT, env.get("PYTHONPATH")]))
         # -P: `-m` would put the working directory first on sys.path, and a checkout there (or any folder
