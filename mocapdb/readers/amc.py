@@ -29,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mocapdb._numba import address, jit
-from mocapdb.readers.textscan import (_CLASS, _is_space, _note_slow, _scan_number, _token_end, fix_slow_numbers, line_of,
-                        number_error, token_at, truncation_hint)
+from mocapdb._numba import address, inline_jit, jit, load_u64
+from mocapdb.readers.textscan import (_CLASS, _is_space, _line_tokens, _note_slow, _scan_number, _short_numbers,
+                                      _token_end, fix_slow_numbers, line_of, number_error, token_at,
+                                      truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
 from mocapdb.readers.sources import read_bytes
 from mocapdb.errors import ParseError
@@ -60,6 +61,41 @@ def _close_frame(seen, ref, nb, frame):  # pragma: no cover
     return ok
 
 
+@inline_jit
+def _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status):  # pragma: no cover
+    """Convert the ``npend`` values of frame ``frame`` whose token starts, columns and bones are
+    ``pend[0:3, :npend]`` (text order) into ``out``: side by side (:func:`_short_numbers`), the other
+    spellings by :func:`_scan_number`. A token that is no number sets ``status`` as the token-after-token
+    loop did (the first in the text: an error found after it, later in the text, is replaced); returns
+    the count of tokens left to ``float()``."""
+    lo = pend[3].view(np.uint64)
+    hi = pend[4].view(np.uint64)
+    vals = pend[5].view(np.float64)
+    flag = pend[6]
+    for k in range(npend):
+        a = base + pend[0, k]
+        lo[k] = load_u64(a)
+        hi[k] = load_u64(a + 8)
+    _short_numbers(lo, hi, npend, vals, flag)
+    ncols = out.shape[1]
+    for k in range(npend):
+        v = vals[k]
+        if flag[k] != 0:
+            s = pend[0, k]
+            v, st, j = _scan_number(base, s, size)
+            if st == 2:  # NUM_BAD
+                status[:6] = 0
+                status[0] = 1  # _E_NUMBER
+                status[1] = s
+                status[2] = frame
+                status[3] = pend[2, k]
+                return nfb
+            if st == 1:  # NUM_SLOW
+                nfb = _note_slow(fb_index, fb_start, fb_end, nfb, frame * ncols + pend[1, k], s, j)
+        out[frame, pend[1, k]] = v
+    return nfb
+
+
 @jit
 def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, out,
                       fb_index, fb_start, fb_end, seen, ref, status):  # pragma: no cover
@@ -83,6 +119,11 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
     prev_num = 0
     nfb = 0
     last_line = start
+    # the values of the current frame's usual bone lines, converted together when the frame ends: rows
+    # token start, column, bone, then scratch for _flush_values (words, values, flags)
+    pend = np.zeros((7, ncols + 1), dtype=np.int64)
+    pend_at = address(pend[0])
+    npend = 0
     i = start
     while True:
         # ---- start of a line
@@ -101,6 +142,11 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
         line_start = i
         if 48 <= c <= 57:
             # ---- frame number line
+            if npend > 0:
+                nfb = _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status)
+                npend = 0
+                if status[0] != 0:
+                    break
             num = 0
             while i < size and 48 <= buf[i] <= 57:
                 if num < 1000000000000:
@@ -189,6 +235,15 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
         # ---- values
         nd = ndof[bone]
         col = col_start[bone]
+        # the usual line: its nd tokens found by byte masks, converted with the frame's others
+        n, eol, ok = _line_tokens(base, i, size, pend_at + 8 * npend, nd + 1)
+        if ok and n == nd and eol + 16 <= size:
+            for k in range(nd):
+                pend[1, npend + k] = col + k
+                pend[2, npend + k] = bone
+            npend += nd
+            i = eol
+            continue
         count = 0
         failed = False
         while True:
@@ -223,6 +278,8 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
             status[4] = nd
             status[5] = count
             break
+    if npend > 0:   # the last frame's values, or those before an error (an earlier bad one wins)
+        nfb = _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status)
     if status[0] == 0 and frame >= 0:
         # close the last frame
         if not _close_frame(seen, ref, nb, frame):
