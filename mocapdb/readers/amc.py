@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb._numba import address, inline_jit, jit, load_u64
-from mocapdb.readers.textscan import (_CLASS, _is_space, _line_tokens, _note_slow, _scan_number, _short_numbers,
+from mocapdb.readers.textscan import (_CLASS, _few_tokens, _is_space, _line_tokens, _note_slow, _scan_number, _short_numbers,
                                       _token_end, fix_slow_numbers, line_of, number_error, token_at,
                                       truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
@@ -48,6 +48,9 @@ _E_NONE, _E_NUMBER, _E_COUNT, _E_UNKNOWN_BONE, _E_DUPLICATE, _E_FRAME_SEQ, \
 
 # ----------------------------------------------------------------------------
 # kernels
+
+#: the low k bytes of a word set, k = 0 … 8
+_BYTE_MASK = np.array([(1 << (8 * k)) - 1 for k in range(9)], dtype=np.uint64)
 
 @jit
 def _close_frame(seen, ref, nb, frame):  # pragma: no cover
@@ -121,8 +124,18 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
     last_line = start
     # the values of the current frame's usual bone lines, converted together when the frame ends: rows
     # token start, column, bone, then scratch for _flush_values (words, values, flags)
-    pend = np.zeros((7, ncols + 1), dtype=np.int64)
+    pend = np.zeros((7, ncols + 9), dtype=np.int64)
     pend_at = address(pend[0])
+    # each bone's name (lower case) as two words, its bytes past the name 0 (names of up to 16 bytes)
+    name_lo = np.zeros(nb, dtype=np.uint64)
+    name_hi = np.zeros(nb, dtype=np.uint64)
+    for b in range(nb):
+        for k in range(min(name_len[b], 16)):
+            byte = np.uint64(names[name_start[b] + k]) << np.uint64(8 * (k % 8))
+            if k < 8:
+                name_lo[b] |= byte
+            else:
+                name_hi[b] |= byte
     npend = 0
     i = start
     while True:
@@ -197,7 +210,14 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
         e = i
         bone = -1
         cand = nxt[last]
-        for attempt in range(nb + 1):
+        ln = e - s
+        if cand >= 0 and name_len[cand] == ln and ln <= 16 and s + 16 <= size:
+            # the predicted bone spelt as the ASF spells it (lower case): two words compared
+            lo = load_u64(base + s) & _BYTE_MASK[min(ln, 8)]
+            hi = load_u64(base + s + 8) & _BYTE_MASK[max(ln - 8, 0)]
+            if lo == name_lo[cand] and hi == name_hi[cand]:
+                bone = cand
+        for attempt in range(0 if bone >= 0 else nb + 1):
             b = cand if attempt == 0 else attempt - 1
             if b < 0 or (attempt > 0 and b == cand):
                 continue
@@ -236,9 +256,14 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
         nd = ndof[bone]
         col = col_start[bone]
         # the usual line: its nd tokens found by byte masks, converted with the frame's others
-        n, eol, ok = _line_tokens(base, i, size, pend_at + 8 * npend, nd + 1)
+        n, eol, ok = _few_tokens(base, i, size, pend_at + 8 * npend)
+        if not ok:
+            n, eol, ok = _line_tokens(base, i, size, pend_at + 8 * npend, nd + 1)
         if ok and n == nd and eol + 16 <= size:
-            for k in range(nd):
+            for k in range(8):      # 8 slots whatever nd (the arrays have room): no branch on nd
+                pend[1, npend + k] = col + k
+                pend[2, npend + k] = bone
+            for k in range(8, nd):
                 pend[1, npend + k] = col + k
                 pend[2, npend + k] = bone
             npend += nd

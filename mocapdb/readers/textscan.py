@@ -358,6 +358,25 @@ def _short_numbers(lo, hi, n, vals, flag):  # pragma: no cover - numba
         flag[k] = (n1 > 7) | (n2 > 7) | (n1 + n2 == 0) | (c2 > _U(32))
 
 
+@inline_jit
+def _few_tokens(base, i, size, pos):  # pragma: no cover - numba
+    """As :func:`_line_tokens` for a short line (an AMC bone line's values): when the line's LF lies in
+    the 64 bytes from ``i`` and it has at most 8 tokens, their starts are written at ``pos`` (8 slots
+    written whatever the count: no branch depends on it) and ``(count, index of the LF, True)`` returned;
+    otherwise ``(0, i, False)`` and the caller takes :func:`_line_tokens`."""
+    if i + 64 > size:
+        return 0, i, False
+    sep, lf, other = _chunk_masks(base, i, size)
+    starts = ~sep & ((sep << _U1) | _U1) & ((lf & (~lf + _U1)) - _U1)
+    n = 0
+    for k in range(8):
+        t = np.int64(trailing_zeros(starts))    # 64 past the last start
+        store_i64(pos + 8 * k, i + t)
+        n += np.int64(t < 64)
+        starts &= starts - _U1
+    return n, i + np.int64(trailing_zeros(lf)), lf != _U0 and other == _U0 and starts == _U0
+
+
 @jit
 def _parse_numbers_kernel(buf, starts, ends, out, status):  # pragma: no cover - numba
     """Parse many tokens (tests and small headers): ``out[k] = buf[starts[k]:ends[k]]``."""
