@@ -30,9 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from mocapdb._numba import address, inline_jit, jit, load_u64
-from mocapdb.readers.textscan import (_CLASS, _few_tokens, _is_space, _line_tokens, _note_slow, _scan_number, _short_numbers,
-                                      _token_end, fix_slow_numbers, line_of, number_error, token_at,
-                                      truncation_hint)
+from mocapdb.readers.textscan import (_CLASS, _few_tokens, _is_space, _line_tokens, _note_slow, _scan_at,
+                                      _scan_number, _short_numbers, _token_end, fix_slow_numbers, line_of,
+                                      number_error, token_at, truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
 from mocapdb.readers.sources import read_bytes
 from mocapdb.errors import ParseError
@@ -85,7 +85,7 @@ def _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_en
         v = vals[k]
         if flag[k] != 0:
             s = pend[0, k]
-            v, st, j = _scan_number(base, s, size)
+            v, st, j = _scan_at(base, s, size)
             if st == 2:  # NUM_BAD
                 status[:6] = 0
                 status[0] = 1  # _E_NUMBER
