@@ -206,8 +206,11 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
             status[1] = line_start
             break
         s = i
-        i = _token_end(base, i, size)
-        e = i
+        # the usual line, name and values at once by byte masks (the value starts into the frame's list)
+        e, n, eol, few = _few_tokens(base, s, size, pend_at + 8 * npend)
+        if not few:
+            e = _token_end(base, s, size)
+        i = e
         bone = -1
         cand = nxt[last]
         ln = e - s
@@ -255,9 +258,9 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
         # ---- values
         nd = ndof[bone]
         col = col_start[bone]
-        # the usual line: its nd tokens found by byte masks, converted with the frame's others
-        n, eol, ok = _few_tokens(base, i, size, pend_at + 8 * npend)
-        if not ok:
+        # the usual line: its nd values converted with the frame's others
+        ok = few
+        if not few:
             n, eol, ok = _line_tokens(base, i, size, pend_at + 8 * npend, nd + 1)
         if ok and n == nd and eol + 16 <= size:
             for k in range(8):      # 8 slots whatever nd (the arrays have room): no branch on nd
@@ -267,7 +270,7 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
                 pend[1, npend + k] = col + k
                 pend[2, npend + k] = bone
             npend += nd
-            i = eol
+            i = eol + 1 if few else eol   # past the LF (_line_tokens may stop at the text's end)
             continue
         count = 0
         failed = False

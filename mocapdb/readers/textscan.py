@@ -367,21 +367,24 @@ def _short_numbers(lo, hi, n, vals, flag):  # pragma: no cover - numba
 
 @inline_jit
 def _few_tokens(base, i, size, pos):  # pragma: no cover - numba
-    """As :func:`_line_tokens` for a short line (an AMC bone line's values): when the line's LF lies in
-    the 64 bytes from ``i`` and it has at most 8 tokens, their starts are written at ``pos`` (8 slots
-    written whatever the count: no branch depends on it) and ``(count, index of the LF, True)`` returned;
-    otherwise ``(0, i, False)`` and the caller takes :func:`_line_tokens`."""
+    """A short line from its first token at byte ``i`` (an AMC bone line: a name, then values) by the byte
+    masks of the 64 bytes from ``i``: ``(end of the first token, count of the others, index of the LF,
+    ok)``, the starts of the others written at ``pos`` (8 slots written whatever the count: no branch
+    depends on it). ok is False — the caller reads the line otherwise — unless the LF lies in those 64
+    bytes, the line has at most 8 more tokens, and no control byte but TAB, CR, LF is among them (so the
+    first token ends where :func:`_token_end` ends it)."""
     if i + 64 > size:
-        return 0, i, False
+        return i, 0, i, False
     sep, lf, other = _chunk_masks(base, i, size)
-    starts = ~sep & ((sep << _U1) | _U1) & ((lf & (~lf + _U1)) - _U1)
+    first_end = i + np.int64(trailing_zeros(sep))
+    starts = ~sep & (sep << _U1) & ((lf & (~lf + _U1)) - _U1)    # bit 0 (the first token) left out
     n = 0
     for k in range(8):
         t = np.int64(trailing_zeros(starts))    # 64 past the last start
         store_i64(pos + 8 * k, i + t)
         n += np.int64(t < 64)
         starts &= starts - _U1
-    return n, i + np.int64(trailing_zeros(lf)), lf != _U0 and other == _U0 and starts == _U0
+    return first_end, n, i + np.int64(trailing_zeros(lf)), lf != _U0 and other == _U0 and starts == _U0
 
 
 @jit
