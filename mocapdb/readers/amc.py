@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mocapdb._numba import address, inline_jit, jit, load_u64
+from mocapdb._numba import address, jit, load_u64
 from mocapdb.readers.textscan import (_CLASS, _few_tokens, _is_space, _line_tokens, _note_slow, _scan_at,
                                       _scan_number, _short_numbers, _token_end, fix_slow_numbers, line_of,
                                       number_error, token_at, truncation_hint)
@@ -64,7 +64,7 @@ def _close_frame(seen, ref, nb, frame):  # pragma: no cover
     return ok
 
 
-@inline_jit
+@jit
 def _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status):  # pragma: no cover
     """Convert the ``npend`` values of frame ``frame`` whose token starts, columns and bones are
     ``pend[0:3, :npend]`` (text order) into ``out``: side by side (:func:`_short_numbers`), the other
