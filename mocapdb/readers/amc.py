@@ -52,6 +52,7 @@ _E_NONE, _E_NUMBER, _E_COUNT, _E_UNKNOWN_BONE, _E_DUPLICATE, _E_FRAME_SEQ, \
 #: the low k bytes of a word set, k = 0 … 8
 _BYTE_MASK = np.array([(1 << (8 * k)) - 1 for k in range(9)], dtype=np.uint64)
 
+
 @jit
 def _close_frame(seen, ref, nb, frame):  # pragma: no cover
     """Whether a finished frame lists the same bones as frame 1 (frame 0 sets the reference)."""
@@ -68,7 +69,7 @@ def _close_frame(seen, ref, nb, frame):  # pragma: no cover
 def _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status):  # pragma: no cover
     """Convert the ``npend`` values of frame ``frame`` whose token starts, columns and bones are
     ``pend[0:3, :npend]`` (text order) into ``out``: side by side (:func:`_short_numbers`), the other
-    spellings by :func:`_scan_number`. A token that is no number sets ``status`` as the token-after-token
+    spellings by the exact scanner (:func:`_scan_at`). A token that is no number sets ``status`` as the token-after-token
     loop did (the first in the text: an error found after it, later in the text, is replaced); returns
     the count of tokens left to ``float()``."""
     lo = pend[3].view(np.uint64)
