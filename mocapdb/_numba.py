@@ -118,54 +118,35 @@ def _splat(builder, vt, value):
                                   ir.Constant(ir.VectorType(ir.IntType(32), vt.count), [0] * vt.count))
 
 
-def _mask_intrinsic(width, kind):
-    """An intrinsic ``(addr, a[, b]) -> uint64``: bit k set when the byte at ``addr + k`` (k < width)
-    is ``== a`` (kind "eq"), ``<= a`` unsigned ("le"), or within ``a … b`` unsigned ("range")."""
-    nargs = 3 if kind == "range" else 2
-
-    def typer(typingctx, *args):
-        if len(args) != nargs or not all(isinstance(a, types.Integer) for a in args):
+def _mask_intrinsic(kind):
+    """An intrinsic ``(addr, c) -> uint64``: bit k set when the byte at ``addr + k`` (k < 64) is ``== c``
+    (kind "eq") or ``<= c`` unsigned ("le"). One unaligned 64-byte load, a compare against ``c`` in every
+    lane, the lanes' results as the bits of one word: LLVM lowers it to the target's byte compares and
+    mask moves (AVX-512BW, AVX2 in two halves, NEON, or scalar code elsewhere)."""
+    def mask(typingctx, addr, c):
+        if not (isinstance(addr, types.Integer) and isinstance(c, types.Integer)):
             return None
-        sig = types.uint64(*args)
+        sig = types.uint64(addr, c)
 
         def codegen(context, builder, signature, cargs):
             cargs = [context.cast(builder, a, t, types.int64) for a, t in zip(cargs, signature.args)]
-            vt = ir.VectorType(ir.IntType(8), width)
+            vt = ir.VectorType(ir.IntType(8), 64)
             v = builder.load(builder.inttoptr(cargs[0], vt.as_pointer()), align=1)
-            if kind == "eq":
-                hit = builder.icmp_unsigned("==", v, _splat(builder, vt, cargs[1]))
-            elif kind == "le":
-                hit = builder.icmp_unsigned("<=", v, _splat(builder, vt, cargs[1]))
-            else:   # lo <= x <= hi  as  x - lo <= hi - lo (unsigned, wrapping)
-                lo = _splat(builder, vt, cargs[1])
-                span = _splat(builder, vt, builder.sub(cargs[2], cargs[1]))
-                hit = builder.icmp_unsigned("<=", builder.sub(v, lo), span)
-            bits = builder.bitcast(hit, ir.IntType(width))
-            return bits if width == 64 else builder.zext(bits, ir.IntType(64))
+            hit = builder.icmp_unsigned("==" if kind == "eq" else "<=", v, _splat(builder, vt, cargs[1]))
+            return builder.bitcast(hit, ir.IntType(64))
         return sig, codegen
 
-    if nargs == 2:
-        def mask(typingctx, addr, a):
-            return typer(typingctx, addr, a)
-    else:
-        def mask(typingctx, addr, a, b):
-            return typer(typingctx, addr, a, b)
-    mask.__name__ = f"_mask{width}_{kind}_intrinsic"
+    mask.__name__ = f"_mask64_{kind}_intrinsic"
     return intrinsic(mask)
 
 
-def _mask_python(width, kind):  # pragma: no cover - only under NUMBA_DISABLE_JIT
-    def mask(addr, a, b=None):
-        data = ctypes.string_at(int(addr), width)
-        lo, hi = int(a) & 255, (int(b) & 255 if b is not None else None)
-        if kind == "eq":
-            hits = [x == lo for x in data]
-        elif kind == "le":
-            hits = [x <= lo for x in data]
-        else:
-            hits = [(x - lo) & 255 <= (hi - lo) & 255 for x in data]
+def _mask_python(kind):  # pragma: no cover - only under NUMBA_DISABLE_JIT
+    def mask(addr, c):
+        data = ctypes.string_at(int(addr), 64)
+        c = int(c) & 255
+        hits = [x == c for x in data] if kind == "eq" else [x <= c for x in data]
         return np.uint64(sum(1 << k for k, h in enumerate(hits) if h))
-    mask.__name__ = f"_mask{width}_{kind}_python"
+    mask.__name__ = f"_mask64_{kind}_python"
     return mask
 
 
@@ -185,18 +166,12 @@ load_u8 = _load_u8_python if numba.config.DISABLE_JIT else _load_intrinsic(8, ty
 #: ``store_i64(addr, value)``: write an int64 at ``addr``
 store_i64 = _store_i64_python if numba.config.DISABLE_JIT else _store_i64_intrinsic
 
-#: ``mask32_eq(addr, c)`` / ``mask64_eq``: bit k set where the byte at ``addr + k`` equals ``c`` (uint64)
-mask32_eq = _mask_python(32, "eq") if numba.config.DISABLE_JIT else _mask_intrinsic(32, "eq")
-mask64_eq = _mask_python(64, "eq") if numba.config.DISABLE_JIT else _mask_intrinsic(64, "eq")
-#: ``mask32_le(addr, c)`` / ``mask64_le``: bit k set where the byte at ``addr + k`` is at most ``c``
+#: ``mask64_eq(addr, c)``: bit k set where the byte at ``addr + k`` equals ``c`` (uint64)
+mask64_eq = _mask_python("eq") if numba.config.DISABLE_JIT else _mask_intrinsic("eq")
+#: ``mask64_le(addr, c)``: bit k set where the byte at ``addr + k`` is at most ``c``
 #: (unsigned: ``mask64_le(addr, 0x20)`` finds the blanks, line ends and control bytes)
-mask32_le = _mask_python(32, "le") if numba.config.DISABLE_JIT else _mask_intrinsic(32, "le")
-mask64_le = _mask_python(64, "le") if numba.config.DISABLE_JIT else _mask_intrinsic(64, "le")
-#: ``mask32_range(addr, lo, hi)`` / ``mask64_range``: bit k set where ``lo <= byte <= hi`` (unsigned,
-#: ``lo <= hi``: ``mask32_range(addr, 48, 57)`` finds the ASCII digits)
-mask32_range = _mask_python(32, "range") if numba.config.DISABLE_JIT else _mask_intrinsic(32, "range")
-mask64_range = _mask_python(64, "range") if numba.config.DISABLE_JIT else _mask_intrinsic(64, "range")
+mask64_le = _mask_python("le") if numba.config.DISABLE_JIT else _mask_intrinsic("le")
 
 
 __all__ = ["jit", "pjit", "inline_jit", "prange", "limit_threads", "trailing_zeros", "address", "load_u64", "load_u8", "store_i64",
-           "mask32_eq", "mask64_eq", "mask32_le", "mask64_le", "mask32_range", "mask64_range"]
+           "mask64_eq", "mask64_le"]

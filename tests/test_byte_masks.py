@@ -1,4 +1,4 @@
-"""The byte-vector mask intrinsics of ``mocapdb._numba`` (``mask32_eq`` … ``mask64_range``: one vector load,
+"""The byte-vector mask intrinsics of ``mocapdb._numba`` (``mask64_eq``, ``mask64_le``: one vector load,
 a compare against a splat, the lanes packed into bits) and their plain-Python twins equal a numpy brute force
 at every alignment of random bytes, up to the last byte of a buffer; and the motion-line kernel that uses them
 never reads past the text (it ends on a page that is followed by an unreadable one)."""
@@ -12,61 +12,47 @@ import pytest
 from mocapdb import _numba as nb
 from mocapdb.readers.textscan import parse_rows
 
-KINDS = {  # name -> (arguments, the bytes each sets a bit for)
-    "eq": ((10,), lambda b: b == 10),
-    "le": ((32,), lambda b: b <= 32),
-    "range": ((48, 57), lambda b: (b >= 48) & (b <= 57)),
-    "range_high": ((0x80, 0xFE), lambda b: (b >= 0x80) & (b <= 0xFE)),
+KINDS = {  # name -> (the byte compared against, the bytes each sets a bit for)
+    "eq": (10, lambda b: b == 10),
+    "le": (32, lambda b: b <= 32),
 }
 
 
-def _compiled(width, kind):
-    """A kernel that takes the mask of ``width`` bytes at every offset of a buffer (the intrinsic compiled;
+def _compiled(kind):
+    """A kernel that takes the mask of 64 bytes at every offset of a buffer (the intrinsic compiled;
     under NUMBA_DISABLE_JIT the twin runs as Python)."""
-    fn = getattr(nb, f"mask{width}_{'range' if kind.startswith('range') else kind}")
-    args = KINDS[kind][0]
-    if len(args) == 1:
-        a = args[0]
+    fn = getattr(nb, f"mask64_{kind}")
+    c = KINDS[kind][0]
 
-        @numba.njit
-        def masks(buf, out):
-            base = nb.address(buf)
-            for i in range(out.shape[0]):
-                out[i] = fn(base + i, a)
-    else:
-        a, b = args
-
-        @numba.njit
-        def masks(buf, out):
-            base = nb.address(buf)
-            for i in range(out.shape[0]):
-                out[i] = fn(base + i, a, b)
+    @numba.njit
+    def masks(buf, out):
+        base = nb.address(buf)
+        for i in range(out.shape[0]):
+            out[i] = fn(base + i, c)
     return masks
 
 
-def _brute(buf, width, kind):
+def _brute(buf, kind):
     hit = KINDS[kind][1](buf.astype(np.int64))
-    return np.array([int(np.packbits(hit[i:i + width], bitorder="little").view(f"<u{width // 8}")[0])
-                     for i in range(buf.size - width + 1)], dtype=np.uint64)
+    return np.array([int(np.packbits(hit[i:i + 64], bitorder="little").view("<u8")[0])
+                     for i in range(buf.size - 64 + 1)], dtype=np.uint64)
 
 
-@pytest.mark.parametrize("width", [32, 64])
 @pytest.mark.parametrize("kind", list(KINDS))
-def test_masks_equal_a_brute_force_at_every_alignment(width, kind):
-    rng = np.random.default_rng(width + len(kind))
+def test_masks_equal_a_brute_force_at_every_alignment(kind):
+    rng = np.random.default_rng(len(kind))
     alphabet = np.frombuffer(b"0123456789 \t\r\n.-+eE\x00\x0b\x7f\x80\xfe\xff", np.uint8)
     for trial in range(6):
-        n = int(rng.integers(width, 3 * width + 40))
+        n = int(rng.integers(64, 3 * 64 + 40))
         # a buffer of exactly n bytes: the last mask ends on its last byte
         buf = rng.choice(alphabet, n) if trial % 2 else rng.integers(0, 256, n, dtype=np.uint8)
-        ref = _brute(buf, width, kind)
-        got = np.zeros(n - width + 1, dtype=np.uint64)
-        _compiled(width, kind)(buf, got)
+        ref = _brute(buf, kind)
+        got = np.zeros(n - 64 + 1, dtype=np.uint64)
+        _compiled(kind)(buf, got)
         assert np.array_equal(got, ref)
-        twin = nb._mask_python(width, kind[:5] if kind.startswith("range") else kind)
+        twin = nb._mask_python(kind)
         base = buf.ctypes.data
-        args = KINDS[kind][0]
-        assert [int(twin(base + i, *args)) for i in range(n - width + 1)] == ref.tolist()
+        assert [int(twin(base + i, KINDS[kind][0])) for i in range(n - 64 + 1)] == ref.tolist()
 
 
 def _guarded_page():
