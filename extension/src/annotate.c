@@ -208,12 +208,22 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 		 * minimum over its classes (the class's rows are +inf outside its slices). */
 		double *label_cd = w->label_cd + (size_t)m->label_of[k] * n;
 		double *label_ratio = w->label_ratio + (size_t)m->label_of[k] * n;
+		/* with preselection, Δ is computed only where it can be <= τ (the rest cannot make a hit):
+		 * the same Δ̄^τ, with fewer cells of the DP (distance.h) */
+		double bound = runs ? t : INFINITY;
 		for (size_t q = w->slices.n; q-- > 0;) {
 			size_t a = (size_t)w->slices.start[q], len = (size_t)(w->slices.end[q] - w->slices.start[q] + 1);
-			if (mdb_mt_distance_in(&m->tpl[k], words + a, len, w->delta, w->starts, &w->dp) ||
-			    mdb_classification_delta(w->delta, w->starts, len, t, w->cd, &w->hits)) {
+			int hits = -1;
+			if (mdb_mt_distance_in(&m->tpl[k], words + a, len, w->delta, w->starts, bound, &w->dp) ||
+			    (hits = mdb_classification_delta(w->delta, w->starts, len, t, w->cd, &w->hits)) < 0) {
 				snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 				return -1;
+			}
+			if (!hits) { /* +inf throughout: the slice only claims its frames */
+				for (size_t j = 0; j < len; j++) {
+					w->stamp[a + j] = (int64_t)k;
+				}
+				continue;
 			}
 			for (size_t j = 0; j < len; j++) {
 				if (w->stamp[a + j] == (int64_t)k) {
@@ -221,6 +231,9 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 				}
 				w->stamp[a + j] = (int64_t)k;
 				double cd = w->cd[j];
+				if (cd == INFINITY) {
+					continue; /* lowers neither row */
+				}
 				/* chain._tau_ratio: at τ = 0 only a perfect match counts, as 0 */
 				double ratio = t > 0 ? cd / t : cd <= 0 ? 0.0 : INFINITY;
 				if (cd < label_cd[a + j]) {

@@ -76,11 +76,13 @@ int mdb_classification_delta(const double *delta, const int64_t *starts, size_t 
                              mdb_hit_scratch *s) {
 	size_t m = 0;
 	for (size_t j = 0; j < n; j++) {
-		cd[j] = INFINITY;
 		m += delta[j] <= tau;
 	}
 	if (m == 0) {
-		return 0;
+		return 0; /* no hit: +inf everywhere, cd left as it was */
+	}
+	for (size_t j = 0; j < n; j++) {
+		cd[j] = INFINITY;
 	}
 	if (m > s->cap) {
 		mdb_hit_scratch_free(s);
@@ -113,7 +115,7 @@ int mdb_classification_delta(const double *delta, const int64_t *starts, size_t 
 			}
 		}
 	}
-	return 0;
+	return 1;
 }
 
 /* Δarg at frame f over rows[0 .. L): the first row with the minimal value, -1 where all are +inf. */
