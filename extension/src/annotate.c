@@ -484,8 +484,49 @@ static int annotate_batch(batch_work *bw, job *jobs, size_t n_jobs, mdb_error *e
 	return rc;
 }
 
+static int by_id(const void *a, const void *b) {
+	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+	return (x > y) - (x < y);
+}
+
+/* The motion ids collect() takes into items, ascending (a motion as often as rows name it). */
+static size_t motion_ids(duckdb_data_chunk input, idx_t n, int32_t *ids) {
+	duckdb_vector v = duckdb_data_chunk_get_vector(input, 0);
+	int64_t *motion = duckdb_vector_get_data(v);
+	size_t k = 0;
+	for (idx_t row = 0; row < n; row++) {
+		if (valid(v, row) && motion[row] >= INT32_MIN && motion[row] <= INT32_MAX) {
+			ids[k++] = (int32_t)motion[row];
+		}
+	}
+	qsort(ids, k, sizeof *ids, by_id);
+	return k;
+}
+
+/* What a call reads without its model: the motions' frame counts and the first batch's words, on
+ * the extension's data connection while the calling thread reads the model on the main one (a
+ * model is several small queries, about as long as a batch of an hour's words). */
+typedef struct {
+	mdb_state *st;
+	const int32_t *ids;
+	size_t n_ids;
+	mdb_motions *range;
+	size_t *m, *i;
+	mdb_words_batch *b;
+	mdb_error err;
+	int rc;
+} prefetch;
+
+static void *run_prefetch(void *p) {
+	prefetch *f = p;
+	f->rc = mdb_read_motion_range(f->st, f->ids[0], f->ids[f->n_ids - 1], f->range, &f->err) ||
+	        mdb_read_batch(f->st, f->range, f->m, f->ids, f->n_ids, f->i, MDB_BATCH_FRAMES, f->b, &f->err);
+	return NULL;
+}
+
 /* Rows' motions a batch at a time (mdb_read_batch: one query for the words, one for the postings
- * when a row preselects), then each row's segments into the list vector. */
+ * when a row preselects; the first batch read while the model is), then each row's segments into
+ * the list vector. */
 static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duckdb_vector output) {
 	mdb_state *st = duckdb_scalar_function_get_extra_info(info);
 	idx_t n = duckdb_data_chunk_get_size(input);
@@ -516,20 +557,32 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 		snprintf(err.text, sizeof err.text, WHAT ": out of memory");
 		goto done;
 	}
-	if (mdb_check_live(st, &err) || collect(st, input, n, &ms, items, &n_items, out_valid, &err)) {
-		goto done;
-	}
-	qsort(items, n_items, sizeof *items, by_motion);
-	for (size_t k = 0; k < n_items; k++) {
-		ids[k] = items[k].motion;
-	}
-	if (n_items && mdb_read_motion_range(st, ids[0], ids[n_items - 1], &range, &err)) {
+	if (mdb_check_live(st, &err)) {
 		goto done;
 	}
 	size_t i = 0, m = 0; /* next item; next stored motion of the range */
-	while (i < n_items) {
-		size_t first = i;
-		if (mdb_read_batch(st, &range, &m, ids, n_items, &i, MDB_BATCH_FRAMES, &b, &err)) {
+	size_t n_ids = motion_ids(input, n, ids);
+	prefetch f = {st, ids, n_ids, &range, &m, &i, &b, {{0}}, 0};
+	pthread_t reader;
+	int started = n_ids && pthread_create(&reader, NULL, run_prefetch, &f) == 0;
+	int bad = collect(st, input, n, &ms, items, &n_items, out_valid, &err);
+	if (started) {
+		pthread_join(reader, NULL);
+	} else if (n_ids && !bad) {
+		run_prefetch(&f); /* no thread to spare: after the model */
+	}
+	if (bad) {
+		goto done; /* the arguments' error, before any the reads may have met */
+	}
+	if (f.rc) {
+		err = f.err;
+		goto done;
+	}
+	/* the rows collect() took, in the order of ids (the same motions: motion_ids takes the rows it takes) */
+	qsort(items, n_items, sizeof *items, by_motion);
+	size_t first = 0; /* the batch's first item; the first batch, items 0 .. i-1, is read */
+	while (first < n_items) {
+		if (first > 0 && mdb_read_batch(st, &range, &m, ids, n_items, &i, MDB_BATCH_FRAMES, &b, &err)) {
 			goto done;
 		}
 		int preselect = 0;
@@ -562,6 +615,7 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 				goto done;
 			}
 		}
+		first = i;
 	}
 	failed = 0;
 done:
