@@ -100,12 +100,13 @@ static inline __attribute__((always_inline)) void DP_CAT(dp_frames, DP_LANES)(co
 			long reach = top1 + 2 > top2 + 1 ? top1 + 2 : top2 + 1;
 			rows = reach + 1 < (long)K ? (size_t)(reach + 1) : K;
 		}
-		/* the vectors' last row: rows past K-1 cost 0 (c's tail), the others the word's */
+		/* rows 0 .. rows-1 cost the word's; the rows past them that the last vector passes (bounded)
+		 * hold some earlier word's costs or c's zero tail: all >= 0, and such a cell, out of reach,
+		 * stays > bound whatever it adds (unbounded: rows = K, and the tail past K-1 costs 0) */
 		size_t vec_end = rows > 1 ? 1 + (rows - 1 + DP_LANES - 1) / DP_LANES * DP_LANES : 1;
-		size_t need = vec_end < K ? vec_end : K;
-		if (fresh < need) {
-			DP_CAT(dp_costs, DP_LANES)(t, w, fresh, need, c);
-			fresh = need;
+		if (fresh < rows) {
+			DP_CAT(dp_costs, DP_LANES)(t, w, fresh, rows, c);
+			fresh = rows;
 		}
 		size_t r0 = j % 3, r1 = (j + 2) % 3, r2 = (j + 1) % 3;
 		col[r0][0] = c[0];
