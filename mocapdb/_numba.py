@@ -12,6 +12,7 @@ twins with ``NUMBA_DISABLE_JIT=1``.
 import ctypes
 
 import numba
+import numpy as np
 from llvmlite import ir
 from numba.core import types
 from numba.cpython.unsafe.numbers import trailing_zeros as _tz_intrinsic  # LLVM cttz (64 for 0)
@@ -102,6 +103,72 @@ def _tz_python(x):  # pragma: no cover - only under NUMBA_DISABLE_JIT
     return (x & -x).bit_length() - 1 if x else 64
 
 
+# ---- byte-class masks: one vector load of 32 or 64 bytes, compared against a splat, the lanes
+# packed into the bits of an integer. LLVM lowers the vector IR for the host: on x86-64 with AVX2
+# a vpcmpeqb/vpminub and a vpmovmskb per 32 bytes, with AVX-512BW one mask compare per 64; on
+# any other CPU it legalises the vectors into whatever the target has, so the result is the same
+# everywhere. The load is unaligned and reads exactly ``width`` bytes from ``addr``: the caller
+# keeps them within its buffer (the scalar path takes a text's last bytes).
+
+def _splat(builder, vt, value):
+    """``value`` (an integer) truncated to a byte and repeated in every lane of ``vt``."""
+    byte = builder.trunc(value, ir.IntType(8))
+    one = builder.insert_element(ir.Constant(vt, ir.Undefined), byte, ir.Constant(ir.IntType(32), 0))
+    return builder.shuffle_vector(one, ir.Constant(vt, ir.Undefined),
+                                  ir.Constant(ir.VectorType(ir.IntType(32), vt.count), [0] * vt.count))
+
+
+def _mask_intrinsic(width, kind):
+    """An intrinsic ``(addr, a[, b]) -> uint64``: bit k set when the byte at ``addr + k`` (k < width)
+    is ``== a`` (kind "eq"), ``<= a`` unsigned ("le"), or within ``a … b`` unsigned ("range")."""
+    nargs = 3 if kind == "range" else 2
+
+    def typer(typingctx, *args):
+        if len(args) != nargs or not all(isinstance(a, types.Integer) for a in args):
+            return None
+        sig = types.uint64(*args)
+
+        def codegen(context, builder, signature, cargs):
+            cargs = [context.cast(builder, a, t, types.int64) for a, t in zip(cargs, signature.args)]
+            vt = ir.VectorType(ir.IntType(8), width)
+            v = builder.load(builder.inttoptr(cargs[0], vt.as_pointer()), align=1)
+            if kind == "eq":
+                hit = builder.icmp_unsigned("==", v, _splat(builder, vt, cargs[1]))
+            elif kind == "le":
+                hit = builder.icmp_unsigned("<=", v, _splat(builder, vt, cargs[1]))
+            else:   # lo <= x <= hi  as  x - lo <= hi - lo (unsigned, wrapping)
+                lo = _splat(builder, vt, cargs[1])
+                span = _splat(builder, vt, builder.sub(cargs[2], cargs[1]))
+                hit = builder.icmp_unsigned("<=", builder.sub(v, lo), span)
+            bits = builder.bitcast(hit, ir.IntType(width))
+            return bits if width == 64 else builder.zext(bits, ir.IntType(64))
+        return sig, codegen
+
+    if nargs == 2:
+        def mask(typingctx, addr, a):
+            return typer(typingctx, addr, a)
+    else:
+        def mask(typingctx, addr, a, b):
+            return typer(typingctx, addr, a, b)
+    mask.__name__ = f"_mask{width}_{kind}_intrinsic"
+    return intrinsic(mask)
+
+
+def _mask_python(width, kind):  # pragma: no cover - only under NUMBA_DISABLE_JIT
+    def mask(addr, a, b=None):
+        data = ctypes.string_at(int(addr), width)
+        lo, hi = int(a) & 255, (int(b) & 255 if b is not None else None)
+        if kind == "eq":
+            hits = [x == lo for x in data]
+        elif kind == "le":
+            hits = [x <= lo for x in data]
+        else:
+            hits = [(x - lo) & 255 <= (hi - lo) & 255 for x in data]
+        return np.uint64(sum(1 << k for k, h in enumerate(hits) if h))
+    mask.__name__ = f"_mask{width}_{kind}_python"
+    return mask
+
+
 # an intrinsic cannot run as plain Python (the NUMBA_DISABLE_JIT job of CI)
 #: count of trailing zero bits of an unsigned integer (64 for a uint64 0)
 trailing_zeros = _tz_python if numba.config.DISABLE_JIT else _tz_intrinsic
@@ -118,5 +185,18 @@ load_u8 = _load_u8_python if numba.config.DISABLE_JIT else _load_intrinsic(8, ty
 #: ``store_i64(addr, value)``: write an int64 at ``addr``
 store_i64 = _store_i64_python if numba.config.DISABLE_JIT else _store_i64_intrinsic
 
+#: ``mask32_eq(addr, c)`` / ``mask64_eq``: bit k set where the byte at ``addr + k`` equals ``c`` (uint64)
+mask32_eq = _mask_python(32, "eq") if numba.config.DISABLE_JIT else _mask_intrinsic(32, "eq")
+mask64_eq = _mask_python(64, "eq") if numba.config.DISABLE_JIT else _mask_intrinsic(64, "eq")
+#: ``mask32_le(addr, c)`` / ``mask64_le``: bit k set where the byte at ``addr + k`` is at most ``c``
+#: (unsigned: ``mask64_le(addr, 0x20)`` finds the blanks, line ends and control bytes)
+mask32_le = _mask_python(32, "le") if numba.config.DISABLE_JIT else _mask_intrinsic(32, "le")
+mask64_le = _mask_python(64, "le") if numba.config.DISABLE_JIT else _mask_intrinsic(64, "le")
+#: ``mask32_range(addr, lo, hi)`` / ``mask64_range``: bit k set where ``lo <= byte <= hi`` (unsigned,
+#: ``lo <= hi``: ``mask32_range(addr, 48, 57)`` finds the ASCII digits)
+mask32_range = _mask_python(32, "range") if numba.config.DISABLE_JIT else _mask_intrinsic(32, "range")
+mask64_range = _mask_python(64, "range") if numba.config.DISABLE_JIT else _mask_intrinsic(64, "range")
 
-__all__ = ["jit", "pjit", "inline_jit", "prange", "limit_threads", "trailing_zeros", "address", "load_u64", "load_u8", "store_i64"]
+
+__all__ = ["jit", "pjit", "inline_jit", "prange", "limit_threads", "trailing_zeros", "address", "load_u64", "load_u8", "store_i64",
+           "mask32_eq", "mask64_eq", "mask32_le", "mask64_le", "mask32_range", "mask64_range"]
