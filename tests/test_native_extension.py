@@ -247,6 +247,26 @@ def test_annotate_equals_the_python_udf(archive, native):
     assert len(values) > 3 and {s["confidence"] for _, segs in want[0] for s in segs} <= values
 
 
+@pytest.mark.shared
+def test_the_bounded_delta_of_preselection_is_the_full_one(archive, native):
+    """With keyframe preselection the native Δ computes only the cells a hit (Δ <= τ) can pass through
+    (distance_dp.h, bounded). The toolbox model has no keyframe query, so with keyframes on every slice is
+    the whole motion and only the bound differs from keyframes off: the segments must be the same to the
+    last bit at every τ, 0 (only perfect matches) and τ far above every class's included."""
+    taus = ("0", "0.02", "0.1", "0.3", "NULL")
+    queries = [f"SELECT motion_id, annotate(motion_id, 'toolbox', {t}, {k}) FROM motions ORDER BY motion_id"
+               for t in taus for k in ("true", "false")]
+    got = plain_client(archive, native, queries + [
+        "SELECT count(*) FROM keyframe_queries WHERE model = 'toolbox'"])
+    assert [g.get("error") for g in got] == [None] * (len(queries) + 1)
+    assert got[-1]["rows"] == [[0]]
+    for t, on, off in zip(taus, got[0:-1:2], got[1:-1:2]):
+        assert on["rows"] == off["rows"], t
+    # real segments were compared, fewer at τ = 0 than at 0.3
+    count = [sum(len(segs or []) for _, segs in g["rows"]) for g in got[0:-1:2]]
+    assert 0 < count[0] < count[3], count
+
+
 def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
     """A confidence map whose values fall is an error naming the model and the table; a database from before
     calibrated confidence (no table confidence_maps) gives the raw score, as the Python UDF gives it under the

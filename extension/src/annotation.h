@@ -48,8 +48,8 @@ void mdb_hit_scratch_free(mdb_hit_scratch *s);
 
 /* Δ̄^τ of one slice (as _extract_hits_kernel without the hits): repeatedly the first minimum of Δ
  * over the frames no hit covers yet, while <= tau; its frames back to the path's start (starts,
- * relative to the slice) that have no value get its cost; +inf elsewhere. 0, or -1 when out of
- * memory. */
+ * relative to the slice) that have no value get its cost; +inf elsewhere. 1, or 0 when no Δ is
+ * <= tau (+inf everywhere: cd is not written), or -1 when out of memory. */
 int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd,
                              mdb_hit_scratch *scratch);
 

@@ -99,7 +99,7 @@ static int grow(void *pp, size_t elem, size_t cap) {
 	"its functions"
 
 int mdb_state_live(mdb_state *st, mdb_error *err) {
-	if (!st->released && st->con) {
+	if (!st->released && st->main.con && st->data.con) {
 		return 0;
 	}
 	snprintf(err->text, sizeof err->text, "%s", RELEASED_ERROR);
@@ -113,17 +113,17 @@ int mdb_check_live(mdb_state *st, mdb_error *err) {
 	return rc;
 }
 
-void mdb_drop_prepared(mdb_state *st) {
-	for (size_t k = 0; k < st->n_prepared; k++) {
-		duckdb_destroy_prepare(&st->stmt[k]);
+void mdb_drop_prepared(mdb_session *s) {
+	for (size_t k = 0; k < s->n_prepared; k++) {
+		duckdb_destroy_prepare(&s->stmt[k]);
 	}
-	st->n_prepared = 0;
+	s->n_prepared = 0;
 }
 
 /* sql's statement on the extension's connection: the kept one (fresh: prepared again), or a new
  * one kept while there is room; NULL with err set when it does not prepare. *made: prepared now;
  * *owned: the caller destroys it (not kept). */
-static duckdb_prepared_statement prepared(mdb_state *st, const char *sql, const char *table, int fresh,
+static duckdb_prepared_statement prepared(mdb_session *st, const char *sql, const char *table, int fresh,
                                           int *made, int *owned, mdb_error *err) {
 	size_t k = 0;
 	while (k < st->n_prepared && st->sql[k] != sql) {
@@ -160,14 +160,14 @@ static duckdb_prepared_statement prepared(mdb_state *st, const char *sql, const 
  * extension's connection (the caller holds the lock); 0, or -1 with err naming the table. A kept
  * statement that fails is prepared and executed once more, so that a kept plan never turns into an
  * error a fresh one would not give. */
-static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
-                     const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
+static int run_query_on(mdb_state *st, mdb_session *on, const char *sql, const char *table, const char *const *texts,
+                        idx_t n_texts, const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
 	if (mdb_state_live(st, err)) {
 		return -1;
 	}
 	for (int fresh = 0; fresh < 2; fresh++) {
 		int made = 0, owned = 0;
-		duckdb_prepared_statement stmt = prepared(st, sql, table, fresh, &made, &owned, err);
+		duckdb_prepared_statement stmt = prepared(on, sql, table, fresh, &made, &owned, err);
 		if (!stmt) {
 			return -1;
 		}
@@ -192,16 +192,22 @@ static int run_query(mdb_state *st, const char *sql, const char *table, const ch
 	return -1;
 }
 
+/* run_query_on the main connection (the caller holds lock) */
+static int run_query(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                     const int32_t *ints, idx_t n_ints, duckdb_result *res, mdb_error *err) {
+	return run_query_on(st, &st->main, sql, table, texts, n_texts, ints, n_ints, res, err);
+}
+
 /* Where a query's rows go, a chunk of n at a time: 0 to go on, non-zero to stop (err set). */
 typedef int (*chunk_sink)(void *ctx, duckdb_data_chunk chunk, idx_t n, mdb_error *err);
 
 /* Run a query and hand its rows to sink, after checking that its columns have the types
  * mocapdb writes; 0 or -1. The result is destroyed. */
-static int query_rows(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
-                      const int32_t *ints, idx_t n_ints, const duckdb_type *want, idx_t n_cols, chunk_sink sink,
-                      void *ctx, mdb_error *err) {
+static int query_rows_on(mdb_state *st, mdb_session *on, const char *sql, const char *table, const char *const *texts,
+                         idx_t n_texts, const int32_t *ints, idx_t n_ints, const duckdb_type *want, idx_t n_cols,
+                         chunk_sink sink, void *ctx, mdb_error *err) {
 	duckdb_result res;
-	if (run_query(st, sql, table, texts, n_texts, ints, n_ints, &res, err)) {
+	if (run_query_on(st, on, sql, table, texts, n_texts, ints, n_ints, &res, err)) {
 		return -1;
 	}
 	int rc = 0;
@@ -220,6 +226,13 @@ static int query_rows(mdb_state *st, const char *sql, const char *table, const c
 	}
 	duckdb_destroy_result(&res);
 	return rc;
+}
+
+/* query_rows_on the main connection (the caller holds lock) */
+static int query_rows(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                      const int32_t *ints, idx_t n_ints, const duckdb_type *want, idx_t n_cols, chunk_sink sink,
+                      void *ctx, mdb_error *err) {
+	return query_rows_on(st, &st->main, sql, table, texts, n_texts, ints, n_ints, want, n_cols, sink, ctx, err);
 }
 
 /* Column c of a chunk: its data and validity. */
@@ -385,14 +398,15 @@ static int runs_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) 
 	return 0;
 }
 
-/* Read the runs of motions lo .. hi (the caller holds the lock). */
+/* Read the runs of motions lo .. hi (the caller holds data_lock). */
 static int read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_error *err) {
 	runs_ctx ctx = {out, NULL, 0};
 	int32_t range[2] = {lo, hi};
 	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER,
 	                      DUCKDB_TYPE_INTEGER};
 	out->n = 0;
-	int rc = query_rows(st, RUNS_SQL, "mocap_index.postings", NULL, 0, range, 2, want, 5, runs_sink, &ctx, err);
+	int rc = query_rows_on(st, &st->data, RUNS_SQL, "mocap_index.postings", NULL, 0, range, 2, want, 5, runs_sink, &ctx,
+	                       err);
 	if (rc == 0 && order_runs(out, ctx.seg)) {
 		rc = out_of_memory(err, "the keyframe index");
 	}
@@ -400,7 +414,7 @@ static int read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_e
 	return rc;
 }
 
-/* The index version (NULL: -1; no index built), the caller holding the lock. */
+/* The index version (NULL: -1; no index built), the caller holding data_lock. */
 static int version_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
 	int64_t *version = p;
 	COLUMN(chunk, 0, int64_t, x, valid);
@@ -416,7 +430,8 @@ static int version_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *er
 static int index_version(mdb_state *st, int64_t *version, mdb_error *err) {
 	duckdb_type want[] = {DUCKDB_TYPE_BIGINT};
 	*version = -2; /* no row yet */
-	if (query_rows(st, VERSION_SQL, "mocap_index.state", NULL, 0, NULL, 0, want, 1, version_sink, version, err)) {
+	if (query_rows_on(st, &st->data, VERSION_SQL, "mocap_index.state", NULL, 0, NULL, 0, want, 1, version_sink, version,
+	                  err)) {
 		return -1;
 	}
 	if (*version == -2) {
@@ -462,7 +477,7 @@ void mdb_drop_cache(mdb_state *st) {
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err) {
 	int64_t version;
 	mdb_batch *b = NULL;
-	pthread_mutex_lock(&st->lock);
+	pthread_mutex_lock(&st->data_lock);
 	if (index_version(st, &version, err)) {
 		goto done;
 	}
@@ -498,7 +513,7 @@ mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *er
 		b->detached = 1;
 	}
 done:
-	pthread_mutex_unlock(&st->lock);
+	pthread_mutex_unlock(&st->data_lock);
 	return b;
 }
 
@@ -506,11 +521,11 @@ void mdb_release_runs(mdb_state *st, mdb_batch *b) {
 	if (!b) {
 		return;
 	}
-	pthread_mutex_lock(&st->lock);
+	pthread_mutex_lock(&st->data_lock);
 	if (--b->refs == 0 && b->detached) {
 		batch_free(b);
 	}
-	pthread_mutex_unlock(&st->lock);
+	pthread_mutex_unlock(&st->data_lock);
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -748,9 +763,9 @@ int mdb_read_motion_range(mdb_state *st, int32_t lo, int32_t hi, mdb_motions *ou
 	motions_ctx ctx = {out, 0};
 	int32_t range[2] = {lo, hi};
 	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_DOUBLE};
-	pthread_mutex_lock(&st->lock);
-	int rc = query_rows(st, RANGE_SQL, "motions", NULL, 0, range, 2, want, 3, motions_sink, &ctx, err);
-	pthread_mutex_unlock(&st->lock);
+	pthread_mutex_lock(&st->data_lock);
+	int rc = query_rows_on(st, &st->data, RANGE_SQL, "motions", NULL, 0, range, 2, want, 3, motions_sink, &ctx, err);
+	pthread_mutex_unlock(&st->data_lock);
 	if (rc) {
 		mdb_motions_free(out);
 	}
@@ -769,9 +784,9 @@ int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, c
 		free(c.filled);
 		return out_of_memory(err, "motions");
 	}
-	pthread_mutex_lock(&st->lock);
-	int rc = query_rows(st, WORDS_SQL, "features", NULL, 0, range, 2, cols, 3, words_sink, &c, err);
-	pthread_mutex_unlock(&st->lock);
+	pthread_mutex_lock(&st->data_lock);
+	int rc = query_rows_on(st, &st->data, WORDS_SQL, "features", NULL, 0, range, 2, cols, 3, words_sink, &c, err);
+	pthread_mutex_unlock(&st->data_lock);
 	/* no frame twice and none out of 1 … n_frames: n_frames rows fill every slot */
 	for (size_t k = 0; k < n_want && !c.bad; k++) {
 		if ((int64_t)c.count[k] != n_frames[k]) {
@@ -783,12 +798,12 @@ int mdb_read_words(mdb_state *st, int32_t lo, int32_t hi, const int32_t *want, c
 		char name[200] = "";
 		duckdb_result res;
 		mdb_error ignored;
-		pthread_mutex_lock(&st->lock);
-		if (!run_query(st, NAME_SQL, "motions", NULL, 0, &c.bad, 1, &res, &ignored)) {
+		pthread_mutex_lock(&st->data_lock);
+		if (!run_query_on(st, &st->data, NAME_SQL, "motions", NULL, 0, &c.bad, 1, &res, &ignored)) {
 			first_text(&res, name, sizeof name);
 			duckdb_destroy_result(&res);
 		}
-		pthread_mutex_unlock(&st->lock);
+		pthread_mutex_unlock(&st->data_lock);
 		snprintf(err->text, sizeof err->text,
 		         "motion %d (%s) has feature rows that are not its frames 1…n_frames: ingest or import it again to "
 		         "repair it",

@@ -11,8 +11,8 @@
 #include "duckdb_extension.h"
 
 /* What a loaded extension keeps per database instance (the functions' extra info, never a
- * global: two databases of one process may each load it): a connection of its own (opened at
- * LOAD; the C API hands the database out only then), the lock that serialises its use (a DuckDB
+ * global: two databases of one process may each load it): connections of its own (opened at
+ * LOAD; the C API hands the database out only then), the locks that serialise their use (a DuckDB
  * connection runs one query at a time) and the index cache. mocapdb_release() disconnects and
  * frees the cache (state.c); the struct itself goes with the last function holding it. */
 /* Error text of the archive functions (set when they return non-zero). */
@@ -25,18 +25,28 @@ struct mdb_batch;
 /* more than the distinct queries of archive.c */
 #define MDB_MAX_PREPARED 24
 
+/* A connection of the extension's own with its kept statements: each query of archive.c prepared
+ * once on it (parsing and planning cost more than reading a model's rows) and kept by its text's
+ * address; DuckDB re-binds a kept statement itself when the catalog changed, and a statement that
+ * fails is prepared afresh once (run_query). A connection runs one query at a time: each has its
+ * lock. */
 typedef struct {
 	duckdb_connection con;
-	/* Each query of archive.c prepared once on con (parsing and planning cost more than reading
-	 * a model's rows) and kept by its text's address; DuckDB re-binds a kept statement itself when
-	 * the catalog changed, and a statement that fails is prepared afresh once (run_query). */
 	const char *sql[MDB_MAX_PREPARED];
 	duckdb_prepared_statement stmt[MDB_MAX_PREPARED];
 	size_t n_prepared;
-	pthread_mutex_t lock;
+} mdb_session;
+
+typedef struct {
+	/* two connections (opened at LOAD; the C API hands the database out only then), so that a call
+	 * reads a batch's words while it reads its model: `main` (under lock) the models and whatever
+	 * else, `data` (under data_lock, which also guards the index cache) the motions, their words
+	 * and the index's runs. A thread holding lock may take data_lock, never the other way round. */
+	mdb_session main, data;
+	pthread_mutex_t lock, data_lock;
 	struct mdb_batch *cache; /* index batches read, newest first (see mdb_acquire_runs) */
 	size_t cache_bytes;
-	int released;            /* mocapdb_release() ran: con is gone, every call is an error */
+	int released;            /* mocapdb_release() ran (under both locks): the connections are gone */
 	int refs;                /* the registered functions holding it (and LOAD while it runs) */
 } mdb_state;
 
@@ -45,12 +55,12 @@ mdb_state *mdb_state_new(void);
 /* Another reference, for a function's extra info; mdb_state_unref is its destroy callback. */
 mdb_state *mdb_state_ref(mdb_state *st);
 void mdb_state_unref(void *st);
-/* Destroy the kept prepared statements (the caller holds the lock). */
-void mdb_drop_prepared(mdb_state *st);
+/* Destroy a session's kept prepared statements (the caller holds its lock). */
+void mdb_drop_prepared(mdb_session *s);
 /* Disconnect the extension's connection and free the cache; 1 when it did, 0 when done before. */
 int mdb_state_release(mdb_state *st);
-/* 0 while the extension's connection is open, else -1 with the error a released function gives
- * (the caller holds the lock). */
+/* 0 while the extension's connections are open, else -1 with the error a released function gives
+ * (the caller holds one of the locks). */
 int mdb_state_live(mdb_state *st, mdb_error *err);
 /* The same, taking the lock: for the functions' entry points. */
 int mdb_check_live(mdb_state *st, mdb_error *err);
@@ -94,7 +104,7 @@ void mdb_motions_free(mdb_motions *m);
  * mdb_release_runs. */
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err);
 void mdb_release_runs(mdb_state *st, mdb_batch *b);
-/* Drop every cached batch (the caller holds the lock; those in use go when released). */
+/* Drop every cached batch (the caller holds data_lock; those in use go when released). */
 void mdb_drop_cache(mdb_state *st);
 void mdb_runs_free(mdb_runs *r);
 

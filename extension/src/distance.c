@@ -106,14 +106,14 @@ int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const doub
 #include "distance_dp.h"
 
 static void dp(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts, size_t stride,
-               double *buf, int64_t *sbuf) {
+               double *buf, int64_t *sbuf, double bound, size_t *dirty) {
 	__builtin_cpu_init();
 	if (__builtin_cpu_supports("avx512f")) {
-		dp_avx512(t, words, n, delta, starts, stride, buf, sbuf);
+		dp_avx512(t, words, n, delta, starts, stride, buf, sbuf, bound, dirty);
 	} else if (__builtin_cpu_supports("avx2")) {
-		dp_avx2(t, words, n, delta, starts, stride, buf, sbuf);
+		dp_avx2(t, words, n, delta, starts, stride, buf, sbuf, bound, dirty);
 	} else {
-		dp_sse2(t, words, n, delta, starts, stride, buf, sbuf);
+		dp_sse2(t, words, n, delta, starts, stride, buf, sbuf, bound, dirty);
 	}
 }
 #else
@@ -130,7 +130,7 @@ void mdb_dp_scratch_free(mdb_dp_scratch *s) {
 }
 
 int mdb_mt_distance_in(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts,
-                       mdb_dp_scratch *s) {
+                       double bound, mdb_dp_scratch *s) {
 	size_t K = t->K;
 	/* a column: PAD rows, K rows, and the rows the last vector reaches past K-1, rounded up to
 	 * 64 bytes (aligned_alloc takes whole multiples of its alignment) */
@@ -146,22 +146,39 @@ int mdb_mt_distance_in(const mdb_template *t, const uint64_t *words, size_t n, d
 			return -1;
 		}
 		s->stride = stride;
+		s->dirty = stride; /* not set up yet */
 	}
 	stride = s->stride;
-	for (size_t i = 0; i < 3 * stride; i++) {
-		s->buf[i] = INFINITY;
-		s->sbuf[i] = -1;
+	if (bound < INFINITY && s->dirty < stride) {
+		/* a bounded DP reads only rows it or the previous calls wrote as finite (rows 0 .. dirty-1
+		 * of a column below its PAD), and every other row is +inf since the last full set-up: a
+		 * slice's ring is ready once those are +inf again (a few rows where a short reach was
+		 * enough, instead of the whole ring per slice) */
+		for (size_t r = 0; r < 3; r++) {
+			for (size_t i = 0; i < s->dirty; i++) {
+				s->buf[r * stride + PAD + i] = INFINITY;
+			}
+		}
+	} else {
+		for (size_t i = 0; i < 3 * stride; i++) {
+			s->buf[i] = INFINITY;
+			s->sbuf[i] = -1;
+		}
+		for (size_t i = 0; i < stride; i++) {
+			s->buf[3 * stride + i] = 0.0; /* the costs of the rows past K-1 */
+		}
 	}
-	for (size_t i = 0; i < stride; i++) {
-		s->buf[3 * stride + i] = 0.0; /* the costs of the rows past K-1 */
+	s->dirty = 0;
+	dp(t, words, n, delta, starts, stride, s->buf, s->sbuf, bound, &s->dirty);
+	if (bound == INFINITY) {
+		s->dirty = stride; /* every row of the ring written */
 	}
-	dp(t, words, n, delta, starts, stride, s->buf, s->sbuf);
 	return 0;
 }
 
 int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts) {
 	mdb_dp_scratch s = {0};
-	int rc = mdb_mt_distance_in(t, words, n, delta, starts, &s);
+	int rc = mdb_mt_distance_in(t, words, n, delta, starts, INFINITY, &s);
 	mdb_dp_scratch_free(&s);
 	return rc;
 }

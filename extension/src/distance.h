@@ -32,15 +32,19 @@ typedef struct {
 	double *buf;
 	int64_t *sbuf;
 	size_t stride; /* rows of a column it holds */
+	size_t dirty;  /* rows of a column (from row 0) the last call may have left finite */
 } mdb_dp_scratch;
 
 void mdb_dp_scratch_free(mdb_dp_scratch *s);
 
 /* Δ(j) for j = 0..n-1 into delta (+inf where no path ends) and, when starts is not NULL, the first
  * frame of the path ending at j into starts (-1 where none; the predecessor choice of Δ, as
- * mocapdb.templates.distance with return_starts); 0, or -1 when out of memory. */
+ * mocapdb.templates.distance with return_starts); 0, or -1 when out of memory. A finite bound
+ * gives only Δ(j) <= bound (and its start), the same doubles, +inf (and -1) for the others, and
+ * skips the cells no path of cost <= bound reaches (what annotation needs: hits are Δ <= τ);
+ * INFINITY: every Δ(j). */
 int mdb_mt_distance_in(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts,
-                       mdb_dp_scratch *scratch);
+                       double bound, mdb_dp_scratch *scratch);
 /* The same with a scratch of its own. */
 int mdb_mt_distance(const mdb_template *t, const uint64_t *words, size_t n, double *delta, int64_t *starts);
 

@@ -1,10 +1,10 @@
 /* Entry point of mocapdb.duckdb_extension (`LOAD mocapdb`), against DuckDB's stable C
  * extension API (the version set by -DDUCKDB_EXTENSION_API_VERSION_*; docs/EXTENSION.md).
  *
- * The C API gives an extension its database only while it loads. So LOAD opens one
- * connection that the functions keep for reading the archive (models, features,
+ * The C API gives an extension its database only while it loads. So LOAD opens the two
+ * connections that the functions keep for reading the archive (models; features and
  * postings) and registers the functions with the database (every connection sees them).
- * That connection holds the database until `SELECT mocapdb_release()` (state.c). */
+ * Those connections hold the database until `SELECT mocapdb_release()` (state.c). */
 #define DUCKDB_EXTENSION_NAME mocapdb
 #include <stdlib.h>
 
@@ -23,7 +23,8 @@ DUCKDB_EXTENSION_ENTRYPOINT_CUSTOM(duckdb_extension_info info, struct duckdb_ext
 		access->set_error(info, "mocapdb: out of memory");
 		return false;
 	}
-	if (duckdb_connect(*db, &st->con) == DuckDBError || duckdb_connect(*db, &reg) == DuckDBError) {
+	if (duckdb_connect(*db, &st->main.con) == DuckDBError || duckdb_connect(*db, &st->data.con) == DuckDBError ||
+	    duckdb_connect(*db, &reg) == DuckDBError) {
 		error = "mocapdb: could not open a connection to the database";
 	} else if (mdb_register_keyframe_words(reg, st) || mdb_register_keyframe_search(reg, st) ||
 	           mdb_register_mt_distance(reg, st) || mdb_register_annotate(reg, st) ||

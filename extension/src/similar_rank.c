@@ -5,6 +5,7 @@
  * arithmetic), so they are the Python UDF's doubles. */
 #include "similar_rank.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -102,7 +103,7 @@ static int rank_pass(const mdb_sim_template *t, double tau, const uint64_t *word
 		if (len == 0) {
 			continue;
 		}
-		if (scratch_reserve(s, len) || mdb_mt_distance_in(&dt, words + ta[q], len, s->delta, s->starts, &s->dp)) {
+		if (scratch_reserve(s, len) || mdb_mt_distance_in(&dt, words + ta[q], len, s->delta, s->starts, INFINITY, &s->dp)) {
 			return -1;
 		}
 		const double *d = s->delta;

@@ -23,6 +23,11 @@ mdb_state *mdb_state_new(void) {
 		free(st);
 		return NULL;
 	}
+	if (pthread_mutex_init(&st->data_lock, NULL)) {
+		pthread_mutex_destroy(&st->lock);
+		free(st);
+		return NULL;
+	}
 	st->refs = 1;
 	return st;
 }
@@ -39,21 +44,27 @@ void mdb_state_unref(void *p) {
 	}
 	/* no function can run any more: nothing else holds the lock or a batch */
 	mdb_state_release(st);
+	pthread_mutex_destroy(&st->data_lock);
 	pthread_mutex_destroy(&st->lock);
 	free(st);
 }
 
 int mdb_state_release(mdb_state *st) {
 	pthread_mutex_lock(&st->lock);
+	pthread_mutex_lock(&st->data_lock);
 	int was_live = !st->released;
 	if (was_live) {
-		mdb_drop_prepared(st);
-		if (st->con) {
-			duckdb_disconnect(&st->con);
+		mdb_session *both[2] = {&st->main, &st->data};
+		for (int k = 0; k < 2; k++) {
+			mdb_drop_prepared(both[k]);
+			if (both[k]->con) {
+				duckdb_disconnect(&both[k]->con);
+			}
 		}
 		mdb_drop_cache(st);
 		st->released = 1;
 	}
+	pthread_mutex_unlock(&st->data_lock);
 	pthread_mutex_unlock(&st->lock);
 	return was_live;
 }
