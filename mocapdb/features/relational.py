@@ -14,8 +14,14 @@ Pipeline of one motion (:func:`motion_features`):
 2. :func:`downsample` — native frames 0, 4, 8, … (120 Hz → 30 Hz);
 3. :func:`pack_words` — one uint64 per frame, bit k−1 = feature k.
 
+Ingest runs steps 1–3 and feature 41's hysteresis as one kernel call per take
+(:func:`_take_words_kernel`, which calls the same kernels): the per-step
+Python and the dozen small arrays of a take cost as much as the kernels on a
+take of a few hundred frames (issue 35).
+
 Steps 2 and 3 and everything else on words live in :mod:`mocapdb.features.words`.
 """
+import functools
 import math
 
 import numpy as np
@@ -26,7 +32,7 @@ from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, featu
                                     grid_source_frames, resample_joints, resampled_count)
 from mocapdb.features.heading import (HEADING_THRESHOLDS, HEADING_WINDOW_S, HeadingChangeStream, heading_axis,
                                       heading_change)
-from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
+from mocapdb.features.words import N_FEATURES, _as_bool_matrix
 from mocapdb.bodies import JOINT_INDEX
 
 
@@ -511,6 +517,50 @@ def _hysteresis_kernel(f1, f2, out, states):  # pragma: no cover - compiled
         states[j] = state
 
 
+@jit
+def _take_words_kernel(joints, axis, fps, vel_q, vel_p, windows, units, thr, first, count, change, turn_thr,
+                       states, rows, words):  # pragma: no cover - compiled
+    """A take's words in one call (issue 35): the tests of the 40 features on ``joints`` (rows ``first`` …
+    ``first + count − 1`` and the context their windows read, :func:`feature_tests`), #40 from ``axis``
+    ((n, 3): the pelvis axis, :func:`~mocapdb.features.heading.heading_axis`), the §5 hysteresis of the 40
+    (continuing ``states[:40]``) and of feature 41 (``change`` (count,): the heading change of those rows,
+    against ``turn_thr`` (lenient, strict), continuing ``states[40]``), then row ``first + rows[i]`` packed
+    into ``words[i]`` (bit k − 1 = feature k, bit 40 = feature 41). The same kernels as the unfused
+    :func:`relational_features`, :func:`heading_turned` and :func:`pack_words`, called here so that a take
+    costs one dispatch and no Python per step."""
+    n = joints.shape[0]
+    vel = np.empty((vel_q.shape[0], n, 3))
+    _smoothed_velocity_kernel(joints, vel_q, vel_p, windows, vel)
+    f1 = np.empty((n, 40), dtype=np.bool_)
+    f2 = np.empty((n, 40), dtype=np.bool_)
+    _upper_kernel(joints, vel, units, thr, fps, f1, f2)
+    _lower_kernel(joints, vel, units, thr, fps, f1, f2)
+    _mix_kernel(joints, vel, units, thr, fps, f1, f2)
+    rate = np.empty(n)
+    _yaw_rate_kernel(np.ascontiguousarray(axis[:, 0]), np.ascontiguousarray(axis[:, 2]), fps, rate)
+    for t in range(n):
+        f1[t, 39] = rate[t] >= thr[39, 0]
+        f2[t, 39] = rate[t] >= thr[39, 1]
+    feats = np.empty((count, 40), dtype=np.bool_)
+    _hysteresis_kernel(f1[first:first + count], f2[first:first + count], feats, states[:40])
+    turned = np.empty(count, dtype=np.bool_)
+    state = states[40]
+    for t in range(count):
+        state = change[t] >= turn_thr[0] if state else change[t] >= turn_thr[1]
+        turned[t] = state
+    states[40] = state
+    one = np.uint64(1)
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        w = np.uint64(0)
+        for k in range(40):
+            if feats[r, k]:
+                w |= one << np.uint64(k)
+        if turned[r]:
+            w |= one << np.uint64(40)
+        words[i] = w
+
+
 # ---------------------------------------------------------------------------
 # public API
 
@@ -622,6 +672,19 @@ def relational_features(joints, root_rotation, fps, *,
     ----------
     FEATURES.md §3–§6; Müller & Röder, SCA 2006; Müller, Baak & Seidel, SCA 2009.
     """
+    j, r, fps, ang_thr = _checked_input(joints, root_rotation, fps, root_ang_vel_thresholds)
+    n = j.shape[0]
+    out = np.zeros((n, N_FEATURES), dtype=np.bool_)
+    if n < 2:
+        return out
+    f1, f2 = feature_tests(j, r, fps, body_units(j), root_ang_vel_thresholds=ang_thr)
+    _hysteresis_kernel(f1, f2, out, np.zeros(N_FEATURES, dtype=np.bool_))
+    return out
+
+
+def _checked_input(joints, root_rotation, fps, root_ang_vel_thresholds):
+    """The features' input checked once: ``(joints (n, 24, 3) float64 contiguous, root_rotation (n, 3, 3) or
+    None, fps, (lenient, strict) yaw-rate thresholds)``; a clear :class:`ParameterError` otherwise."""
     j = np.asarray(joints)
     if j.ndim != 3 or j.shape[1:] != (24, 3):
         raise ParameterError(
@@ -629,22 +692,43 @@ def relational_features(joints, root_rotation, fps, *,
     if not np.issubdtype(j.dtype, np.number):
         raise ParameterError(f"joints must be numeric, got dtype {j.dtype}")
     j = np.ascontiguousarray(j, dtype=np.float64)
-    n = j.shape[0]
-    fps = check_fps(fps)
-    ang_thr = _check_threshold_pair(root_ang_vel_thresholds)
+    r = None
     if root_rotation is not None:
         r = np.asarray(root_rotation)
-        if r.shape != (n, 3, 3):
+        if r.shape != (j.shape[0], 3, 3):
             raise ParameterError(
-                f"root_rotation must have shape ({n}, 3, 3) to match joints, got "
+                f"root_rotation must have shape ({j.shape[0]}, 3, 3) to match joints, got "
                 f"{r.shape}; pass None for position-only data")
-    out = np.zeros((n, N_FEATURES), dtype=np.bool_)
-    if n < 2:
-        return out
-    f1, f2 = feature_tests(j, None if root_rotation is None else r, fps, body_units(j),
-                           root_ang_vel_thresholds=ang_thr)
-    _hysteresis_kernel(f1, f2, out, np.zeros(N_FEATURES, dtype=np.bool_))
+    return j, r, check_fps(fps), _check_threshold_pair(root_ang_vel_thresholds)
+
+
+@functools.lru_cache(maxsize=16)
+def _windows(fps: float) -> np.ndarray:
+    """The smoothing window (frames) of each velocity trajectory at ``fps`` (read-only: shared)."""
+    out = np.array([smoothing_window(ms, fps) for ms in _VEL_MS], dtype=np.int64)
+    out.flags.writeable = False
     return out
+
+
+@functools.lru_cache(maxsize=16)
+def _thresholds(root_ang_vel_thresholds: tuple) -> np.ndarray:
+    """:data:`FEATURE_THRESHOLDS` with #40's pair replaced (read-only: shared)."""
+    thr = _THRESHOLDS.copy()
+    thr[39] = root_ang_vel_thresholds
+    thr.flags.writeable = False
+    return thr
+
+
+#: feature 41's (lenient, strict) heading change, as the fused kernel reads it
+_TURN_THRESHOLDS = np.array(HEADING_THRESHOLDS, dtype=np.float64)
+
+
+def _words_into(words, joints, rot, fps, units, thr, first, count, change, states, rows) -> None:
+    """:func:`_take_words_kernel` of checked input (``joints`` contiguous float64, ``rot`` or None): the
+    words of rows ``first`` … ``first + count − 1`` whose offsets ``rows`` are written to ``words``."""
+    axis = np.ascontiguousarray(heading_axis(joints, rot))
+    _take_words_kernel(joints, axis, fps, _VEL_Q, _VEL_P, _windows(fps), units, thr, first, count,
+                       change, _TURN_THRESHOLDS, states, rows, words)
 
 
 def body_units(joints) -> np.ndarray:
@@ -670,12 +754,10 @@ def feature_tests(joints, root_rotation, fps, units, *, root_ang_vel_thresholds=
         The lenient and the strict test.
     """
     n = joints.shape[0]
-    windows = np.array([smoothing_window(ms, fps) for ms in _VEL_MS], dtype=np.int64)
     vel = np.empty((len(_VELOCITY_TRAJECTORIES), n, 3))
-    _smoothed_velocity_kernel(joints, _VEL_Q, _VEL_P, windows, vel)
+    _smoothed_velocity_kernel(joints, _VEL_Q, _VEL_P, _windows(fps), vel)
 
-    thr = _THRESHOLDS.copy()
-    thr[39] = root_ang_vel_thresholds
+    thr = _thresholds(tuple(root_ang_vel_thresholds))
     f1 = np.empty((n, N_FEATURES), dtype=np.bool_)
     f2 = np.empty((n, N_FEATURES), dtype=np.bool_)
     _upper_kernel(joints, vel, units, thr, fps, f1, f2)
@@ -769,18 +851,29 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
         if fps != TOOLBOX_RATE and rate_method == "resample":
             joints, rot = resample_joints(joints, rot, fps)
             fps = TOOLBOX_RATE
-        feats = relational_features(joints, rot, fps, root_ang_vel_thresholds=root_ang_vel_thresholds)
-        # bit 40: feature 41, the heading turned (beyond the paper; the 40 stay the toolbox's)
-        feats = np.column_stack([feats, heading_turned(joints, rot, fps)])
-        if fps == TOOLBOX_RATE:
-            words = pack_words(downsample(feats))
-        else:
-            words = pack_words(feats[grid_source_frames(len(feats), fps)])
+        words = _take_words(joints, rot, fps, root_ang_vel_thresholds)
     # a resampled take can end a hair before the source's last grid time
     want = feature_frame_count(motion.n_frames, motion.fps)
     if len(words) < want:
         words = np.concatenate([words, np.repeat(words[-1:], want - len(words))])
     return words[:want]
+
+
+def _take_words(joints, rot, fps, root_ang_vel_thresholds) -> np.ndarray:
+    """The words of a whole take at ``fps`` (a 30 Hz grid row each: every 4th frame at 120 Hz, else the
+    nearest source frame): :func:`relational_features`, :func:`heading_turned` (bit 40) and
+    :func:`pack_words` of the grid's rows, bit for bit, in one kernel call (:func:`_take_words_kernel`)."""
+    j, r, fps, ang_thr = _checked_input(joints, rot, fps, root_ang_vel_thresholds)
+    n = j.shape[0]
+    rows = np.arange(0, n, 4) if fps == TOOLBOX_RATE else grid_source_frames(n, fps)
+    words = np.zeros(len(rows), dtype=np.uint64)
+    if n < 2:   # no velocities: every feature off (FEATURES.md §7), feature 41 too
+        return words
+    axis = heading_axis(j, r)
+    change = heading_change(j, r, fps, axis=axis)
+    _words_into(words, j, r, fps, body_units(j), _thresholds(ang_thr), 0, n, change,
+                np.zeros(N_FEATURES + 1, dtype=np.bool_), rows)
+    return words
 
 
 #: a take longer than this (120 Hz frames, resampled) has its features computed a block of this many
@@ -809,34 +902,28 @@ def _words_by_block(motion, root_ang_vel_thresholds) -> np.ndarray:
         return resample_joints(j, rot, fps, frames=(a, b))
 
     units = body_units(frames(0, 1)[0])
+    thr = _thresholds(ang_thr)
     step = max(4, BLOCK_FRAMES // 4 * 4)
     # feature 41 streams too (HeadingChangeStream: the unwrap and the held heading carried from block to
-    # block, its hysteresis state as well); a block's bits need the pelvis axis 1.5 s beyond the block
-    lo_turn, hi_turn = HEADING_THRESHOLDS
+    # block, its hysteresis state in states[40]); a block's bits need the pelvis axis 1.5 s beyond the block
     heading = HeadingChangeStream(n, TOOLBOX_RATE)
-    turn_state = np.zeros(1, dtype=np.bool_)
-    turned, turned0, axis_fed = np.zeros(0, dtype=np.bool_), 0, 0   # feature 41 of frames turned0 …
-    states = np.zeros(N_FEATURES, dtype=np.bool_)
+    change, change0, axis_fed = np.zeros(0), 0, 0   # the heading change of frames change0 …
+    states = np.zeros(N_FEATURES + 1, dtype=np.bool_)
     words = np.empty((n + 3) // 4, dtype=np.uint64)
     for a in range(0, n, step):
         b = min(n, a + step)
-        while turned0 + turned.size < b:
+        while change0 + change.size < b:
             if axis_fed < n:
-                change = heading.feed(heading_axis(*frames(axis_fed, min(n, axis_fed + step))))
+                part = heading.feed(heading_axis(*frames(axis_fed, min(n, axis_fed + step))))
                 axis_fed = min(n, axis_fed + step)
             else:
-                change = heading.finish()
-            part = np.empty((change.size, 1), dtype=np.bool_)
-            _hysteresis_kernel((change >= lo_turn)[:, None], (change >= hi_turn)[:, None], part, turn_state)
-            turned = np.concatenate([turned, part[:, 0]])
+                part = heading.finish()
+            change = np.concatenate([change, part])
         lo, hi = max(0, a - _CONTEXT), min(n, b + _CONTEXT)
         jw, rw = frames(lo, hi)
-        f1, f2 = feature_tests(np.ascontiguousarray(jw), rw, TOOLBOX_RATE, units, root_ang_vel_thresholds=ang_thr)
-        feats = np.empty((b - a, N_FEATURES + 1), dtype=np.bool_)
-        _hysteresis_kernel(f1[a - lo:b - lo], f2[a - lo:b - lo], feats[:, :N_FEATURES], states)
-        feats[:, N_FEATURES] = turned[a - turned0:b - turned0]
-        turned, turned0 = turned[b - turned0:], b
-        words[a // 4:(b + 3) // 4] = pack_words(feats[::4])
+        _words_into(words[a // 4:(b + 3) // 4], np.ascontiguousarray(jw), rw, TOOLBOX_RATE, units, thr, a - lo,
+                    b - a, change[a - change0:b - change0], states, np.arange(0, b - a, 4))
+        change, change0 = change[b - change0:], b
     return words
 
 
