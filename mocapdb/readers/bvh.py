@@ -632,11 +632,27 @@ def _combine_kernel(origins, ends, point, end_of, weight, out):  # pragma: no co
                         out[f, j, c] += w * ends[f, end_of[p - nj], c]
 
 
-def _combine(point, weight, end_of, origins, ends) -> np.ndarray:
-    """The 24 canonical joints from the FK points (a gather: most rows are one point)."""
-    out = np.empty((origins.shape[0], len(JOINT_NAMES), 3))
-    _combine_kernel(origins, ends, point, end_of, weight, out)
-    return out
+#: frames of FK points a call of :func:`_bvh_joints_kernel` holds at a time (the points of a 64-frame block
+#: stay in the processor's cache between FK and the gather)
+_FK_BLOCK = 64
+
+
+@jit
+def _bvh_joints_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis, end_site, has_end, needed,
+                       rot_joint, point, end_of, weight, joints, rotations):  # pragma: no cover - compiled
+    """FK and the gather of the 24 canonical joints in one call (issue 35): :func:`_bvh_fk_kernel` and
+    :func:`_combine_kernel` a block of :data:`_FK_BLOCK` frames at a time into ``joints`` (n, 24, 3) and
+    ``rotations`` (n, 3, 3). The block's FK points need no NaN fill: the gather reads only points of
+    weight ≠ 0, which ``needed`` (closed under parents) makes FK write."""
+    n = values.shape[0]
+    nj = parent.shape[0]
+    origins = np.empty((_FK_BLOCK, nj, 3))
+    ends = np.empty((_FK_BLOCK, nj, 3))
+    for a in range(0, n, _FK_BLOCK):
+        b = min(n, a + _FK_BLOCK)
+        _bvh_fk_kernel(values[a:b], parent, offset, ch_start, ch_count, ch_kind, ch_axis, end_site, has_end,
+                       needed, origins[:b - a], ends[:b - a], rotations[a:b], rot_joint)
+        _combine_kernel(origins[:b - a], ends[:b - a], point, end_of, weight, joints[a:b])
 
 
 @jit
@@ -773,21 +789,18 @@ def _placed(how):
     return name if name is not None else why
 
 
-#: joint positions per block of forward kinematics (the per-joint arrays of one block, not of the take)
+#: joint positions per block of the Z-up turn (the block's temporaries, not the take's)
 _FK_POINTS = 1 << 18
 
 
 def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed, *, out=None):
     """The 24 canonical joints (n, 24, 3) and pelvis rotation (n, 3, 3) (into the pair ``out`` when given),
-    FK in blocks of frames: memory never holds every joint's path."""
+    FK and the gather in one kernel call (:func:`_bvh_joints_kernel`): memory never holds every joint's path."""
     n = data.values.shape[0]
     joints, rot = out if out is not None else (np.empty((n, len(JOINT_NAMES), 3)), np.empty((n, 3, 3)))
-    step = max(256, _FK_POINTS // max(len(data.hierarchy.joints), 1))
-    for a in range(0, n, step):
-        block = BvhData(data.hierarchy, data.values[a:a + step], data.frame_time, data.path)
-        origins, ends, r = bvh_node_positions(block, rotation_joint=jm.rotation_point, needed=needed)
-        joints[a:a + len(r)] = _combine(point, weight, end_of, origins, ends)
-        rot[a:a + len(r)] = r
+    parent, offset, ch_start, ch_count, kinds, axes, has_end, end_site = data.hierarchy.arrays()
+    _bvh_joints_kernel(np.ascontiguousarray(data.values, dtype=np.float64), parent, offset, ch_start, ch_count,
+                       kinds, axes, end_site, has_end, needed, jm.rotation_point, point, end_of, weight, joints, rot)
     return joints, rot
 
 
