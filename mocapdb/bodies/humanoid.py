@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.bodies.units import leg_length, pair_lengths
+from mocapdb.bodies.units import column_medians, leg_length, pair_lengths
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
            "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP", "humanoid_problem", "upright_frames",
@@ -654,8 +654,8 @@ def _upright(j, ln) -> np.ndarray:
 
 def _median_leg(ln) -> float:
     """:func:`~mocapdb.bodies.units.leg_length` from the lengths ``ln`` (:func:`_lengths`: the same norms)."""
-    return float(np.median(np.concatenate([ln["lhip", "lknee"] + ln["lknee", "lankle"],
-                                           ln["rhip", "rknee"] + ln["rknee", "rankle"]])))
+    return float(column_medians(np.concatenate([ln["lhip", "lknee"] + ln["lknee", "lankle"],
+                                                ln["rhip", "rknee"] + ln["rknee", "rankle"]])[:, None])[0])
 
 
 def _medians(ln) -> dict:
@@ -666,7 +666,7 @@ def _medians(ln) -> dict:
                               + ln["rshoulder", "relbow"] + ln["relbow", "rwrist"]),
                 "trunk": ln["root", "neck"], "hip width": ln["lhip", "rhip"],
                 "shoulder width": ln["lshoulder", "rshoulder"]}
-    med = np.median(np.stack(list(measures.values()), axis=-1), axis=0)
+    med = column_medians(np.stack(list(measures.values()), axis=-1))
     return {what: float(m) for what, m in zip(measures, med)}
 
 

@@ -42,14 +42,19 @@ def read_head(fh, path, block=READ_BLOCK):
     block, and a header line longer than :data:`MAX_HEADER_LINE` as soon as it is read, so a
     hostile file (500 MiB of NUL bytes in a 0.5 MB ``.bvh.gz``) costs one block, not its size.
     Linear in what it reads: each block is searched once (with the few bytes before it)."""
-    head = bytearray()
+    head = b""      # the first read as it came (a short take's whole text: no copy), a bytearray after
     carry = 0       # the unfinished line's length so far (before MOTION)
     motion = None   # where MOTION starts, once found
     decided = False
     while True:
         chunk = fh.read(block)
         start = len(head)
-        head += chunk
+        if not start:
+            head = chunk
+        elif chunk:
+            if not isinstance(head, bytearray):
+                head = bytearray(head)
+            head += chunk
         if not decided and (len(head) >= 1024 or not chunk):   # the first word, once there are bytes enough
             decided = True
             # the first word after the byte-order mark's bytes, searched in place (lstrip copied the head)
