@@ -55,7 +55,7 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, MOTION, READ_BLOCK, read_head
+from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, READ_BLOCK, find_motion, read_head
 from mocapdb.readers.bvh_mapping import auto_map, bvh_joint_map, plan
 from mocapdb.readers.bvh_tracking import lost_samples, mend, pose_frame
 from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
@@ -231,13 +231,13 @@ class _MotionLines:
         if b"\n" not in head and b"\r" in head:
             head = (head + (b"" if self.eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
             self.eof = True
-        m = MOTION.search(head)
+        m = find_motion(head)
         if m is None:
             if not head.lstrip().upper().startswith(b"HIERARCHY"):
                 raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
             raise ParseError(path, line_of(head, len(head)), "no 'MOTION' section (truncated file?)")
-        self.hierarchy = _cached_hierarchy(head, m.start(), path)
-        self.n_frames, self.frame_time, self.frames_line, start = _parse_motion_header(head, m.end(), path)
+        self.hierarchy = _cached_hierarchy(head, m[0], path)
+        self.n_frames, self.frame_time, self.frames_line, start = _parse_motion_header(head, m[1], path)
         self.rest = head[start:]
         self.line_base = head.count(b"\n", 0, start)
         #: bytes of motion lines still to come when the stream's size is known, else None
@@ -601,8 +601,8 @@ def joint_map_template(path) -> str:
             data, _ = read_head(fh, str(path))
     except OSError as exc:
         raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
-    m = MOTION.search(data)
-    hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
+    m = find_motion(data)
+    hier = _parse_hierarchy(data, m[0] if m else len(data), str(path))
     tree = hier.tree()
     auto, problem, _ = auto_map(hier, tree)
     return mapping_template(tree, auto.how if auto is not None else problem.partial, source=str(path))
