@@ -429,8 +429,8 @@ def joint_node_indices(skeleton: Skeleton) -> np.ndarray:
         The skeleton lacks a bone the canonical joints need (names listed).
     """
     cached = skeleton.__dict__.get("_joint_nodes")
-    if cached is not None:   # a skeleton is immutable: its takes share the answer (read-only)
-        return cached
+    if cached is not None:   # a skeleton is immutable: its takes share the answer (callers never write it;
+        return cached        # writable, so that the kernels see the type node_positions gives them)
     idx = {b.name.lower(): k + 1 for k, b in enumerate(skeleton.bones)}
     idx["root"] = 0
     missing = sorted({ASF_JOINT_BONES[j] for j in JOINT_NAMES} - set(idx))
@@ -438,7 +438,6 @@ def joint_node_indices(skeleton: Skeleton) -> np.ndarray:
         raise ParameterError(f"skeleton {skeleton.name!r} ({skeleton.path}) lacks the bones "
                              f"{', '.join(missing)} needed for the 24 canonical joints")
     nodes = np.array([idx[ASF_JOINT_BONES[j]] for j in JOINT_NAMES], dtype=np.int64)
-    nodes.flags.writeable = False
     object.__setattr__(skeleton, "_joint_nodes", nodes)   # a frozen dataclass: a private memo
     return nodes
 
