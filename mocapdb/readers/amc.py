@@ -33,7 +33,7 @@ from mocapdb._numba import address, jit
 from mocapdb.readers.textscan import (_CLASS, _is_space, _note_slow, _scan_number, _token_end, fix_slow_numbers, line_of,
                         number_error, token_at, truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
-from mocapdb.readers.sources import read_bytes
+from mocapdb.readers.sources import as_path, read_bytes
 from mocapdb.errors import ParseError
 
 __all__ = ["read_amc", "parse_amc"]
@@ -261,7 +261,7 @@ def read_amc(path, skeleton: Skeleton) -> AmcMotion:
     ----------
     FEATURES.md §1, §2.2, §9.
     """
-    path = Path(path)
+    path = as_path(path)
     return parse_amc(read_bytes(path), skeleton, path=path)
 
 

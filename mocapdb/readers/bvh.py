@@ -62,7 +62,7 @@ from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, h
 from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
 from mocapdb.bodies.kinematics import rotate_columns
 from mocapdb.bodies.motion import Motion, check_finite_motion, snap_rate
-from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
+from mocapdb.readers.sources import (as_path, max_decompressed, motion_stem, open_stream, special_kind,
                                      stream_size)
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
 from mocapdb.bodies.units import bvh_unit, leg_length
@@ -739,7 +739,7 @@ def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
     ----------
     FEATURES.md §2.3b; READERS.md §2.
     """
-    path = Path(path)
+    path = as_path(path)
     if joint_map is not None and not isinstance(joint_map, dict):
         raise ParameterError(f"joint_map must be a dict (see mocapdb.readers.load_mapping), got {joint_map!r}")
     with open_stream(path) as fh:
