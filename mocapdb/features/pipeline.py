@@ -27,13 +27,15 @@ __all__ = ["motion_features", "BLOCK_FRAMES"]
 def _take_words_kernel(joints, axis, fps, vel_q, vel_p, windows, units, thr, first, count, change, turn_thr,
                        states, rows, words):  # pragma: no cover - compiled
     """A take's words in one call (issue 35): the tests of the 40 features on ``joints`` (rows ``first`` …
-    ``first + count − 1`` and the context their windows read, :func:`~mocapdb.features.relational.feature_tests`), #40 from ``axis``
-    ((n, 3): the pelvis axis, :func:`~mocapdb.features.heading.heading_axis`), the §5 hysteresis of the 40
-    (continuing ``states[:40]``) and of feature 41 (``change`` (count,): the heading change of those rows,
-    against ``turn_thr`` (lenient, strict), continuing ``states[40]``), then row ``first + rows[i]`` packed
-    into ``words[i]`` (bit k − 1 = feature k, bit 40 = feature 41). The same kernels as the unfused
-    :func:`~mocapdb.features.relational.relational_features`, :func:`~mocapdb.features.relational.heading_turned` and :func:`~mocapdb.features.words.pack_words`, called here so that a take
-    costs one dispatch and no Python per step."""
+    ``first + count − 1`` and the context their windows read,
+    :func:`~mocapdb.features.relational.feature_tests`), #40 from ``axis`` ((n, 3): the pelvis axis,
+    :func:`~mocapdb.features.heading.heading_axis`), the §5 hysteresis of the 40 (continuing
+    ``states[:40]``) and of feature 41 (``change`` (count,): the heading change of those rows, against
+    ``turn_thr`` (lenient, strict), continuing ``states[40]``), then row ``first + rows[i]`` packed into
+    ``words[i]`` (bit k − 1 = feature k, bit 40 = feature 41). The same kernels as the unfused
+    :func:`~mocapdb.features.relational.relational_features`,
+    :func:`~mocapdb.features.relational.heading_turned` and :func:`~mocapdb.features.words.pack_words`,
+    called here so that a take costs one dispatch and no Python per step."""
     n = joints.shape[0]
     vel = np.empty((vel_q.shape[0], n, 3))
     _smoothed_velocity_kernel(joints, vel_q, vel_p, windows, vel)
@@ -71,10 +73,10 @@ def _take_words_kernel(joints, axis, fps, vel_q, vel_p, windows, units, thr, fir
 _TURN_THRESHOLDS = np.array(HEADING_THRESHOLDS, dtype=np.float64)
 
 
-def _words_into(words, joints, rot, fps, units, thr, first, count, change, states, rows) -> None:
-    """:func:`_take_words_kernel` of checked input (``joints`` contiguous float64, ``rot`` or None): the
-    words of rows ``first`` … ``first + count − 1`` whose offsets ``rows`` are written to ``words``."""
-    axis = np.ascontiguousarray(heading_axis(joints, rot))
+def _words_into(words, joints, axis, fps, units, thr, first, count, change, states, rows) -> None:
+    """:func:`_take_words_kernel` of checked input (``joints`` contiguous float64, ``axis`` their
+    :func:`~mocapdb.features.heading.heading_axis`, contiguous): the words of rows ``first`` …
+    ``first + count − 1`` whose offsets ``rows`` are written to ``words``."""
     _take_words_kernel(joints, axis, fps, _VEL_Q, _VEL_P, _windows(fps), units, thr, first, count,
                        change, _TURN_THRESHOLDS, states, rows, words)
 
@@ -126,17 +128,18 @@ def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_metho
 
 def _take_words(joints, rot, fps, root_ang_vel_thresholds) -> np.ndarray:
     """The words of a whole take at ``fps`` (a 30 Hz grid row each: every 4th frame at 120 Hz, else the
-    nearest source frame): :func:`~mocapdb.features.relational.relational_features`, :func:`~mocapdb.features.relational.heading_turned` (bit 40) and
-    :func:`~mocapdb.features.words.pack_words` of the grid's rows, bit for bit, in one kernel call (:func:`_take_words_kernel`)."""
+    nearest source frame): :func:`~mocapdb.features.relational.relational_features`,
+    :func:`~mocapdb.features.relational.heading_turned` (bit 40) and :func:`~mocapdb.features.words.pack_words`
+    of the grid's rows, bit for bit, in one kernel call (:func:`_take_words_kernel`)."""
     j, r, fps, ang_thr = _checked_input(joints, rot, fps, root_ang_vel_thresholds)
     n = j.shape[0]
     rows = np.arange(0, n, 4) if fps == TOOLBOX_RATE else grid_source_frames(n, fps)
     words = np.zeros(len(rows), dtype=np.uint64)
     if n < 2:   # no velocities: every feature off (FEATURES.md §7), feature 41 too
         return words
-    axis = heading_axis(j, r)
+    axis = np.ascontiguousarray(heading_axis(j, r))
     change = heading_change(j, r, fps, axis=axis)
-    _words_into(words, j, r, fps, body_units(j), _thresholds(ang_thr), 0, n, change,
+    _words_into(words, j, axis, fps, body_units(j), _thresholds(ang_thr), 0, n, change,
                 np.zeros(N_FEATURES + 1, dtype=np.bool_), rows)
     return words
 
@@ -145,14 +148,16 @@ def _take_words(joints, rot, fps, root_ang_vel_thresholds) -> np.ndarray:
 #: frames at a time (a multiple of 4: blocks start on the 30 Hz grid): 9 minutes of features, not 9
 #: hours, in memory
 BLOCK_FRAMES = 1 << 16
-#: frames of context on each side of a block (:func:`~mocapdb.features.relational.feature_tests`: 30 frames and the next one)
+#: frames of context on each side of a block (:func:`~mocapdb.features.relational.feature_tests`: 30 frames
+#: and the next one)
 _CONTEXT = 64
 
 
 def _words_by_block(motion, root_ang_vel_thresholds) -> np.ndarray:
     """:func:`motion_features` (the 120 Hz path) of a long take, a block of frames at a time: the same
     words as the whole take's, bit for bit — each block's tests see the frames their windows read
-    (:func:`~mocapdb.features.relational.feature_tests`), the units come from frame 0 and the hysteresis runs on from block to block."""
+    (:func:`~mocapdb.features.relational.feature_tests`), the units come from frame 0 and the hysteresis
+    runs on from block to block."""
     fps = float(motion.fps)
     j = np.ascontiguousarray(motion.joints, dtype=np.float64)
     rot = motion.root_rotation
@@ -186,7 +191,8 @@ def _words_by_block(motion, root_ang_vel_thresholds) -> np.ndarray:
             change = np.concatenate([change, part])
         lo, hi = max(0, a - _CONTEXT), min(n, b + _CONTEXT)
         jw, rw = frames(lo, hi)
-        _words_into(words[a // 4:(b + 3) // 4], np.ascontiguousarray(jw), rw, TOOLBOX_RATE, units, thr, a - lo,
-                    b - a, change[a - change0:b - change0], states, np.arange(0, b - a, 4))
+        jw = np.ascontiguousarray(jw)
+        _words_into(words[a // 4:(b + 3) // 4], jw, np.ascontiguousarray(heading_axis(jw, rw)), TOOLBOX_RATE,
+                    units, thr, a - lo, b - a, change[a - change0:b - change0], states, np.arange(0, b - a, 4))
         change, change0 = change[b - change0:], b
     return words
