@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from conftest import DATA, shared_cases
+from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, shared_cases
 from naive_kinematics import naive_amc_values
 from mocapdb.errors import ParseError
 from mocapdb.readers import find_skeleton, load_skeleton
@@ -176,3 +176,73 @@ def test_a_bad_line_is_named_as_before(n_cols):
             assert "expected a number" in str(err.value)
         else:
             assert f"expected {n_cols} values" in str(err.value)
+
+
+def _sample_frames(n_frames):
+    """The header and first ``n_frames`` frames of the shipped CMU take 86_09, as lines, and its skeleton."""
+    data = read_bytes(SAMPLE_86_09)
+    lines = data.split(b"\n")
+    starts = [k for k, ln in enumerate(lines) if ln[:1].isdigit()]
+    return lines[:starts[n_frames]], load_skeleton(SAMPLE_86_ASF)
+
+
+def test_amc_bone_lines_read_as_float_reads_them():
+    # every value of 40 real frames respelled (signs, leading zeros, exponents, long runs: the side-by-side
+    # conversion and the exact scanner both), random blanks, tabs, CRLF, upper-case bone names, a comment
+    rng = np.random.default_rng(9)
+    lines, skeleton = _sample_frames(40)
+    out = []
+    for ln in lines:
+        toks = ln.split()
+        if not toks or toks[0][:1] in b":#" or toks[0][:1].isdigit():
+            out.append(ln)
+            continue
+        vals = []
+        for _ in toks[1:]:
+            while True:
+                t = _spelling(rng)
+                f = _float_or_none(t)
+                if f is not None and np.isfinite(f):
+                    break
+            vals.append(t)
+        name = toks[0].upper() if rng.random() < 0.1 else toks[0]
+        seps = [rng.choice([b" ", b"\t", b"  "]) for _ in vals]
+        line = rng.choice([b"", b" "]) + name + b"".join(s + v for s, v in zip(seps, vals))
+        out.append(line + rng.choice([b"", b" ", b"\r"]))
+        if rng.random() < 0.02:
+            out.append(b"# a comment")
+    text = b"\n".join(out)
+    m = parse_amc(text, skeleton)
+    frames, _, _ = naive_amc_values(text, skeleton)
+    assert m.n_frames == len(frames) == 40
+    for name, sl in m.columns.items():
+        assert _same_bits(m.values[:, sl], [fr[name] for fr in frames]), name
+
+
+@pytest.mark.parametrize("later", ["unknown bone", "duplicate", "count", "frame number", "none"])
+def test_amc_first_error_in_the_text_is_named(later):
+    # a bad value, then another error later in the same frame (or the next frame's number): the bad value
+    # is named, at its line; the values of a frame are converted when it ends, the error order stays the text's
+    lines, skeleton = _sample_frames(3)
+    frame2 = [k for k, ln in enumerate(lines) if ln[:1].isdigit()][1]
+    bad = frame2 + 3
+    toks = lines[bad].split()
+    lines[bad] = b" ".join([toks[0], toks[1], b"1.5x", *toks[3:]])
+    if later == "unknown bone":
+        lines[frame2 + 6] = b"nosuchbone 1 2 3"
+    elif later == "duplicate":
+        lines[frame2 + 6] = lines[frame2 + 5]
+    elif later == "count":
+        lines[frame2 + 6] += b" 7"
+    elif later == "frame number":
+        lines[[k for k, ln in enumerate(lines) if ln[:1].isdigit()][2]] = b"9"
+    with pytest.raises(ParseError) as err:
+        parse_amc(b"\n".join(lines), skeleton)
+    assert err.value.line == bad + 1, err.value
+    assert "expected a number, found '1.5x'" in str(err.value)
+    # and the other error alone is still named at its own line
+    if later != "none":
+        lines[bad] = b" ".join(toks)
+        with pytest.raises(ParseError) as err:
+            parse_amc(b"\n".join(lines), skeleton)
+        assert err.value.line > bad + 1 and "1.5x" not in str(err.value)

@@ -29,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mocapdb._numba import address, jit
-from mocapdb.readers.textscan import (_CLASS, _is_space, _note_slow, _scan_number, _token_end, fix_slow_numbers, line_of,
-                        number_error, token_at, truncation_hint)
+from mocapdb._numba import address, jit, load_u64
+from mocapdb.readers.textscan import (_CLASS, _few_tokens, _is_space, _line_tokens, _note_slow, _scan_at,
+                                      _scan_number, _short_numbers, _token_end, fix_slow_numbers, line_of,
+                                      number_error, token_at, truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
 from mocapdb.readers.sources import read_bytes
 from mocapdb.errors import ParseError
@@ -48,6 +49,10 @@ _E_NONE, _E_NUMBER, _E_COUNT, _E_UNKNOWN_BONE, _E_DUPLICATE, _E_FRAME_SEQ, \
 # ----------------------------------------------------------------------------
 # kernels
 
+#: the low k bytes of a word set, k = 0 … 8
+_BYTE_MASK = np.array([(1 << (8 * k)) - 1 for k in range(9)], dtype=np.uint64)
+
+
 @jit
 def _close_frame(seen, ref, nb, frame):  # pragma: no cover
     """Whether a finished frame lists the same bones as frame 1 (frame 0 sets the reference)."""
@@ -58,6 +63,41 @@ def _close_frame(seen, ref, nb, frame):  # pragma: no cover
         elif seen[b] != ref[b]:
             ok = False
     return ok
+
+
+@jit
+def _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status):  # pragma: no cover
+    """Convert the ``npend`` values of frame ``frame`` whose token starts, columns and bones are
+    ``pend[0:3, :npend]`` (text order) into ``out``: side by side (:func:`_short_numbers`), the other
+    spellings by the exact scanner (:func:`_scan_at`). A token that is no number sets ``status`` as the token-after-token
+    loop did (the first in the text: an error found after it, later in the text, is replaced); returns
+    the count of tokens left to ``float()``."""
+    lo = pend[3].view(np.uint64)
+    hi = pend[4].view(np.uint64)
+    vals = pend[5].view(np.float64)
+    flag = pend[6]
+    for k in range(npend):
+        a = base + pend[0, k]
+        lo[k] = load_u64(a)
+        hi[k] = load_u64(a + 8)
+    _short_numbers(lo, hi, npend, vals, flag)
+    ncols = out.shape[1]
+    for k in range(npend):
+        v = vals[k]
+        if flag[k] != 0:
+            s = pend[0, k]
+            v, st, j = _scan_at(base, s, size)
+            if st == 2:  # NUM_BAD
+                status[:6] = 0
+                status[0] = 1  # _E_NUMBER
+                status[1] = s
+                status[2] = frame
+                status[3] = pend[2, k]
+                return nfb
+            if st == 1:  # NUM_SLOW
+                nfb = _note_slow(fb_index, fb_start, fb_end, nfb, frame * ncols + pend[1, k], s, j)
+        out[frame, pend[1, k]] = v
+    return nfb
 
 
 @jit
@@ -83,6 +123,21 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
     prev_num = 0
     nfb = 0
     last_line = start
+    # the values of the current frame's usual bone lines, converted together when the frame ends: rows
+    # token start, column, bone, then scratch for _flush_values (words, values, flags)
+    pend = np.zeros((7, ncols + 9), dtype=np.int64)
+    pend_at = address(pend[0])
+    # each bone's name (lower case) as two words, its bytes past the name 0 (names of up to 16 bytes)
+    name_lo = np.zeros(nb, dtype=np.uint64)
+    name_hi = np.zeros(nb, dtype=np.uint64)
+    for b in range(nb):
+        for k in range(min(name_len[b], 16)):
+            byte = np.uint64(names[name_start[b] + k]) << np.uint64(8 * (k % 8))
+            if k < 8:
+                name_lo[b] |= byte
+            else:
+                name_hi[b] |= byte
+    npend = 0
     i = start
     while True:
         # ---- start of a line
@@ -101,6 +156,11 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
         line_start = i
         if 48 <= c <= 57:
             # ---- frame number line
+            if npend > 0:
+                nfb = _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status)
+                npend = 0
+                if status[0] != 0:
+                    break
             num = 0
             while i < size and 48 <= buf[i] <= 57:
                 if num < 1000000000000:
@@ -147,11 +207,21 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
             status[1] = line_start
             break
         s = i
-        i = _token_end(base, i, size)
-        e = i
+        # the usual line, name and values at once by byte masks (the value starts into the frame's list)
+        e, n, eol, few = _few_tokens(base, s, size, pend_at + 8 * npend)
+        if not few:
+            e = _token_end(base, s, size)
+        i = e
         bone = -1
         cand = nxt[last]
-        for attempt in range(nb + 1):
+        ln = e - s
+        if cand >= 0 and name_len[cand] == ln and ln <= 16 and s + 16 <= size:
+            # the predicted bone spelt as the ASF spells it (lower case): two words compared
+            lo = load_u64(base + s) & _BYTE_MASK[min(ln, 8)]
+            hi = load_u64(base + s + 8) & _BYTE_MASK[max(ln - 8, 0)]
+            if lo == name_lo[cand] and hi == name_hi[cand]:
+                bone = cand
+        for attempt in range(0 if bone >= 0 else nb + 1):
             b = cand if attempt == 0 else attempt - 1
             if b < 0 or (attempt > 0 and b == cand):
                 continue
@@ -189,6 +259,20 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
         # ---- values
         nd = ndof[bone]
         col = col_start[bone]
+        # the usual line: its nd values converted with the frame's others
+        ok = few
+        if not few:
+            n, eol, ok = _line_tokens(base, i, size, pend_at + 8 * npend, nd + 1)
+        if ok and n == nd and eol + 16 <= size:
+            for k in range(8):      # 8 slots whatever nd (the arrays have room): no branch on nd
+                pend[1, npend + k] = col + k
+                pend[2, npend + k] = bone
+            for k in range(8, nd):
+                pend[1, npend + k] = col + k
+                pend[2, npend + k] = bone
+            npend += nd
+            i = eol + 1 if few else eol   # past the LF (_line_tokens may stop at the text's end)
+            continue
         count = 0
         failed = False
         while True:
@@ -223,6 +307,8 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
             status[4] = nd
             status[5] = count
             break
+    if npend > 0:   # the last frame's values, or those before an error (an earlier bad one wins)
+        nfb = _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_end, nfb, status)
     if status[0] == 0 and frame >= 0:
         # close the last frame
         if not _close_frame(seen, ref, nb, frame):

@@ -15,7 +15,8 @@ import math
 
 import numpy as np
 
-from mocapdb._numba import address, inline_jit, jit, load_u64, load_u8, store_i64, trailing_zeros
+from mocapdb._numba import (address, inline_jit, jit, load_u64, load_u8, mask64_eq, mask64_le, store_i64,
+                            trailing_zeros)
 from mocapdb.errors import ParseError
 
 #: exactly representable powers of ten (10**22 is the largest, 5**22 < 2**53)
@@ -208,6 +209,13 @@ def _token_end(base, i, end):  # pragma: no cover - numba
 
 
 @jit
+def _scan_at(base, i, end):  # pragma: no cover - numba
+    """:func:`_scan_number` as a call, for the few tokens the side-by-side conversion leaves (one compiled
+    copy shared by its callers, instead of one inlined in each: the readers' kernels compile faster)."""
+    return _scan_number(base, i, end)
+
+
+@jit
 def _parse_number(buf, s, e):  # pragma: no cover - numba
     """Parse the whole of ``buf[s:e]``; returns ``(value, status)`` as :func:`_scan_number`."""
     v, st, j = _scan_number(address(buf), s, e)
@@ -248,7 +256,15 @@ def _chunk_masks(base, p, size):  # pragma: no cover - numba
     """Masks of the 64 bytes from ``buf[p]``, bit k for byte ``p + k``: ``(separator, LF, other control
     byte)``. A separator is any byte up to 0x20 (blank or line end); "other" is a control byte
     that is not TAB, CR or LF (VT, FF or a token byte for :data:`_CLASS`: the caller takes the exact
-    path). Bytes from ``size`` on are separators and LFs (the text ends a line)."""
+    path). Bytes from ``size`` on are separators and LFs (the text ends a line).
+
+    Within the text, each mask is one vector compare of the 64 bytes (:func:`mocapdb._numba.mask64_le`);
+    the last 63 bytes are read a word at a time, as many as there are, so no load passes ``size``."""
+    if p + 64 <= size:
+        a = base + p
+        lf = mask64_eq(a, 10)
+        other = mask64_le(a, 31) & ~(lf | mask64_eq(a, 13) | mask64_eq(a, 9))
+        return mask64_le(a, 32), lf, other
     sep = _U0
     lf = _U0
     other = _U0
@@ -293,6 +309,82 @@ def _line_tokens(base, i, size, pos, cap):  # pragma: no cover - numba
             return n, min(p + np.int64(trailing_zeros(lf)), size), True
         carry = sep >> _U63
         p += 64
+
+
+# ---- a line's numbers converted side by side
+#
+# Once a line's token starts are known, the numbers need not be read one after the other: the 16 bytes
+# at each start are gathered first (two plain loads a token), then one loop without a branch converts
+# every token of the common spelling ``[+-]digits[.digits]`` with at most 7 digits on each side of the
+# point — the loop LLVM turns into vector code, several tokens per instruction. A token of any other
+# spelling (an exponent, 8 digits or more in a run, not a number) is flagged and read by
+# :func:`_scan_number`, so values, slow-path tokens and errors stay as they were.
+
+_FILL = _U(0xFFFFFFFFFFFFFFFF)
+_U45, _U43, _U46, _U64, _U127 = (_U(k) for k in (45, 43, 46, 64, 127))
+
+
+@inline_jit
+def _bytes_from(lo, hi, q):  # pragma: no cover - numba
+    """Bytes ``q … q+7`` (1 ≤ q ≤ 15) of the 16 bytes ``lo``, ``hi`` (little-endian) as a word; the bytes
+    past the 16th are 0xFF (not a digit, not a separator). Every shift below 64 either way (a shift
+    by 64 or more is undefined in LLVM, and vector code computes both sides of each choice)."""
+    b = _U(8 * q)
+    if q < 8:
+        r = (_U64 - b) & _U63                          # 8 … 56
+        return (lo >> (b & _U63)) | (hi << r)
+    return (hi >> ((b - _U64) & _U63)) | ((_FILL << ((_U127 - b) & _U63)) << _U1)
+
+
+@jit
+def _short_numbers(lo, hi, n, vals, flag):  # pragma: no cover - numba
+    """Convert the tokens whose first 16 bytes are ``lo[k]``, ``hi[k]`` (k < n) into ``vals``, exactly as
+    :func:`_scan_number` (Clinger's fast path: a mantissa below 10**14 divided by a power of ten up to
+    10**7, one correctly rounded division); ``flag[k]`` is True when the token is not of the short
+    spelling and ``vals[k]`` meaningless. No branch depends on a byte."""
+    for k in range(n):
+        w0 = lo[k]
+        w1 = hi[k]
+        c0 = w0 & _U255
+        neg = c0 == _U45
+        sg = np.int64(c0 == _U45) | np.int64(c0 == _U43)
+        w = ((w0 >> _U8) | (w1 << _U56)) if sg else w0
+        n1, m1 = _leading_digits(w)
+        c = (w >> _U(8 * (n1 & 7))) & _U255           # the byte after the run (n1 = 8 is flagged)
+        dot = c == _U46
+        w2 = _bytes_from(w0, w1, sg + n1 + 1)
+        n2, f = _leading_digits(w2)
+        c2 = (w2 >> _U(8 * (n2 & 7))) & _U255
+        n2 = n2 if dot else 0
+        f = f if dot else _U0
+        c2 = c2 if dot else c
+        # 10**n2 without a table (a table lookup per lane would be a gather)
+        p = (_U10 if n2 & 1 else _U1) * (_U(100) if n2 & 2 else _U1) * (_U(10000) if n2 & 4 else _U1)
+        v = float(np.int64(m1 * p + f)) / float(np.int64(p))
+        vals[k] = -v if neg else v
+        flag[k] = (n1 > 7) | (n2 > 7) | (n1 + n2 == 0) | (c2 > _U(32))
+
+
+@inline_jit
+def _few_tokens(base, i, size, pos):  # pragma: no cover - numba
+    """A short line from its first token at byte ``i`` (an AMC bone line: a name, then values) by the byte
+    masks of the 64 bytes from ``i``: ``(end of the first token, count of the others, index of the LF,
+    ok)``, the starts of the others written at ``pos`` (8 slots written whatever the count: no branch
+    depends on it). ok is False — the caller reads the line otherwise — unless the LF lies in those 64
+    bytes, the line has at most 8 more tokens, and no control byte but TAB, CR, LF is among them (so the
+    first token ends where :func:`_token_end` ends it)."""
+    if i + 64 > size:
+        return i, 0, i, False
+    sep, lf, other = _chunk_masks(base, i, size)
+    first_end = i + np.int64(trailing_zeros(sep))
+    starts = ~sep & (sep << _U1) & ((lf & (~lf + _U1)) - _U1)    # bit 0 (the first token) left out
+    n = 0
+    for k in range(8):
+        t = np.int64(trailing_zeros(starts))    # 64 past the last start
+        store_i64(pos + 8 * k, i + t)
+        n += np.int64(t < 64)
+        starts &= starts - _U1
+    return first_end, n, i + np.int64(trailing_zeros(lf)), lf != _U0 and other == _U0 and starts == _U0
 
 
 @jit
@@ -371,6 +463,10 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allo
     pos = np.empty(ncols + 1, dtype=np.int64)   # token starts of a line (one more: a count too large)
     base = address(buf)
     pos_at = address(pos)
+    lo = np.empty(ncols, dtype=np.uint64)      # the first 16 bytes of each token of a line
+    hi = np.empty(ncols, dtype=np.uint64)
+    vals = np.empty(ncols)
+    flag = np.empty(ncols, dtype=np.bool_)
     nfb = 0
     row = 0
     i = start
@@ -391,14 +487,24 @@ def _parse_rows_kernel(buf, start, out, fb_index, fb_start, fb_end, status, allo
         n, eol, ok = _line_tokens(base, i, size, pos_at, ncols + 1)
         if ok and n == ncols:
             nfb0 = nfb
+            if eol + 16 <= size:   # 16 bytes readable at every token start
+                for k in range(ncols):
+                    a = base + pos[k]
+                    lo[k] = load_u64(a)
+                    hi[k] = load_u64(a + 8)
+                _short_numbers(lo, hi, ncols, vals, flag)
+            else:
+                flag[:] = True
             for k in range(ncols):
-                s = pos[k]
-                v, st, j = _scan_number(base, s, size)
-                if st == 2:
-                    ok = False
-                    break
-                if st == 1:
-                    nfb = _note_slow(fb_index, fb_start, fb_end, nfb, row * ncols + k, s, j)
+                v = vals[k]
+                if flag[k]:
+                    s = pos[k]
+                    v, st, j = _scan_at(base, s, size)
+                    if st == 2:
+                        ok = False
+                        break
+                    if st == 1:
+                        nfb = _note_slow(fb_index, fb_start, fb_end, nfb, row * ncols + k, s, j)
                 out[row, k] = v
             if ok:
                 row += 1
