@@ -45,15 +45,10 @@ __all__ = ["Clip", "Recipe", "PAPER_LABELS", "build_model", "mirror_class", "rev
            "DEFAULT_CONCURRENT", "OTHERS"]
 
 #: the shipped default model's mirrored classes (learned class -> mirror image):
-#: one-sided motions whose other side the data lacks (RESULTS.md, issue 11), and CMU's walk, whose
-#: template starts on one foot: alone it finds a walk that starts on the other foot from its second
-#: step only (HDM05's sneaks held out, RESULTS.md issue 32). The studio's walk and run are not
-#: mirrored: the walk's mirror raised elbowToKnee's τ (0.11 -> 0.13: more exercise on the studio's
-#: gestures), the run's left the calibrated confidence held out under the raw score's (RESULTS.md)
+#: one-sided motions whose other side the data lacks (RESULTS.md, issue 11)
 DEFAULT_MIRRORS = {"kickLFront1Reps": "kickRFront1Reps", "sneak2StepsLStart": "sneak2StepsRStart",
                    "jogLeftCircle4StepsRstart": "jogRightCircle4StepsLstart",
-                   "elbowToKnee1RepsLelbowStart": "elbowToKnee1RepsRelbowStart",
-                   "cmuWalk2Steps": "cmuWalk2StepsMirrored"}
+                   "elbowToKnee1RepsLelbowStart": "elbowToKnee1RepsRelbowStart"}
 #: the shipped default model's reversed classes: lying down played backwards is standing up
 DEFAULT_REVERSALS = {"lieDownFloor": ("standUpLieFloor", "standUp")}
 #: the shipped class definitions (hand-designed classes), ``mocapdb/shipped_models/classes/*.toml``
