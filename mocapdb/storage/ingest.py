@@ -24,7 +24,8 @@ from mocapdb.readers import ReaderOptions, motion_files
 from mocapdb.readers.sources import motion_stem, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
 from mocapdb.storage.ingest_read import _compute_slim, _read_new, forget_stored, remember_stored, stored_prefixes
-from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
+from mocapdb.storage.ingest_pool import (WorkerDied, chunk_for, executor, head_start, ordered, use_processes,
+                                         window_for)
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
@@ -268,6 +269,15 @@ def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, r
 
 
 def _ingest(con, paths, report, log, *, options, progress, workers, replace):
+    paths = list(paths)
+    # a worker process starts while the folders are walked (the walk holds one core; head_start)
+    with head_start(workers, any(os.path.isdir(p) for p in paths)) as started:
+        _ingest_walked(con, _walk(paths, report, log), report, log, started, options=options, progress=progress,
+                       workers=workers, replace=replace)
+
+
+def _walk(paths, report, log) -> list:
+    """The motion files of ``paths`` (folders searched), what is not one reported as the walk finds it."""
     files = []
     for p in paths:
         try:
@@ -276,6 +286,11 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
         except ParameterError as exc:   # a path that is not there: logged, and the call fails
             log.add(p, "failed", str(exc))
             raise
+    return files
+
+
+def _ingest_walked(con, files, report, log, started, *, options, progress, workers, replace):
+    """Read and store ``files`` (walked), on the pool of ``workers`` (taking the processes ``started``)."""
     # what the walk refused (an earlier copy of a zip member) is keyed by a path a later copy may share:
     # only the files read and failed make a copy of them fail
     walk_refused = len(report.failed)
@@ -292,7 +307,7 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
     token = uuid.uuid4().hex
     setup = (remember_stored, (token, stored_prefixes(k[0] for k in stored)))
     try:
-        with executor(workers, processes, setup) as pool, batches:
+        with executor(workers, processes, setup, started) as pool, batches:
             window, chunk = window_for(workers), chunk_for(processes)
             results = ordered(pool, _read_new, [(f, options, token) for f in files], window=window, chunk=chunk)
             # once every file left is in flight, the batch is stored while the pool reads them: what is stored
