@@ -39,7 +39,7 @@ import numpy as np
 from mocapdb.annotation import segment_table
 from mocapdb.errors import ParameterError
 from mocapdb.extension import connect as connect_database
-from mocapdb.features import motion_features
+from mocapdb.features import motion_features, relational_features
 from mocapdb.readers import generic_rest, motion_files, read_motion
 from mocapdb.bodies import smpl_forward_kinematics
 from mocapdb.storage.annotations import annotate_documents
@@ -123,12 +123,16 @@ def compile_kernels(parts=PARTS) -> float:
 
 
 def _other_rates() -> None:
-    """Features of a take that is not at 120 Hz: resampled to 120 Hz first (features.rates)."""
+    """Features of a take that is not at 120 Hz (resampled to 120 Hz first, features.rates), and the 40
+    relational features called directly."""
     amc = next(p for p in sample_files() if ".amc" in p.suffixes)
     m = read_motion(amc)
     m60 = type(m)(joints=np.ascontiguousarray(m.joints[::2]), root_rotation=None, fps=m.fps / 2, name=m.name,
                   skeleton=m.skeleton, source_format=m.source_format)
     motion_features(m60)
+    # the public per-step API: ingest reaches the same kernels through one fused call, so they would
+    # otherwise compile on a user's first direct call
+    relational_features(m.joints, m.root_rotation, m.fps)
 
 
 def _smpl_kinematics() -> None:

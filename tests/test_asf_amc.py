@@ -545,3 +545,66 @@ def test_the_skeleton_rule_sees_a_new_asf_in_a_listed_folder(tmp_path):
     (tmp_path / "07.asf").rename(tmp_path / "07.ASF")
     os.utime(tmp_path, (past + 2, past + 2))
     assert find_skeleton(amc) == tmp_path / "07.ASF"
+
+
+def _min_frame_bytes_reference(data: bytes, start: int, ndof_of: dict) -> int:
+    """The bound of issue 9 as it was written in Python (per line: lstrip, digit, comment, name → DOFs)."""
+    pos = data.find(b"\n", start) + 1
+    n = 2
+    while 0 < pos < len(data):
+        end = data.find(b"\n", pos)
+        s = data[pos:end if end >= 0 else len(data)].lstrip()
+        if s[:1].isdigit():
+            break
+        if s and not s.startswith(b"#"):
+            name = s.split()[0]
+            n += len(name) + 2 * ndof_of.get(name.decode("latin-1").lower(), 0) + 1
+        if end < 0:
+            break
+        pos = end + 1
+    return n
+
+
+@pytest.mark.shared
+def test_the_frame_size_bound_is_the_python_one():
+    """Issue 35: the kernel bounding a take's frames (``_min_frame_bytes_kernel``, frame 1's bone lines)
+    counts what the per-line Python did, on the shared takes and on seeded variants of their first
+    frame (names in other cases and Latin-1 letters, unknown bones, comments, blank and CR lines, tabs,
+    a text ending inside the frame)."""
+    from mocapdb.readers.amc import _kernel_layout, _min_frame_bytes_kernel, _parse_header
+
+    rng = np.random.default_rng(35)
+    cases = 0
+    for amc in sorted(DATA.rglob("*.amc"))[::7]:
+        skel = read_asf(find_skeleton(amc))
+        names, ndof, _, _, _, name_buf, name_start, name_len = _kernel_layout(skel)
+        ndof_of = {n.lower(): int(k) for n, k in zip(names, ndof)}
+        data = amc.read_bytes()
+        start = _parse_header(data, str(amc))[0]
+        frame2 = re.search(rb"\n[ \t]*2[ \t]*\r?\n", data[start:])
+        lines = data[start:start + frame2.start()].split(b"\n")
+        variants = [data]
+        for _ in range(12):
+            out = [lines[0]]
+            for line in lines[1:]:
+                r = rng.random()
+                if r < 0.15:
+                    line = line.upper()
+                elif r < 0.2:
+                    line = b"\xc0" + line
+                elif r < 0.25:
+                    out.append(b"# a comment " + line)
+                elif r < 0.3:
+                    out.append(b"  \t\r")
+                elif r < 0.35:
+                    line = b"\t" + line.replace(b" ", b"\t")
+                out.append(line)
+            text = b"\n".join(out)
+            variants.append(data[:start] + text + data[start + frame2.start():])
+            variants.append(data[:start] + text[:int(rng.integers(0, len(text) + 1))])
+        for v in variants:
+            buf = np.frombuffer(v, dtype=np.uint8)
+            assert (_min_frame_bytes_kernel(buf, start, name_buf, name_start, name_len, ndof)
+                    == _min_frame_bytes_reference(v, start, ndof_of))
+            cases += 1
+    assert cases > 500

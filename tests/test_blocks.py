@@ -16,7 +16,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-import mocapdb.features.relational as relational
+import mocapdb.features.pipeline as pipeline
 import mocapdb.readers.bvh as bvh_module
 import mocapdb.readers.c3d as c3d_module
 import mocapdb.readers.c3dfile as c3dfile
@@ -51,7 +51,7 @@ def test_features_by_block_are_the_whole_takes_bit_for_bit(sample_motions, monke
     for take in takes:
         whole = motion_features(take)
         for block in (12, 257):
-            monkeypatch.setattr(relational, "BLOCK_FRAMES", block)
+            monkeypatch.setattr(pipeline, "BLOCK_FRAMES", block)
             np.testing.assert_array_equal(motion_features(take), whole, err_msg=f"{take.name} at {take.fps} Hz, "
                                                                                  f"blocks of {block}")
         monkeypatch.undo()
@@ -68,7 +68,7 @@ def test_a_long_takes_features_hold_a_block_not_the_take(sample_motions, monkeyp
     motion_features(long)
     whole = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    monkeypatch.setattr(relational, "BLOCK_FRAMES", 2048)
+    monkeypatch.setattr(pipeline, "BLOCK_FRAMES", 2048)
     tracemalloc.start()
     by_block = motion_features(long)
     peak = tracemalloc.get_traced_memory()[1]

@@ -318,3 +318,30 @@ def test_bvh_round_trip_gives_the_same_feature_words(cmu500, tmp_path):
     p = write_bvh(tmp_path / "cmu.bvh", s, m, layout="cmu", precision=17)
     agree = (unpack_words(motion_features(read_bvh(p))) == unpack_words(amc_words)).mean()
     assert agree >= 0.99, agree
+
+
+def test_the_motion_keyword_is_found_where_the_regular_expression_finds_it():
+    """Issue 35: ``find_motion`` (bytes.find, then the line's start and the word's end checked) gives the
+    match of ``(?m)^[ \\t]*MOTION\\b`` searched from any position, on the shared BVH headers and on 20,000
+    seeded texts of keyword fragments, blanks, line ends and word bytes."""
+    from mocapdb.readers.bvh_head import find_motion
+
+    pattern = re.compile(rb"(?m)^[ \t]*MOTION\b")
+
+    def regex(data, pos):
+        m = pattern.search(data, pos)
+        return None if m is None else (m.start(), m.end())
+
+    heads = [p.read_bytes()[:20_000] for p in sorted(DATA.rglob("*.bvh"))[:40]]
+    assert heads
+    for head in heads:
+        for pos in (0, 1, head.find(b"MOTION"), len(head) // 2):
+            assert find_motion(head, max(0, pos)) == regex(head, max(0, pos))
+    rng = np.random.default_rng(35)
+    pieces = [b"MOTION", b"MOTIONS", b"MOTION_", b"MOTION1", b"xMOTION", b"MOTIO", b" ", b"\t", b"\n", b"\r",
+              b"\r\n", b"\x00", b"\xe9", b"-", b"a", b"_", b"9", b"\v"]
+    for _ in range(20_000):
+        data = b"".join(pieces[k] for k in rng.integers(0, len(pieces), rng.integers(0, 12)))
+        pos = int(rng.integers(0, len(data) + 1))
+        assert find_motion(data, pos) == regex(data, pos), (data, pos)
+        assert find_motion(bytearray(data), pos) == regex(data, pos)

@@ -165,9 +165,9 @@ def test_the_heading_streamed_block_by_block_is_the_whole_takes_bit_for_bit(walk
 
 
 def test_feature_41_of_a_long_take_by_blocks_is_the_whole_takes(monkeypatch):
-    """The block path of a long take (relational._words_by_block) with the heading streamed: the same
+    """The block path of a long take (pipeline._words_by_block) with the heading streamed: the same
     words, feature 41 included, as the whole take's — on a walk turned round twice (the feature on)."""
-    import mocapdb.features.relational as relational
+    import mocapdb.features.pipeline as pipeline
     from lab.turns import straightened_walk
 
     m = read_motion(SAMPLE_86_09, asf=SAMPLE_86_ASF)
@@ -176,5 +176,5 @@ def test_feature_41_of_a_long_take_by_blocks_is_the_whole_takes(monkeypatch):
     whole = F.motion_features(turned)
     assert bit41(whole).any() and not bit41(whole).all()
     for block in (8, 60, 256):
-        monkeypatch.setattr(relational, "BLOCK_FRAMES", block)
+        monkeypatch.setattr(pipeline, "BLOCK_FRAMES", block)
         np.testing.assert_array_equal(F.motion_features(turned), whole, err_msg=f"blocks of {block}")

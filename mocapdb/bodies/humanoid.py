@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.bodies.units import leg_length
+from mocapdb.bodies.units import column_medians, leg_length, pair_lengths
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
            "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP", "humanoid_problem", "upright_frames",
@@ -612,15 +612,15 @@ _SAMPLE = 512
 _PAIRS = (("lhip", "lknee"), ("lknee", "lankle"), ("rhip", "rknee"), ("rknee", "rankle"),
           ("lshoulder", "lelbow"), ("lelbow", "lwrist"), ("rshoulder", "relbow"), ("relbow", "rwrist"),
           ("root", "neck"), ("lhip", "rhip"), ("lshoulder", "rshoulder"))
-_PAIR_A = np.array([JOINT_INDEX[a] for a, _ in _PAIRS])
-_PAIR_B = np.array([JOINT_INDEX[b] for _, b in _PAIRS])
+_PAIR_A = np.array([JOINT_INDEX[a] for a, _ in _PAIRS], dtype=np.int64)
+_PAIR_B = np.array([JOINT_INDEX[b] for _, b in _PAIRS], dtype=np.int64)
 
 
-def _lengths(j) -> dict:
-    """``{(a, b): |j[..., a] − j[..., b]|}`` of every pair of :data:`_PAIRS`, taken in one gather (each
-    value as a norm of its own pair would give: the same differences, squares and sum of three)."""
-    dist = np.linalg.norm(j[..., _PAIR_A, :] - j[..., _PAIR_B, :], axis=-1)
-    return {pair: dist[..., k] for k, pair in enumerate(_PAIRS)}
+def _lengths(j, step: int = 1) -> dict:
+    """``{(a, b): |j[f, a] − j[f, b]|}`` over every ``step``-th frame f, for every pair of :data:`_PAIRS`
+    (:func:`~mocapdb.bodies.units.pair_lengths`: each value as a norm of its own pair would give)."""
+    dist = pair_lengths(j, _PAIR_A, _PAIR_B, step)
+    return {pair: dist[:, k] for k, pair in enumerate(_PAIRS)}
 
 
 def upright_frames(joints: np.ndarray) -> np.ndarray:
@@ -654,8 +654,8 @@ def _upright(j, ln) -> np.ndarray:
 
 def _median_leg(ln) -> float:
     """:func:`~mocapdb.bodies.units.leg_length` from the lengths ``ln`` (:func:`_lengths`: the same norms)."""
-    return float(np.median(np.concatenate([ln["lhip", "lknee"] + ln["lknee", "lankle"],
-                                           ln["rhip", "rknee"] + ln["rknee", "rankle"]])))
+    return float(column_medians(np.concatenate([ln["lhip", "lknee"] + ln["lknee", "lankle"],
+                                                ln["rhip", "rknee"] + ln["rknee", "rankle"]])[:, None])[0])
 
 
 def _medians(ln) -> dict:
@@ -666,7 +666,7 @@ def _medians(ln) -> dict:
                               + ln["rshoulder", "relbow"] + ln["relbow", "rwrist"]),
                 "trunk": ln["root", "neck"], "hip width": ln["lhip", "rhip"],
                 "shoulder width": ln["lshoulder", "rshoulder"]}
-    med = np.median(np.stack(list(measures.values()), axis=-1), axis=0)
+    med = column_medians(np.stack(list(measures.values()), axis=-1))
     return {what: float(m) for what, m in zip(measures, med)}
 
 
@@ -712,7 +712,7 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None, *, leg:
     """
     step = max(1, len(joints) // _SAMPLE)
     j = joints[::step]
-    ln = _lengths(j)
+    ln = _lengths(joints, step)
     # the one median leg: the unit of a BVH take is decided on it too
     leg = _median_leg(ln) if leg is None or step > 1 else leg
     if not leg > 0:

@@ -348,8 +348,36 @@ def _check(skeleton: Skeleton, motion: AmcMotion):
 
 
 #: frames per block of forward kinematics: sine and cosine of one block's angles at a time, not of
-#: the take's (each frame is computed on its own, so blocks change no value)
-_FK_BLOCK = 8192
+#: the take's (each frame is computed on its own, so blocks change no value); a block's angles stay in
+#: the processor's cache between the sines and the kinematics
+_FK_BLOCK = 64
+
+
+@jit
+def _asf_motion_kernel(values, factor, trans_cols, length_unit, root_position, root_cols, orient, order, parent,
+                       dmat, dident, offp, rot_cols, joint_nodes, joints, root_rot):  # pragma: no cover - numba
+    """A take's forward kinematics in one call (issue 35), :data:`_FK_BLOCK` frames at a time: the AMC
+    values (n, ncols) in the motion's angle unit times ``factor`` (convert2quat.m: angle · conversion
+    factor, then sin/cos, :func:`_sincos_kernel`), the root position ``(t / length_unit) · 2.54 +
+    root_position`` (readAMC.m / readASF.m; ``trans_cols`` −1: t = 0), then :func:`_asf_fk_kernel`."""
+    n, ncols = values.shape
+    ang = np.empty(_FK_BLOCK * ncols)
+    sin = np.empty(_FK_BLOCK * ncols)
+    cos = np.empty(_FK_BLOCK * ncols)
+    trans = np.empty((_FK_BLOCK, 3))
+    for a in range(0, n, _FK_BLOCK):
+        m = min(_FK_BLOCK, n - a)
+        for f in range(m):
+            for k in range(ncols):
+                ang[f * ncols + k] = values[a + f, k] * factor
+            for k in range(3):
+                c = trans_cols[k]
+                t = values[a + f, c] if c >= 0 else 0.0
+                trans[f, k] = (t / length_unit) * INCH_TO_TOOLBOX + root_position[k]
+        _sincos_kernel(ang[:m * ncols], sin[:m * ncols], cos[:m * ncols])
+        _asf_fk_kernel(sin[:m * ncols].reshape((m, ncols)), cos[:m * ncols].reshape((m, ncols)), trans[:m],
+                       root_cols, orient, order, parent, dmat, dident, offp, rot_cols, joint_nodes,
+                       joints[a:a + m], root_rot[a:a + m])
 
 
 def _run(skeleton: Skeleton, motion: AmcMotion, joint_nodes: np.ndarray):
@@ -357,23 +385,13 @@ def _run(skeleton: Skeleton, motion: AmcMotion, joint_nodes: np.ndarray):
     lay = _layout(skeleton)
     rot_cols, root_cols, trans_cols = lay.columns_for(skeleton, motion)
     n = motion.n_frames
-    values = motion.values
-    factor = _angle_factor(motion.angle_unit)
     joints = np.empty((n, joint_nodes.shape[0], 3))
     rot = np.empty((n, 3, 3))
-    for a in range(0, n, _FK_BLOCK):
-        block = values[a:a + _FK_BLOCK]
-        m = block.shape[0]
-        # AMC angles are in the motion's unit (the ASF unit unless the AMC says
-        # otherwise); convert2quat.m: angle * conversion_factor, then sin/cos.
-        sin, cos = sincos(block * factor)
-        trans = np.empty((m, 3))
-        for k, c in enumerate(trans_cols):
-            t = block[:, c] if c >= 0 else np.zeros(m)
-            # readAMC.m / readASF.m: (t / lengthUnit) * 2.54 + (position / lengthUnit) * 2.54
-            trans[:, k] = (t / skeleton.length_unit) * INCH_TO_TOOLBOX + skeleton.root_position[k]
-        _asf_fk_kernel(sin, cos, trans, root_cols, lay.orient, lay.order, lay.parent, lay.dmat,
-                       lay.dident, lay.offp, rot_cols, joint_nodes, joints[a:a + m], rot[a:a + m])
+    # AMC angles are in the motion's unit (the ASF unit unless the AMC says otherwise)
+    _asf_motion_kernel(np.ascontiguousarray(motion.values, dtype=np.float64), _angle_factor(motion.angle_unit),
+                       np.asarray(trans_cols, dtype=np.int64), float(skeleton.length_unit),
+                       np.asarray(skeleton.root_position, dtype=np.float64), root_cols, lay.orient, lay.order,
+                       lay.parent, lay.dmat, lay.dident, lay.offp, rot_cols, joint_nodes, joints, rot)
     return joints, rot
 
 
@@ -410,13 +428,18 @@ def joint_node_indices(skeleton: Skeleton) -> np.ndarray:
     ParameterError
         The skeleton lacks a bone the canonical joints need (names listed).
     """
+    cached = skeleton.__dict__.get("_joint_nodes")
+    if cached is not None:   # a skeleton is immutable: its takes share the answer (callers never write it;
+        return cached        # writable, so that the kernels see the type node_positions gives them)
     idx = {b.name.lower(): k + 1 for k, b in enumerate(skeleton.bones)}
     idx["root"] = 0
     missing = sorted({ASF_JOINT_BONES[j] for j in JOINT_NAMES} - set(idx))
     if missing:
         raise ParameterError(f"skeleton {skeleton.name!r} ({skeleton.path}) lacks the bones "
                              f"{', '.join(missing)} needed for the 24 canonical joints")
-    return np.array([idx[ASF_JOINT_BONES[j]] for j in JOINT_NAMES], dtype=np.int64)
+    nodes = np.array([idx[ASF_JOINT_BONES[j]] for j in JOINT_NAMES], dtype=np.int64)
+    object.__setattr__(skeleton, "_joint_nodes", nodes)   # a frozen dataclass: a private memo
+    return nodes
 
 
 def asf_forward_kinematics(skeleton: Skeleton, motion: AmcMotion):

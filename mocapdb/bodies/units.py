@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 from mocapdb.bodies.joints import JOINT_INDEX
 
@@ -44,13 +45,59 @@ LEG_M = math.sqrt(LEG_BAND[0] * LEG_BAND[1])
 _CMU_NAMES = frozenset({"lhipjoint", "rhipjoint", "lowerback"})
 
 
+@jit
+def _pair_lengths_kernel(joints, step, a, b, out):  # pragma: no cover - compiled
+    """``out[i, k] = |joints[i·step, a[k]] − joints[i·step, b[k]]|``: the differences, squares and sum
+    of three in the order of ``np.linalg.norm(…, axis=-1)``."""
+    for i in range(out.shape[0]):
+        f = i * step
+        for k in range(a.shape[0]):
+            dx = joints[f, a[k], 0] - joints[f, b[k], 0]
+            dy = joints[f, a[k], 1] - joints[f, b[k], 1]
+            dz = joints[f, a[k], 2] - joints[f, b[k], 2]
+            out[i, k] = math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+def pair_lengths(joints, a, b, step: int = 1) -> np.ndarray:
+    """The distance between joints ``a[k]`` and ``b[k]`` ((p,) int64 each) in every ``step``-th frame of
+    ``joints`` ((n, J, 3)): (⌈n / step⌉, p) float64, in one pass over the frames (issue 35: a per-pair
+    NumPy gather and norm cost more than the distances on a take of a few hundred frames)."""
+    j = np.asarray(joints, dtype=np.float64)
+    out = np.empty(((len(j) + step - 1) // step, len(a)))
+    _pair_lengths_kernel(j, step, a, b, out)
+    return out
+
+
+@jit
+def _column_medians_kernel(values, out):  # pragma: no cover - compiled
+    """``out[k]`` = the median of column k of ``values`` (np.median's value: the middle one, or the mean of
+    the two middle ones; NaN when the column holds a NaN, as NumPy's)."""
+    for k in range(values.shape[1]):
+        col = values[:, k]
+        if np.isnan(col).any():
+            out[k] = np.nan
+        else:
+            out[k] = np.median(col)
+
+
+def column_medians(values) -> np.ndarray:
+    """``np.median(values, axis=0)`` of an (m ≥ 1, k) float64 array, in one kernel call (NumPy's median
+    costs tens of microseconds of Python per call; a BVH take asks for two)."""
+    values = np.asarray(values, dtype=np.float64)
+    out = np.empty(values.shape[1])
+    _column_medians_kernel(values, out)
+    return out
+
+
+#: the leg's bones (hip → knee, knee → ankle), left then right
+_LEG_A = np.array([JOINT_INDEX[f"{s}{a}"] for s in "lr" for a in ("hip", "knee")], dtype=np.int64)
+_LEG_B = np.array([JOINT_INDEX[f"{s}{b}"] for s in "lr" for b in ("knee", "ankle")], dtype=np.int64)
+
+
 def leg_length(joints) -> float:
     """The median leg (hip → knee → ankle, both sides) over a take's frames, in its own unit."""
-    j = np.asarray(joints)
-    legs = [np.linalg.norm(j[:, JOINT_INDEX[f"{s}hip"]] - j[:, JOINT_INDEX[f"{s}knee"]], axis=1)
-            + np.linalg.norm(j[:, JOINT_INDEX[f"{s}knee"]] - j[:, JOINT_INDEX[f"{s}ankle"]], axis=1)
-            for s in "lr"]
-    return float(np.median(np.concatenate(legs)))
+    ln = pair_lengths(joints, _LEG_A, _LEG_B)
+    return float(column_medians(np.concatenate([ln[:, 0] + ln[:, 1], ln[:, 2] + ln[:, 3]])[:, None])[0])
 
 
 def bvh_unit(joints, bone_names=(), *, leg=None) -> tuple:

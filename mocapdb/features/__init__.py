@@ -2,12 +2,14 @@
 
 :mod:`~mocapdb.features.relational` computes the features at the native rate
 (body units, smoothed velocities, lenient/strict tests, hysteresis);
+:mod:`~mocapdb.features.pipeline` gives a take's words in one kernel call
+(:func:`motion_features`);
 :mod:`~mocapdb.features.words` holds everything on packed words (downsampling,
 packing, runs, mirroring, time reversal).
 """
 from mocapdb.features.relational import (FEATURE_THRESHOLDS, ROOT_ANG_VEL_THRESHOLDS_ALT, SMOOTHING_MS,
-                                         heading_turned, hysteresis, motion_features, relational_features,
-                                         smoothing_window)
+                                         heading_turned, hysteresis, relational_features, smoothing_window)
+from mocapdb.features.pipeline import motion_features
 from mocapdb.features.rates import (FEATURE_RATE, RATE_METHODS, TOOLBOX_RATE, feature_frame_count, feature_grid,
                                     grid_source_frames, resample_joints)
 from mocapdb.features.words import (DERIVED_FEATURE_NAMES, MIRROR_BITS, N_BITS, WORD_FEATURE_NAMES,

@@ -29,8 +29,11 @@ keyframes that do not name it never read it.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
 from mocapdb.bodies.joints import JOINT_INDEX
 
@@ -75,21 +78,66 @@ def heading_degrees(joints, root_rotation=None, *, axis=None) -> np.ndarray:
         30° of the vertical repeat the last reliable heading (the first
         reliable one before any).
     """
+    h = np.empty(0 if axis is None and joints is None else len(axis if axis is not None else joints))
+    _heading(joints, root_rotation, axis, 0, h, np.empty(0))
+    return h
+
+
+def _heading(joints, root_rotation, axis, half, h, change) -> None:
+    """:func:`heading_degrees` into ``h`` (n,) and, when ``change`` has n elements, the change across
+    ``half`` frames each side into it: NumPy's ``arctan2`` of every frame (its vector loop is not libm's
+    ``atan2`` to the last bit), the rest in one kernel (:func:`_heading_kernel`)."""
     if axis is None:
         axis = heading_axis(joints, root_rotation)
+    axis = np.asarray(axis, dtype=np.float64)
+    raw = np.arctan2(axis[:, 2], axis[:, 0])   # elementwise: a frame's angle whichever frames surround it
+    _heading_kernel(axis, raw, half, h, change)
+
+
+@jit
+def _heading_kernel(axis, raw, half, h, change):  # pragma: no cover - compiled
+    """The unwrapped heading (degrees) of the axes ``axis`` (n, 3) with their ``raw`` angles
+    (``arctan2(z, x)``) into ``h``, frames whose axis is within 30° of the vertical holding the last
+    reliable angle (the first reliable one before any; 0 throughout if none is), and, if ``change`` has n
+    elements, ``|h[t + half] − h[t − half]|`` (clipped at the ends) into it. Element by element what
+    ``np.linalg.norm``, ``np.hypot``, ``np.unwrap`` (period 2π) and ``np.degrees`` give."""
     n = axis.shape[0]
-    if n == 0:
-        return np.zeros(0)
-    norm = np.linalg.norm(axis, axis=1)
-    floor = np.hypot(axis[:, 0], axis[:, 2])
-    ok = floor > _MIN_FLOOR * np.maximum(norm, 1e-12)
-    if not ok.any():
-        return np.zeros(n)
-    idx = np.where(ok, np.arange(n), -1)
-    idx = np.maximum.accumulate(idx)
-    idx[idx < 0] = int(np.flatnonzero(ok)[0])
-    angle = np.arctan2(axis[idx, 2], axis[idx, 0])
-    return np.degrees(np.unwrap(angle))
+    first = -1
+    for t in range(n):
+        x, y, z = axis[t, 0], axis[t, 1], axis[t, 2]
+        norm = math.sqrt(x * x + y * y + z * z)
+        if math.hypot(x, z) > _MIN_FLOOR * max(norm, 1e-12):
+            first = t
+            break
+    if first < 0:
+        h[:] = 0.0
+    else:
+        held = raw[first]
+        prev = held
+        total = 0.0
+        for t in range(n):
+            if t > first:
+                x, y, z = axis[t, 0], axis[t, 1], axis[t, 2]
+                norm = math.sqrt(x * x + y * y + z * z)
+                if math.hypot(x, z) > _MIN_FLOOR * max(norm, 1e-12):
+                    held = raw[t]
+            angle = held
+            if t > 0:
+                dd = angle - prev
+                ddmod = np.mod(dd + math.pi, 2 * math.pi) - math.pi
+                if ddmod == -math.pi and dd > 0:
+                    ddmod = math.pi
+                correct = ddmod - dd
+                if abs(dd) < math.pi:
+                    correct = 0.0
+                total = correct if t == 1 else total + correct   # NumPy's cumsum: starts at the first step
+                h[t] = (angle + total) * (180.0 / math.pi)
+            else:
+                h[t] = angle * (180.0 / math.pi)
+            prev = angle
+    if change.shape[0] == n:
+        for t in range(n):
+            change[t] = abs(h[min(t + half, n - 1)] - h[max(t - half, 0)])
 
 
 def heading_change(joints, root_rotation, fps, *, window_s=HEADING_WINDOW_S, axis=None) -> np.ndarray:
@@ -113,11 +161,12 @@ def heading_change(joints, root_rotation, fps, *, window_s=HEADING_WINDOW_S, axi
     """
     if not (float(window_s) > 0 and float(fps) > 0):
         raise ParameterError(f"window_s and fps must be positive, got {window_s!r}, {fps!r}")
-    h = heading_degrees(joints, root_rotation, axis=axis)
-    n = h.size
-    half = max(1, int(round(float(window_s) * float(fps) / 2)))
-    t = np.arange(n)
-    return np.abs(h[np.minimum(t + half, n - 1)] - h[np.maximum(t - half, 0)])
+    if axis is None:
+        axis = heading_axis(joints, root_rotation)
+    n = len(axis)
+    change = np.empty(n)
+    _heading(joints, root_rotation, axis, max(1, int(round(float(window_s) * float(fps) / 2))), np.empty(n), change)
+    return change
 
 
 def _unwrap_corrections(dd):

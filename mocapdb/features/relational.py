@@ -4,7 +4,7 @@ Everything in this module follows FEATURES.md (matrix order §0, body units
 §3, primitives §4, hysteresis §5, per-feature definitions §6) and reproduces
 the toolbox's ``*_robust`` feature functions bit for bit.
 
-Pipeline of one motion (:func:`motion_features`):
+Pipeline of one motion (:func:`~mocapdb.features.pipeline.motion_features`):
 
 1. :func:`relational_features` — (n, 40) bool at the native rate: body units
    from frame 0, smoothed velocities (one kernel), the lenient and strict
@@ -14,19 +14,22 @@ Pipeline of one motion (:func:`motion_features`):
 2. :func:`downsample` — native frames 0, 4, 8, … (120 Hz → 30 Hz);
 3. :func:`pack_words` — one uint64 per frame, bit k−1 = feature k.
 
+:func:`~mocapdb.features.pipeline.motion_features` runs steps 1–3 and
+feature 41's hysteresis as one kernel call per take, calling the kernels
+here (issue 35).
+
 Steps 2 and 3 and everything else on words live in :mod:`mocapdb.features.words`.
 """
+import functools
 import math
 
 import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError
-from mocapdb.features.rates import (RATE_METHODS, TOOLBOX_RATE, check_fps, feature_frame_count,
-                                    grid_source_frames, resample_joints, resampled_count)
-from mocapdb.features.heading import (HEADING_THRESHOLDS, HEADING_WINDOW_S, HeadingChangeStream, heading_axis,
-                                      heading_change)
-from mocapdb.features.words import N_FEATURES, _as_bool_matrix, downsample, pack_words
+from mocapdb.features.rates import check_fps
+from mocapdb.features.heading import HEADING_THRESHOLDS, HEADING_WINDOW_S, heading_change
+from mocapdb.features.words import N_FEATURES, _as_bool_matrix
 from mocapdb.bodies import JOINT_INDEX
 
 
@@ -622,6 +625,19 @@ def relational_features(joints, root_rotation, fps, *,
     ----------
     FEATURES.md §3–§6; Müller & Röder, SCA 2006; Müller, Baak & Seidel, SCA 2009.
     """
+    j, r, fps, ang_thr = _checked_input(joints, root_rotation, fps, root_ang_vel_thresholds)
+    n = j.shape[0]
+    out = np.zeros((n, N_FEATURES), dtype=np.bool_)
+    if n < 2:
+        return out
+    f1, f2 = feature_tests(j, r, fps, body_units(j), root_ang_vel_thresholds=ang_thr)
+    _hysteresis_kernel(f1, f2, out, np.zeros(N_FEATURES, dtype=np.bool_))
+    return out
+
+
+def _checked_input(joints, root_rotation, fps, root_ang_vel_thresholds):
+    """The features' input checked once: ``(joints (n, 24, 3) float64 contiguous, root_rotation (n, 3, 3) or
+    None, fps, (lenient, strict) yaw-rate thresholds)``; a clear :class:`ParameterError` otherwise."""
     j = np.asarray(joints)
     if j.ndim != 3 or j.shape[1:] != (24, 3):
         raise ParameterError(
@@ -629,22 +645,31 @@ def relational_features(joints, root_rotation, fps, *,
     if not np.issubdtype(j.dtype, np.number):
         raise ParameterError(f"joints must be numeric, got dtype {j.dtype}")
     j = np.ascontiguousarray(j, dtype=np.float64)
-    n = j.shape[0]
-    fps = check_fps(fps)
-    ang_thr = _check_threshold_pair(root_ang_vel_thresholds)
+    r = None
     if root_rotation is not None:
         r = np.asarray(root_rotation)
-        if r.shape != (n, 3, 3):
+        if r.shape != (j.shape[0], 3, 3):
             raise ParameterError(
-                f"root_rotation must have shape ({n}, 3, 3) to match joints, got "
+                f"root_rotation must have shape ({j.shape[0]}, 3, 3) to match joints, got "
                 f"{r.shape}; pass None for position-only data")
-    out = np.zeros((n, N_FEATURES), dtype=np.bool_)
-    if n < 2:
-        return out
-    f1, f2 = feature_tests(j, None if root_rotation is None else r, fps, body_units(j),
-                           root_ang_vel_thresholds=ang_thr)
-    _hysteresis_kernel(f1, f2, out, np.zeros(N_FEATURES, dtype=np.bool_))
+    return j, r, check_fps(fps), _check_threshold_pair(root_ang_vel_thresholds)
+
+
+@functools.lru_cache(maxsize=16)
+def _windows(fps: float) -> np.ndarray:
+    """The smoothing window (frames) of each velocity trajectory at ``fps`` (read-only: shared)."""
+    out = np.array([smoothing_window(ms, fps) for ms in _VEL_MS], dtype=np.int64)
+    out.flags.writeable = False
     return out
+
+
+@functools.lru_cache(maxsize=16)
+def _thresholds(root_ang_vel_thresholds: tuple) -> np.ndarray:
+    """:data:`FEATURE_THRESHOLDS` with #40's pair replaced (read-only: shared)."""
+    thr = _THRESHOLDS.copy()
+    thr[39] = root_ang_vel_thresholds
+    thr.flags.writeable = False
+    return thr
 
 
 def body_units(joints) -> np.ndarray:
@@ -670,12 +695,10 @@ def feature_tests(joints, root_rotation, fps, units, *, root_ang_vel_thresholds=
         The lenient and the strict test.
     """
     n = joints.shape[0]
-    windows = np.array([smoothing_window(ms, fps) for ms in _VEL_MS], dtype=np.int64)
     vel = np.empty((len(_VELOCITY_TRAJECTORIES), n, 3))
-    _smoothed_velocity_kernel(joints, _VEL_Q, _VEL_P, windows, vel)
+    _smoothed_velocity_kernel(joints, _VEL_Q, _VEL_P, _windows(fps), vel)
 
-    thr = _THRESHOLDS.copy()
-    thr[39] = root_ang_vel_thresholds
+    thr = _thresholds(tuple(root_ang_vel_thresholds))
     f1 = np.empty((n, N_FEATURES), dtype=np.bool_)
     f2 = np.empty((n, N_FEATURES), dtype=np.bool_)
     _upper_kernel(joints, vel, units, thr, fps, f1, f2)
@@ -732,116 +755,7 @@ def heading_turned(joints, root_rotation, fps, *, window_s=HEADING_WINDOW_S, thr
     return hysteresis(change >= lo, change >= hi)
 
 
-def motion_features(motion, *, root_ang_vel_thresholds=(50.0, 100.0), rate_method: str = "resample"):
-    """The whole feature pipeline of one motion: 40 features (+ feature 41) → 30 Hz → words.
-
-    Parameters
-    ----------
-    motion : mocapdb.bodies.motion.Motion
-    root_ang_vel_thresholds : (float, float), optional
-        See :func:`relational_features`.
-    rate_method : {"resample", "native"}, keyword-only
-        How a source not at 120 Hz reaches the 30 Hz grid
-        (:mod:`mocapdb.features.rates`): ``"resample"`` (default) resamples
-        the joints to 120 Hz and takes the toolbox path; ``"native"``
-        computes at the source rate and samples the nearest frames. At
-        120 Hz both are the toolbox path (native frames 0, 4, 8, …).
-
-    Returns
-    -------
-    ndarray, shape (feature_frame_count(n_frames, fps),), uint64
-        One packed word per 30 Hz frame (``ceil(n_frames/4)`` at 120 Hz):
-        bits 0–39 the toolbox's 40 features, bit 40 feature 41
-        (:func:`heading_turned`).
-
-    References
-    ----------
-    FEATURES.md §1; READERS.md §1.
-    """
-    if rate_method not in RATE_METHODS:
-        raise ParameterError(f"rate_method={rate_method!r}: expected one of {RATE_METHODS}")
-    fps = float(motion.fps)
-    joints, rot = motion.joints, motion.root_rotation
-    toolbox_path = fps == TOOLBOX_RATE or rate_method == "resample"
-    if toolbox_path and resampled_count(motion.n_frames, fps) > BLOCK_FRAMES:
-        words = _words_by_block(motion, root_ang_vel_thresholds)   # a long take: bounded memory
-    else:
-        if fps != TOOLBOX_RATE and rate_method == "resample":
-            joints, rot = resample_joints(joints, rot, fps)
-            fps = TOOLBOX_RATE
-        feats = relational_features(joints, rot, fps, root_ang_vel_thresholds=root_ang_vel_thresholds)
-        # bit 40: feature 41, the heading turned (beyond the paper; the 40 stay the toolbox's)
-        feats = np.column_stack([feats, heading_turned(joints, rot, fps)])
-        if fps == TOOLBOX_RATE:
-            words = pack_words(downsample(feats))
-        else:
-            words = pack_words(feats[grid_source_frames(len(feats), fps)])
-    # a resampled take can end a hair before the source's last grid time
-    want = feature_frame_count(motion.n_frames, motion.fps)
-    if len(words) < want:
-        words = np.concatenate([words, np.repeat(words[-1:], want - len(words))])
-    return words[:want]
-
-
-#: a take longer than this (120 Hz frames, resampled) has its features computed a block of this many
-#: frames at a time (a multiple of 4: blocks start on the 30 Hz grid): 9 minutes of features, not 9
-#: hours, in memory
-BLOCK_FRAMES = 1 << 16
-#: frames of context on each side of a block (:func:`feature_tests`: 30 frames and the next one)
-_CONTEXT = 64
-
-
-def _words_by_block(motion, root_ang_vel_thresholds) -> np.ndarray:
-    """:func:`motion_features` (the 120 Hz path) of a long take, a block of frames at a time: the same
-    words as the whole take's, bit for bit — each block's tests see the frames their windows read
-    (:func:`feature_tests`), the units come from frame 0 and the hysteresis runs on from block to block."""
-    fps = float(motion.fps)
-    j = np.ascontiguousarray(motion.joints, dtype=np.float64)
-    rot = motion.root_rotation
-    if j.ndim != 3 or j.shape[1:] != (24, 3):
-        raise ParameterError(f"joints must have shape (n_frames, 24, 3) in JOINT_NAMES order, got {j.shape}")
-    ang_thr = _check_threshold_pair(root_ang_vel_thresholds)
-    n = resampled_count(len(j), fps)
-
-    def frames(a, b):   # the 120 Hz joints and rotation of frames a … b − 1
-        if fps == TOOLBOX_RATE:
-            return j[a:b], None if rot is None else rot[a:b]
-        return resample_joints(j, rot, fps, frames=(a, b))
-
-    units = body_units(frames(0, 1)[0])
-    step = max(4, BLOCK_FRAMES // 4 * 4)
-    # feature 41 streams too (HeadingChangeStream: the unwrap and the held heading carried from block to
-    # block, its hysteresis state as well); a block's bits need the pelvis axis 1.5 s beyond the block
-    lo_turn, hi_turn = HEADING_THRESHOLDS
-    heading = HeadingChangeStream(n, TOOLBOX_RATE)
-    turn_state = np.zeros(1, dtype=np.bool_)
-    turned, turned0, axis_fed = np.zeros(0, dtype=np.bool_), 0, 0   # feature 41 of frames turned0 …
-    states = np.zeros(N_FEATURES, dtype=np.bool_)
-    words = np.empty((n + 3) // 4, dtype=np.uint64)
-    for a in range(0, n, step):
-        b = min(n, a + step)
-        while turned0 + turned.size < b:
-            if axis_fed < n:
-                change = heading.feed(heading_axis(*frames(axis_fed, min(n, axis_fed + step))))
-                axis_fed = min(n, axis_fed + step)
-            else:
-                change = heading.finish()
-            part = np.empty((change.size, 1), dtype=np.bool_)
-            _hysteresis_kernel((change >= lo_turn)[:, None], (change >= hi_turn)[:, None], part, turn_state)
-            turned = np.concatenate([turned, part[:, 0]])
-        lo, hi = max(0, a - _CONTEXT), min(n, b + _CONTEXT)
-        jw, rw = frames(lo, hi)
-        f1, f2 = feature_tests(np.ascontiguousarray(jw), rw, TOOLBOX_RATE, units, root_ang_vel_thresholds=ang_thr)
-        feats = np.empty((b - a, N_FEATURES + 1), dtype=np.bool_)
-        _hysteresis_kernel(f1[a - lo:b - lo], f2[a - lo:b - lo], feats[:, :N_FEATURES], states)
-        feats[:, N_FEATURES] = turned[a - turned0:b - turned0]
-        turned, turned0 = turned[b - turned0:], b
-        words[a // 4:(b + 3) // 4] = pack_words(feats[::4])
-    return words
-
-
 __all__ = [
     "FEATURE_THRESHOLDS", "SMOOTHING_MS", "ROOT_ANG_VEL_THRESHOLDS_ALT", "relational_features",
-    "hysteresis", "smoothing_window", "motion_features", "heading_turned", "body_units", "feature_tests",
-    "BLOCK_FRAMES",
+    "hysteresis", "smoothing_window", "heading_turned", "body_units", "feature_tests",
 ]

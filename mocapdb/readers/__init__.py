@@ -14,8 +14,9 @@ scanned by the numba kernels of :mod:`~mocapdb.readers.textscan`.
 """
 from mocapdb.readers.asf import parse_asf, read_asf
 from mocapdb.readers.amc import parse_amc, read_amc
-from mocapdb.readers.bvh import (BvhData, BvhHierarchy, BvhJoint, bvh_joint_map, bvh_node_positions, bvh_to_motion,
-                                 joint_map_template, parse_bvh, read_bvh)
+from mocapdb.readers.bvh import (BvhData, BvhHierarchy, BvhJoint, bvh_joint_map, bvh_to_motion, joint_map_template,
+                                 parse_bvh, read_bvh)
+from mocapdb.readers.bvh_kinematics import bvh_node_positions
 from mocapdb.readers.mapping import load_mapping
 from mocapdb.readers.c3dfile import C3dPoints, read_c3d_points
 from mocapdb.readers.c3d import fit_bone_lengths, read_c3d

@@ -34,7 +34,7 @@ from mocapdb.readers.textscan import (_CLASS, _few_tokens, _is_space, _line_toke
                                       _scan_number, _short_numbers, _token_end, fix_slow_numbers, line_of,
                                       number_error, token_at, truncation_hint)
 from mocapdb.bodies.acclaim import DEFAULT_FPS, AmcMotion, Skeleton, column_layout
-from mocapdb.readers.sources import read_bytes
+from mocapdb.readers.sources import as_path, read_bytes
 from mocapdb.errors import ParseError
 
 __all__ = ["read_amc", "parse_amc"]
@@ -347,7 +347,7 @@ def read_amc(path, skeleton: Skeleton) -> AmcMotion:
     ----------
     FEATURES.md §1, §2.2, §9.
     """
-    path = Path(path)
+    path = as_path(path)
     return parse_amc(read_bytes(path), skeleton, path=path)
 
 
@@ -366,7 +366,7 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     elif unit != skeleton.angle_unit:
         log.warning("%s: AMC angles in %s but the ASF says %s; using the AMC's unit",
                     path, unit, skeleton.angle_unit)
-    names, ndof, col_start, columns, dof_names, ndof_of, name_buf, name_start, name_len = _kernel_layout(skeleton)
+    names, ndof, col_start, columns, dof_names, name_buf, name_start, name_len = _kernel_layout(skeleton)
     buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
 
     if start >= len(data):
@@ -376,7 +376,7 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     # bones of frame 1 (the kernel enforces it) with their values, so it has
     # at least as many bytes as the shortest spelling of frame 1; +1 for a
     # truncated last frame. np.zeros is lazy: untouched slack costs nothing.
-    n_rows = (len(data) - start) // _min_frame_bytes(data, start, ndof_of) + 1
+    n_rows = (len(data) - start) // _min_frame_bytes_kernel(buf, start, name_buf, name_start, name_len, ndof) + 1
     ncols = int(ndof.sum())
     cap = 1024
     while True:
@@ -425,29 +425,60 @@ def _kernel_layout(skeleton: Skeleton) -> tuple:
     name_start = np.zeros(len(enc), dtype=np.int64)
     name_start[1:] = np.cumsum(name_len)[:-1]
     name_buf = np.frombuffer(b"".join(enc), dtype=np.uint8)
-    ndof_of = {n: int(k) for n, k in zip(lower, ndof)}
-    out = (names, ndof, col_start, columns, dof_names, ndof_of, name_buf, name_start, name_len)
+    out = (names, ndof, col_start, columns, dof_names, name_buf, name_start, name_len)
     object.__setattr__(skeleton, "_amc_layout", out)  # a frozen dataclass: a private memo
     return out
 
 
-def _min_frame_bytes(data: bytes, start: int, ndof_of: dict) -> int:
-    """Fewest bytes any frame can take if it lists the bones of frame 1.
+@jit
+def _lower_latin1(c):  # pragma: no cover - compiled
+    """``bytes([c]).decode("latin-1").lower()`` as a byte (A–Z, À–Þ but ×)."""
+    if 65 <= c <= 90 or (0xC0 <= c <= 0xDE and c != 0xD7):
+        return c + 32
+    return c
 
-    Frame number line >= 2 bytes; bone line >= name + (blank + digit) per
-    DOF + LF.
-    """
-    pos = data.find(b"\n", start) + 1
+
+@jit
+def _min_frame_bytes_kernel(buf, start, names, name_start, name_len, ndof):  # pragma: no cover - compiled
+    """Fewest bytes any frame can take if it lists the bones of frame 1 (the bytes from ``start``: the
+    frame number line, then frame 1's lines up to the next line starting with a digit): frame number line
+    >= 2 bytes; bone line >= name + (blank + digit) per DOF + LF — the DOFs of the bone named so (case
+    aside, as ``str.lower`` of its Latin-1 text; the last of equal names; 0 for an unknown one), from the
+    names of :func:`_kernel_layout` (lower case, back to back). A scan of frame 1 only, in a kernel: a
+    Python step per line cost ~0.1 ms a take (issue 35)."""
+    size = buf.shape[0]
+    pos = start
+    while pos < size and buf[pos] != 10:
+        pos += 1
+    pos += 1
+    if pos > size:
+        return 2
     n = 2
-    while 0 < pos < len(data):
-        end = data.find(b"\n", pos)
-        s = data[pos:end if end >= 0 else len(data)].lstrip()
-        if s[:1].isdigit():
+    while pos < size:
+        end = pos
+        while end < size and buf[end] != 10:
+            end += 1
+        i = pos
+        while i < end and (buf[i] == 32 or 9 <= buf[i] <= 13):
+            i += 1
+        if i < end and 48 <= buf[i] <= 57:
             break
-        if s and not s.startswith(b"#"):
-            name = s.split()[0]
-            n += len(name) + 2 * ndof_of.get(name.decode("latin-1").lower(), 0) + 1
-        if end < 0:
+        if i < end and buf[i] != 35:
+            j = i
+            while j < end and not (buf[j] == 32 or 9 <= buf[j] <= 13):
+                j += 1
+            k = 0
+            for b in range(name_start.shape[0]):
+                if name_len[b] == j - i:
+                    same = True
+                    for t in range(j - i):
+                        if _lower_latin1(buf[i + t]) != names[name_start[b] + t]:
+                            same = False
+                            break
+                    if same:
+                        k = ndof[b]
+            n += (j - i) + 2 * k + 1
+        if end >= size:
             break
         pos = end + 1
     return n

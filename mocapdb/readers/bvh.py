@@ -55,14 +55,14 @@ import numpy as np
 
 from mocapdb._numba import jit
 from mocapdb.errors import ParameterError, ParseError
-from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, MOTION, READ_BLOCK, read_head
+from mocapdb.readers.bvh_head import FRAME_TIME, FRAMES, READ_BLOCK, find_motion, read_head
+from mocapdb.readers.bvh_kinematics import _bvh_joints_kernel, bvh_node_positions
 from mocapdb.readers.bvh_mapping import auto_map, bvh_joint_map, plan
 from mocapdb.readers.bvh_tracking import lost_samples, mend, pose_frame
 from mocapdb.bodies.humanoid import Z_UP_TO_Y_UP, SkeletonTree, hip_axis_is_x, humanoid_problem, mapping_template
 from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.bodies.kinematics import rotate_columns
 from mocapdb.bodies.motion import Motion, check_finite_motion, snap_rate
-from mocapdb.readers.sources import (max_decompressed, motion_stem, open_stream, special_kind,
+from mocapdb.readers.sources import (as_path, max_decompressed, motion_stem, open_stream, special_kind,
                                      stream_size)
 from mocapdb.readers.textscan import line_of, parse_rows_into, rows_bound
 from mocapdb.bodies.units import bvh_unit, leg_length
@@ -231,13 +231,13 @@ class _MotionLines:
         if b"\n" not in head and b"\r" in head:
             head = (head + (b"" if self.eof else fh.read())).replace(b"\r", b"\n")   # classic-Mac line ends
             self.eof = True
-        m = MOTION.search(head)
+        m = find_motion(head)
         if m is None:
             if not head.lstrip().upper().startswith(b"HIERARCHY"):
                 raise ParseError(path, 1, "expected 'HIERARCHY' (not a BVH file?)")
             raise ParseError(path, line_of(head, len(head)), "no 'MOTION' section (truncated file?)")
-        self.hierarchy = _cached_hierarchy(head, m.start(), path)
-        self.n_frames, self.frame_time, self.frames_line, start = _parse_motion_header(head, m.end(), path)
+        self.hierarchy = _cached_hierarchy(head, m[0], path)
+        self.n_frames, self.frame_time, self.frames_line, start = _parse_motion_header(head, m[1], path)
         self.rest = head[start:]
         self.line_base = head.count(b"\n", 0, start)
         #: bytes of motion lines still to come when the stream's size is known, else None
@@ -504,85 +504,7 @@ def _parse_hierarchy(data, end, path) -> BvhHierarchy:
 
 
 # ----------------------------------------------------------------------------
-# kinematics
-
-@jit
-def _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_axis,
-                   end_site, has_end, needed, origins, ends, rotations, rot_joint):  # pragma: no cover
-    """Joint origins (n, nj, 3), End Sites (n, nj, 3) and the global rotation of
-    joint ``rot_joint`` (n, 3, 3) for every frame; see the module docstring.
-    Sine and cosine are taken here, of rotation channels only (no temporaries);
-    joints not ``needed`` (nor below a needed one) are skipped."""
-    n = values.shape[0]
-    nj = parent.shape[0]
-    h = np.empty((nj, 3, 3))
-    t = np.empty(3)
-    deg = math.pi / 180.0
-    for f in range(n):
-        for j in range(nj):
-            if not needed[j]:
-                continue
-            p = parent[j]
-            for i in range(3):
-                for k in range(3):
-                    h[j, i, k] = h[p, i, k] if p >= 0 else (1.0 if i == k else 0.0)
-                t[i] = offset[j, i]
-            s0 = ch_start[j]
-            for c in range(ch_count[j]):
-                col = s0 + c
-                if ch_kind[col] == 0:
-                    if p >= 0:
-                        t[ch_axis[col]] = values[f, col]  # replaces the OFFSET coordinate
-                    else:
-                        t[ch_axis[col]] += values[f, col]
-                else:
-                    a = values[f, col] * deg
-                    rotate_columns(h, j, ch_axis[col], math.cos(a), math.sin(a))
-            for i in range(3):
-                if p >= 0:
-                    origins[f, j, i] = origins[f, p, i] + (h[p, i, 0] * t[0] + h[p, i, 1] * t[1]
-                                                           + h[p, i, 2] * t[2])
-                else:
-                    origins[f, j, i] = t[i]
-            if has_end[j]:
-                for i in range(3):
-                    ends[f, j, i] = origins[f, j, i] + (h[j, i, 0] * end_site[j, 0]
-                                                        + h[j, i, 1] * end_site[j, 1]
-                                                        + h[j, i, 2] * end_site[j, 2])
-            if j == rot_joint:
-                for i in range(3):
-                    for k in range(3):
-                        rotations[f, i, k] = h[j, i, k]
-
-
-def bvh_node_positions(data: BvhData, *, rotation_joint: int = 0, needed=None):
-    """Forward kinematics of a parsed BVH file.
-
-    ``needed`` (bool per joint, closed under parents) limits the work to those
-    joints; the others' origins and End Sites are left undefined.
-
-    Returns
-    -------
-    origins : ndarray, shape (n_frames, n_joints, 3)
-    end_sites : ndarray, shape (n_frames, n_joints, 3)
-        NaN for joints without an End Site.
-    rotation : ndarray, shape (n_frames, 3, 3)
-        Global rotation of joint ``rotation_joint`` (default: the root).
-    """
-    hier = data.hierarchy
-    nj = len(hier.joints)
-    parent, offset, ch_start, ch_count, kinds, axes, has_end, end_site = hier.arrays()
-    values = np.ascontiguousarray(data.values, dtype=np.float64)
-    n = values.shape[0]
-    origins = np.empty((n, nj, 3))
-    ends = np.full((n, nj, 3), np.nan)
-    rot = np.empty((n, 3, 3))
-    if needed is None:
-        needed = np.ones(nj, dtype=np.bool_)
-    _bvh_fk_kernel(values, parent, offset, ch_start, ch_count, kinds, axes, end_site,
-                   has_end, needed, origins, ends, rot, rotation_joint)
-    return origins, ends, rot
-
+# joint maps
 
 def joint_map_template(path) -> str:
     """A ready-to-edit TOML joint map for a BVH file, filled with what the automatic mapping places.
@@ -601,8 +523,8 @@ def joint_map_template(path) -> str:
             data, _ = read_head(fh, str(path))
     except OSError as exc:
         raise ParseError(path, None, f"cannot read the file ({exc.strerror or exc})") from None
-    m = MOTION.search(data)
-    hier = _parse_hierarchy(data, m.start() if m else len(data), str(path))
+    m = find_motion(data)
+    hier = _parse_hierarchy(data, m[0] if m else len(data), str(path))
     tree = hier.tree()
     auto, problem, _ = auto_map(hier, tree)
     return mapping_template(tree, auto.how if auto is not None else problem.partial, source=str(path))
@@ -610,34 +532,6 @@ def joint_map_template(path) -> str:
 
 # ----------------------------------------------------------------------------
 # reading
-
-@jit
-def _combine_kernel(origins, ends, point, end_of, weight, out):  # pragma: no cover - compiled
-    """out[f, j] = Σ_k weight[j, k] · P(point[j, k]); a point below n_joints is a joint
-    origin, above it the End Site of joint end_of[point - n_joints]."""
-    nj = origins.shape[1]
-    for f in range(origins.shape[0]):
-        for j in range(point.shape[0]):
-            for c in range(3):
-                out[f, j, c] = 0.0
-            for k in range(point.shape[1]):
-                w = weight[j, k]
-                if w == 0.0:
-                    continue
-                p = point[j, k]
-                for c in range(3):
-                    if p < nj:
-                        out[f, j, c] += w * origins[f, p, c]
-                    else:
-                        out[f, j, c] += w * ends[f, end_of[p - nj], c]
-
-
-def _combine(point, weight, end_of, origins, ends) -> np.ndarray:
-    """The 24 canonical joints from the FK points (a gather: most rows are one point)."""
-    out = np.empty((origins.shape[0], len(JOINT_NAMES), 3))
-    _combine_kernel(origins, ends, point, end_of, weight, out)
-    return out
-
 
 @jit
 def _steps_kernel(joints, out):  # pragma: no cover - compiled
@@ -723,7 +617,7 @@ def read_bvh(path, *, joint_map=None, skip_rest_frame=None) -> Motion:
     ----------
     FEATURES.md §2.3b; READERS.md §2.
     """
-    path = Path(path)
+    path = as_path(path)
     if joint_map is not None and not isinstance(joint_map, dict):
         raise ParameterError(f"joint_map must be a dict (see mocapdb.readers.load_mapping), got {joint_map!r}")
     with open_stream(path) as fh:
@@ -773,21 +667,18 @@ def _placed(how):
     return name if name is not None else why
 
 
-#: joint positions per block of forward kinematics (the per-joint arrays of one block, not of the take)
+#: joint positions per block of the Z-up turn (the block's temporaries, not the take's)
 _FK_POINTS = 1 << 18
 
 
 def _joints_and_rotation(data: BvhData, jm, point, weight, end_of, needed, *, out=None):
     """The 24 canonical joints (n, 24, 3) and pelvis rotation (n, 3, 3) (into the pair ``out`` when given),
-    FK in blocks of frames: memory never holds every joint's path."""
+    FK and the gather in one kernel call (:func:`_bvh_joints_kernel`): memory never holds every joint's path."""
     n = data.values.shape[0]
     joints, rot = out if out is not None else (np.empty((n, len(JOINT_NAMES), 3)), np.empty((n, 3, 3)))
-    step = max(256, _FK_POINTS // max(len(data.hierarchy.joints), 1))
-    for a in range(0, n, step):
-        block = BvhData(data.hierarchy, data.values[a:a + step], data.frame_time, data.path)
-        origins, ends, r = bvh_node_positions(block, rotation_joint=jm.rotation_point, needed=needed)
-        joints[a:a + len(r)] = _combine(point, weight, end_of, origins, ends)
-        rot[a:a + len(r)] = r
+    parent, offset, ch_start, ch_count, kinds, axes, has_end, end_site = data.hierarchy.arrays()
+    _bvh_joints_kernel(np.ascontiguousarray(data.values, dtype=np.float64), parent, offset, ch_start, ch_count,
+                       kinds, axes, end_site, has_end, needed, jm.rotation_point, point, end_of, weight, joints, rot)
     return joints, rot
 
 

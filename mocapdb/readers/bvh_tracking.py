@@ -32,9 +32,7 @@ def lost_samples(values: np.ndarray, hier: BvhHierarchy) -> np.ndarray | None:
 
     Checked in blocks of frames: no temporary of the take's size (only the
     mask, and only when something was lost)."""
-    _, _, _, _, kinds, _, _, _ = hier.arrays()
-    size = float(np.ptp(hier.tree().rest, axis=0).max()) or 1.0
-    limit = np.where(kinds == 1, MAX_ANGLE_DEG, MAX_POSITION_SIZES * size)
+    limit = _limits(hier)
     if values.shape[1] == limit.shape[0] and not _any_lost(values, limit):
         return None   # the usual take: one pass, no temporaries
     bad = None
@@ -46,6 +44,21 @@ def lost_samples(values: np.ndarray, hier: BvhHierarchy) -> np.ndarray | None:
                     bad = np.zeros(values.shape, dtype=bool)
                 bad[a:a + _SCAN_BLOCK] = block
     return bad
+
+
+def _limits(hier) -> np.ndarray:
+    """The largest plausible magnitude of each channel: :data:`MAX_ANGLE_DEG` for a rotation,
+    :data:`MAX_POSITION_SIZES` skeleton sizes for a position; once per hierarchy (read-only; an archive's
+    takes share a few hierarchies)."""
+    cached = hier.__dict__.get("_lost_limits")
+    if cached is not None:
+        return cached
+    _, _, _, _, kinds, _, _, _ = hier.arrays()
+    size = float(np.ptp(hier.tree().rest, axis=0).max()) or 1.0
+    limit = np.where(kinds == 1, MAX_ANGLE_DEG, MAX_POSITION_SIZES * size)
+    limit.flags.writeable = False
+    object.__setattr__(hier, "_lost_limits", limit)   # a frozen dataclass: a private memo
+    return limit
 
 
 @jit

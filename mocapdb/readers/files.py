@@ -32,7 +32,7 @@ from mocapdb.bodies.kinematics import asf_forward_kinematics, joint_node_indices
 from mocapdb.bodies.motion import Motion, check_finite_motion
 from mocapdb.readers.textscan import longest_line
 from mocapdb.readers.options import ReaderOptions
-from mocapdb.readers.sources import (COMPRESSED, FileCache, is_file, list_dir, max_decompressed, motion_stem,
+from mocapdb.readers.sources import (COMPRESSED, FileCache, as_path, is_file, list_dir, max_decompressed, motion_stem,
                                      motion_suffix, open_stream, special_kind, split_archive)
 
 __all__ = ["read_motion", "read_asf_amc", "find_skeleton", "skeleton_candidates", "skeleton_note",
@@ -131,7 +131,7 @@ def _named_candidates(amc_path) -> list:
 
 def _named_places(amc_path) -> list:
     """:func:`_named_candidates` as ``(folder, name)`` pairs (no path built per candidate)."""
-    p = Path(amc_path)
+    p = as_path(amc_path)
     d = p.parent
     stem = motion_stem(p)
     out = [(d, f"{stem}.asf")]
@@ -231,14 +231,14 @@ def find_skeleton(amc_path) -> Path | None:
             cand = folder / spelling
             if is_file(cand):
                 return cand
-    own = _folder_asf(Path(amc_path).parent)
+    own = _folder_asf(as_path(amc_path).parent)
     return own if own is not None and own not in [folder / name for folder, name in places] else None
 
 
 def skeleton_note(amc_path, asf_path) -> str | None:
     """The ingest note when ``asf_path`` is the AMC's folder's only ASF, found by no name pattern."""
-    own = _folder_asf(Path(amc_path).parent)
-    if own is None or Path(asf_path) != own or any(motion_stem(own) == motion_stem(c)
+    own = _folder_asf(as_path(amc_path).parent)
+    if own is None or as_path(asf_path) != own or any(motion_stem(own) == motion_stem(c)
                                                    and own.parent == c.parent
                                                    for c in _named_candidates(amc_path)):
         return None
@@ -254,7 +254,7 @@ def load_skeleton(asf) -> Skeleton:
     """A :class:`Skeleton` from a path (cached by file identity) or a Skeleton."""
     if isinstance(asf, Skeleton):
         return asf
-    return _ASF_CACHE.get(Path(asf), read_asf)
+    return _ASF_CACHE.get(as_path(asf), read_asf)
 
 
 def read_asf_amc(amc_path, asf) -> Motion:
@@ -264,7 +264,7 @@ def read_asf_amc(amc_path, asf) -> Motion:
     name); any other is read through the humanoid mapper
     (:mod:`~mocapdb.bodies.asf_humanoid`) and must be a human.
     """
-    amc_path = Path(amc_path)
+    amc_path = as_path(amc_path)
     asf_path = asf.path if isinstance(asf, Skeleton) else str(asf)
     try:
         skel = load_skeleton(asf)
@@ -360,7 +360,7 @@ def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None
     elif any(v is not None for v in keywords.values()):
         raise ParameterError("read_motion: give options or the keywords asf, joint_map, marker_map, marker_rules, "
                              "body_model, not both")
-    path = Path(path)
+    path = as_path(path)
     kind = special_kind(path)
     if kind is not None:   # reading a FIFO would block, a device never end
         raise ParseError(path, None, f"{kind}, not a motion file")

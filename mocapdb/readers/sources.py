@@ -55,7 +55,7 @@ from mocapdb.errors import ParameterError
 __all__ = ["COMPRESSED", "ARCHIVES", "split_archive", "plain_file", "motion_suffix", "motion_stem", "read_bytes", "open_stream",
            "sha256", "stream_size", "is_file", "list_dir", "identity", "FileCache", "bytes_file", "special_kind",
            "zip_members", "member_problem", "DEFAULT_MAX_DECOMPRESSED", "max_decompressed", "decompression_cap",
-           "parse_size", "format_size", "HOLD_MAX", "read_held", "holding"]
+           "parse_size", "format_size", "HOLD_MAX", "read_held", "holding", "as_path"]
 
 #: compression suffix → the module that opens it as a stream
 COMPRESSED = {".gz": gzip, ".bz2": bz2, ".xz": lzma}
@@ -134,9 +134,9 @@ def _is_zip(p: Path) -> bool:
     return p.suffix.lower() in ARCHIVES
 
 
-def _as_path(path) -> Path:
+def as_path(path) -> Path:
     """``path`` as a Path, not parsed again when it is one (a per-file helper is asked ~20 times per take,
-    and ``Path(a_path)`` parses the whole path anew)."""
+    and ``Path(a_path)`` parses the whole path anew): what every per-take step uses instead of ``Path``."""
     return path if isinstance(path, Path) else Path(path)
 
 
@@ -146,7 +146,7 @@ def split_archive(path) -> tuple:
     ``/d/a.zip/x/y.amc`` → ``(Path("/d/a.zip"), "x/y.amc")``; ``/d/a.zip`` itself →
     ``(Path("/d/a.zip"), "")``.
     """
-    p = _as_path(path)
+    p = as_path(path)
     text = str(path).lower()
     if not any(a in text for a in ARCHIVES):   # the common case, asked per file many times: no path walk
         return p, None
@@ -164,12 +164,12 @@ def split_archive(path) -> tuple:
 
 def plain_file(path) -> bool:
     """True when ``path`` is read as it is on disk (not compressed, not inside a zip archive)."""
-    return split_archive(path)[1] is None and _as_path(path).suffix.lower() not in COMPRESSED
+    return split_archive(path)[1] is None and as_path(path).suffix.lower() not in COMPRESSED
 
 
 def motion_suffix(path) -> str:
     """The motion format's suffix, lower case: ``walk.BVH.gz`` → ``.bvh``."""
-    p = _as_path(path)
+    p = as_path(path)
     suffix = p.suffix.lower()
     if suffix in COMPRESSED:
         suffix = Path(p.stem).suffix.lower()
@@ -181,7 +181,7 @@ def motion_stem(path) -> str:
 
     A stem of dots only (``...bvh`` → ``..``) is no name a motion can carry out and back in (a file
     name, ``import-features``): its dots become ``_``."""
-    p = _as_path(path)
+    p = as_path(path)
     if p.suffix.lower() in COMPRESSED:
         p = Path(p.stem)
     stem = p.stem
@@ -397,7 +397,7 @@ def open_stream(path):
     if data is not None:
         return _Stream(io.BytesIO(data))
     raw, inflated = _raw_stream(path)
-    module = COMPRESSED.get(_as_path(path).suffix.lower())
+    module = COMPRESSED.get(as_path(path).suffix.lower())
     # zipfile stops a member at its declared size (checked above) and then checks its CRC; the count
     # guards the compressed file's own stream
     return _Stream(raw if module is None else module.open(raw),
@@ -410,7 +410,7 @@ def stream_size(path) -> int | None:
     if data is not None:
         return len(data)
     archive, member = split_archive(path)
-    if _as_path(path).suffix.lower() in COMPRESSED:
+    if as_path(path).suffix.lower() in COMPRESSED:
         return None
     if member is None:
         return os.stat(path).st_size
@@ -448,7 +448,7 @@ def is_file(path) -> bool:
     """True for a regular file, or a member of a zip archive."""
     archive, member = split_archive(path)
     if member is None:
-        return _as_path(path).is_file()
+        return as_path(path).is_file()
     if not member:
         return False
     try:

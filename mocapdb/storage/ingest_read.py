@@ -18,7 +18,7 @@ from mocapdb.errors import MocapdbError
 from mocapdb.features import motion_features
 from mocapdb.readers import ReaderOptions, find_skeleton, read_motion, skeleton_note
 from mocapdb.readers.files import check_start
-from mocapdb.readers.sources import FileCache, holding, motion_suffix, read_held, sha256, special_kind
+from mocapdb.readers.sources import FileCache, as_path, holding, motion_suffix, read_held, sha256, special_kind
 
 log = logging.getLogger("mocapdb")
 
@@ -60,7 +60,7 @@ def _fingerprint(path: Path, asf) -> _Prepared:
         raise MocapdbError(f"{path}: {kind}, not a motion file")
     skel = None
     if motion_suffix(path) == ".amc":
-        skel = Path(asf) if asf is not None else find_skeleton(path)
+        skel = as_path(asf) if asf is not None else find_skeleton(path)
     try:
         check_start(path)   # what its first bytes refuse is not hashed whole first (a gigabyte of NUL bytes)
         digest = sha256(path)
@@ -101,7 +101,7 @@ def prepare_file(path, options=None):
     """
     options = options or ReaderOptions()
     with options.capped():
-        prep = _fingerprint(Path(path), options.asf)
+        prep = _fingerprint(as_path(path), options.asf)
     prep.options = options
     prep.reader_options = options.stored(prep.path)
     return prep
@@ -154,7 +154,7 @@ def _read_new(item):
     from one read of the file (a plain file up to :data:`~mocapdb.readers.sources.HOLD_MAX`); the record
     (``deferred`` when not read), or the one-line reason its fingerprint failed."""
     path, options, token = item
-    path = Path(path)
+    path = as_path(path)
     try:
         data = read_held(path)   # None for a FIFO or device (looked at before it is opened), as for a large file
     except OSError:
