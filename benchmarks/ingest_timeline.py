@@ -134,7 +134,7 @@ def _cpu_between(series, a, b):
 
     def at(t):
         if t <= series[0][0]:
-            return series[0][1] if t >= series[0][0] - 0.06 else 0.0
+            return series[0][1]
         for (t0, c0), (t1, c1) in zip(series, series[1:]):
             if t0 <= t <= t1:
                 return c0 + (c1 - c0) * (t - t0) / (t1 - t0) if t1 > t0 else c1
@@ -151,6 +151,8 @@ def report(events, samples, parent, result, cores=2):
     reads = [c for c in calls if c["fn"] == "apply_all"]
     stores = first("store")
     workers = [s["pid"] for s in spawns]
+    for s in spawns:   # a worker used no CPU before it was started (its first sample may come up to 50 ms later)
+        samples.setdefault(s["pid"], []).insert(0, (s["t0"], 0.0))
     t_spawn = min(s["t0"] for s in spawns)
     t_first = min(c["t1"] for c in reads)
     t_last = max(c["t1"] for c in reads)
