@@ -1,6 +1,6 @@
 """Where a core is idle during one ingest on worker processes: a timeline of the parent and its workers.
 
-Run: ``nice python benchmarks/ingest_timeline.py --hours 2 --formats amc [--repo DIR]`` (the archive of
+Run: ``nice python benchmarks/ingest_timeline.py --hours 2 --formats amc [--repo DIR] [--cold]`` (the archive of
 :mod:`ingest_archive`, built if missing). One ``mocapdb.ingest`` of the archive runs in a fresh process with
 the worker processes forced (as on a quiet machine); this process samples every process's CPU from /proc
 every 50 ms, and the ingest process records (by wrapping the pool's and the store's functions, no change to
@@ -16,11 +16,11 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
 import ingest_archive   # benchmarks/ingest_archive.py
+from bench_ingest import watch
 
 REPO = Path(__file__).resolve().parents[1]
 SUFFIX = {"amc": "amc", "bvh": "bvh"}
@@ -61,9 +61,10 @@ wrap(ing, "motion_files", "walk")
 wrap(ing, "_stored_keys", "stored_keys")
 wrap(ing, "use_processes", "use_processes")
 with tempfile.TemporaryDirectory() as tmp:
-    con = mocapdb.connect(Path(tmp) / "warm.duckdb")
-    mocapdb.ingest(con, [next(folders[0].rglob("*." + sys.argv[3]))])
-    con.close()
+    if sys.argv[5] == "warm":   # as bench_ingest.py: one file first, numba's kernels loaded in this process
+        con = mocapdb.connect(Path(tmp) / "warm.duckdb")
+        mocapdb.ingest(con, [next(folders[0].rglob("*." + sys.argv[3]))])
+        con.close()
     con = mocapdb.connect(Path(tmp) / "bench.duckdb")
     events.clear()
     print("START", now(), flush=True)
@@ -91,35 +92,22 @@ def _cpu_of(pid):
         return None
 
 
-def run(repo: Path, folders, suffix: str):
+def run(repo: Path, folders, suffix: str, cold: bool = False):
     """One instrumented ingest; returns (events, samples {pid: [(t, cpu)]}, result)."""
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as fh:
         ev_path = fh.name
     proc = subprocess.Popen([sys.executable, "-c", _RUN, str(repo), json.dumps([str(f) for f in folders]), suffix,
-                             ev_path], stdout=subprocess.PIPE, text=True, cwd="/tmp")
-    samples, started = {}, threading.Event()
+                             ev_path, "cold" if cold else "warm"], stdout=subprocess.PIPE, text=True, cwd="/tmp")
+    samples = {}
 
     def sample():
-        while proc.poll() is None:
-            if started.is_set():
-                t = time.monotonic()
-                pids = [proc.pid] + [int(d) for d in os.listdir("/proc") if d.isdigit()]
-                for pid in pids:
-                    got = _cpu_of(pid)
-                    if got is not None and (pid == proc.pid or got[1] == proc.pid):
-                        samples.setdefault(pid, []).append((t, got[0]))
-            time.sleep(0.05)
+        t = time.monotonic()
+        for pid in [proc.pid] + [int(d) for d in os.listdir("/proc") if d.isdigit()]:
+            got = _cpu_of(pid)
+            if got is not None and (pid == proc.pid or got[1] == proc.pid):
+                samples.setdefault(pid, []).append((t, got[0]))
 
-    mon = threading.Thread(target=sample, daemon=True)
-    mon.start()
-    result = None
-    for line in proc.stdout:
-        if line.startswith("START"):
-            started.set()
-        elif line.startswith("DONE"):
-            result = json.loads(line.split(" ", 1)[1])
-    proc.wait()
-    mon.join()
+    result = next((json.loads(line.split(" ", 1)[1]) for line in watch(proc, sample) if line.startswith("DONE")), None)
     if result is None:
         raise SystemExit("the ingest failed")
     events = json.loads(Path(ev_path).read_text())
@@ -178,7 +166,6 @@ def report(events, samples, parent, result, cores=2):
     for pid in workers:
         mine = [c for c in calls if c["pid"] == pid]
         gaps = [b["t0"] - a["t1"] for a, b in zip(mine, mine[1:])]
-        first_task = mine[0]["t0"] - next(s["t1"] for s in spawns if s["pid"] == pid) if mine else 0.0
         cpu = _cpu_between(samples.get(pid, []), t0, t_end)
         print(f"worker {pid}: {len(mine)} tasks, CPU {cpu:.2f} s; between an answer and the next task: "
               f"sum {sum(gaps):.3f} s, max {max(gaps, default=0):.3f} s, gaps > 10 ms: "
@@ -186,8 +173,6 @@ def report(events, samples, parent, result, cores=2):
               f"done at +{mine[-1]['t1'] - t0:.2f} s" if mine else f"worker {pid}: no tasks")
     print(f"stores: {len(stores)}, " + ", ".join(f"{s['n']} files at +{s['t0'] - t0:.2f} s for {s['t1'] - s['t0']:.3f} s"
                                                 for s in stores))
-    busy = sorted((s["t0"], s["t1"]) for s in stores)
-    # how long no task was in flight on a worker while the parent stored
     print("walk %.3f s, stored keys %.3f s, use_processes %.3f s" % tuple(
         sum(e["t1"] - e["t0"] for e in first(k)) for k in ("walk", "stored_keys", "use_processes")))
     # the CPU of each process over the run, by 0.5 s bins (a picture of the idle)
@@ -200,7 +185,6 @@ def report(events, samples, parent, result, cores=2):
         t += 0.5
     for i in range(0, len(line), 10):
         print(f"  +{i * 0.5:5.1f} s  " + "  ".join(line[i:i + 10]))
-    return busy
 
 
 def main():
@@ -209,12 +193,15 @@ def main():
     ap.add_argument("--archive", type=Path, default=Path("/tmp/mocapdb_ingest_archive"))
     ap.add_argument("--formats", default="amc")
     ap.add_argument("--repo", type=Path, default=REPO, help="the checkout to measure (default: this one)")
+    ap.add_argument("--cold", action="store_true",
+                    help="no one-file ingest first: the process loads numba's cached kernels during the ingest, "
+                         "as a CLI run does")
     args = ap.parse_args()
     for fmt in args.formats.split(","):
         ingest_archive.build(args.archive, args.hours, fmt)
         folders = ingest_archive.copy_folders(args.archive, args.hours, fmt)
         print(f"\n{fmt}, {args.repo}")
-        report(*run(args.repo.resolve(), folders, SUFFIX[fmt]))
+        report(*run(args.repo.resolve(), folders, SUFFIX[fmt], args.cold))
 
 
 if __name__ == "__main__":
