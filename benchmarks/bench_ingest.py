@@ -103,30 +103,41 @@ def _children_cpu(pid: int, seen: dict) -> None:
                 pass
 
 
+def watch(proc, sample) -> list:
+    """The lines a measured process prints after its ``START`` line, with ``sample()`` called every 50 ms
+    from then until it exits (what the caller samples of it: CPU, memory)."""
+    started, lines = threading.Event(), []
+
+    def loop():
+        while proc.poll() is None:
+            if started.is_set():
+                sample()
+            time.sleep(0.05)
+
+    mon = threading.Thread(target=loop, daemon=True)
+    mon.start()
+    for line in proc.stdout:
+        if started.is_set():
+            lines.append(line)
+        elif line.startswith("START"):
+            started.set()
+    proc.wait()
+    mon.join()
+    return lines
+
+
 def run_ingest(repo: Path, folders, suffix: str, processes: bool = False) -> dict:
     """One measured ingest of ``folders`` by the checkout ``repo`` in a fresh process."""
     proc = subprocess.Popen([sys.executable, "-c", _RUN, str(repo), json.dumps([str(f) for f in folders]), suffix,
                              "processes" if processes else "auto"], stdout=subprocess.PIPE, text=True, cwd="/tmp")
-    peak, started, workers_cpu = 0, threading.Event(), {}
+    peak, workers_cpu = 0, {}
 
     def sample():
         nonlocal peak
-        while proc.poll() is None:
-            if started.is_set():
-                peak = max(peak, _tree_rss(proc.pid))
-                _children_cpu(proc.pid, workers_cpu)
-            time.sleep(0.05)
+        peak = max(peak, _tree_rss(proc.pid))
+        _children_cpu(proc.pid, workers_cpu)
 
-    mon = threading.Thread(target=sample, daemon=True)
-    mon.start()
-    out = None
-    for line in proc.stdout:
-        if line.startswith("START"):
-            started.set()
-        elif line.startswith("{"):
-            out = json.loads(line)
-    proc.wait()
-    mon.join()
+    out = next((json.loads(line) for line in watch(proc, sample) if line.startswith("{")), None)
     if out is None:
         raise SystemExit(f"the ingest of {repo} failed")
     out["peak"] = peak
