@@ -7,7 +7,9 @@ is a checkout of the version to compare with (e.g. ``git archive d3b3f07 | tar
 distinct bytes, as ASF/AMC, BVH and AMASS ``.npz``; the real C3D recordings
 once) is built in ``--archive`` and reused.
 
-For each format and version, one ``mocapdb.ingest`` of the whole archive into
+The archive is read once first, so that each version finds it in the page cache (the read's
+rate is printed: the disk's, when the archive was not cached). For each format and version,
+one ``mocapdb.ingest`` of the whole archive into
 a new database file runs in a fresh process (a one-file ingest first, so
 numba's compile is not timed): wall seconds, CPU seconds of the process and
 its worker processes, peak memory (the RSS of the process and its workers
@@ -103,35 +105,59 @@ def _children_cpu(pid: int, seen: dict) -> None:
                 pass
 
 
+def watch(proc, sample) -> list:
+    """The lines a measured process prints after its ``START`` line, with ``sample()`` called every 50 ms
+    from then until it exits (what the caller samples of it: CPU, memory)."""
+    started, lines = threading.Event(), []
+
+    def loop():
+        while proc.poll() is None:
+            if started.is_set():
+                sample()
+            time.sleep(0.05)
+
+    mon = threading.Thread(target=loop, daemon=True)
+    mon.start()
+    for line in proc.stdout:
+        if started.is_set():
+            lines.append(line)
+        elif line.startswith("START"):
+            started.set()
+    proc.wait()
+    mon.join()
+    return lines
+
+
 def run_ingest(repo: Path, folders, suffix: str, processes: bool = False) -> dict:
     """One measured ingest of ``folders`` by the checkout ``repo`` in a fresh process."""
     proc = subprocess.Popen([sys.executable, "-c", _RUN, str(repo), json.dumps([str(f) for f in folders]), suffix,
                              "processes" if processes else "auto"], stdout=subprocess.PIPE, text=True, cwd="/tmp")
-    peak, started, workers_cpu = 0, threading.Event(), {}
+    peak, workers_cpu = 0, {}
 
     def sample():
         nonlocal peak
-        while proc.poll() is None:
-            if started.is_set():
-                peak = max(peak, _tree_rss(proc.pid))
-                _children_cpu(proc.pid, workers_cpu)
-            time.sleep(0.05)
+        peak = max(peak, _tree_rss(proc.pid))
+        _children_cpu(proc.pid, workers_cpu)
 
-    mon = threading.Thread(target=sample, daemon=True)
-    mon.start()
-    out = None
-    for line in proc.stdout:
-        if line.startswith("START"):
-            started.set()
-        elif line.startswith("{"):
-            out = json.loads(line)
-    proc.wait()
-    mon.join()
+    out = next((json.loads(line) for line in watch(proc, sample) if line.startswith("{")), None)
     if out is None:
         raise SystemExit(f"the ingest of {repo} failed")
     out["peak"] = peak
     out["cpu"] += sum(workers_cpu.values())
     return out
+
+
+def read_through(folders) -> tuple[int, float]:
+    """Read every file of ``folders`` once: ``(bytes, seconds)``. Both versions then find the archive in the
+    page cache; else the first ingest of an invocation reads it from the disk and the second does not."""
+    t0, n = time.perf_counter(), 0
+    for folder in folders:
+        for path in sorted(Path(folder).rglob("*")):
+            if path.is_file():
+                with open(path, "rb", buffering=0) as fh:
+                    while chunk := fh.read(1 << 24):
+                        n += len(chunk)
+    return n, time.perf_counter() - t0
 
 
 def stages(folder: Path):
@@ -214,6 +240,9 @@ def main():
           f"{'CPU s':>8s} {'frames/s':>10s} {'peak GB':>8s}")
     for fmt in formats:
         folders = ingest_archive.copy_folders(args.archive, args.hours, fmt)
+        nbytes, secs = read_through(folders)
+        print(f"{fmt:6s} archive read once first: {nbytes / 1e9:.2f} GB in {secs:.1f} s "
+              f"({nbytes / 1e6 / secs:,.0f} MB/s)", flush=True)
         rows = {}
         for name, repo in versions:
             r = rows[name] = run_ingest(repo, folders, SUFFIX[fmt], args.processes)

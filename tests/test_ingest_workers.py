@@ -91,6 +91,23 @@ def _outcome(con, report):
 
 
 @pytest.mark.shared
+def test_a_worker_started_during_the_walk_ends_when_the_walk_fails(tmp_path, monkeypatch, open_db):
+    monkeypatch.setattr(ingest_pool, "_idle_cores", lambda: 2.0)
+    started, cancelled = [], []
+    worker = ingest_pool._Worker
+    monkeypatch.setattr(ingest_pool, "_Worker", lambda: started.append(worker()) or started[-1])
+    cancel = worker.cancel
+    monkeypatch.setattr(worker, "cancel", lambda self: cancelled.append(self) or cancel(self))
+    con = open_db(tmp_path / "db.duckdb")
+    with pytest.raises(mocapdb.errors.ParameterError, match="not_there"):
+        mocapdb.ingest(con, [DATA / "hdm05_cut", tmp_path / "not_there"])
+    assert len(started) == 1 and cancelled == started
+    started[0].proc.wait(timeout=10)
+    assert started[0].proc.returncode == -9   # killed, not left importing
+    assert con.execute("select count(*) from motions").fetchone()[0] == 0
+
+
+@pytest.mark.shared
 def test_processes_store_what_threads_store_and_refuse_what_they_refuse(tmp_path, monkeypatch, open_db):
     root = _archive(tmp_path)
     results = {}
@@ -98,6 +115,9 @@ def test_processes_store_what_threads_store_and_refuse_what_they_refuse(tmp_path
     started = []
     worker = ingest_pool._Worker
     monkeypatch.setattr(ingest_pool, "_Worker", lambda: started.append(1) or worker())
+    cancelled = []
+    cancel = worker.cancel
+    monkeypatch.setattr(worker, "cancel", lambda self: cancelled.append(1) or cancel(self))
     for mode, threshold in (("threads", 1 << 62), ("processes", 0)):
         monkeypatch.setattr(ingest_pool, "PROCESS_MIN_BYTES", threshold)
         con = open_db(tmp_path / f"{mode}.duckdb")
@@ -105,9 +125,12 @@ def test_processes_store_what_threads_store_and_refuse_what_they_refuse(tmp_path
         report = mocapdb.ingest(con, [root], progress=lambda done, total, path: ticks.append((done, total)))
         results[mode] = _outcome(con, report)
         assert ticks[-1][0] == ticks[-1][1] == len(report.ingested) + len(report.failed) + len(report.skipped)
+        assert [done for done, _ in ticks] == list(range(1, len(ticks) + 1))   # the writer thread ticks too
         again = mocapdb.ingest(con, [root])   # re-ingest: a no-op, decided by the workers' hashes
         assert not again.ingested and len(again.skipped) == len(report.ingested) + 1
-        assert len(started) == (0 if mode == "threads" else 4)   # two workers per ingest, the re-ingest's too
+        # one worker starts while the folder is walked (ended unused when the ingest runs on threads), and the
+        # pool takes it: two workers per ingest on processes, the re-ingest's too
+        assert (len(started), len(cancelled)) == ((2, 2) if mode == "threads" else (6, 2))
     ingested, failed, skipped, notes, words, log = results["processes"]
     assert results["threads"][:4] == results["processes"][:4]
     assert results["threads"][5] == log

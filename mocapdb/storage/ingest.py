@@ -10,7 +10,9 @@ import contextlib
 import hashlib
 import logging
 import os
+import threading
 import uuid
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +24,8 @@ from mocapdb.readers import ReaderOptions, motion_files
 from mocapdb.readers.sources import motion_stem, stream_size
 from mocapdb.storage.ingest_log import IngestLog, write_report
 from mocapdb.storage.ingest_read import _compute_slim, _read_new, forget_stored, remember_stored, stored_prefixes
-from mocapdb.storage.ingest_pool import WorkerDied, chunk_for, executor, ordered, use_processes, window_for
+from mocapdb.storage.ingest_pool import (WorkerDied, chunk_for, executor, head_start, ordered, use_processes,
+                                         window_for)
 from mocapdb.storage.motions import incomplete_motions
 from mocapdb.storage.postings import index_motions, unindex_motions
 from mocapdb.storage.sqltext import statement
@@ -214,7 +217,8 @@ def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, r
         Default: every file by its own rules.
     progress : callable, optional, keyword-only
         Called as ``progress(n_files_done, n_files, path)`` once per file (the
-        ``progress(n_done, n_total, …)`` of every long command).
+        ``progress(n_done, n_total, …)`` of every long command); one call at a
+        time, possibly from ingest's writer thread (the one storing batches).
     workers : int, keyword-only
         How many files are hashed, read and turned into features at once:
         worker processes for an archive (:mod:`mocapdb.storage.ingest_pool`),
@@ -265,6 +269,15 @@ def ingest_files(con, paths, *, options=None, progress=None, workers: int = 2, r
 
 
 def _ingest(con, paths, report, log, *, options, progress, workers, replace):
+    paths = list(paths)
+    # a worker process starts while the folders are walked (the walk holds one core; head_start)
+    with head_start(workers, any(os.path.isdir(p) for p in paths)) as started:
+        _ingest_walked(con, _walk(paths, report, log), report, log, started, options=options, progress=progress,
+                       workers=workers, replace=replace)
+
+
+def _walk(paths, report, log) -> list:
+    """The motion files of ``paths`` (folders searched), what is not one reported as the walk finds it."""
     files = []
     for p in paths:
         try:
@@ -273,6 +286,11 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
         except ParameterError as exc:   # a path that is not there: logged, and the call fails
             log.add(p, "failed", str(exc))
             raise
+    return files
+
+
+def _ingest_walked(con, files, report, log, started, *, options, progress, workers, replace):
+    """Read and store ``files`` (walked), on the pool of ``workers`` (taking the processes ``started``)."""
     # what the walk refused (an earlier copy of a zip member) is keyed by a path a later copy may share:
     # only the files read and failed make a copy of them fail
     walk_refused = len(report.failed)
@@ -289,7 +307,7 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
     token = uuid.uuid4().hex
     setup = (remember_stored, (token, stored_prefixes(k[0] for k in stored)))
     try:
-        with executor(workers, processes, setup) as pool:
+        with executor(workers, processes, setup, started) as pool, batches:
             window, chunk = window_for(workers), chunk_for(processes)
             results = ordered(pool, _read_new, [(f, options, token) for f in files], window=window, chunk=chunk)
             # once every file left is in flight, the batch is stored while the pool reads them: what is stored
@@ -313,12 +331,13 @@ def _ingest(con, paths, report, log, *, options, progress, workers, replace):
                         late.append(prep)
                     else:
                         batches.add(prep)
+            batches.wait()   # the connection is the writer's until its last store is done
             _decide_stored(con, report, already, stored, first_of, duplicates, late, replace, tick)
             for sent, prep in zip(late, ordered(pool, _compute_slim, late, window=window, chunk=chunk)):
                 if isinstance(prep, WorkerDied):
                     prep, sent.error = sent, f"{sent.path}: {prep}"
                 batches.add(prep)
-            batches.flush()
+            batches.flush()   # stored before the pool closes (leaving the `with` waits for it)
     finally:
         forget_stored(token)
     # a copy of a stored file is skipped; a copy of a broken one is as broken
@@ -357,12 +376,20 @@ def _decide_stored(con, report, already, stored, first_of, duplicates, todo, rep
 
 
 class _Batches:
-    """Computed files stored a batch (one transaction) at a time, in the order they are added."""
+    """Computed files stored a batch (one transaction) at a time, in the order they are added.
+
+    A batch is stored on a writer thread while the caller goes on taking the pool's results: a commit
+    (~0.2-0.5 s for 1,024 files) no longer holds up the consumer, whose pace is what hands the workers their
+    next tasks, so they do not run out of work during it (RESULTS.md, issue 35: the timeline of an ingest).
+    At most one batch is being stored and one filled; the connection is the writer's while a store is
+    under way (:meth:`wait` before using it). ``with`` waits for the last store, also on an error."""
 
     def __init__(self, con, report, log, tick):
         self.con, self.report, self.log, self.tick = con, report, log, tick
         self.batch = []
         self.frames = 0
+        self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mocapdb-store")
+        self._storing = None   # the future of the batch being stored
 
     def add(self, prep):
         """One computed file: a failed one is reported, a read one stored with its batch."""
@@ -376,10 +403,35 @@ class _Batches:
             self.flush()
 
     def flush(self):
-        """Store the batch: one transaction; if it fails, one per file, so a failure stays with its file."""
-        batch, report, log = self.batch, self.report, self.log
-        if not batch:
+        """Hand the batch to the writer (after the previous one is stored: memory stays two batches)."""
+        if not self.batch:
             return
+        batch, self.batch, self.frames = self.batch, [], 0
+        self.wait()
+        self._storing = self._writer.submit(self._store, batch)
+
+    def wait(self):
+        """Wait until the batches handed over are stored; a store's unexpected error is raised here."""
+        storing, self._storing = self._storing, None
+        if storing is not None:
+            storing.result()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        try:
+            if kind is None:
+                self.wait()
+            else:   # the caller's own error is what to report; a store under way still ends (and commits)
+                with contextlib.suppress(Exception):
+                    self.wait()
+        finally:
+            self._writer.shutdown(wait=True)
+
+    def _store(self, batch):
+        """Store a batch: one transaction; if it fails, one per file, so a failure stays with its file."""
+        report, log = self.report, self.log
         try:
             ids = store_motions(self.con, batch, log=log)
         except Exception:  # noqa: BLE001 - retried file by file below
@@ -400,8 +452,6 @@ class _Batches:
                 report.notes.extend((str(p.path), note) for note in p.notes)
             self.tick(p.path)
             p.motion = p.words = None  # free memory early on big archives
-        self.batch = []
-        self.frames = 0
         # the rows of the files that failed or were skipped so far, after the batch's commit
         log.add_report(report)
         log.flush()
@@ -418,12 +468,14 @@ def _size(path) -> int:
 def _ticker(progress, total):
     """``tick(path)``: one more file of ``total`` done, told to ``progress``."""
     done = 0
+    lock = threading.Lock()   # ticked by ingest's thread and by its writer (_Batches): counts stay in order
 
     def tick(path):
         nonlocal done
-        done += 1
-        if progress is not None:
-            progress(done, total, path)
+        with lock:
+            done += 1
+            if progress is not None:
+                progress(done, total, path)
     return tick
 
 

@@ -95,9 +95,10 @@ class IngestLog:
         for outcome, name in (("failed", "failed"), ("skipped", "skipped"), ("not a motion file", "unsupported"),
                               ("failed", "unreadable")):
             entries = getattr(report, name)
-            for path, reason in entries[self._seen.get(name, 0):]:
+            n = len(entries)   # an entry appended meanwhile (ingest's other thread) is kept next time
+            for path, reason in entries[self._seen.get(name, 0):n]:
                 self.add(path, outcome, reason)
-            self._seen[name] = len(entries)
+            self._seen[name] = n
 
     def insert_stored(self, rows) -> None:
         """Insert the rows of stored files inside the caller's transaction (the one storing them).
