@@ -492,6 +492,30 @@ def test_a_bone_absent_from_the_amc_reads_as_zero():
     assert np.array_equal(m.values[:, keep], ref.values[:, keep])
 
 
+def test_the_kernel_clears_every_row_it_reads_whatever_the_memory_held():
+    # parse_amc hands the kernel an uninitialised array (np.empty: fresh pages are zero, reused ones are not),
+    # so the zeros of a bone the file never lists must come from the kernel: here the array holds NaN first
+    from mocapdb.readers import amc as amc_module
+    s = read_asf(SAMPLE_86_ASF)
+    data = lzma.decompress(SAMPLE_86_09.read_bytes())
+    cut = b"\n".join(x for x in data.split(b"\n") if not x.startswith(b"lthumb "))
+    want = parse_amc(cut, s)
+    assert np.all(want.dofs["lthumb"] == 0)
+    start = amc_module._parse_header(cut, "t.amc")[0]
+    names, ndof, col_start, _, _, name_buf, name_start, name_len = amc_module._kernel_layout(s)
+    out = np.full((want.n_frames + 5, int(ndof.sum())), np.nan)
+    fb = [np.zeros(1024, dtype=np.int64) for _ in range(3)]
+    status = np.zeros(8, dtype=np.int64)
+    amc_module._parse_amc_kernel(np.frombuffer(cut, dtype=np.uint8), start, name_buf, name_start, name_len, col_start,
+                                 ndof, out, *fb, np.zeros(len(names), np.int8), np.zeros(len(names), np.int8), status)
+    assert status[0] == 0 and status[7] == want.n_frames
+    got = out[:want.n_frames]
+    slow = fb[0][:status[6]]   # tokens left to float(): set as parse_amc sets them
+    got.reshape(-1)[slow] = want.values.reshape(-1)[slow]
+    assert np.array_equal(got.view(np.int64), want.values.view(np.int64))   # bit for bit, no NaN left
+    assert np.isnan(out[want.n_frames:]).all()   # rows past the last frame untouched
+
+
 @pytest.mark.shared
 def test_motion_from_read_motion():
     m = read_motion(SQUAT)

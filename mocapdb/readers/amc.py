@@ -103,7 +103,8 @@ def _flush_values(base, size, out, frame, pend, npend, fb_index, fb_start, fb_en
 @jit
 def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, out,
                       fb_index, fb_start, fb_end, seen, ref, status):  # pragma: no cover
-    """Scan AMC frames from byte ``start`` into ``out`` (zero-initialised).
+    """Scan AMC frames from byte ``start`` into ``out`` (uninitialised: each frame's row is zeroed as the
+    frame starts).
 
     ``names`` holds the lower-case bone names back to back (``name_start``,
     ``name_len``; entry 0 = root). On the first error the scan stops and
@@ -195,6 +196,10 @@ def _parse_amc_kernel(buf, start, names, name_start, name_len, col_start, ndof, 
                 status[2] = frame
                 break
             prev_num = num
+            # the frame's row zeroed as it starts (DOFs a file never lists stay 0): ``out`` comes uninitialised,
+            # as np.zeros of the frame-count bound (about twice the frames) cleared ~2x the rows used
+            for k in range(ncols):
+                out[frame, k] = 0.0
             for b in range(nb):
                 seen[b] = 0
             last = nb
@@ -375,15 +380,15 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     # Upper bound on the frame count without a scan: every frame lists the
     # bones of frame 1 (the kernel enforces it) with their values, so it has
     # at least as many bytes as the shortest spelling of frame 1; +1 for a
-    # truncated last frame. np.zeros is lazy: untouched slack costs nothing.
+    # truncated last frame. np.empty is lazy: untouched slack costs nothing.
     n_rows = (len(data) - start) // _min_frame_bytes_kernel(buf, start, name_buf, name_start, name_len, ndof) + 1
     ncols = int(ndof.sum())
     cap = 1024
     while True:
-        out = np.zeros((n_rows, ncols), dtype=np.float64)
-        fb_index = np.zeros(cap, dtype=np.int64)
-        fb_start = np.zeros(cap, dtype=np.int64)
-        fb_end = np.zeros(cap, dtype=np.int64)
+        out = np.empty((n_rows, ncols), dtype=np.float64)   # the kernel zeroes the rows it reads
+        fb_index = np.empty(cap, dtype=np.int64)   # only the first status[6] entries are read
+        fb_start = np.empty(cap, dtype=np.int64)
+        fb_end = np.empty(cap, dtype=np.int64)
         seen = np.zeros(len(names), dtype=np.int8)
         ref = np.zeros(len(names), dtype=np.int8)
         status = np.zeros(8, dtype=np.int64)
