@@ -1,10 +1,13 @@
 """BVH reading and writing: round trips from real ASF/AMC takes, channel orders,
 the humanoid mapping of cmuconvert names, the rest frame, and the FK kernel vs a naive one."""
 import re
+from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
 import pytest
+
+import mocapdb
 
 from conftest import DATA, SAMPLE_86_09, SAMPLE_86_ASF, humerus
 from mocapdb.readers.amc import read_amc
@@ -320,28 +323,43 @@ def test_bvh_round_trip_gives_the_same_feature_words(cmu500, tmp_path):
     assert agree >= 0.99, agree
 
 
-def test_the_motion_keyword_is_found_where_the_regular_expression_finds_it():
-    """Issue 35: ``find_motion`` (bytes.find, then the line's start and the word's end checked) gives the
-    match of ``(?m)^[ \\t]*MOTION\\b`` searched from any position, on the shared BVH headers and on 20,000
-    seeded texts of keyword fragments, blanks, line ends and word bytes."""
+def _motion_regex(data, pos):
+    """The reader's former way of finding the MOTION keyword: ``(match start, match end)`` or None."""
+    m = re.compile(rb"(?m)^[ \t]*MOTION\b").search(data, pos)
+    return None if m is None else (m.start(), m.end())
+
+
+def _assert_heads(heads):
     from mocapdb.readers.bvh_head import find_motion
 
-    pattern = re.compile(rb"(?m)^[ \t]*MOTION\b")
-
-    def regex(data, pos):
-        m = pattern.search(data, pos)
-        return None if m is None else (m.start(), m.end())
-
-    heads = [p.read_bytes()[:20_000] for p in sorted(DATA.rglob("*.bvh"))[:40]]
-    assert heads
     for head in heads:
         for pos in (0, 1, head.find(b"MOTION"), len(head) // 2):
-            assert find_motion(head, max(0, pos)) == regex(head, max(0, pos))
+            assert find_motion(head, max(0, pos)) == _motion_regex(head, max(0, pos))
+
+
+def test_the_motion_keyword_is_found_where_the_regular_expression_finds_it():
+    """Issue 35: ``find_motion`` (bytes.find, then the line's start and the word's end checked) gives the
+    match of ``(?m)^[ \\t]*MOTION\\b`` searched from any position, on the shipped BVH's header and on 20,000
+    seeded texts of keyword fragments, blanks, line ends and word bytes."""
+    import lzma
+
+    from mocapdb.readers.bvh_head import find_motion
+
+    sample = next(Path(mocapdb.__file__).parent.joinpath("sample").glob("*.bvh.xz"))
+    _assert_heads([lzma.decompress(sample.read_bytes())[:20_000]])
     rng = np.random.default_rng(35)
     pieces = [b"MOTION", b"MOTIONS", b"MOTION_", b"MOTION1", b"xMOTION", b"MOTIO", b" ", b"\t", b"\n", b"\r",
               b"\r\n", b"\x00", b"\xe9", b"-", b"a", b"_", b"9", b"\v"]
     for _ in range(20_000):
         data = b"".join(pieces[k] for k in rng.integers(0, len(pieces), rng.integers(0, 12)))
         pos = int(rng.integers(0, len(data) + 1))
-        assert find_motion(data, pos) == regex(data, pos), (data, pos)
-        assert find_motion(bytearray(data), pos) == regex(data, pos)
+        assert find_motion(data, pos) == _motion_regex(data, pos), (data, pos)
+        assert find_motion(bytearray(data), pos) == _motion_regex(data, pos)
+
+
+@pytest.mark.shared
+def test_the_motion_keyword_is_found_in_the_shared_bvh_headers_where_the_regular_expression_finds_it():
+    """The same on the headers of the shared BVH files of other tools and labs."""
+    heads = [p.read_bytes()[:20_000] for p in sorted(DATA.rglob("*.bvh"))[:40]]
+    assert heads
+    _assert_heads(heads)
