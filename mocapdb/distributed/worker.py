@@ -23,9 +23,9 @@ from mocapdb.annotation import SEGMENT_DTYPE, Model, annotate, preselection_for,
 from mocapdb.distributed.layout import (DATASETS, ERRORS_SCHEMA, PARTITIONED, bucket_of, part_name, part_path,
                                         write_part)
 from mocapdb.errors import MocapdbError
-from mocapdb.readers.sources import as_path, holding, read_held
+from mocapdb.readers.sources import as_path
 from mocapdb.storage.ingest import motions_table
-from mocapdb.storage.ingest_read import compute_motion, prepare_file
+from mocapdb.storage.ingest_read import compute_motion, prepare_file, read_once
 from mocapdb.storage.postings import postings_table
 
 #: what :class:`MotionWorker` returns: one row per file of the batch
@@ -134,11 +134,7 @@ class MotionWorker:
         for mid, path in zip(ids.tolist(), paths):
             try:
                 file = as_path(path)
-                try:
-                    data = read_held(file)   # hashed and parsed from one read, as ingest's pool does
-                except OSError:
-                    data = None              # the fingerprint reads it again and words what fails
-                with holding(file, data):
+                with read_once(file):        # hashed and parsed from one read, as ingest's pool does
                     prep = prepare_file(file, self.options)
                     compute_motion(prep)
                 if prep.error is not None:

@@ -6,6 +6,7 @@ A module of its own, importing only the readers and features: an ingest worker p
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import zipfile
@@ -148,6 +149,18 @@ def _notes(prep) -> list:
     return notes
 
 
+@contextlib.contextmanager
+def read_once(path):
+    """Within the block (this thread), hashing ``path`` and reading it share one read of its bytes (a plain
+    file up to :data:`~mocapdb.readers.sources.HOLD_MAX`; anything else is streamed as before)."""
+    try:
+        data = read_held(path)   # None for a FIFO or device (looked at before it is opened), as for a large file
+    except OSError:
+        data = None   # the fingerprint reads it again and words what fails
+    with holding(path, data):
+        yield
+
+
 def _read_new(item):
     """What ingest's pool runs per file, ``(path, options, token)``: its fingerprint and — unless its bytes
     may be stored already (:func:`remember_stored` under ``token``) — its motion and words, hashed and read
@@ -155,11 +168,7 @@ def _read_new(item):
     (``deferred`` when not read), or the one-line reason its fingerprint failed."""
     path, options, token = item
     path = as_path(path)
-    try:
-        data = read_held(path)   # None for a FIFO or device (looked at before it is opened), as for a large file
-    except OSError:
-        data = None   # the fingerprint reads it again and words what fails
-    with holding(path, data):
+    with read_once(path):
         try:
             prep = prepare_file(path, options)
         except MocapdbError as exc:
@@ -240,4 +249,4 @@ def _compute_slim(prep):
     return prep
 
 
-__all__ = ["prepare_file", "compute_motion", "remember_stored", "forget_stored", "stored_prefixes"]
+__all__ = ["prepare_file", "compute_motion", "read_once", "remember_stored", "forget_stored", "stored_prefixes"]
