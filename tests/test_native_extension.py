@@ -426,6 +426,87 @@ def test_a_damaged_model_names_its_class(archive, native, tmp_path):
             in got[7]["error"])
 
 
+# the model tables annotate reads (model_cache.c keys a kept model by their rows)
+KEYED_TABLES = ("models", "classes", "templates", "keyframe_queries", "keyframes", "confidence_maps")
+
+
+def copy_model_sql(name, to):
+    """SQL that stores model `name`'s rows again as model `to`: a model the extension has not read."""
+    return [f"INSERT INTO {t} SELECT * REPLACE ('{to}' AS model) FROM {t} WHERE model = '{name}'"
+            for t in KEYED_TABLES]
+
+
+def test_a_kept_model_follows_every_write_to_its_rows(archive, native, tmp_path):
+    """annotate keeps a model between calls while one query finds its rows unchanged (model_cache.c):
+    after each plain-SQL write to a model table the answer is the one of the same rows read afresh (a
+    copy under another name, never read before), and differs from the answer before the write; an
+    uncommitted write is not seen (the extension reads committed rows, as before), a committed one
+    is; a confidence value written as -0.0 instead of 0.0 (which DuckDB hashes alike) comes out as
+    -0.0."""
+    db = tmp_path / "kept_model.duckdb"
+    shutil.copy(archive, db)
+    # one text of every motion's segments: doubles as their shortest round-trip text, -0.0 included
+    q = ("SELECT list({{'m': motion_id, 's': annotate(motion_id, '{m}', NULL, {kf})}} ORDER BY motion_id)::VARCHAR "
+         "FROM motions")
+    writes = [
+        "UPDATE classes SET tau = tau / 2 WHERE model = 'default'",
+        "UPDATE templates SET weight = weight * 3 WHERE model = 'default' AND col % 3 = 1",
+        "UPDATE keyframes SET mask = 0, value = 0 WHERE model = 'default' AND k = 1",
+        "DELETE FROM keyframe_queries WHERE model = 'default' AND class >= 'm'",
+        "UPDATE models SET margin = margin + 0.05 WHERE model = 'default'",
+        "UPDATE confidence_maps SET value = 0.0 WHERE model = 'default' AND k = 1",
+        "UPDATE confidence_maps SET value = -(0.0::DOUBLE) WHERE model = 'default' AND k = 1",
+    ]
+    queries = [q.format(m="default", kf=kf) for kf in ("true", "false")]
+    for i, w in enumerate(writes):
+        queries += [w] + [q.format(m="default", kf=kf) for kf in ("true", "false")]
+        queries += copy_model_sql("default", f"fresh{i}") + [q.format(m=f"fresh{i}", kf=kf) for kf in ("true", "false")]
+    # in a transaction of the client's own: not seen until committed
+    queries += ["BEGIN TRANSACTION", "UPDATE classes SET tau = tau * 4 WHERE model = 'default'",
+                q.format(m="default", kf="true"), "COMMIT", q.format(m="default", kf="true")]
+    got = plain_client(db, native, queries, read_only=False)
+    assert [g.get("error") for g in got] == [None] * len(queries)
+    before = [got[0]["rows"][0][0], got[1]["rows"][0][0]]
+    step = len(KEYED_TABLES) + 5
+    for i, w in enumerate(writes):
+        kept = [got[2 + i * step + 1]["rows"], got[2 + i * step + 2]["rows"]]
+        fresh = [got[2 + i * step + 3 + len(KEYED_TABLES)]["rows"], got[2 + i * step + 4 + len(KEYED_TABLES)]["rows"]]
+        assert kept == fresh, w
+        now = [k[0][0] for k in kept]
+        assert now != before, w  # the write changed the answer (keyframes on, off or both)
+        before = now
+    # -0.0: the rows as text keep the sign; both answers had zero confidences
+    assert "'confidence': 0.0}" in got[2 + 5 * step + 1]["rows"][0][0]
+    assert "'confidence': -0.0}" in got[2 + 6 * step + 1]["rows"][0][0]
+    uncommitted, committed = got[-3]["rows"], got[-1]["rows"]
+    assert uncommitted == got[2 + 6 * step + 1]["rows"] != committed
+
+
+def test_a_model_stored_again_through_mocapdb_is_seen(archive, native, tmp_path):
+    """The same through mocapdb: save_model(replace=True) under a connection whose annotate has kept
+    the model gives the new model's answer, the one of the same model stored under a new name."""
+    import dataclasses
+
+    from mocapdb.storage.model_store import load_model, save_model
+
+    db = tmp_path / "restored.duckdb"
+    shutil.copy(archive, db)
+    q = "SELECT motion_id, annotate(motion_id, model := '{m}') FROM motions ORDER BY motion_id"
+    with mocapdb.connect(db) as con:
+        assert python_functions(con) == 0  # the native functions
+        model = load_model(con, "default")
+        first = con.execute(q.format(m="default")).fetchall()
+        assert con.execute(q.format(m="default")).fetchall() == first  # kept, the same
+        changed = dataclasses.replace(model, classes=tuple(dataclasses.replace(c, tau=c.tau * 0.5)
+                                                           for c in model.classes))
+        save_model(con, changed, replace=True)
+        again = con.execute(q.format(m="default")).fetchall()
+        save_model(con, dataclasses.replace(changed, name="fresh"))
+        assert again == con.execute(q.format(m="fresh")).fetchall() != first
+        save_model(con, model, replace=True)  # and back
+        assert con.execute(q.format(m="default")).fetchall() == first
+
+
 def test_a_missing_table_is_named_with_the_command_that_creates_it(archive, native, tmp_path):
     no_index = tmp_path / "no_index.duckdb"
     shutil.copy(archive, no_index)

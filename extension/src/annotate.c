@@ -28,7 +28,8 @@ DUCKDB_EXTENSION_EXTERN
 /* The models of one call, read once each. */
 typedef struct {
 	char *name;
-	mdb_model m;
+	mdb_model_entry *entry; /* held for the call (model_cache.c) */
+	const mdb_model *m;
 	int64_t *min_frames, *min_won; /* per label */
 	int64_t *name_rank;            /* per label: its place in the labels sorted by name */
 	int any_query;
@@ -39,13 +40,13 @@ typedef struct {
 	size_t n;
 } models;
 
-static void models_free(models *ms) {
+static void models_free(mdb_state *st, models *ms) {
 	for (size_t i = 0; i < ms->n; i++) {
 		free(ms->at[i].name);
 		free(ms->at[i].min_frames);
 		free(ms->at[i].min_won);
 		free(ms->at[i].name_rank);
-		mdb_model_free(&ms->at[i].m);
+		mdb_release_model(st, ms->at[i].entry);
 	}
 	free(ms->at);
 }
@@ -64,11 +65,12 @@ static named_model *model_of(mdb_state *st, models *ms, const char *name, mdb_er
 	ms->at = grown;
 	named_model *x = &ms->at[ms->n];
 	memset(x, 0, sizeof *x);
-	if (mdb_read_model(st, name, &x->m, err)) {
+	if (mdb_acquire_model(st, name, &x->entry, err)) {
 		return NULL;
 	}
 	ms->n++;
-	size_t L = x->m.n_labels;
+	x->m = mdb_entry_model(x->entry);
+	size_t L = x->m->n_labels;
 	x->name = strdup(name);
 	x->min_frames = malloc((L ? L : 1) * sizeof *x->min_frames);
 	x->min_won = malloc((L ? L : 1) * sizeof *x->min_won);
@@ -81,17 +83,17 @@ static named_model *model_of(mdb_state *st, models *ms, const char *name, mdb_er
 	for (size_t p = 0; p < L; p++) {
 		x->min_frames[p] = INT64_MAX;
 	}
-	for (size_t k = 0; k < x->m.n_classes; k++) {
-		int64_t p = x->m.label_of[k];
-		if (x->m.min_frames[k] < x->min_frames[p]) {
-			x->min_frames[p] = x->m.min_frames[k];
+	for (size_t k = 0; k < x->m->n_classes; k++) {
+		int64_t p = x->m->label_of[k];
+		if (x->m->min_frames[k] < x->min_frames[p]) {
+			x->min_frames[p] = x->m->min_frames[k];
 		}
-		x->any_query |= x->m.query[k].K > 0;
+		x->any_query |= x->m->query[k].K > 0;
 	}
 	for (size_t p = 0; p < L; p++) {
 		x->name_rank[p] = 0;
 		for (size_t q = 0; q < L; q++) {
-			x->name_rank[p] += strcmp(x->m.label[q], x->m.label[p]) < 0;
+			x->name_rank[p] += strcmp(x->m->label[q], x->m->label[p]) < 0;
 		}
 		x->min_won[p] = (int64_t)ceil((double)x->min_frames[p] * WON_FRACTION - 1e-9);
 	}
@@ -175,7 +177,7 @@ static int class_slices(const mdb_query *q, const mdb_runs *r, size_t a, size_t 
 /* The segments of one motion of n frames (words), runs its postings (NULL: no preselection). */
 static int annotate_motion(const named_model *nm, const uint64_t *words, size_t n, const mdb_runs *runs, size_t ra,
                            size_t rb, int tau_given, double tau, work *w, mdb_segments *out, mdb_error *err) {
-	const mdb_model *m = &nm->m;
+	const mdb_model *m = nm->m;
 	size_t L = m->n_labels;
 	if (work_reserve(w, n, L)) {
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
@@ -610,7 +612,7 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 			}
 			entries[it->row].offset = total;
 			entries[it->row].length = out[q - first].n;
-			if (write_segments(output, &ms.at[it->model].m, &out[q - first], fps[q - first], &total)) {
+			if (write_segments(output, ms.at[it->model].m, &out[q - first], fps[q - first], &total)) {
 				snprintf(err.text, sizeof err.text, WHAT ": out of memory");
 				goto done;
 			}
@@ -620,7 +622,7 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 	failed = 0;
 done:
 	mdb_release_runs(st, batch);
-	models_free(&ms);
+	models_free(st, &ms);
 	for (size_t t = 0; t < MAX_THREADS; t++) {
 		work_free(&jobs[t].w);
 	}

@@ -1115,7 +1115,7 @@ static int maps_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) 
 	return 0;
 }
 
-/* The model's confidence maps, per label (its labels read already); 0 or -1. */
+/* The model's confidence maps, per label (its labels read already; the caller holds the lock); 0 or -1. */
 static int read_confidence_maps(mdb_state *st, const char *name, mdb_model *m, mdb_error *err) {
 	size_t L = m->n_labels ? m->n_labels : 1;
 	m->conf_n = calloc(L, sizeof *m->conf_n);
@@ -1131,14 +1131,12 @@ static int read_confidence_maps(mdb_state *st, const char *name, mdb_model *m, m
 	duckdb_type want[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_INTEGER};
 	int64_t has_maps = 0;
 	int rc = 0;
-	pthread_mutex_lock(&st->lock);
 	if (query_rows(st, HAS_MAPS_SQL, "duckdb_tables()", NULL, 0, NULL, 0, count_type, 1, count_sink, &has_maps,
 	               err)) {
 		rc = -1;
 	} else if (has_maps) {
 		rc = query_rows(st, MAPS_SQL, "confidence_maps", &name, 1, NULL, 0, want, 4, maps_sink, &c, err);
 	}
-	pthread_mutex_unlock(&st->lock);
 	free(c.cap);
 	if (c.bad) {
 		snprintf(err->text, sizeof err->text,
@@ -1176,7 +1174,8 @@ void mdb_model_free(mdb_model *m) {
 	memset(m, 0, sizeof *m);
 }
 
-/* The templates and keyframe queries of a model's classes cls[0 .. n), one query for each kind. */
+/* The templates and keyframe queries of a model's classes cls[0 .. n), one query for each kind (the
+ * caller holds the lock). */
 static int read_classes(mdb_state *st, const char *name, char *const *cls, const char *has_query, size_t n,
                         mdb_model *out, mdb_error *err) {
 	duckdb_type want_t[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_DOUBLE};
@@ -1196,7 +1195,6 @@ static int read_classes(mdb_state *st, const char *name, char *const *cls, const
 	}
 	by_class bt = {cls, n, (char *)tc, sizeof *tc, template_row, NULL, 0};
 	by_class bq = {cls, n, (char *)qc, sizeof *qc, query_row, NULL, 0};
-	pthread_mutex_lock(&st->lock);
 	if (query_rows(st, MODEL_TEMPLATES_SQL, "templates", &name, 1, NULL, 0, want_t, 4, by_class_sink, &bt, err) ||
 	    (any_query &&
 	     query_rows(st, MODEL_QUERIES_SQL, "keyframes", &name, 1, NULL, 0, want_q, 7, by_class_sink, &bq, err))) {
@@ -1210,7 +1208,6 @@ static int read_classes(mdb_state *st, const char *name, char *const *cls, const
 	}
 	rc = 0;
 done:
-	pthread_mutex_unlock(&st->lock);
 	for (size_t k = 0; k < n; k++) {
 		template_ctx_free(&tc[k]);
 	}
@@ -1221,19 +1218,17 @@ done:
 	return rc;
 }
 
-int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *err) {
+int mdb_read_model_locked(mdb_state *st, const char *name, mdb_model *out, mdb_error *err) {
 	memset(out, 0, sizeof *out);
 	model_ctx c = {out, NULL, NULL, NULL, 0, 0};
 	duckdb_type want[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_DOUBLE,
 	                      DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_BOOLEAN, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_BOOLEAN};
 	int rc = -1;
-	pthread_mutex_lock(&st->lock);
 	int q = query_rows(st, MODEL_SQL, "classes", &name, 1, NULL, 0, want, 8, model_sink, &c, err);
 	if (q == 0 && out->n_classes == 0) {
 		unknown_class(st, name, "", err);
 		q = -1;
 	}
-	pthread_mutex_unlock(&st->lock);
 	if (c.bad) {
 		snprintf(err->text, sizeof err->text,
 		         "model '%s': its classes rows are damaged (NULLs, a negative tau, margin or min_frames); train or "
@@ -1326,6 +1321,13 @@ done:
 	return rc;
 }
 
+int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *err) {
+	pthread_mutex_lock(&st->lock);
+	int rc = mdb_read_model_locked(st, name, out, err);
+	pthread_mutex_unlock(&st->lock);
+	return rc;
+}
+
 int mdb_grow(void *pp, size_t elem, size_t cap) {
 	return grow(pp, elem, cap);
 }
@@ -1337,4 +1339,9 @@ int mdb_query_rows(mdb_state *st, const char *sql, const char *table, const char
 	int rc = query_rows(st, sql, table, texts, n_texts, ints, n_ints, want, n_cols, sink, ctx, err);
 	pthread_mutex_unlock(&st->lock);
 	return rc;
+}
+
+int mdb_query_rows_locked(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                          const duckdb_type *want, idx_t n_cols, mdb_chunk_sink sink, void *ctx, mdb_error *err) {
+	return query_rows(st, sql, table, texts, n_texts, NULL, 0, want, n_cols, sink, ctx, err);
 }

@@ -21,6 +21,7 @@ typedef struct {
 } mdb_error;
 
 struct mdb_batch;
+struct mdb_model_entry;
 
 /* more than the distinct queries of archive.c */
 #define MDB_MAX_PREPARED 24
@@ -45,6 +46,7 @@ typedef struct {
 	mdb_session main, data;
 	pthread_mutex_t lock, data_lock;
 	struct mdb_batch *cache; /* index batches read, newest first (see mdb_acquire_runs) */
+	struct mdb_model_entry *models; /* models read, newest first, under lock (model_cache.c) */
 	size_t cache_bytes;
 	int released;            /* mocapdb_release() ran (under both locks): the connections are gone */
 	int refs;                /* the registered functions holding it (and LOAD while it runs) */
@@ -180,5 +182,21 @@ void mdb_model_free(mdb_model *m);
 /* Model `name` from the tables classes, models, templates, keyframes; an unknown model is an
  * error naming it and the stored ones. */
 int mdb_read_model(mdb_state *st, const char *name, mdb_model *out, mdb_error *err);
+/* The same, the caller holding lock. */
+int mdb_read_model_locked(mdb_state *st, const char *name, mdb_model *out, mdb_error *err);
+/* mdb_query_rows with text parameters only, the caller holding lock. */
+int mdb_query_rows_locked(mdb_state *st, const char *sql, const char *table, const char *const *texts, idx_t n_texts,
+                          const duckdb_type *want, idx_t n_cols, mdb_chunk_sink sink, void *ctx, mdb_error *err);
+
+/* A model as a call uses it, kept between calls while its rows are the same (model_cache.c). */
+typedef struct mdb_model_entry mdb_model_entry;
+/* Model `name` as mdb_read_model reads it, from the kept ones when the rows it was read from are
+ * unchanged (one query, cheaper than the read), else read; *out holds it until mdb_release_model.
+ * 0, or -1 with mdb_read_model's error. */
+int mdb_acquire_model(mdb_state *st, const char *name, mdb_model_entry **out, mdb_error *err);
+const mdb_model *mdb_entry_model(const mdb_model_entry *e);
+void mdb_release_model(mdb_state *st, mdb_model_entry *e);
+/* Forget every kept model (the caller holds lock; those in use go when released). */
+void mdb_drop_models(mdb_state *st);
 
 #endif

@@ -62,6 +62,7 @@ int mdb_state_release(mdb_state *st) {
 			}
 		}
 		mdb_drop_cache(st);
+		mdb_drop_models(st);
 		st->released = 1;
 	}
 	pthread_mutex_unlock(&st->data_lock);
