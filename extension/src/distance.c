@@ -92,15 +92,22 @@ int mdb_template_prepare(const uint64_t *mask, const uint64_t *value, const doub
 #define SELECT(m, a, b) (((m) & (a)) | (~(m) & (b)))
 
 #if defined(__x86_64__)
+/* the predecessor lanes of dp_column's aligned loads: [b, a] from lane LANES-1, and from LANES-2 */
 #define DP_LANES 8
+#define DP_BACK1 {7, 8, 9, 10, 11, 12, 13, 14}
+#define DP_BACK2 {6, 7, 8, 9, 10, 11, 12, 13}
 #define DP_FN dp_avx512
 #define DP_ATTR __attribute__((target("avx512f")))
 #include "distance_dp.h"
 #define DP_LANES 4
+#define DP_BACK1 {3, 4, 5, 6}
+#define DP_BACK2 {2, 3, 4, 5}
 #define DP_FN dp_avx2
 #define DP_ATTR __attribute__((target("avx2")))
 #include "distance_dp.h"
 #define DP_LANES 2
+#define DP_BACK1 {1, 2}
+#define DP_BACK2 {0, 1}
 #define DP_FN dp_sse2
 #define DP_ATTR __attribute__((target_clones("popcnt", "default")))
 #include "distance_dp.h"
@@ -118,6 +125,8 @@ static void dp(const mdb_template *t, const uint64_t *words, size_t n, double *d
 }
 #else
 #define DP_LANES 2
+#define DP_BACK1 {1, 2}
+#define DP_BACK2 {0, 1}
 #define DP_FN dp
 #define DP_ATTR
 #include "distance_dp.h"

@@ -17,18 +17,38 @@ typedef double DP_VD __attribute__((vector_size(DP_LANES * sizeof(double))));
 typedef int64_t DP_VI __attribute__((vector_size(DP_LANES * sizeof(int64_t))));
 
 /* One frame's rows 1 .. K-1: p0/q0 the column of frame j (D, starts), p1/q1 of j-1, p2/q2 of
- * j-2, each at row 0; c the frame's costs. */
+ * j-2, each at row 0; c the frame's costs. A row's predecessors are rows i-1 and i-2 of the
+ * previous columns. Loaded as vectors starting there, each would straddle two of the vectors the
+ * previous frame stored, and a load the CPU cannot forward from one store waits until both are
+ * written — every frame, since frame j+1 reads what frame j just wrote. So the loads are the
+ * stored vectors themselves (rows 1 + LANES·v, aligned, which the CPU forwards) and the
+ * predecessor vectors are cut from two neighbours by a lane shuffle (below row 1: the +inf of PAD
+ * and row 0); the same doubles. */
 static inline __attribute__((always_inline)) void DP_CAT(dp_column, DP_LANES)(size_t K, const double *c, double *p0,
                                                                              const double *p1, const double *p2,
                                                                              int64_t *q0, const int64_t *q1,
                                                                              const int64_t *q2, const int with_starts) {
 	const DP_VD zero = {0.0}, one = zero + 1.0, two = zero + 2.0, inf = zero + INFINITY;
 	const DP_VI none = (DP_VI){0} - 1;
+	/* lanes of [b, a] from LANES-1 (rows i-1 ..) and from LANES-2 (rows i-2 ..), b the vector below a */
+	const DP_VI back1 = DP_BACK1, back2 = DP_BACK2;
+	DP_VD b1 = inf, b2 = inf;   /* rows i-LANES .. i-1 of frames j-1, j-2 */
+	DP_VI s1 = none, s2 = none; /* and their starts */
+	b1[DP_LANES - 1] = p1[0];
+	b2[DP_LANES - 1] = p2[0];
+	if (with_starts) {
+		s1[DP_LANES - 1] = q1[0];
+		s2[DP_LANES - 1] = q2[0];
+	}
 	for (size_t i = 1; i < K; i += DP_LANES) { /* K: the rows to compute, 1 .. K-1 */
-		DP_VD v0, v1, v2, ci;
-		memcpy(&v0, p1 + i - 1, sizeof v0); /* (1, 1), weight 1 */
-		memcpy(&v1, p2 + i - 1, sizeof v1); /* (1, 2), weight 1 */
-		memcpy(&v2, p1 + i - 2, sizeof v2); /* (2, 1), weight 2; row -1 is +inf */
+		DP_VD a1, a2, ci;
+		memcpy(&a1, p1 + i, sizeof a1);
+		memcpy(&a2, p2 + i, sizeof a2);
+		DP_VD v0 = __builtin_shuffle(b1, a1, back1); /* (1, 1), weight 1 */
+		DP_VD v1 = __builtin_shuffle(b2, a2, back1); /* (1, 2), weight 1 */
+		DP_VD v2 = __builtin_shuffle(b1, a1, back2); /* (2, 1), weight 2 */
+		b1 = a1;
+		b2 = a2;
 		memcpy(&ci, c + i, sizeof ci);
 		DP_VI m1 = v1 < v0;
 		DP_VD best = (DP_VD)SELECT(m1, (DP_VI)v1, (DP_VI)v0);
@@ -38,10 +58,13 @@ static inline __attribute__((always_inline)) void DP_CAT(dp_column, DP_LANES)(si
 		DP_VD d = best + bw * ci;
 		memcpy(p0 + i, &d, sizeof d);
 		if (with_starts) {
-			DP_VI t0, t1, t2;
-			memcpy(&t0, q1 + i - 1, sizeof t0);
-			memcpy(&t1, q2 + i - 1, sizeof t1);
-			memcpy(&t2, q1 + i - 2, sizeof t2);
+			DP_VI u1, u2;
+			memcpy(&u1, q1 + i, sizeof u1);
+			memcpy(&u2, q2 + i, sizeof u2);
+			DP_VI t0 = __builtin_shuffle(s1, u1, back1), t1 = __builtin_shuffle(s2, u2, back1),
+			      t2 = __builtin_shuffle(s1, u1, back2);
+			s1 = u1;
+			s2 = u2;
 			DP_VI st = SELECT(m2, t2, SELECT(m1, t1, t0));
 			DP_VI reached = d < inf;
 			st = SELECT(reached, st, none);
@@ -121,8 +144,9 @@ static inline __attribute__((always_inline)) void DP_CAT(dp_frames, DP_LANES)(co
 			}
 			continue;
 		}
-		for (size_t i = vec_end; i < written[r0]; i++) {
-			col[r0][i] = INFINITY; /* computed for frame j-3, out of reach now */
+		for (size_t i = vec_end; i < written[r0]; i += DP_LANES) {
+			const DP_VD inf = (DP_VD){0.0} + INFINITY; /* whole vectors: a later frame loads them whole */
+			memcpy(col[r0] + i, &inf, sizeof inf); /* computed for frame j-3, out of reach now */
 		}
 		written[r0] = vec_end;
 		wrote = vec_end > wrote ? vec_end : wrote;
@@ -163,5 +187,7 @@ DP_ATTR static void DP_FN(const mdb_template *t, const uint64_t *words, size_t n
 #undef DP_VD
 #undef DP_VI
 #undef DP_LANES
+#undef DP_BACK1
+#undef DP_BACK2
 #undef DP_FN
 #undef DP_ATTR
