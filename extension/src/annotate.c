@@ -104,7 +104,8 @@ static named_model *model_of(mdb_state *st, models *ms, const char *name, mdb_er
 typedef struct {
 	double *label_cd, *label_ratio, *delta, *cd;
 	int64_t *starts, *stamp;
-	size_t frames, cells;
+	char *touched; /* per label: its rows were set for this motion (the others are never read) */
+	size_t frames, cells, labels;
 	mdb_spans slices, iv;
 	mdb_dp_scratch dp;
 	mdb_hit_scratch hits;
@@ -117,6 +118,7 @@ static void work_free(work *w) {
 	free(w->cd);
 	free(w->starts);
 	free(w->stamp);
+	free(w->touched);
 	mdb_spans_free(&w->slices);
 	mdb_spans_free(&w->iv);
 	mdb_dp_scratch_free(&w->dp);
@@ -138,6 +140,14 @@ static int work_reserve(work *w, size_t n, size_t L) {
 		w->frames = n;
 		if (!w->delta || !w->cd || !w->starts || !w->stamp) {
 			w->frames = 0;
+			return -1;
+		}
+	}
+	if (L > w->labels) {
+		free(w->touched);
+		w->touched = malloc(L);
+		w->labels = w->touched ? L : 0;
+		if (!w->touched) {
 			return -1;
 		}
 	}
@@ -183,10 +193,9 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 		return -1;
 	}
-	for (size_t i = 0; i < n * L; i++) {
-		w->label_cd[i] = INFINITY;
-		w->label_ratio[i] = INFINITY;
-	}
+	/* a label's rows are +inf until a class of it has a hit: set then (most labels have none in a
+	 * motion, and its rows are n doubles each) */
+	memset(w->touched, 0, L);
 	for (size_t f = 0; f < n; f++) {
 		w->stamp[f] = -1;
 	}
@@ -227,6 +236,13 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 				}
 				continue;
 			}
+			if (!w->touched[m->label_of[k]]) {
+				w->touched[m->label_of[k]] = 1;
+				for (size_t f = 0; f < n; f++) {
+					label_cd[f] = INFINITY;
+					label_ratio[f] = INFINITY;
+				}
+			}
 			for (size_t j = 0; j < len; j++) {
 				if (w->stamp[a + j] == (int64_t)k) {
 					continue; /* a later slice gave it its value */
@@ -247,8 +263,8 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 			}
 		}
 	}
-	mdb_label_rules rules = {L, m->concurrent, nm->min_frames, nm->min_won, m->margin,
-	                         m->conf_n, m->conf_cut, m->conf_value, m->conf_min_length};
+	mdb_label_rules rules = {L,         m->concurrent, nm->min_frames, nm->min_won,     m->margin,
+	                         m->conf_n, m->conf_cut,   m->conf_value,  m->conf_min_length, w->touched};
 	if (mdb_label_segments(w->label_cd, w->label_ratio, n, &rules, out)) {
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 		return -1;

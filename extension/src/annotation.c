@@ -217,38 +217,29 @@ static int by_label(const void *a, const void *b) {
 
 int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, const mdb_label_rules *rules,
                        mdb_segments *out) {
-	size_t L = rules->n_labels;
+	size_t L = rules->n_labels, R = 0;
 	int rc = -1;
-	const double **rows = malloc((L ? L : 1) * sizeof *rows);
+	double **rows = malloc((L ? L : 1) * sizeof *rows);
 	int64_t *ident = malloc((L ? L : 1) * sizeof *ident);
-	double *own = NULL;
-	size_t n_own = 0;
-	for (size_t p = 0; p < L; p++) {
-		n_own += rules->concurrent[p] != 0;
-	}
-	if (n_own) {
-		own = malloc(n_own * (n ? n : 1) * sizeof *own);
-	}
 	mdb_segments segs = {0};
-	if (!rows || !ident || (n_own && !own)) {
+	if (!rows || !ident) {
 		goto done;
 	}
-	/* a concurrent label's row leaves the competition: its segments are its own runs */
-	for (size_t p = 0, k = 0; p < L; p++) {
-		rows[p] = label_cd + p * n;
-		ident[p] = (int64_t)p;
-		if (rules->concurrent[p]) {
-			memcpy(own + k++ * n, label_cd + p * n, n * sizeof *own);
-			for (size_t f = 0; f < n; f++) {
-				label_cd[p * n + f] = INFINITY;
-			}
+	/* The rows that compete, rows[r] of label ident[r]: a label's that is set and not concurrent (a
+	 * concurrent label's row leaves the competition: its segments are its own runs). A row left out
+	 * is +inf throughout in the paper's chain, and +inf never wins Δarg (strict "<") nor moves the
+	 * margin's best and second best: the segments are the same. */
+	for (size_t p = 0; p < L; p++) {
+		if ((!rules->set || rules->set[p]) && !rules->concurrent[p]) {
+			rows[R] = label_cd + p * n;
+			ident[R++] = (int64_t)p;
 		}
 	}
 	if (rules->margin > 0) { /* _margin_kernel */
 		for (size_t f = 0; f < n; f++) {
 			double best = INFINITY, second = INFINITY;
-			for (size_t p = 0; p < L; p++) {
-				double v = label_cd[p * n + f];
+			for (size_t r = 0; r < R; r++) {
+				double v = rows[r][f];
 				if (v < best) {
 					second = best;
 					best = v;
@@ -257,13 +248,13 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 				}
 			}
 			if (best < INFINITY && second - best < rules->margin) {
-				for (size_t p = 0; p < L; p++) {
-					label_cd[p * n + f] = INFINITY;
+				for (size_t r = 0; r < R; r++) {
+					rows[r][f] = INFINITY;
 				}
 			}
 		}
 	}
-	if (form_segments(rows, ident, L, n, &segs)) {
+	if (form_segments((const double *const *)rows, ident, R, n, &segs)) {
 		goto done;
 	}
 	/* drop_unwon_segments: the label must be Δarg on min_won of its frames */
@@ -274,7 +265,8 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 		if (want > 0) {
 			int64_t won = 0;
 			for (int64_t f = x.start; f <= x.end; f++) {
-				won += best_row(rows, L, (size_t)f) == (long)x.label;
+				long r = best_row((const double *const *)rows, R, (size_t)f);
+				won += r >= 0 && ident[r] == x.label;
 			}
 			if (won < want) {
 				continue;
@@ -283,10 +275,12 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 		segs.at[kept++] = x;
 	}
 	segs.n = kept;
-	for (size_t p = 0, k = 0; p < L; p++) {
-		if (rules->concurrent[p]) {
-			const double *row = own + k++ * n;
+	size_t n_own = 0;
+	for (size_t p = 0; p < L; p++) {
+		if ((!rules->set || rules->set[p]) && rules->concurrent[p]) { /* its row, untouched by the margin */
+			const double *row = label_cd + p * n;
 			int64_t lab = (int64_t)p;
+			n_own++;
 			if (form_segments(&row, &lab, 1, n, &segs)) {
 				goto done;
 			}
@@ -336,6 +330,5 @@ done:
 	mdb_segments_free(&segs);
 	free(rows);
 	free(ident);
-	free(own);
 	return rc;
 }

@@ -35,6 +35,8 @@ typedef struct {
 	const size_t *conf_n;
 	double *const *conf_cut, *const *conf_value;
 	int64_t *const *conf_min_length;
+	const char *set; /* per label: whether its rows are set (NULL: all are); the others are +inf throughout,
+	                  * never read */
 } mdb_label_rules;
 
 /* The candidates of mdb_classification_delta and the room to sort them: grown as slices need,

@@ -269,23 +269,34 @@ static void query_init_fn(duckdb_init_info info) {
 }
 
 /* Intervals of matching frames of one keyframe in one motion's runs r[a..b): runs of
- * matching words, merged when adjacent (KEYFRAMES.md §3). */
+ * matching words, merged when adjacent (KEYFRAMES.md §3). Annotation asks this of every keyframe
+ * of every class of every motion: the scan for a matching run is a tight loop over the words, and
+ * an interval is pushed once it ends. */
 int mdb_keyframe_intervals(const mdb_runs *r, size_t a, size_t b, uint64_t mask, uint64_t value, mdb_spans *iv) {
-	int open = 0;
-	for (size_t i = a; i < b; i++) {
-		if ((r->word[i] & mask) != value) {
-			open = 0;
-			continue;
+	const uint64_t *word = r->word;
+	const int64_t *start = r->start, *len = r->len;
+	size_t i = a;
+	for (;;) {
+		while (i < b && (word[i] & mask) != value) {
+			i++;
 		}
-		int64_t s = r->start[i], e = r->start[i] + r->len[i] - 1;
-		if (open && iv->end[iv->n - 1] + 1 == s) {
-			iv->end[iv->n - 1] = e;
-		} else if (mdb_spans_push(iv, s, e)) {
+		if (i >= b) {
+			return 0;
+		}
+		int64_t s = start[i], e = start[i] + len[i] - 1;
+		for (i++; i < b && (word[i] & mask) == value; i++) {
+			if (start[i] != e + 1) { /* not adjacent: an interval of its own */
+				if (mdb_spans_push(iv, s, e)) {
+					return -1;
+				}
+				s = start[i];
+			}
+			e = start[i] + len[i] - 1;
+		}
+		if (mdb_spans_push(iv, s, e)) {
 			return -1;
 		}
-		open = 1;
 	}
-	return 0;
 }
 
 /* Search the next batch of motions into s->out / s->out_motion. */
