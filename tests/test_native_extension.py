@@ -358,6 +358,21 @@ def test_a_changed_index_is_read_again(archive, native, tmp_path):
     assert deleted == [r for r in before if r[0] != 1] != before
 
 
+def test_motions_stored_out_of_order_give_the_same_answers(archive, native, tmp_path):
+    """The motions' lengths are read without ORDER BY (insertion order, sorted in C when it is not
+    ascending): a motions table rewritten in another order gives the same answers."""
+    db = tmp_path / "reordered.duckdb"
+    shutil.copy(archive, db)
+    qs = ["SELECT list({'m': motion_id, 's': annotate(motion_id)} ORDER BY motion_id)::VARCHAR FROM motions",
+          "SELECT list(len(mt_distance(motion_id, 'squat1Reps')) ORDER BY motion_id) FROM motions",
+          "SELECT count(*), sum(start_frame) FROM keyframe_search('squat1Reps')"]
+    got = plain_client(db, native, qs + [
+        "CREATE OR REPLACE TABLE motions AS SELECT * FROM motions ORDER BY motion_id DESC"] + qs, read_only=False)
+    assert [g.get("error") for g in got] == [None] * len(got)
+    assert [g["rows"] for g in got[:3]] == [g["rows"] for g in got[4:]]
+    assert "'label'" in got[0]["rows"][0][0] and got[2]["rows"][0][0] > 0  # real answers compared
+
+
 def test_a_damaged_motion_is_named(archive, native, tmp_path):
     """Features that are not a motion's frames 1 … n (what an older mocapdb could leave) are an
     error naming the motion, as the Python UDF's; the other motions are unaffected."""
