@@ -522,8 +522,8 @@ static size_t motion_ids(duckdb_data_chunk input, idx_t n, int32_t *ids) {
 }
 
 /* What a call reads without its model: the motions' frame counts and the first batch's words, on
- * the extension's data connection while the calling thread reads the model on the main one (a
- * model is several small queries, about as long as a batch of an hour's words). */
+ * the extension's data connection while the calling thread gets the model on the main one (the
+ * query that says whether a kept model is current, or the model's read: model_cache.c). */
 typedef struct {
 	mdb_state *st;
 	const int32_t *ids;
