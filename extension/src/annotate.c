@@ -33,6 +33,11 @@ typedef struct {
 	int64_t *min_frames, *min_won; /* per label */
 	int64_t *name_rank;            /* per label: its place in the labels sorted by name */
 	int any_query;
+	/* the model's distinct keyframes (classes share many: 51 of the default model's 83), and per
+	 * class and keyframe its index among them: a motion's intervals of one are found once */
+	size_t n_kf;
+	uint64_t *kf_mask, *kf_value;
+	uint16_t *kf_of; /* [class * MDB_MAX_KEYFRAMES + keyframe] */
 } named_model;
 
 typedef struct {
@@ -46,6 +51,9 @@ static void models_free(mdb_state *st, models *ms) {
 		free(ms->at[i].min_frames);
 		free(ms->at[i].min_won);
 		free(ms->at[i].name_rank);
+		free(ms->at[i].kf_mask);
+		free(ms->at[i].kf_value);
+		free(ms->at[i].kf_of);
 		mdb_release_model(st, ms->at[i].entry);
 	}
 	free(ms->at);
@@ -75,9 +83,28 @@ static named_model *model_of(mdb_state *st, models *ms, const char *name, mdb_er
 	x->min_frames = malloc((L ? L : 1) * sizeof *x->min_frames);
 	x->min_won = malloc((L ? L : 1) * sizeof *x->min_won);
 	x->name_rank = malloc((L ? L : 1) * sizeof *x->name_rank);
-	if (!x->name || !x->min_frames || !x->min_won || !x->name_rank) {
+	size_t C = x->m->n_classes ? x->m->n_classes : 1;
+	x->kf_mask = malloc(C * MDB_MAX_KEYFRAMES * sizeof *x->kf_mask);
+	x->kf_value = malloc(C * MDB_MAX_KEYFRAMES * sizeof *x->kf_value);
+	x->kf_of = malloc(C * MDB_MAX_KEYFRAMES * sizeof *x->kf_of);
+	if (!x->name || !x->min_frames || !x->min_won || !x->name_rank || !x->kf_mask || !x->kf_value || !x->kf_of) {
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 		return NULL;
+	}
+	for (size_t k = 0; k < x->m->n_classes; k++) {
+		const mdb_query *q = &x->m->query[k];
+		for (size_t i = 0; i < q->K; i++) {
+			size_t d = 0;
+			while (d < x->n_kf && (x->kf_mask[d] != q->mask[i] || x->kf_value[d] != q->value[i])) {
+				d++;
+			}
+			if (d == x->n_kf) {
+				x->kf_mask[d] = q->mask[i];
+				x->kf_value[d] = q->value[i];
+				x->n_kf++;
+			}
+			x->kf_of[k * MDB_MAX_KEYFRAMES + i] = (uint16_t)d;
+		}
 	}
 	/* postprocess.label_min_frames / label_min_won: per label its most lenient class */
 	for (size_t p = 0; p < L; p++) {
@@ -106,6 +133,10 @@ typedef struct {
 	int64_t *starts, *stamp;
 	char *touched; /* per label: its rows were set for this motion (the others are never read) */
 	size_t frames, cells, labels;
+	/* the motion's intervals of each distinct keyframe found so far: at kf_at[d] in kf_pool, kf_n[d]
+	 * of them (SIZE_MAX: not yet looked for) */
+	mdb_spans kf_pool;
+	size_t *kf_at, *kf_n, kf_cap;
 	mdb_spans slices, iv;
 	mdb_dp_scratch dp;
 	mdb_hit_scratch hits;
@@ -119,15 +150,28 @@ static void work_free(work *w) {
 	free(w->starts);
 	free(w->stamp);
 	free(w->touched);
+	free(w->kf_at);
+	free(w->kf_n);
+	mdb_spans_free(&w->kf_pool);
 	mdb_spans_free(&w->slices);
 	mdb_spans_free(&w->iv);
 	mdb_dp_scratch_free(&w->dp);
 	mdb_hit_scratch_free(&w->hits);
 }
 
-static int work_reserve(work *w, size_t n, size_t L) {
+static int work_reserve(work *w, size_t n, size_t L, size_t n_kf) {
 	n = n ? n : 1;
 	L = L ? L : 1;
+	if (n_kf > w->kf_cap) {
+		free(w->kf_at);
+		free(w->kf_n);
+		w->kf_at = malloc(n_kf * sizeof *w->kf_at);
+		w->kf_n = malloc(n_kf * sizeof *w->kf_n);
+		w->kf_cap = w->kf_at && w->kf_n ? n_kf : 0;
+		if (!w->kf_cap) {
+			return -1;
+		}
+	}
 	if (n > w->frames) {
 		free(w->delta);
 		free(w->cd);
@@ -165,15 +209,27 @@ static int work_reserve(work *w, size_t n, size_t L) {
 	return 0;
 }
 
-/* The preselected slices of class k of one motion (its runs r[a..b)), into w->slices. */
-static int class_slices(const mdb_query *q, const mdb_runs *r, size_t a, size_t b, int64_t n, work *w) {
+/* The preselected slices of class k of one motion (its runs r[a..b)), into w->slices; the intervals
+ * of its keyframes from those found for the motion so far (kf: the keyframes' distinct indices). */
+static int class_slices(const mdb_query *q, const uint16_t *kf, const mdb_runs *r, size_t a, size_t b, int64_t n,
+                        work *w) {
 	size_t off[MDB_MAX_KEYFRAMES + 1];
 	w->slices.n = 0;
 	w->iv.n = 0;
 	off[0] = 0;
 	for (size_t k = 0; k < q->K; k++) {
-		if (mdb_keyframe_intervals(r, a, b, q->mask[k], q->value[k], &w->iv)) {
-			return -1;
+		size_t d = kf[k];
+		if (w->kf_n[d] == SIZE_MAX) {
+			w->kf_at[d] = w->kf_pool.n;
+			if (mdb_keyframe_intervals(r, a, b, q->mask[k], q->value[k], &w->kf_pool)) {
+				return -1;
+			}
+			w->kf_n[d] = w->kf_pool.n - w->kf_at[d];
+		}
+		for (size_t i = w->kf_at[d]; i < w->kf_at[d] + w->kf_n[d]; i++) {
+			if (mdb_spans_push(&w->iv, w->kf_pool.start[i], w->kf_pool.end[i])) {
+				return -1;
+			}
 		}
 		off[k + 1] = w->iv.n;
 		if (off[k + 1] == off[k]) {
@@ -189,13 +245,17 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
                            size_t rb, int tau_given, double tau, work *w, mdb_segments *out, mdb_error *err) {
 	const mdb_model *m = nm->m;
 	size_t L = m->n_labels;
-	if (work_reserve(w, n, L)) {
+	if (work_reserve(w, n, L, nm->n_kf)) {
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 		return -1;
 	}
 	/* a label's rows are +inf until a class of it has a hit: set then (most labels have none in a
 	 * motion, and its rows are n doubles each) */
 	memset(w->touched, 0, L);
+	w->kf_pool.n = 0;
+	for (size_t d = 0; d < nm->n_kf; d++) {
+		w->kf_n[d] = SIZE_MAX;
+	}
 	for (size_t f = 0; f < n; f++) {
 		w->stamp[f] = -1;
 	}
@@ -203,7 +263,7 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 		double t = tau_given ? tau : m->tau[k];
 		int rc = 0;
 		if (runs && m->query[k].K > 0) {
-			rc = class_slices(&m->query[k], runs, ra, rb, (int64_t)n, w);
+			rc = class_slices(&m->query[k], nm->kf_of + k * MDB_MAX_KEYFRAMES, runs, ra, rb, (int64_t)n, w);
 		} else {
 			w->slices.n = 0;
 			rc = n ? mdb_spans_push(&w->slices, 0, (int64_t)n - 1) : 0;
