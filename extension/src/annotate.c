@@ -593,13 +593,44 @@ typedef struct {
 	mdb_words_batch *b;
 	mdb_error err;
 	int rc;
+	/* planned: the first batch's motions (b's ids, *i) are known (1), or cannot be (-1); 0: not yet */
+	pthread_mutex_t mu;
+	pthread_cond_t cv;
+	int planned;
 } prefetch;
 
 static void *run_prefetch(void *p) {
 	prefetch *f = p;
-	f->rc = mdb_read_motion_range(f->st, f->ids[0], f->ids[f->n_ids - 1], f->range, &f->err) ||
-	        mdb_read_batch(f->st, f->range, f->m, f->ids, f->n_ids, f->i, MDB_BATCH_FRAMES, f->b, &f->err);
+	int rc = mdb_read_motion_range(f->st, f->ids[0], f->ids[f->n_ids - 1], f->range, &f->err) ||
+	         mdb_plan_batch(f->range, f->m, f->ids, f->n_ids, f->i, MDB_BATCH_FRAMES, f->b, &f->err);
+	pthread_mutex_lock(&f->mu);
+	f->planned = rc ? -1 : 1;
+	pthread_cond_signal(&f->cv);
+	pthread_mutex_unlock(&f->mu);
+	f->rc = rc || mdb_read_batch_words(f->st, f->b, &f->err);
 	return NULL;
+}
+
+/* The first batch's index runs, read on the main connection while the data connection reads its
+ * words (the batch's motions are known before its words are read): NULL when none is needed, or
+ * after an error (*failed, err set). */
+static mdb_batch *early_runs(mdb_state *st, prefetch *f, const item *items, int *failed, mdb_error *err) {
+	pthread_mutex_lock(&f->mu);
+	while (!f->planned) {
+		pthread_cond_wait(&f->cv, &f->mu);
+	}
+	int planned = f->planned;
+	pthread_mutex_unlock(&f->mu);
+	int preselect = 0;
+	for (size_t q = 0; planned == 1 && q < *f->i; q++) {
+		preselect |= items[q].preselect;
+	}
+	if (!preselect || !f->b->n) {
+		return NULL;
+	}
+	mdb_batch *batch = mdb_acquire_runs(st, f->b->id[0], f->b->id[f->b->n - 1], err);
+	*failed = !batch;
+	return batch;
 }
 
 /* Rows' motions a batch at a time (mdb_read_batch: one query for the words, one for the postings
@@ -615,7 +646,9 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 	mdb_motions range = {0};
 	mdb_words_batch b = {0};
 	mdb_error err = {{0}};
-	mdb_batch *batch = NULL;
+	mdb_batch *batch = NULL, *early = NULL; /* early: the first batch's runs, read beside its words */
+	mdb_error early_err = {{0}};
+	int early_failed = 0;
 	job jobs[MAX_THREADS];
 	long cpus = sysconf(_SC_NPROCESSORS_ONLN);
 	size_t n_jobs = cpus < 1 ? 1 : cpus > MAX_THREADS ? MAX_THREADS : (size_t)cpus;
@@ -640,10 +673,15 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 	}
 	size_t i = 0, m = 0; /* next item; next stored motion of the range */
 	size_t n_ids = motion_ids(input, n, ids);
-	prefetch f = {st, ids, n_ids, &range, &m, &i, &b, {{0}}, 0};
+	prefetch f = {st, ids, n_ids, &range, &m, &i, &b, {{0}}, 0, PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0};
 	pthread_t reader;
 	int started = n_ids && pthread_create(&reader, NULL, run_prefetch, &f) == 0;
 	int bad = collect(st, input, n, &ms, items, &n_items, out_valid, &err);
+	/* the rows collect() took, in the order of ids (the same motions: motion_ids takes the rows it takes) */
+	qsort(items, n_items, sizeof *items, by_motion);
+	if (started && !bad) {
+		early = early_runs(st, &f, items, &early_failed, &early_err);
+	}
 	if (started) {
 		pthread_join(reader, NULL);
 	} else if (n_ids && !bad) {
@@ -656,8 +694,10 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 		err = f.err;
 		goto done;
 	}
-	/* the rows collect() took, in the order of ids (the same motions: motion_ids takes the rows it takes) */
-	qsort(items, n_items, sizeof *items, by_motion);
+	if (early_failed) {
+		err = early_err;
+		goto done;
+	}
 	size_t first = 0; /* the batch's first item; the first batch, items 0 .. i-1, is read */
 	while (first < n_items) {
 		if (first > 0 && mdb_read_batch(st, &range, &m, ids, n_items, &i, MDB_BATCH_FRAMES, &b, &err)) {
@@ -669,7 +709,10 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 		}
 		mdb_release_runs(st, batch);
 		batch = NULL;
-		if (preselect && b.n && !(batch = mdb_acquire_runs(st, b.id[0], b.id[b.n - 1], &err))) {
+		if (first == 0 && early) { /* read beside the first batch's words */
+			batch = early;
+			early = NULL;
+		} else if (preselect && b.n && !(batch = mdb_acquire_runs(st, b.id[0], b.id[b.n - 1], &err))) {
 			goto done;
 		}
 		for (size_t q = 0; q < i - first; q++) {
@@ -698,6 +741,7 @@ static void annotate_fn(duckdb_function_info info, duckdb_data_chunk input, duck
 	failed = 0;
 done:
 	mdb_release_runs(st, batch);
+	mdb_release_runs(st, early);
 	models_free(st, &ms);
 	for (size_t t = 0; t < MAX_THREADS; t++) {
 		work_free(&jobs[t].w);

@@ -437,15 +437,14 @@ static int runs_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) 
 	return 0;
 }
 
-/* Read the runs of motions lo .. hi (the caller holds data_lock). */
+/* Read the runs of motions lo .. hi (the caller holds lock). */
 static int read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_error *err) {
 	runs_ctx ctx = {out, NULL, 0};
 	int32_t range[2] = {lo, hi};
 	duckdb_type want[] = {DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_UBIGINT, DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_INTEGER,
 	                      DUCKDB_TYPE_INTEGER};
 	out->n = 0;
-	int rc = query_rows_on(st, &st->data, RUNS_SQL, "mocap_index.postings", NULL, 0, range, 2, want, 5, runs_sink, &ctx,
-	                       err);
+	int rc = query_rows(st, RUNS_SQL, "mocap_index.postings", NULL, 0, range, 2, want, 5, runs_sink, &ctx, err);
 	if (rc == 0 && order_runs(out, ctx.seg)) {
 		rc = out_of_memory(err, "the keyframe index");
 	}
@@ -453,7 +452,7 @@ static int read_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_runs *out, mdb_e
 	return rc;
 }
 
-/* The index version (NULL: -1; no index built), the caller holding data_lock. */
+/* The index version (NULL: -1; no index built), the caller holding lock. */
 static int version_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) {
 	int64_t *version = p;
 	COLUMN(chunk, 0, int64_t, x, valid);
@@ -469,8 +468,7 @@ static int version_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *er
 static int index_version(mdb_state *st, int64_t *version, mdb_error *err) {
 	duckdb_type want[] = {DUCKDB_TYPE_BIGINT};
 	*version = -2; /* no row yet */
-	if (query_rows_on(st, &st->data, VERSION_SQL, "mocap_index.state", NULL, 0, NULL, 0, want, 1, version_sink, version,
-	                  err)) {
+	if (query_rows(st, VERSION_SQL, "mocap_index.state", NULL, 0, NULL, 0, want, 1, version_sink, version, err)) {
 		return -1;
 	}
 	if (*version == -2) {
@@ -513,19 +511,27 @@ void mdb_drop_cache(mdb_state *st) {
 	drop_batches(st, 0, 1);
 }
 
+/* The index's queries go to the main connection (lock), so that annotate gets a batch's runs while
+ * the data connection reads its words; the cache has a lock of its own (cache_lock, taken after
+ * lock). */
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err) {
 	int64_t version;
 	mdb_batch *b = NULL;
-	pthread_mutex_lock(&st->data_lock);
+	pthread_mutex_lock(&st->lock);
 	if (index_version(st, &version, err)) {
 		goto done;
 	}
+	pthread_mutex_lock(&st->cache_lock);
 	drop_batches(st, version, 0);
 	for (b = st->cache; b; b = b->next) {
 		if (b->lo == lo && b->hi == hi) {
 			b->refs++;
-			goto done;
+			break;
 		}
+	}
+	pthread_mutex_unlock(&st->cache_lock);
+	if (b) {
+		goto done;
 	}
 	b = calloc(1, sizeof *b);
 	if (!b) {
@@ -544,6 +550,7 @@ mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *er
 	/* Archive-wide passes read the batches in the same order every time: keeping the first
 	 * ones that fit (never evicting for the one read last) lets the next pass reuse them, as
 	 * mocapdb.storage.cache does. No index built (version NULL): nothing is kept. */
+	pthread_mutex_lock(&st->cache_lock);
 	if (version >= 0 && st->cache_bytes + batch_bytes(b) <= CACHE_BYTES) {
 		b->next = st->cache;
 		st->cache = b;
@@ -551,8 +558,9 @@ mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *er
 	} else {
 		b->detached = 1;
 	}
+	pthread_mutex_unlock(&st->cache_lock);
 done:
-	pthread_mutex_unlock(&st->data_lock);
+	pthread_mutex_unlock(&st->lock);
 	return b;
 }
 
@@ -560,11 +568,11 @@ void mdb_release_runs(mdb_state *st, mdb_batch *b) {
 	if (!b) {
 		return;
 	}
-	pthread_mutex_lock(&st->data_lock);
+	pthread_mutex_lock(&st->cache_lock);
 	if (--b->refs == 0 && b->detached) {
 		batch_free(b);
 	}
-	pthread_mutex_unlock(&st->data_lock);
+	pthread_mutex_unlock(&st->cache_lock);
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -866,8 +874,8 @@ void mdb_words_batch_free(mdb_words_batch *b) {
 	memset(b, 0, sizeof *b);
 }
 
-int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items,
-                   size_t *i, int64_t max_frames, mdb_words_batch *b, mdb_error *err) {
+int mdb_plan_batch(const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items, size_t *i,
+                   int64_t max_frames, mdb_words_batch *b, mdb_error *err) {
 	if (b->cap < n_items) {
 		if (grow(&b->id, sizeof *b->id, n_items) || grow(&b->n_frames, sizeof *b->n_frames, n_items) ||
 		    grow(&b->fps, sizeof *b->fps, n_items) || grow(&b->off, sizeof *b->off, n_items + 1)) {
@@ -909,7 +917,16 @@ int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int
 	if (!b->words) {
 		return out_of_memory(err, "features");
 	}
+	return 0;
+}
+
+int mdb_read_batch_words(mdb_state *st, mdb_words_batch *b, mdb_error *err) {
 	return b->n ? mdb_read_words(st, b->id[0], b->id[b->n - 1], b->id, b->n_frames, b->off, b->n, b->words, err) : 0;
+}
+
+int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items,
+                   size_t *i, int64_t max_frames, mdb_words_batch *b, mdb_error *err) {
+	return mdb_plan_batch(range, m, motion, n_items, i, max_frames, b, err) || mdb_read_batch_words(st, b, err) ? -1 : 0;
 }
 
 typedef struct {

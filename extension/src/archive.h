@@ -41,10 +41,11 @@ typedef struct {
 typedef struct {
 	/* two connections (opened at LOAD; the C API hands the database out only then), so that a call
 	 * reads a batch's words while it reads its model: `main` (under lock) the models and whatever
-	 * else, `data` (under data_lock, which also guards the index cache) the motions, their words
-	 * and the index's runs. A thread holding lock may take data_lock, never the other way round. */
+	 * else (the index's runs among it), `data` (under data_lock) the motions and their words. A
+	 * thread holding lock may take data_lock or cache_lock, never the other way round. */
 	mdb_session main, data;
 	pthread_mutex_t lock, data_lock;
+	pthread_mutex_t cache_lock; /* the index cache's list and references (taken after lock) */
 	struct mdb_batch *cache; /* index batches read, newest first (see mdb_acquire_runs) */
 	struct mdb_model_entry *models; /* models read, newest first, under lock (model_cache.c) */
 	size_t cache_bytes;
@@ -106,7 +107,7 @@ void mdb_motions_free(mdb_motions *m);
  * mdb_release_runs. */
 mdb_batch *mdb_acquire_runs(mdb_state *st, int32_t lo, int32_t hi, mdb_error *err);
 void mdb_release_runs(mdb_state *st, mdb_batch *b);
-/* Drop every cached batch (the caller holds data_lock; those in use go when released). */
+/* Drop every cached batch (the caller holds cache_lock; those in use go when released). */
 void mdb_drop_cache(mdb_state *st);
 void mdb_runs_free(mdb_runs *r);
 
@@ -146,6 +147,10 @@ void mdb_words_batch_free(mdb_words_batch *b);
  * motion[n_items - 1]; *m its first motion not yet passed. Advances *i and *m past the batch. */
 int mdb_read_batch(mdb_state *st, const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items,
                    size_t *i, int64_t max_frames, mdb_words_batch *b, mdb_error *err);
+/* mdb_read_batch in two steps: which motions (b's ids, lengths and room for the words), then their words. */
+int mdb_plan_batch(const mdb_motions *range, size_t *m, const int32_t *motion, size_t n_items, size_t *i,
+                   int64_t max_frames, mdb_words_batch *b, mdb_error *err);
+int mdb_read_batch_words(mdb_state *st, mdb_words_batch *b, mdb_error *err);
 
 /* Grow the array *pp to cap elements of elem bytes; 0, or -1 leaving it as it was. */
 int mdb_grow(void *pp, size_t elem, size_t cap);

@@ -28,6 +28,12 @@ mdb_state *mdb_state_new(void) {
 		free(st);
 		return NULL;
 	}
+	if (pthread_mutex_init(&st->cache_lock, NULL)) {
+		pthread_mutex_destroy(&st->data_lock);
+		pthread_mutex_destroy(&st->lock);
+		free(st);
+		return NULL;
+	}
 	st->refs = 1;
 	return st;
 }
@@ -44,6 +50,7 @@ void mdb_state_unref(void *p) {
 	}
 	/* no function can run any more: nothing else holds the lock or a batch */
 	mdb_state_release(st);
+	pthread_mutex_destroy(&st->cache_lock);
 	pthread_mutex_destroy(&st->data_lock);
 	pthread_mutex_destroy(&st->lock);
 	free(st);
@@ -61,7 +68,9 @@ int mdb_state_release(mdb_state *st) {
 				duckdb_disconnect(&both[k]->con);
 			}
 		}
+		pthread_mutex_lock(&st->cache_lock);
 		mdb_drop_cache(st);
+		pthread_mutex_unlock(&st->cache_lock);
 		mdb_drop_models(st);
 		st->released = 1;
 	}
