@@ -589,7 +589,7 @@ def test_the_kernel_clears_every_row_it_reads_whatever_the_memory_held():
     want = parse_amc(cut, s)
     assert np.all(want.dofs["lthumb"] == 0)
     start = amc_module._parse_header(cut, "t.amc")[0]
-    names, ndof, col_start, _, _, name_buf, name_start, name_len = amc_module._kernel_layout(s)
+    names, ndof, col_start, _, _, name_buf, name_start, name_len, _, _ = amc_module._kernel_layout(s)
     out = np.full((want.n_frames + 5, int(ndof.sum())), np.nan)
     fb = [np.zeros(1024, dtype=np.int64) for _ in range(3)]
     status = np.zeros(8, dtype=np.int64)
@@ -688,7 +688,7 @@ def test_the_frame_size_bound_is_the_python_one():
     cases = 0
     for amc in sorted(DATA.rglob("*.amc"))[::7]:
         skel = read_asf(find_skeleton(amc))
-        names, ndof, _, _, _, name_buf, name_start, name_len = _kernel_layout(skel)
+        names, ndof, _, _, _, name_buf, name_start, name_len, _, _ = _kernel_layout(skel)
         ndof_of = {n.lower(): int(k) for n, k in zip(names, ndof)}
         data = amc.read_bytes()
         start = _parse_header(data, str(amc))[0]
