@@ -194,17 +194,22 @@ def sincos(x):
 
 
 @jit
+def _mixed_columns(axis):  # pragma: no cover - numba
+    """The two columns ``(i, j)`` (cyclic) that a rotation about ``axis`` (0=x, 1=y, 2=z) mixes."""
+    if axis == 0:
+        return 1, 2
+    if axis == 1:
+        return 2, 0
+    return 0, 1
+
+
+@jit
 def rotate_columns(h, k, axis, c, s):  # pragma: no cover - numba
     """h[k] = h[k] · R_axis(θ) with c = cos θ, s = sin θ (axis 0=x, 1=y, 2=z).
 
     Right-multiplying by an elementary rotation only mixes two columns.
     """
-    if axis == 0:
-        i, j = 1, 2
-    elif axis == 1:
-        i, j = 2, 0
-    else:
-        i, j = 0, 1
+    i, j = _mixed_columns(axis)
     # R_axis has R[i,i] = c, R[j,i] = s, R[i,j] = -s, R[j,j] = c for (i, j) cyclic
     for r in range(3):
         a = h[k, r, i]
@@ -292,12 +297,7 @@ _FK_LANE_GROUP = 8
 def _rotate_lanes(h, k, axis, c, s, m):  # pragma: no cover - numba
     """:func:`rotate_columns` of matrix ``k`` of ``h`` (nodes, 3, 3, lanes) in each of the first ``m`` lanes,
     ``c``/``s`` the lanes' cosine and sine: the same products and sums, a lane per frame."""
-    if axis == 0:
-        i, j = 1, 2
-    elif axis == 1:
-        i, j = 2, 0
-    else:
-        i, j = 0, 1
+    i, j = _mixed_columns(axis)
     h0i, h0j = h[k, 0, i], h[k, 0, j]
     h1i, h1j = h[k, 1, i], h[k, 1, j]
     h2i, h2j = h[k, 2, i], h[k, 2, j]
