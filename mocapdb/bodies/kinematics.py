@@ -327,7 +327,7 @@ def _asf_motion_kernel(values, factor, trans_cols, length_unit, root_position, r
     Rz·Ry·Rx`` and ``node_b = node_parent + H_b · (C_bᵀ · offset_b)``, which equals the toolbox's ``G_b =
     G_parent · C_b·M_b·C_bᵀ`` but needs no per-frame ``C``/``C⁻¹`` products when parent and child share an
     axis. Each lane takes the operations of the frame-by-frame kinematics in their order (bit for bit:
-    tests/naive_kinematics.py ``frame_by_frame_asf_fk``).
+    tests/test_asf_amc.py ``frame_by_frame_asf_fk``).
 
     ``root_cols`` (3,) columns of the root rz, ry, rx (−1 = absent); ``orient`` (3, 3) = O; ``order`` bones
     parents-first; ``parent`` (nb,) parent node (0 = root, k+1 = bone k); ``dmat`` (nb, 3, 3) =
