@@ -315,6 +315,93 @@ def test_fk_kernel_equals_naive_on_random_skeletons_and_angles(seed):
     assert np.abs(rot - ref_rot).max() <= 1e-14
 
 
+def frame_by_frame_asf_fk(skeleton, motion):
+    """The kinematics kernel's arithmetic one frame at a time in plain Python (the kernel before it took a
+    block's frames side by side, issue 35): the same layout arrays, the same sines and cosines
+    (:func:`sincos` of the values times the unit's factor), each product and sum in the same order — so the
+    kernel's lanes must equal it bit for bit, whatever the block (``naive_asf_fk`` checks the maths)."""
+    from mocapdb.bodies.kinematics import _angle_factor, _layout, joint_node_indices
+    from mocapdb.bodies.acclaim import INCH_TO_TOOLBOX
+    lay = _layout(skeleton)
+    rot_cols, root_cols, trans_cols = lay.columns_for(skeleton, motion)
+    nodes_of_joints = joint_node_indices(skeleton)
+    values = np.ascontiguousarray(motion.values, dtype=np.float64)
+    sin, cos = sincos(values * _angle_factor(motion.angle_unit))
+    n, nb = len(values), len(lay.order)
+
+    def rotate(h, axis, c, s):   # h · R_axis(θ): two columns mix
+        i, j = ((1, 2), (2, 0), (0, 1))[axis]
+        for r in range(3):
+            a, b = h[r][i], h[r][j]
+            h[r][i] = c * a + s * b
+            h[r][j] = c * b - s * a
+
+    joints, root_rot = np.empty((n, len(nodes_of_joints), 3)), np.empty((n, 3, 3))
+    for f in range(n):
+        rr = [[1.0 if i == j else 0.0 for j in range(3)] for i in range(3)]
+        h = [None] * (nb + 1)
+        node = [None] * (nb + 1)
+        h[0] = [[float(lay.orient[i, j]) for j in range(3)] for i in range(3)]
+        for q in range(3):
+            c = root_cols[q]
+            if c >= 0:
+                rotate(rr, 2 - q, float(cos[f, c]), float(sin[f, c]))
+                rotate(h[0], 2 - q, float(cos[f, c]), float(sin[f, c]))
+        node[0] = [((float(values[f, c]) if c >= 0 else 0.0) / float(skeleton.length_unit)) * INCH_TO_TOOLBOX
+                   + float(skeleton.root_position[k]) for k, c in enumerate(trans_cols)]
+        for b in lay.order:
+            p, k = lay.parent[b], b + 1
+            hp, d = h[p], lay.dmat[b]
+            if lay.dident[b]:
+                h[k] = [row[:] for row in hp]
+            else:
+                h[k] = [[hp[i][0] * d[0, j] + hp[i][1] * d[1, j] + hp[i][2] * d[2, j] for j in range(3)]
+                        for i in range(3)]
+            for ax in range(3):
+                c = rot_cols[b, ax]
+                if c >= 0:
+                    rotate(h[k], 2 - ax, float(cos[f, c]), float(sin[f, c]))
+            o = lay.offp[b]
+            node[k] = [node[p][i] + (h[k][i][0] * o[0] + h[k][i][1] * o[1] + h[k][i][2] * o[2]) for i in range(3)]
+        joints[f] = [node[j] for j in nodes_of_joints]
+        root_rot[f] = rr
+    return joints, root_rot
+
+
+@pytest.mark.parametrize("frames", [1, 7, 63, 64, 65, 130, 300])
+def test_fk_lanes_equal_the_frame_by_frame_kinematics_bit_for_bit(frames):
+    """A block's frames side by side give each frame what the frame-by-frame kernel gave it, bit for bit
+    (stored features must not move): the shipped take (every block length and a partial last block),
+    then seeded random skeletons, angles and translations."""
+    s = read_asf(SAMPLE_86_ASF)
+    m = read_amc(SAMPLE_86_09, s)
+    sub = replace(m, values=np.ascontiguousarray(m.values[:frames]))
+    joints, rot = asf_forward_kinematics(s, sub)
+    ref_joints, ref_rot = frame_by_frame_asf_fk(s, sub)
+    assert np.array_equal(joints, ref_joints) and np.array_equal(rot, ref_rot)
+    rng = np.random.default_rng(frames)
+    text = SAMPLE_86_ASF.read_bytes().decode("latin-1")
+    text = re.sub(r"axis -?[\d.e+-]+ -?[\d.e+-]+ -?[\d.e+-]+\s+XYZ",
+                  lambda mo: "axis " + " ".join(repr(float(v)) for v in rng.uniform(-180, 180, 3)) + " XYZ", text)
+    s2 = parse_asf(text)
+    vals = rng.uniform(-180, 180, size=(frames, m.values.shape[1]))
+    vals[:, :3] = rng.uniform(-50, 50, size=(frames, 3))   # the root's translation
+    sub2 = replace(read_amc(SAMPLE_86_09, s2), values=vals)
+    joints, rot = asf_forward_kinematics(s2, sub2)
+    ref_joints, ref_rot = frame_by_frame_asf_fk(s2, sub2)
+    assert np.array_equal(joints, ref_joints) and np.array_equal(rot, ref_rot)
+
+
+@pytest.mark.shared
+@pytest.mark.parametrize("amc", shared_cases(SAMPLE[:5]), ids=lambda p: p.stem)
+def test_fk_lanes_equal_the_frame_by_frame_kinematics_on_real_takes(amc):
+    s = read_asf(skeleton_path(amc))
+    m = read_amc(amc, s)
+    joints, rot = asf_forward_kinematics(s, m)
+    ref_joints, ref_rot = frame_by_frame_asf_fk(s, m)
+    assert np.array_equal(joints, ref_joints) and np.array_equal(rot, ref_rot)
+
+
 @pytest.mark.shared
 def test_root_rotation_is_the_amc_root_without_orientation():
     s = parse_asf(_perturbed_skeleton_text(5))
@@ -502,7 +589,7 @@ def test_the_kernel_clears_every_row_it_reads_whatever_the_memory_held():
     want = parse_amc(cut, s)
     assert np.all(want.dofs["lthumb"] == 0)
     start = amc_module._parse_header(cut, "t.amc")[0]
-    names, ndof, col_start, _, _, name_buf, name_start, name_len = amc_module._kernel_layout(s)
+    names, ndof, col_start, _, _, name_buf, name_start, name_len, _, _ = amc_module._kernel_layout(s)
     out = np.full((want.n_frames + 5, int(ndof.sum())), np.nan)
     fb = [np.zeros(1024, dtype=np.int64) for _ in range(3)]
     status = np.zeros(8, dtype=np.int64)
@@ -601,7 +688,7 @@ def test_the_frame_size_bound_is_the_python_one():
     cases = 0
     for amc in sorted(DATA.rglob("*.amc"))[::7]:
         skel = read_asf(find_skeleton(amc))
-        names, ndof, _, _, _, name_buf, name_start, name_len = _kernel_layout(skel)
+        names, ndof, _, _, _, name_buf, name_start, name_len, _, _ = _kernel_layout(skel)
         ndof_of = {n.lower(): int(k) for n, k in zip(names, ndof)}
         data = amc.read_bytes()
         start = _parse_header(data, str(amc))[0]

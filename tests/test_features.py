@@ -531,3 +531,44 @@ def test_motion_features_pipeline():
     assert words.dtype == np.uint64
     # bits 0-39 are the toolbox's 40; bit 40 is feature 41 (FEATURES.md §10), beyond the paper
     assert np.array_equal(words & np.uint64((1 << F.N_FEATURES) - 1), F.pack_words(oracle_features(stem, 30)))
+
+
+def _sample_order_velocity(joints, q, p, windows):
+    """The smoothed velocities in plain Python, one output at a time in the toolbox's ``conv`` order (each
+    sample times 1/w, oldest first), the forward difference as ``(P_q − P_p)(t + 1) − (P_q − P_p)(t)`` and
+    NumPy's 'symmetric' padding: what the kernel must give bit for bit, however it lays out its loops."""
+    n = len(joints)
+    out = np.empty((len(q), n, 3))
+    for k in range(len(q)):
+        w = int(windows[k])
+        traj = joints[:, q[k]] - joints[:, p[k]] if p[k] >= 0 else joints[:, q[k]]
+        v = np.vstack([traj[1:] - traj[:-1], traj[-1:] - traj[-2:-1]])
+        if n < w:
+            v = np.pad(v, ((0, w - n), (0, 0)), mode="symmetric")
+        half = (w + 1) // 2
+        u = np.pad(v, ((half, half), (0, 0)), mode="symmetric")
+        inv_w = 1.0 / w
+        for t in range(n):
+            for c in range(3):
+                a = 0.0
+                for j in range(w):
+                    a = float(u[t + 1 + j, c]) * inv_w + a
+                out[k, t, c] = a
+    return out
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 12, 31, 64, 150])
+def test_smoothed_velocity_kernel_sums_in_the_toolbox_order(n):
+    """The velocity kernel (its trajectories' coordinates in one pass, its box sums a window offset at a
+    time over every output, issue 35) equals the one-output-at-a-time sums bit for bit: the shipped take's
+    frames and seeded random ones, takes shorter than the windows, the 120 Hz and other rates' windows."""
+    from mocapdb.features.relational import _VEL_P, _VEL_Q, _smoothed_velocity_kernel, _windows
+    real = read_motion(SAMPLE_86_ASF.parent / "86_09.amc.xz", asf=SAMPLE_86_ASF).joints
+    rng = np.random.default_rng(n)
+    for joints, fps in ((real[:n], 120.0), (real[40:40 + n], 100.0),
+                        (rng.normal(0, 30, size=(n, 24, 3)), 120.0), (rng.normal(0, 1, size=(n, 24, 3)), 240.0)):
+        joints = np.ascontiguousarray(joints)
+        windows = _windows(fps)
+        out = np.empty((len(_VEL_Q), n, 3))
+        _smoothed_velocity_kernel(joints, _VEL_Q, _VEL_P, windows, out)
+        assert np.array_equal(out, _sample_order_velocity(joints, _VEL_Q, _VEL_P, windows))

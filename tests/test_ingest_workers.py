@@ -188,14 +188,16 @@ def test_a_take_is_read_once_and_a_stored_one_only_hashed(tmp_path, monkeypatch,
     shutil.copyfile(DATA / "foreign" / "bvh" / "pymo_AV_8Walk_Meredith_HVHA_Rep1.bvh", root / "walk.bvh")
     takes = sorted(str(p) for p in root.rglob("*") if p.suffix in (".amc", ".bvh"))
     streamed, held, read = [], [], []
-    raw, read_held, read_motion = sources._raw_stream, sources.read_held, ingest_read.read_motion
+    raw, read_held, read_options = sources._raw_stream, sources.read_held, ingest_read.read_options
     monkeypatch.setattr(sources, "_raw_stream", lambda p: streamed.append(str(p)) or raw(p))
     monkeypatch.setattr(ingest_read, "read_held", lambda p: held.append(str(p)) or read_held(p))
-    monkeypatch.setattr(ingest_read, "read_motion", lambda p, o: read.append(str(p)) or read_motion(p, o))
+    monkeypatch.setattr(ingest_read, "read_options",
+                        lambda p, o, checked=False: read.append((str(p), checked)) or read_options(p, o, checked=checked))
     con = open_db()
     report = mocapdb.ingest(con, [root])   # a few files: on threads, in this process
     assert sorted(p for p, _, _ in report.ingested) == takes and not report.failed
-    assert sorted(held) == takes and sorted(read) == takes
+    assert sorted(held) == takes and sorted(p for p, _ in read) == takes
+    assert all(checked for _, checked in read)   # the held bytes the fingerprint checked are not checked again
     assert not set(streamed) & set(takes)   # no take opened again: hash and reader had the one read's bytes
     assert any(p.endswith(".asf") for p in streamed)   # the skeleton is read as before
     held.clear(), read.clear()
@@ -231,8 +233,9 @@ def test_a_copy_of_a_take_in_the_same_ingest_is_only_hashed(tmp_path, monkeypatc
     root = tmp_path / "takes"
     shutil.copytree(DATA / "cmu" / "86", root / "a")
     shutil.copyfile(root / "a" / "86_09.amc", root / "a" / "86_99.amc")
-    read, read_motion = [], ingest_read.read_motion
-    monkeypatch.setattr(ingest_read, "read_motion", lambda p, o: read.append(p.name) or read_motion(p, o))
+    read, read_options = [], ingest_read.read_options
+    monkeypatch.setattr(ingest_read, "read_options",
+                        lambda p, o, checked=False: read.append(p.name) or read_options(p, o, checked=checked))
     report = ingest_files(open_db(), [root], workers=1)
     assert "86_09.amc" in read and "86_99.amc" not in read and len(read) == len(set(read))
     assert [(os.path.basename(p), r) for p, r in report.skipped] == [

@@ -388,3 +388,50 @@ def test_a_start_checked_once_is_checked_again_when_the_file_changes(tmp_path, m
     files.check_start(recent)
     files.check_start(recent)
     assert len(opened) == 2
+
+
+def _old_check_finite_motion(joints):
+    """check_finite_motion's decision as NumPy steps (before its one kernel call, issue 35): None (accepted),
+    "nan" or "far"."""
+    import numpy as np
+    first = joints[0]
+    size = float(np.ptp(first, axis=0).max()) or 1.0
+    centre = first.mean(axis=0)
+    if not np.isfinite(joints).all():
+        return "nan"
+    return "far" if (np.abs(joints - centre) > 1e6 * size).any() else None
+
+
+def test_the_finite_and_extent_check_decides_as_numpy():
+    """The one-call check (size and centre of the first frame, every coordinate's finiteness and distance)
+    accepts and refuses exactly what its NumPy steps did: random bodies, a flat one (size 0 → 1), values
+    at and beyond 10^6 body sizes, NaN and inf anywhere; the size and centre are NumPy's bit for bit."""
+    import numpy as np
+    from mocapdb.bodies.motion import _extent_kernel, check_finite_motion
+    rng = np.random.default_rng(35)
+    for trial in range(400):
+        n = int(rng.integers(1, 40))
+        j = rng.normal(0, 10.0 ** rng.integers(-3, 4), size=(n, 24, 3))
+        if trial % 7 == 0:
+            j[0] = j[0, :1]   # a flat first frame: size 0 → 1
+        size = float(np.ptp(j[0], axis=0).max()) or 1.0
+        out = np.empty(3)
+        _extent_kernel(j.reshape(-1, 3), 24, out)
+        assert out[2] == size
+        assert out[1] == np.abs(j.reshape(-1, 3) - j[0].mean(axis=0)).max()
+        kind = trial % 5
+        if kind == 1:   # exactly at the bound (accepted), or just beyond it (refused)
+            f, k, c = (int(rng.integers(0, s)) for s in (n, 24, 3))
+            if f:
+                j[f, k, c] = j[0].mean(axis=0)[c] + 1e6 * size * (1.0 if trial % 2 else 1.0 + 1e-9)
+        elif kind == 2:
+            j[tuple(int(rng.integers(0, s)) for s in (n, 24, 3))] = rng.choice([np.nan, np.inf, -np.inf])
+        elif kind == 3:
+            j[-1, -1, -1] = 1e300
+        expected = _old_check_finite_motion(j)
+        try:
+            check_finite_motion(j, "x.bvh")
+            got = None
+        except ParseError as exc:
+            got = "nan" if "non-finite" in str(exc) else "far"
+        assert got == expected, (trial, got, expected)

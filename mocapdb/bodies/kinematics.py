@@ -194,90 +194,28 @@ def sincos(x):
 
 
 @jit
+def _mixed_columns(axis):  # pragma: no cover - numba
+    """The two columns ``(i, j)`` (cyclic) that a rotation about ``axis`` (0=x, 1=y, 2=z) mixes."""
+    if axis == 0:
+        return 1, 2
+    if axis == 1:
+        return 2, 0
+    return 0, 1
+
+
+@jit
 def rotate_columns(h, k, axis, c, s):  # pragma: no cover - numba
     """h[k] = h[k] · R_axis(θ) with c = cos θ, s = sin θ (axis 0=x, 1=y, 2=z).
 
     Right-multiplying by an elementary rotation only mixes two columns.
     """
-    if axis == 0:
-        i, j = 1, 2
-    elif axis == 1:
-        i, j = 2, 0
-    else:
-        i, j = 0, 1
+    i, j = _mixed_columns(axis)
     # R_axis has R[i,i] = c, R[j,i] = s, R[i,j] = -s, R[j,j] = c for (i, j) cyclic
     for r in range(3):
         a = h[k, r, i]
         b = h[k, r, j]
         h[k, r, i] = c * a + s * b
         h[k, r, j] = c * b - s * a
-
-
-@jit
-def _asf_fk_kernel(sin, cos, trans, root_cols, orient, order, parent, dmat, dident, offp,
-                   rot_cols, joint_nodes, joints, root_rot):  # pragma: no cover - numba
-    """Forward kinematics of every frame.
-
-    Works with each bone's frame ``H_b = G_b · C_b`` (global rotation times
-    its axis rotation): ``H_b = H_parent · (C_parentᵀ · C_b) · Rz·Ry·Rx`` and
-    ``node_b = node_parent + H_b · (C_bᵀ · offset_b)``, which equals the
-    toolbox's ``G_b = G_parent · C_b·M_b·C_bᵀ`` but needs no per-frame
-    ``C``/``C⁻¹`` products when parent and child share an axis.
-
-    ``sin``/``cos`` (n, ncols): of the AMC angles in radians; ``trans``
-    (n, 3): root position in toolbox units; ``root_cols`` (3,) columns of the
-    root rz, ry, rx (-1 = absent); ``orient`` (3, 3) = O; ``order`` bones
-    parents-first; ``parent`` (nb,) parent node (0 = root, k+1 = bone k);
-    ``dmat`` (nb, 3, 3) = C_parentᵀ·C_b, ``dident`` (nb,) true when that is
-    the identity; ``offp`` (nb, 3) = C_bᵀ·offset_b; ``rot_cols`` (nb, 3)
-    columns of rz, ry, rx. Writes ``joints[f, j]`` = node ``joint_nodes[j]``
-    and ``root_rot[f]`` = Rz·Ry·Rx of the root.
-    """
-    n = sin.shape[0]
-    nb = order.shape[0]
-    h = np.empty((nb + 1, 3, 3))
-    node = np.empty((nb + 1, 3))
-    rr = np.empty((1, 3, 3))
-    nj = joint_nodes.shape[0]
-    for f in range(n):
-        # ---- root: R = Rz·Ry·Rx, H_0 = O · R
-        for i in range(3):
-            for j in range(3):
-                rr[0, i, j] = 1.0 if i == j else 0.0
-                h[0, i, j] = orient[i, j]
-        for q in range(3):
-            c = root_cols[q]
-            if c >= 0:
-                rotate_columns(rr, np.int64(0), 2 - q, cos[f, c], sin[f, c])
-                rotate_columns(h, np.int64(0), 2 - q, cos[f, c], sin[f, c])
-        for i in range(3):
-            node[0, i] = trans[f, i]
-            for j in range(3):
-                root_rot[f, i, j] = rr[0, i, j]
-        # ---- bones, parents first
-        for q in range(nb):
-            b = order[q]
-            p = parent[b]
-            k = b + 1
-            if dident[b]:
-                for i in range(3):
-                    for j in range(3):
-                        h[k, i, j] = h[p, i, j]
-            else:
-                for i in range(3):
-                    for j in range(3):
-                        h[k, i, j] = (h[p, i, 0] * dmat[b, 0, j] + h[p, i, 1] * dmat[b, 1, j]
-                                      + h[p, i, 2] * dmat[b, 2, j])
-            for a in range(3):  # z, y, x: M = Rz·Ry·Rx
-                c = rot_cols[b, a]
-                if c >= 0:
-                    rotate_columns(h, k, 2 - a, cos[f, c], sin[f, c])
-            for i in range(3):
-                node[k, i] = node[p, i] + (h[k, i, 0] * offp[b, 0] + h[k, i, 1] * offp[b, 1]
-                                           + h[k, i, 2] * offp[b, 2])
-        for j in range(nj):
-            for i in range(3):
-                joints[f, j, i] = node[joint_nodes[j], i]
 
 
 # ----------------------------------------------------------------------------
@@ -347,37 +285,129 @@ def _check(skeleton: Skeleton, motion: AmcMotion):
                              "read the AMC with the same skeleton")
 
 
-#: frames per block of forward kinematics: sine and cosine of one block's angles at a time, not of
-#: the take's (each frame is computed on its own, so blocks change no value); a block's angles stay in
-#: the processor's cache between the sines and the kinematics
+#: frames per block of forward kinematics, the lanes of :func:`_asf_motion_kernel`: each bone's frame and
+#: node are held for a block's frames side by side (a block's matrices, 31 × 9 × 64 doubles, stay in the
+#: processor's cache)
 _FK_BLOCK = 64
+#: a block's lanes are rounded up to this many (whole vectors; the lanes past the frames are ignored)
+_FK_LANE_GROUP = 8
+
+
+@jit
+def _rotate_lanes(h, k, axis, c, s, m):  # pragma: no cover - numba
+    """:func:`rotate_columns` of matrix ``k`` of ``h`` (nodes, 3, 3, lanes) in each of the first ``m`` lanes,
+    ``c``/``s`` the lanes' cosine and sine: the same products and sums, a lane per frame."""
+    i, j = _mixed_columns(axis)
+    h0i, h0j = h[k, 0, i], h[k, 0, j]
+    h1i, h1j = h[k, 1, i], h[k, 1, j]
+    h2i, h2j = h[k, 2, i], h[k, 2, j]
+    for f in range(m):
+        cf, sf = c[f], s[f]
+        a, b = h0i[f], h0j[f]
+        h0i[f] = cf * a + sf * b
+        h0j[f] = cf * b - sf * a
+        a, b = h1i[f], h1j[f]
+        h1i[f] = cf * a + sf * b
+        h1j[f] = cf * b - sf * a
+        a, b = h2i[f], h2j[f]
+        h2i[f] = cf * a + sf * b
+        h2j[f] = cf * b - sf * a
 
 
 @jit
 def _asf_motion_kernel(values, factor, trans_cols, length_unit, root_position, root_cols, orient, order, parent,
                        dmat, dident, offp, rot_cols, joint_nodes, joints, root_rot):  # pragma: no cover - numba
-    """A take's forward kinematics in one call (issue 35), :data:`_FK_BLOCK` frames at a time: the AMC
-    values (n, ncols) in the motion's angle unit times ``factor`` (convert2quat.m: angle · conversion
-    factor, then sin/cos, :func:`_sincos_kernel`), the root position ``(t / length_unit) · 2.54 +
-    root_position`` (readAMC.m / readASF.m; ``trans_cols`` −1: t = 0), then :func:`_asf_fk_kernel`."""
+    """A take's forward kinematics in one call (issue 35), :data:`_FK_BLOCK` frames at a time, the frames of a
+    block side by side (one lane each: the loops over lanes are vector instructions).
+
+    Per block: the AMC values (n, ncols) in the motion's angle unit times ``factor`` (convert2quat.m: angle ·
+    conversion factor), their sine and cosine (:func:`_sincos_kernel`), the root position ``(t / length_unit)
+    · 2.54 + root_position`` (readAMC.m / readASF.m; ``trans_cols`` −1: t = 0), then each bone's frame
+    ``H_b = G_b · C_b`` (global rotation times its axis rotation): ``H_b = H_parent · (C_parentᵀ · C_b) ·
+    Rz·Ry·Rx`` and ``node_b = node_parent + H_b · (C_bᵀ · offset_b)``, which equals the toolbox's ``G_b =
+    G_parent · C_b·M_b·C_bᵀ`` but needs no per-frame ``C``/``C⁻¹`` products when parent and child share an
+    axis. Each lane takes the operations of the frame-by-frame kinematics in their order (bit for bit:
+    tests/test_asf_amc.py ``frame_by_frame_asf_fk``).
+
+    ``root_cols`` (3,) columns of the root rz, ry, rx (−1 = absent); ``orient`` (3, 3) = O; ``order`` bones
+    parents-first; ``parent`` (nb,) parent node (0 = root, k+1 = bone k); ``dmat`` (nb, 3, 3) =
+    C_parentᵀ·C_b, ``dident`` (nb,) true when that is the identity; ``offp`` (nb, 3) = C_bᵀ·offset_b;
+    ``rot_cols`` (nb, 3) columns of rz, ry, rx. Writes ``joints[f, j]`` = node ``joint_nodes[j]`` and
+    ``root_rot[f]`` = Rz·Ry·Rx of the root."""
     n, ncols = values.shape
-    ang = np.empty(_FK_BLOCK * ncols)
-    sin = np.empty(_FK_BLOCK * ncols)
-    cos = np.empty(_FK_BLOCK * ncols)
-    trans = np.empty((_FK_BLOCK, 3))
+    nb = order.shape[0]
+    nj = joint_nodes.shape[0]
+    ang = np.zeros(ncols * _FK_BLOCK)
+    sin = np.empty(ncols * _FK_BLOCK)
+    cos = np.empty(ncols * _FK_BLOCK)
+    h = np.empty((nb + 1, 3, 3, _FK_BLOCK))
+    node = np.zeros((nb + 1, 3, _FK_BLOCK))
+    rr = np.empty((1, 3, 3, _FK_BLOCK))
     for a in range(0, n, _FK_BLOCK):
         m = min(_FK_BLOCK, n - a)
+        w = min(_FK_BLOCK, (m + _FK_LANE_GROUP - 1) // _FK_LANE_GROUP * _FK_LANE_GROUP)   # lanes computed
+        av = ang[:ncols * w].reshape((ncols, w))
         for f in range(m):
             for k in range(ncols):
-                ang[f * ncols + k] = values[a + f, k] * factor
-            for k in range(3):
-                c = trans_cols[k]
+                av[k, f] = values[a + f, k] * factor
+        for k in range(3):
+            c = trans_cols[k]
+            for f in range(m):
                 t = values[a + f, c] if c >= 0 else 0.0
-                trans[f, k] = (t / length_unit) * INCH_TO_TOOLBOX + root_position[k]
-        _sincos_kernel(ang[:m * ncols], sin[:m * ncols], cos[:m * ncols])
-        _asf_fk_kernel(sin[:m * ncols].reshape((m, ncols)), cos[:m * ncols].reshape((m, ncols)), trans[:m],
-                       root_cols, orient, order, parent, dmat, dident, offp, rot_cols, joint_nodes,
-                       joints[a:a + m], root_rot[a:a + m])
+                node[0, k, f] = (t / length_unit) * INCH_TO_TOOLBOX + root_position[k]
+        _sincos_kernel(ang[:ncols * w], sin[:ncols * w], cos[:ncols * w])
+        sv = sin[:ncols * w].reshape((ncols, w))
+        cv = cos[:ncols * w].reshape((ncols, w))
+        # ---- root: R = Rz·Ry·Rx, H_0 = O · R
+        for i in range(3):
+            for j in range(3):
+                e = 1.0 if i == j else 0.0
+                o = orient[i, j]
+                for f in range(w):
+                    rr[0, i, j, f] = e
+                    h[0, i, j, f] = o
+        for q in range(3):
+            c = root_cols[q]
+            if c >= 0:
+                _rotate_lanes(rr, 0, 2 - q, cv[c], sv[c], w)
+                _rotate_lanes(h, 0, 2 - q, cv[c], sv[c], w)
+        # ---- bones, parents first
+        for q in range(nb):
+            b = order[q]
+            p = parent[b]
+            k = b + 1
+            hp, hk = h[p], h[k]
+            if dident[b]:
+                for i in range(3):
+                    for j in range(3):
+                        for f in range(w):
+                            hk[i, j, f] = hp[i, j, f]
+            else:
+                d00, d01, d02 = dmat[b, 0, 0], dmat[b, 0, 1], dmat[b, 0, 2]
+                d10, d11, d12 = dmat[b, 1, 0], dmat[b, 1, 1], dmat[b, 1, 2]
+                d20, d21, d22 = dmat[b, 2, 0], dmat[b, 2, 1], dmat[b, 2, 2]
+                for f in range(w):
+                    for i in range(3):
+                        p0, p1, p2 = hp[i, 0, f], hp[i, 1, f], hp[i, 2, f]
+                        hk[i, 0, f] = p0 * d00 + p1 * d10 + p2 * d20
+                        hk[i, 1, f] = p0 * d01 + p1 * d11 + p2 * d21
+                        hk[i, 2, f] = p0 * d02 + p1 * d12 + p2 * d22
+            for ax in range(3):  # z, y, x: M = Rz·Ry·Rx
+                c = rot_cols[b, ax]
+                if c >= 0:
+                    _rotate_lanes(h, k, 2 - ax, cv[c], sv[c], w)
+            o0, o1, o2 = offp[b, 0], offp[b, 1], offp[b, 2]
+            np_, nk = node[p], node[k]
+            for f in range(w):
+                for i in range(3):
+                    nk[i, f] = np_[i, f] + (hk[i, 0, f] * o0 + hk[i, 1, f] * o1 + hk[i, 2, f] * o2)
+        for f in range(m):
+            for j in range(nj):
+                for i in range(3):
+                    joints[a + f, j, i] = node[joint_nodes[j], i, f]
+            for i in range(3):
+                for j in range(3):
+                    root_rot[a + f, i, j] = rr[0, i, j, f]
 
 
 def _run(skeleton: Skeleton, motion: AmcMotion, joint_nodes: np.ndarray):

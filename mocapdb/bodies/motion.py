@@ -79,8 +79,25 @@ def check_rate(fps, path, line=None) -> float:
 
 
 @jit
-def _extent_kernel(points, centre, out):  # pragma: no cover - compiled
-    """out[0] = 1 if any coordinate is not finite, out[1] = the largest |x - centre|."""
+def _extent_kernel(points, body, out):  # pragma: no cover - compiled
+    """The checks of :func:`check_finite_motion` in one call (a take's NumPy steps on the first frame cost
+    more than the pass, issue 35): ``out[0]`` = 1 if any coordinate of ``points`` (k, 3) is not finite,
+    ``out[1]`` = the largest |x − centre|, ``out[2]`` = the body's size — of its first ``body`` points (the
+    first frame): the largest range of a coordinate, 1 if that is 0; the centre is their mean, summed in
+    order as ``np.mean(axis=0)`` sums (both meaningful only when ``out[0]`` is 0)."""
+    centre = np.empty(3)
+    size = 0.0
+    for c in range(3):
+        lo = points[0, c]
+        hi = lo
+        total = lo
+        for k in range(1, body):
+            x = points[k, c]
+            lo = min(lo, x)
+            hi = max(hi, x)
+            total += x
+        centre[c] = total / body
+        size = max(size, hi - lo)
     bad = 0.0
     far = 0.0
     for k in range(points.shape[0]):
@@ -94,6 +111,7 @@ def _extent_kernel(points, centre, out):  # pragma: no cover - compiled
                     far = d
     out[0] = bad
     out[1] = far
+    out[2] = size if size != 0.0 else 1.0
 
 
 def check_finite_motion(joints: np.ndarray, path, *, first_line=None) -> None:
@@ -107,14 +125,14 @@ def check_finite_motion(joints: np.ndarray, path, *, first_line=None) -> None:
     """
     if joints.size == 0:
         raise ParseError(path, first_line, "no frames")
+    # one pass over the whole array first; frames only for the message
+    extent = np.empty(3)
+    _extent_kernel(np.ascontiguousarray(joints, dtype=np.float64).reshape(-1, 3), joints.shape[1], extent)
+    if extent[0] == 0.0 and extent[1] <= 1e6 * extent[2]:
+        return
     first = joints[0]
     size = float(np.ptp(first, axis=0).max()) or 1.0
     centre = first.mean(axis=0)
-    # one pass over the whole array first; frames only for the message
-    extent = np.empty(2)
-    _extent_kernel(np.ascontiguousarray(joints, dtype=np.float64).reshape(-1, 3), centre, extent)
-    if extent[0] == 0.0 and extent[1] <= 1e6 * size:
-        return
     finite = np.isfinite(joints).all(axis=(1, 2))
     if not finite.all():
         f = int(np.argmin(finite))

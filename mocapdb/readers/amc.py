@@ -371,7 +371,7 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     elif unit != skeleton.angle_unit:
         log.warning("%s: AMC angles in %s but the ASF says %s; using the AMC's unit",
                     path, unit, skeleton.angle_unit)
-    names, ndof, col_start, columns, dof_names, name_buf, name_start, name_len = _kernel_layout(skeleton)
+    names, ndof, col_start, columns, dof_names, name_buf, name_start, name_len, ncols, owner = _kernel_layout(skeleton)
     buf = np.frombuffer(data, dtype=np.uint8) if data else np.zeros(1, np.uint8)
 
     if start >= len(data):
@@ -382,7 +382,6 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     # at least as many bytes as the shortest spelling of frame 1; +1 for a
     # truncated last frame. np.empty is lazy: untouched slack costs nothing.
     n_rows = (len(data) - start) // _min_frame_bytes_kernel(buf, start, name_buf, name_start, name_len, ndof) + 1
-    ncols = int(ndof.sum())
     cap = 1024
     while True:
         out = np.empty((n_rows, ncols), dtype=np.float64)   # the kernel zeroes the rows it reads
@@ -404,8 +403,6 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
     if status[0] != _E_NONE:
         raise _kernel_error(data, path, status, names, seen, ref, dof_names, first, skeleton)
     nfb = int(status[6])
-    owner = np.repeat(np.arange(len(names)), ndof)  # column -> bone
-
     def describe(flat):
         return first + flat // ncols, f"bone {names[owner[flat % ncols]]!r}: "
 
@@ -417,9 +414,9 @@ def parse_amc(data: bytes, skeleton: Skeleton, *, path="<amc>") -> AmcMotion:
 
 
 def _kernel_layout(skeleton: Skeleton) -> tuple:
-    """The skeleton's column layout (:func:`column_layout`), DOFs per lower-case name and its bone names as
-    the kernel reads them (lower case, back to back): built once per skeleton, not per take (a skeleton
-    is immutable; an archive's takes share a few)."""
+    """The skeleton's column layout (:func:`column_layout`), DOFs per lower-case name, its bone names as
+    the kernel reads them (lower case, back to back), the column count and each column's bone: built once
+    per skeleton, not per take (a skeleton is immutable; an archive's takes share a few)."""
     cached = skeleton.__dict__.get("_amc_layout")
     if cached is not None:
         return cached
@@ -430,7 +427,8 @@ def _kernel_layout(skeleton: Skeleton) -> tuple:
     name_start = np.zeros(len(enc), dtype=np.int64)
     name_start[1:] = np.cumsum(name_len)[:-1]
     name_buf = np.frombuffer(b"".join(enc), dtype=np.uint8)
-    out = (names, ndof, col_start, columns, dof_names, name_buf, name_start, name_len)
+    owner = np.repeat(np.arange(len(names)), ndof)  # column -> bone
+    out = (names, ndof, col_start, columns, dof_names, name_buf, name_start, name_len, int(ndof.sum()), owner)
     object.__setattr__(skeleton, "_amc_layout", out)  # a frozen dataclass: a private memo
     return out
 

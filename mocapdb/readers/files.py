@@ -360,14 +360,23 @@ def read_motion(path, options=None, *, asf=None, joint_map=None, marker_map=None
     elif any(v is not None for v in keywords.values()):
         raise ParameterError("read_motion: give options or the keywords asf, joint_map, marker_map, marker_rules, "
                              "body_model, not both")
-    path = as_path(path)
-    kind = special_kind(path)
-    if kind is not None:   # reading a FIFO would block, a device never end
-        raise ParseError(path, None, f"{kind}, not a motion file")
+    return read_options(as_path(path), options)
+
+
+def read_options(path: Path, options, *, checked: bool = False) -> Motion:
+    """:func:`read_motion` of a ``Path`` with its :class:`~mocapdb.readers.options.ReaderOptions`;
+    ``checked``: the caller holds the file's bytes (:func:`~mocapdb.readers.sources.holding`) and has
+    checked them as this would — not a FIFO or device, :func:`check_start` passed (ingest's fingerprint of
+    a held take: the two checks cost a short take ~10 µs each, issue 35)."""
+    if not checked:
+        kind = special_kind(path)
+        if kind is not None:   # reading a FIFO would block, a device never end
+            raise ParseError(path, None, f"{kind}, not a motion file")
     try:
         # hostile values overflow in FK; the result is checked for finiteness
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"), options.capped():
-            check_start(path)
+            if not checked:
+                check_start(path)
             return _read(path, options)
     except MocapdbError:
         raise

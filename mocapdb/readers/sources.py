@@ -136,8 +136,23 @@ def _is_zip(p: Path) -> bool:
 
 def as_path(path) -> Path:
     """``path`` as a Path, not parsed again when it is one (a per-file helper is asked ~20 times per take,
-    and ``Path(a_path)`` parses the whole path anew): what every per-take step uses instead of ``Path``."""
-    return path if isinstance(path, Path) else Path(path)
+    and ``Path(a_path)`` parses the whole path anew): what every per-take step uses instead of ``Path``.
+    A string's Path is kept (Paths are immutable): a take's skeleton comes as a string (the options keep
+    it absolute) and was parsed twice per take (issue 35)."""
+    if isinstance(path, Path):
+        return path
+    if type(path) is not str:
+        return Path(path)
+    hit = _PATHS.get(path)
+    if hit is None:
+        if len(_PATHS) >= 1024:
+            _PATHS.clear()
+        hit = _PATHS[path] = Path(path)
+    return hit
+
+
+#: strings' Paths for :func:`as_path`
+_PATHS = {}
 
 
 def split_archive(path) -> tuple:

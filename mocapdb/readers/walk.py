@@ -20,7 +20,7 @@ from pathlib import Path
 from mocapdb.errors import ParameterError
 from mocapdb.readers.amass import SHAPE_FILE_PATTERNS
 from mocapdb.readers.files import SUPPORTED_EXTENSIONS
-from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, is_file, motion_stem, motion_suffix, special_kind,
+from mocapdb.readers.sources import (ARCHIVES, COMPRESSED, as_path, is_file, motion_stem, motion_suffix, special_kind,
                                      split_archive, zip_members)
 
 __all__ = ["motion_files", "MOTION_SUFFIXES", "companion_kind"]
@@ -36,7 +36,7 @@ def companion_kind(path) -> str | None:
     (``shape.npz``, ``*_stagei.npz``: betas and gender, no motion), which a
     folder walk lists as not motion files rather than failed ones.
     """
-    p = Path(path)
+    p = as_path(path)
     if motion_suffix(p) == ".asf":
         return "an ASF skeleton (read with its AMC takes)"
     name = (motion_stem(p) + motion_suffix(p)).lower()
@@ -79,12 +79,13 @@ def _walk(folder: Path, files: list, unsupported, unreadable, hidden=None):
         if hidden is not None:
             hidden += [(str(Path(root) / d), _hidden_reason(d, True)) for d in sorted(dirs) if _hidden(d)]
         dirs[:] = sorted(d for d in dirs if not _hidden(d))
+        here = Path(root)   # parsed once per folder, not once per file
         for name in sorted(names):
             if _hidden(name):
                 if hidden is not None:
-                    hidden.append((str(Path(root) / name), _hidden_reason(name, False)))
+                    hidden.append((str(here / name), _hidden_reason(name, False)))
                 continue
-            q = Path(root) / name
+            q = here / name
             kind = special_kind(q)
             if kind is not None:
                 if unsupported is not None:

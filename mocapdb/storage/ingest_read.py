@@ -17,8 +17,8 @@ import numpy as np
 
 from mocapdb.errors import MocapdbError
 from mocapdb.features import motion_features
-from mocapdb.readers import ReaderOptions, find_skeleton, read_motion, skeleton_note
-from mocapdb.readers.files import check_start
+from mocapdb.readers import ReaderOptions, find_skeleton, skeleton_note
+from mocapdb.readers.files import check_start, read_options
 from mocapdb.readers.sources import FileCache, as_path, holding, motion_suffix, read_held, sha256, special_kind
 
 log = logging.getLogger("mocapdb")
@@ -115,10 +115,16 @@ def compute_motion(prep):
     ((n_frames,) uint64), or ``prep.error`` (the reader's message) when the
     file cannot be read; returns ``prep``.
     """
+    return _compute(prep, checked=False)
+
+
+def _compute(prep, checked: bool):
+    """:func:`compute_motion`; ``checked``: the file's bytes are held and were fingerprinted so (its kind
+    and start checked: :func:`~mocapdb.readers.files.read_options`)."""
     # any failure stays with its file: a reader raises only MocapdbError, but a
     # bug must not stop the other files of an archive (READERS.md §4)
     try:
-        prep.motion = read_motion(prep.path, prep.options.replace(asf=prep.skeleton_path))
+        prep.motion = read_options(prep.path, _with_skeleton(prep.options, prep.skeleton_path), checked=checked)
         prep.words = motion_features(prep.motion)
         prep.notes = _notes(prep)
         if prep.notes or prep.motion.meta.get("frames", (1, None))[0] != 1:
@@ -139,6 +145,22 @@ def compute_motion(prep):
     return prep
 
 
+#: ``(options, skeleton path)`` → the options with that skeleton: an archive's takes share a few (a
+#: ``replace`` checks every field again: ~10 µs a take)
+_WITH_SKELETON = {}
+
+
+def _with_skeleton(options, skeleton_path):
+    """``options.replace(asf=skeleton_path)``, kept for the next take of the same pair."""
+    key = (options, skeleton_path)
+    hit = _WITH_SKELETON.get(key)
+    if hit is None:
+        if len(_WITH_SKELETON) >= 256:
+            _WITH_SKELETON.clear()
+        hit = _WITH_SKELETON[key] = options.replace(asf=skeleton_path)
+    return hit
+
+
 def _notes(prep) -> list:
     """The reader's notes for a computed file, with the skeleton found by the folder rule."""
     notes = list(prep.motion.meta.get("notes", ()))
@@ -152,13 +174,14 @@ def _notes(prep) -> list:
 @contextlib.contextmanager
 def read_once(path):
     """Within the block (this thread), hashing ``path`` and reading it share one read of its bytes (a plain
-    file up to :data:`~mocapdb.readers.sources.HOLD_MAX`; anything else is streamed as before)."""
+    file up to :data:`~mocapdb.readers.sources.HOLD_MAX`; anything else is streamed as before). Yields
+    whether the bytes are held."""
     try:
         data = read_held(path)   # None for a FIFO or device (looked at before it is opened), as for a large file
     except OSError:
         data = None   # the fingerprint reads it again and words what fails
     with holding(path, data):
-        yield
+        yield data is not None
 
 
 def _read_new(item):
@@ -168,7 +191,7 @@ def _read_new(item):
     (``deferred`` when not read), or the one-line reason its fingerprint failed."""
     path, options, token = item
     path = as_path(path)
-    with read_once(path):
+    with read_once(path) as held:
         try:
             prep = prepare_file(path, options)
         except MocapdbError as exc:
@@ -176,7 +199,8 @@ def _read_new(item):
         if _maybe_stored(token, prep.sha256) or _seen(token, (prep.sha256, prep.skeleton_sha256)):
             prep.deferred = True
             return prep
-        return _compute_slim(prep)
+        # the bytes the fingerprint checked and hashed are the bytes read: not checked again
+        return _compute_slim(prep, checked=held)
 
 
 #: the stored files' SHA-256 prefixes (sorted uint64) of the ingests running here, by token
@@ -240,9 +264,9 @@ class _Computed:
     skeleton: str | None
 
 
-def _compute_slim(prep):
-    """:func:`compute_motion` with the motion reduced to :class:`_Computed`."""
-    compute_motion(prep)
+def _compute_slim(prep, checked: bool = False):
+    """:func:`compute_motion` with the motion reduced to :class:`_Computed` (``checked``: see :func:`_compute`)."""
+    _compute(prep, checked)
     m = prep.motion
     if m is not None:
         prep.motion = _Computed(m.name, m.source_format, float(m.fps), int(m.n_frames), m.skeleton)
