@@ -55,6 +55,9 @@ def takes():
         subject = amc.parent.name
         asf = find_skeleton(amc) or DATA / "cmu" / "02" / "02.asf"
         out.append((amc, Path("cmu") / subject, asf, Path("cmu") / subject / f"{subject}.asf"))
+    if not out:   # an archive of no takes would be an empty benchmark (and copy 0 never written)
+        raise SystemExit(f"ingest_archive: no ASF/AMC takes under {DATA}/hdm05_cut or {DATA}/cmu; "
+                         f"set MOCAPDB_SHARED to the shared folder (the one holding data/)")
     return out
 
 
