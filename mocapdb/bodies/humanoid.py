@@ -48,13 +48,15 @@ its legs; READERS.md §2.1).
 from __future__ import annotations
 
 import functools
+import math
 import re
 from dataclasses import dataclass
 
 import numpy as np
 
+from mocapdb._numba import jit
 from mocapdb.bodies.joints import JOINT_INDEX, JOINT_NAMES
-from mocapdb.bodies.units import column_medians, leg_length, pair_lengths
+from mocapdb.bodies.units import _column_medians_kernel, _pair_lengths_kernel
 
 __all__ = ["SkeletonTree", "JointMap", "MappingError", "map_humanoid", "normalized_name", "name_side",
            "mapping_template", "hip_axis_is_x", "Z_UP_TO_Y_UP", "humanoid_problem", "upright_frames",
@@ -608,19 +610,84 @@ MIN_UPRIGHT = 0.05
 _SAMPLE = 512
 
 
-#: the distances the human test measures (legs, arms, trunk, hip and shoulder width)
+#: the distances the human test measures (legs, arms, trunk, hip and shoulder width); the kernel
+#: reads them by position: legs 0-3, arms 4-7, trunk 8, hip width 9, shoulder width 10
 _PAIRS = (("lhip", "lknee"), ("lknee", "lankle"), ("rhip", "rknee"), ("rknee", "rankle"),
           ("lshoulder", "lelbow"), ("lelbow", "lwrist"), ("rshoulder", "relbow"), ("relbow", "rwrist"),
           ("root", "neck"), ("lhip", "rhip"), ("lshoulder", "rshoulder"))
 _PAIR_A = np.array([JOINT_INDEX[a] for a, _ in _PAIRS], dtype=np.int64)
 _PAIR_B = np.array([JOINT_INDEX[b] for _, b in _PAIRS], dtype=np.int64)
+#: the measures of :data:`HUMAN_PROPORTIONS` in the order the kernel writes their medians
+_MEASURES = ("arm", "trunk", "hip width", "shoulder width")
+#: the joints the upright test reads (compile-time constants of the kernel)
+_J_ROOT, _J_NECK, _J_HEAD = JOINT_INDEX["root"], JOINT_INDEX["neck"], JOINT_INDEX["head"]
+_J_LSHOULDER, _J_RSHOULDER = JOINT_INDEX["lshoulder"], JOINT_INDEX["rshoulder"]
+_J_LANKLE, _J_RANKLE = JOINT_INDEX["lankle"], JOINT_INDEX["rankle"]
+_J_LWRIST, _J_RWRIST = JOINT_INDEX["lwrist"], JOINT_INDEX["rwrist"]
+_J_LHIP, _J_RHIP = JOINT_INDEX["lhip"], JOINT_INDEX["rhip"]
+#: cos 45°, as NumPy computes it: the trunk's largest angle to the vertical
+_COS45 = float(np.cos(np.radians(45.0)))
 
 
-def _lengths(j, step: int = 1) -> dict:
-    """``{(a, b): |j[f, a] − j[f, b]|}`` over every ``step``-th frame f, for every pair of :data:`_PAIRS`
-    (:func:`~mocapdb.bodies.units.pair_lengths`: each value as a norm of its own pair would give)."""
-    dist = pair_lengths(j, _PAIR_A, _PAIR_B, step)
-    return {pair: dist[:, k] for k, pair in enumerate(_PAIRS)}
+@jit
+def _min_nan(a, b):  # pragma: no cover - compiled
+    """``np.minimum(a, b)`` of two floats: NaN when either is NaN."""
+    if a != a or b != b:
+        return np.nan
+    return a if a <= b else b
+
+
+@jit
+def _human_measures_kernel(joints, step, a, b, med, upright):  # pragma: no cover - compiled
+    """The human test's numbers over every ``step``-th frame of ``joints`` (issue 35: a dozen NumPy
+    calls per take cost more than the arithmetic on a few hundred frames).
+
+    ``med[0]``: the median leg (hip → knee → ankle, both sides, as :func:`~mocapdb.bodies.units.leg_length`),
+    ``med[1:5]``: the median of each measure of :data:`_MEASURES`; ``upright[i]``: frame ``i·step``
+    stands like a human (:func:`upright_frames`). Returns how many frames stand. Every sum is in the
+    order of the NumPy expressions it replaced (``0.5 * (a + b + c + d)``: left to right), the medians
+    and distances are the kernels of :mod:`~mocapdb.bodies.units`: the same floats bit for bit.
+    """
+    n = upright.shape[0]
+    ln = np.empty((n, a.shape[0]))
+    _pair_lengths_kernel(joints, step, a, b, ln)
+    legs = np.empty((2 * n, 1))
+    measures = np.empty((n, 4))
+    stands = 0
+    for i in range(n):
+        legs[i, 0] = ln[i, 0] + ln[i, 1]
+        legs[n + i, 0] = ln[i, 2] + ln[i, 3]
+        measures[i, 0] = 0.5 * (ln[i, 4] + ln[i, 5] + ln[i, 6] + ln[i, 7])
+        measures[i, 1] = ln[i, 8]
+        measures[i, 2] = ln[i, 9]
+        measures[i, 3] = ln[i, 10]
+        f = i * step
+        leg = 0.5 * (ln[i, 0] + ln[i, 1] + ln[i, 2] + ln[i, 3])
+        sx = joints[f, _J_NECK, 0] - joints[f, _J_ROOT, 0]
+        sy = joints[f, _J_NECK, 1] - joints[f, _J_ROOT, 1]
+        sz = joints[f, _J_NECK, 2] - joints[f, _J_ROOT, 2]
+        vertical = sy > _COS45 * math.sqrt(sx * sx + sy * sy + sz * sz)
+        head_up = joints[f, _J_HEAD, 1] > 0.5 * (joints[f, _J_LSHOULDER, 1] + joints[f, _J_RSHOULDER, 1])
+        feet = _min_nan(joints[f, _J_LANKLE, 1], joints[f, _J_RANKLE, 1])
+        hands = _min_nan(joints[f, _J_LWRIST, 1], joints[f, _J_RWRIST, 1])
+        hips = _min_nan(joints[f, _J_LHIP, 1], joints[f, _J_RHIP, 1])
+        upright[i] = vertical and head_up and hands - feet > 0.25 * leg and feet < hips
+        stands += upright[i]
+    _column_medians_kernel(legs, med[:1])
+    _column_medians_kernel(measures, med[1:])
+    return stands
+
+
+def _human_measures(joints, step: int = 1) -> tuple:
+    """``(median leg, {measure: median}, per-frame upright, the fraction of frames upright)`` over every
+    ``step``-th frame of ``joints`` ((n, 24, 3), Y up): :func:`_human_measures_kernel`."""
+    j = np.asarray(joints, dtype=np.float64)
+    med = np.empty(5)
+    upright = np.empty((len(j) + step - 1) // step, dtype=np.bool_)
+    stands = _human_measures_kernel(j, step, _PAIR_A, _PAIR_B, med, upright)
+    # count / n: the float np.mean of the booleans gives (an exact sum divided once)
+    fraction = stands / len(upright) if len(upright) else float("nan")
+    return float(med[0]), dict(zip(_MEASURES, med[1:].tolist())), upright, fraction
 
 
 def upright_frames(joints: np.ndarray) -> np.ndarray:
@@ -635,44 +702,12 @@ def upright_frames(joints: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (n_frames,), bool
     """
-    return _upright(joints, _lengths(joints))
-
-
-def _upright(j, ln) -> np.ndarray:
-    """:func:`upright_frames` of the joints ``j`` with their :func:`_lengths` ``ln``."""
-    y = j[..., 1]
-    leg = 0.5 * (ln["lhip", "lknee"] + ln["lknee", "lankle"] + ln["rhip", "rknee"] + ln["rknee", "rankle"])
-    spine = j[:, JOINT_INDEX["neck"]] - j[:, JOINT_INDEX["root"]]
-    vertical = spine[:, 1] > np.cos(np.radians(45.0)) * np.linalg.norm(spine, axis=1)
-    shoulders = 0.5 * (y[:, JOINT_INDEX["lshoulder"]] + y[:, JOINT_INDEX["rshoulder"]])
-    head_up = y[:, JOINT_INDEX["head"]] > shoulders
-    feet = np.minimum(y[:, JOINT_INDEX["lankle"]], y[:, JOINT_INDEX["rankle"]])
-    hands = np.minimum(y[:, JOINT_INDEX["lwrist"]], y[:, JOINT_INDEX["rwrist"]])
-    hips = np.minimum(y[:, JOINT_INDEX["lhip"]], y[:, JOINT_INDEX["rhip"]])
-    return vertical & head_up & (hands - feet > 0.25 * leg) & (feet < hips)
-
-
-def _median_leg(ln) -> float:
-    """:func:`~mocapdb.bodies.units.leg_length` from the lengths ``ln`` (:func:`_lengths`: the same norms)."""
-    return float(column_medians(np.concatenate([ln["lhip", "lknee"] + ln["lknee", "lankle"],
-                                                ln["rhip", "rknee"] + ln["rknee", "rankle"]])[:, None])[0])
-
-
-def _medians(ln) -> dict:
-    """The median over the frames of each measure of :data:`HUMAN_PROPORTIONS`, from the lengths ``ln``
-    (:func:`_lengths`): one ``np.median`` over the four columns (each column's median as its own would
-    give)."""
-    measures = {"arm": 0.5 * (ln["lshoulder", "lelbow"] + ln["lelbow", "lwrist"]
-                              + ln["rshoulder", "relbow"] + ln["relbow", "rwrist"]),
-                "trunk": ln["root", "neck"], "hip width": ln["lhip", "rhip"],
-                "shoulder width": ln["lshoulder", "rshoulder"]}
-    med = column_medians(np.stack(list(measures.values()), axis=-1))
-    return {what: float(m) for what, m in zip(measures, med)}
+    return _human_measures(joints)[2]
 
 
 def _proportions(med, leg) -> dict:
     """Each measure of :data:`HUMAN_PROPORTIONS` per the median leg ``leg``, from the medians ``med``
-    (:func:`_medians`)."""
+    (:func:`_human_measures`)."""
     return {what: med[what] / leg for what in HUMAN_PROPORTIONS}
 
 
@@ -711,22 +746,19 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None, *, leg:
         ``not a human {what}: {why}``.
     """
     step = max(1, len(joints) // _SAMPLE)
-    j = joints[::step]
-    ln = _lengths(joints, step)
+    median_leg, med, _, stands = _human_measures(joints, step)
     # the one median leg: the unit of a BVH take is decided on it too
-    leg = _median_leg(ln) if leg is None or step > 1 else leg
+    leg = median_leg if leg is None or step > 1 else leg
     if not leg > 0:
         return "skeleton", "the legs have no length"
-    problems = _proportion_problems(_medians(ln), leg)
-    stands = float(_upright(j, ln).mean())
+    problems = _proportion_problems(med, leg)
     upright = None
     if stands < MIN_UPRIGHT and (rest is None or not upright_frames(rest[None])[0]):
         upright = (f"it stands upright (two legs to the floor, arms off it, head above the shoulders) "
                    f"in {stands:.0%} of the frames and not in its rest pose")
     if not problems and upright is None:
         return None
-    rest_leg = leg_length(rest[None]) if rest is not None else 0.0
-    rest_med = _medians(_lengths(rest[None])) if rest_leg > 0 else None
+    rest_leg, rest_med, _, _ = _human_measures(rest[None]) if rest is not None else (0.0, None, None, None)
     if rest_leg > 0 and not _proportion_problems(rest_med, rest_leg):
         # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
         at_rest = _proportions(rest_med, rest_leg)
