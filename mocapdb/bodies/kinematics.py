@@ -294,7 +294,7 @@ _FK_LANE_GROUP = 8
 
 
 @jit
-def _rotate_lanes(h, k, axis, c, s, m):  # pragma: no cover - numba
+def rotate_lanes(h, k, axis, c, s, m):  # pragma: no cover - numba
     """:func:`rotate_columns` of matrix ``k`` of ``h`` (nodes, 3, 3, lanes) in each of the first ``m`` lanes,
     ``c``/``s`` the lanes' cosine and sine: the same products and sums, a lane per frame."""
     i, j = _mixed_columns(axis)
@@ -369,8 +369,8 @@ def _asf_motion_kernel(values, factor, trans_cols, length_unit, root_position, r
         for q in range(3):
             c = root_cols[q]
             if c >= 0:
-                _rotate_lanes(rr, 0, 2 - q, cv[c], sv[c], w)
-                _rotate_lanes(h, 0, 2 - q, cv[c], sv[c], w)
+                rotate_lanes(rr, 0, 2 - q, cv[c], sv[c], w)
+                rotate_lanes(h, 0, 2 - q, cv[c], sv[c], w)
         # ---- bones, parents first
         for q in range(nb):
             b = order[q]
@@ -395,7 +395,7 @@ def _asf_motion_kernel(values, factor, trans_cols, length_unit, root_position, r
             for ax in range(3):  # z, y, x: M = Rz·Ry·Rx
                 c = rot_cols[b, ax]
                 if c >= 0:
-                    _rotate_lanes(h, k, 2 - ax, cv[c], sv[c], w)
+                    rotate_lanes(h, k, 2 - ax, cv[c], sv[c], w)
             o0, o1, o2 = offp[b, 0], offp[b, 1], offp[b, 2]
             np_, nk = node[p], node[k]
             for f in range(w):

@@ -238,7 +238,8 @@ class _MotionLines:
             raise ParseError(path, line_of(head, len(head)), "no 'MOTION' section (truncated file?)")
         self.hierarchy = _cached_hierarchy(head, m[0], path)
         self.n_frames, self.frame_time, self.frames_line, start = _parse_motion_header(head, m[1], path)
-        self.rest = head[start:]
+        # the motion lines are ``rest`` from byte ``start`` (not sliced off: a short take's text is not copied)
+        self.rest, self.start = head, start
         self.line_base = head.count(b"\n", 0, start)
         #: bytes of motion lines still to come when the stream's size is known, else None
         self.size_left = None if size is None else size - start
@@ -247,9 +248,16 @@ class _MotionLines:
         """The most motion lines ``n_bytes`` of text can hold, at most the announced count."""
         return rows_bound(n_bytes, self.n_frames, self.hierarchy.n_channels)
 
+    @property
+    def motion_bytes(self) -> int:
+        """Bytes of motion lines read with the header."""
+        return len(self.rest) - self.start
+
     def __iter__(self):
         n_cols = self.hierarchy.n_channels
-        rest, eof, row = self.rest, self.eof, 0
+        rest, at, eof, row = self.rest, self.start, self.eof, 0
+        if not eof:   # a stream read on: its blocks are motion lines alone
+            rest, at = rest[at:], 0
         self.rest = None
         while True:
             if not eof:
@@ -261,9 +269,11 @@ class _MotionLines:
             else:
                 cut = rest.rfind(b"\n") + 1
                 block, rest = rest[:cut], rest[cut:]
-            values = np.empty((min(self.n_frames - row, self.max_rows(len(block))), n_cols))
-            got = parse_rows_into(block, 0, values, self.path, n_rows=self.n_frames, what="channel values",
-                                  first_frame=row + 1, allow_nonfinite=True, line_base=self.line_base)
+            values = np.empty((min(self.n_frames - row, self.max_rows(len(block) - at)), n_cols))
+            # from byte ``at`` of the whole text the lines are counted from its start
+            got = parse_rows_into(block, at, values, self.path, n_rows=self.n_frames, what="channel values",
+                                  first_frame=row + 1, allow_nonfinite=True, line_base=0 if at else self.line_base)
+            at = 0
             if not eof:   # the lines before the next block, for its messages (a pass over the text: not after the last)
                 self.line_base += block.count(b"\n")
             row += got
@@ -288,7 +298,7 @@ def parse_bvh_stream(fh, *, path="<bvh>", size=None) -> BvhData:
     """
     lines = _MotionLines(fh, path, size)
     n_cols = lines.hierarchy.n_channels
-    values = np.empty((lines.max_rows(lines.size_left if lines.size_left is not None else len(lines.rest)), n_cols))
+    values = np.empty((lines.max_rows(lines.size_left if lines.size_left is not None else lines.motion_bytes), n_cols))
     row = 0
     for block in lines:
         if row + len(block) > values.shape[0]:

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from mocapdb._numba import jit
-from mocapdb.bodies.kinematics import _rotate_lanes, rotate_columns
+from mocapdb.bodies.kinematics import rotate_lanes, rotate_columns
 
 __all__ = ["bvh_node_positions"]
 
@@ -170,7 +170,7 @@ def _bvh_joints_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_a
                     for f in range(m, w):
                         cs[f] = 1.0
                         sn[f] = 0.0
-                    _rotate_lanes(h, j, ax, cs, sn, w)
+                    rotate_lanes(h, j, ax, cs, sn, w)
             for i in range(3):
                 oj = org[j, i]
                 if p >= 0:
