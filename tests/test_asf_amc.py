@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from conftest import DATA, HAVE_SHARED, ORACLE, SAMPLE_86_09, SAMPLE_86_ASF, humerus, shared_cases
-from mocapdb.readers.textscan import NUM_BAD, NUM_OK, NUM_SLOW, longest_line, parse_numbers
+from mocapdb.readers.textscan import NUM_BAD, NUM_OK, NUM_SLOW, has_line_longer, longest_line, parse_numbers
 from mocapdb.bodies.acclaim import column_layout
 from mocapdb.readers.amc import parse_amc, read_amc
 from mocapdb.readers.asf import parse_asf, read_asf
@@ -636,6 +636,23 @@ def test_longest_line_equals_its_definition_on_random_bytes():
         lines = text.split("\n")
         assert longest_line(chunk, carry) == (max(len(x) for x in lines), len(lines[-1])), (chunk, carry)
 
+
+
+def test_a_line_longer_than_a_limit_is_found_where_the_line_scan_finds_it():
+    """The start check's window test (``bytes.find`` per window of limit/2 + 1 bytes) against the line scan:
+    random texts of short and long lines, LF and CR ends or none, every limit from 1 to 40, lines of exactly
+    the limit and one more."""
+    rng = np.random.default_rng(36)
+    for _ in range(3000):
+        p_end = float(rng.choice([0.0, 0.02, 0.1, 0.3]))
+        chunk = bytes(rng.choice([10, 13, 65], size=int(rng.integers(0, 120)), p=[p_end * .7, p_end * .3, 1 - p_end])
+                      .astype(np.uint8))
+        for limit in range(1, 41):
+            assert has_line_longer(chunk, limit) == (longest_line(chunk)[0] > limit), (chunk, limit)
+    for limit in (1, 2, 7, 16384):
+        for n in (limit - 1, limit, limit + 1, 2 * limit + 3):
+            for text in (b"x" * n, b"ab\n" + b"x" * n + b"\r\nz", b"\n" * 3 + b"x" * n):
+                assert has_line_longer(text, limit) == (longest_line(text)[0] > limit), (text[:20], n, limit)
 
 @pytest.mark.shared
 def test_the_skeleton_rule_sees_a_new_asf_in_a_listed_folder(tmp_path):

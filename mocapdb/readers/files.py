@@ -30,7 +30,7 @@ from mocapdb.readers.c3d import read_c3d
 from mocapdb.bodies.humanoid import MappingError
 from mocapdb.bodies.kinematics import asf_forward_kinematics, joint_node_indices, node_positions
 from mocapdb.bodies.motion import Motion, check_finite_motion
-from mocapdb.readers.textscan import longest_line
+from mocapdb.readers.textscan import has_line_longer
 from mocapdb.readers.options import ReaderOptions
 from mocapdb.readers.sources import (COMPRESSED, FileCache, as_path, is_file, list_dir, max_decompressed, motion_stem,
                                      motion_suffix, open_stream, special_kind, split_archive)
@@ -73,7 +73,7 @@ def check_start(path) -> None:
         head = fh.read(START_BYTES)
     if ext == ".bvh":
         check_bvh_start(head, path)
-    elif longest_line(head)[0] > MAX_HEADER_LINE:
+    elif has_line_longer(head, MAX_HEADER_LINE):
         raise ParseError(path, None, f"a line longer than {MAX_HEADER_LINE:,} bytes within its first "
                          f"{START_BYTES:,} (an {ext[1:].upper()} file's lines are short: not an {ext[1:].upper()} "
                          "file?)")
