@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +30,6 @@ import numpy as np
 from mocapdb.annotation.model import Model
 from lab.recipe import build_model
 from lab.robust_queries import learn_robust_queries
-from lab.path_scales import path_scales, with_path_scales
 from lab.thresholds import learn_taus, with_taus
 
 __all__ = ["TrainedModel", "train_recipe", "half_median_template", "TAU_GRID_DEFAULT"]
@@ -173,12 +171,6 @@ def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=1
                                             max_still_rate=max_still_rate, cache=cache, keyframes=tau_keyframes))
         if progress is not None:
             progress("tau")
-    if os.environ.get("MOCAPDB_PATH_CONTEST") == "own":  # MEASUREMENT SWITCH (issue 32)
-        q = os.environ.get("MOCAPDB_PATH_Q", "mean")
-        model = with_path_scales(model, path_scales(clips, recipe, q=q if q == "mean" else float(q), cache=cache,
-                                                    model=model if os.environ.get("MOCAPDB_PATH_IN") else None,
-                                                    per_column=bool(os.environ.get("MOCAPDB_PATH_COL")),
-                                                    K_of={c.name: len(c.quantized.expand()) for c in model.classes}))
     if min_length:
         model = half_median_template(model, {d.name for d in recipe.definitions})
     model = dataclasses.replace(model, margin=float(margin))

@@ -14,8 +14,6 @@ TEMPLATES.md §9.1 and §10:
 Frames are 0-based; segment and hit ends are inclusive; ``doc`` is the index
 of the document within the call.
 """
-import functools
-import os
 from dataclasses import dataclass
 
 import numba
@@ -25,7 +23,6 @@ from mocapdb.annotation.chain_kernels import (_count_candidates_kernel, _extract
                                               _merge_kernel, _scatter_kernel, _segments_kernel, _sort_by_key)
 from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.annotation.model import DEFAULT_TAU, Model
-from mocapdb.annotation.path_contest import contest_overlaps
 from mocapdb.annotation.postprocess import (apply_margin, drop_short_segments, drop_unwon_segments, label_min_frames,
                                            label_min_won, segment_confidence, calibrate_confidence)
 from mocapdb.features import as_words as _as_words
@@ -285,31 +282,12 @@ def _tau_ratio(cd, tau):
     return out
 
 
-def _path_scale(model, class_taus):
-    """Per class the scale of its path's local cost for :func:`contest_overlaps`, or None (off).
-
-    MEASUREMENT SWITCH (issue 32): MOCAPDB_PATH_CONTEST = tau | own."""
-    mode = os.environ.get("MOCAPDB_PATH_CONTEST", "")
-    if not mode:
-        return None
-    Ks = [len(c.quantized.expand()) for c in model.classes]
-    if mode == "tau":
-        return [np.full(k, max(t, 1e-3)) for k, t in zip(Ks, class_taus)]
-    if mode == "own":
-        out = []
-        for c, t, k in zip(model.classes, class_taus, Ks):
-            v = np.broadcast_to(np.asarray(c.path_scale, np.float64), (k,))
-            out.append(np.maximum(np.where(v > 0, v, t), 1e-3))
-        return out
-    raise ParameterError(f"MOCAPDB_PATH_CONTEST={mode!r}")
-
-
 def _concurrent_rows(model):
     """Label indices of the model's concurrent labels (annotated on their own, beside the others)."""
     return np.array([k for k, lab in enumerate(model.labels) if lab in model.concurrent_labels], dtype=np.int64)
 
 
-def _segment_labels(label_cd, label_ratio, doc_bounds, labels, concurrent, margin, min_won, contest=None):
+def _segment_labels(label_cd, label_ratio, doc_bounds, labels, concurrent, margin, min_won):
     """Segments of one batch: the competing labels by Δarg (§10.3), each concurrent label on its own.
 
     A concurrent label (``Model.concurrent_labels``: a walker who turns is
@@ -321,8 +299,6 @@ def _segment_labels(label_cd, label_ratio, doc_bounds, labels, concurrent, margi
         own = label_cd[concurrent].copy()
         label_cd = label_cd.copy()
         label_cd[concurrent] = np.inf
-    if contest is not None:
-        contest(label_cd)
     apply_margin(label_cd, margin)
     segs = _form_segments(label_cd, doc_bounds, labels)
     if min_won is not None:
@@ -476,9 +452,8 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
         steps=steps, rule=rule, return_starts=True, chunk_size=DEFAULT_CHUNK)
     out = []
     for class_taus in taus:
-        scale = _path_scale(model, class_taus)
         cd, hs, he, hc, cap_off, n_hits = _run_hits(delta, starts, offsets, ta, class_taus[tc], limit,
-                                                    want_hits=keep_hits or scale is not None)
+                                                    want_hits=keep_hits)
         if (n_hits < 0).any():
             q = int(np.flatnonzero(n_hits < 0)[0])
             d = int(task_doc[q])
@@ -515,15 +490,7 @@ def _annotate_batch(w, model, bounds, g0, g1, tasks, taus, limit, match_num_max,
             _label_scatter_kernel(ratio, offsets, tc, ta - f0, model.label_index, np.full(f1 - f0, -1, np.int64),
                                   label_ratio)
         doc_bounds = bounds[g0:g1 + 1] - bounds[g0]
-        contest = None
-        if scale is not None:
-            class_cd = kept[1] if kept else _per_class(cd, offsets, tc, ta - f0, (n_cls, f1 - f0), tiled=tiled)
-            contest = functools.partial(
-                contest_overlaps, class_cd=class_cd, class_label=model.label_index, scale=scale, words=w,
-                templates=[c.quantized for c in model.classes], offsets=offsets, cap_off=cap_off, n_hits=n_hits,
-                hit_start=hs, hit_end=he, task_row=tc, task_first=ta, f0=f0, doc_bounds=doc_bounds, tiled=tiled)
-        segs = _segment_labels(label_cd, label_ratio, doc_bounds, labels, _concurrent_rows(model), margin, min_won,
-                               contest)
+        segs = _segment_labels(label_cd, label_ratio, doc_bounds, labels, _concurrent_rows(model), margin, min_won)
         segs["doc"] += g0
         out.append((segs, hits, kept))
     return out

@@ -56,7 +56,6 @@ class ClassModel:
     tau: float = DEFAULT_TAU
     keyframe_query: Any = None
     min_frames: int = 0
-    path_scale: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
