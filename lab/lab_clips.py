@@ -21,7 +21,8 @@ clips where it appears unlisted are counted apart.
 
 :func:`lab_documents` reads the clips as documents (a clip each, 30 Hz
 words); :func:`lab_measures` computes what a user would check: clips right,
-locomotion clips with ``move`` and the share of their frames under it,
+locomotion clips with ``move`` and the share of their frames under it —
+all of them, and those where the root travels (:mod:`lab.travel`) —,
 turning clips with a ``turn``, locomotion clips where a turn is wrong that
 have one, clips of no class left silent, and which clips failed and why.
 """
@@ -37,6 +38,7 @@ import numpy as np
 from mocapdb.annotation.labels import LABEL_DTYPE
 from mocapdb.errors import ParameterError, ParseError
 from lab.documents import DocumentSet
+from lab.travel import travelling_frames
 from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 
@@ -127,6 +129,7 @@ class LabDocuments:
     truth: tuple          # ClipTruth per document
     contents: tuple       # truth.csv's description per document
     refused: tuple = ()   # (name, ClipTruth, reason) of the clips the reader refuses: a user gets no label there
+    travelling: tuple = ()  # per document, a boolean per frame: the root travels (:func:`lab.travel.travelling_frames`)
 
 
 def lab_documents(data_dir) -> LabDocuments:
@@ -145,7 +148,7 @@ def lab_documents(data_dir) -> LabDocuments:
             rows = list(csv.DictReader(f))
     except OSError as exc:
         raise ParameterError(f"{table}: cannot read the clips' truth ({exc.strerror})") from None
-    names, words, native, truth, contents, refused = [], [], [], [], [], []
+    names, words, native, truth, contents, refused, travelling = [], [], [], [], [], [], []
     for line, r in enumerate(rows, start=2):
         if not {"file", "expected_labels"} <= set(r) or not r["file"]:
             raise ParameterError(f"{table}, line {line}: needs the columns file and expected_labels")
@@ -165,12 +168,13 @@ def lab_documents(data_dir) -> LabDocuments:
         words.append(w)
         native.append(motion.n_frames)
         contents.append(r.get("content", ""))
+        travelling.append(travelling_frames(motion))
     if not names:
         raise ParameterError(f"{table}: no clips")
     empty = np.empty(0, LABEL_DTYPE)
     docs = DocumentSet(tuple(names), np.concatenate(words), np.array([w.size for w in words], np.int64),
                        np.array(native, np.int64), empty, empty)
-    return LabDocuments(docs, tuple(truth), tuple(contents), tuple(refused))
+    return LabDocuments(docs, tuple(truth), tuple(contents), tuple(refused), tuple(travelling))
 
 
 @dataclass(frozen=True)
@@ -185,6 +189,10 @@ class LabScores:
         Clips that require ``move`` with a ``move`` segment, of all such.
     move_share : float
         Frames of the locomotion clips (:attr:`ClipTruth.locomotion`) under ``move``.
+    move_share_travelling : float or None
+        The same over the frames of those clips where the root travels (:mod:`lab.travel`): a clip that
+        stands still before it walks, or between side steps, is not expected to be ``move`` there.
+        None without :attr:`LabDocuments.travelling`.
     turning_with_turn, turning_clips : int
         Clips that require ``turn`` with one, of all such.
     straight_with_turn, straight_clips : int
@@ -224,6 +232,7 @@ class LabScores:
     failures: dict
     expected: frozenset = frozenset()
     clip_truth: dict = field(default_factory=dict, repr=False)
+    move_share_travelling: float | None = None
 
 
 def lab_measures(lab: LabDocuments, auto) -> LabScores:
@@ -233,7 +242,8 @@ def lab_measures(lab: LabDocuments, auto) -> LabScores:
         raise ParameterError("auto must be label rows (mocapdb.annotation.labels.LABEL_DTYPE)")
     c = dict.fromkeys(("right", "move_found", "move_clips", "turn_found", "turn_clips", "straight_turn",
                        "straight", "silent_right", "silent", "hops_found", "hops", "neutral"), 0)
-    loco_frames = loco_move = 0
+    loco_frames = loco_move = travel_frames = travel_move = 0
+    travelling = dict(zip(lab.docs.names, lab.travelling))
     wrong_by, failures = {}, {}
     clips = [*zip(lab.docs.names, lab.truth, lab.docs.doc_lengths.tolist()), *((n, t, 0) for n, t, _ in lab.refused)]
     for name, truth, n in clips:
@@ -266,6 +276,9 @@ def lab_measures(lab: LabDocuments, auto) -> LabScores:
                 covered[int(r["start"]):int(r["end"]) + 1] = True
             loco_frames += n
             loco_move += int(covered.sum())
+            if name in travelling:
+                travel_frames += int(travelling[name].sum())
+                travel_move += int((covered & travelling[name]).sum())
             if "turn" not in truth.allowed:
                 c["straight"] += 1
                 c["straight_turn"] += "turn" in found
@@ -277,4 +290,5 @@ def lab_measures(lab: LabDocuments, auto) -> LabScores:
         silent_right=c["silent_right"], silent_clips=c["silent"], hops_found=c["hops_found"], hop_clips=c["hops"],
         neutral_unlisted=c["neutral"], wrong_by_label=dict(sorted(wrong_by.items(), key=lambda kv: -kv[1])),
         failures=failures, expected=frozenset().union(*(t.allowed for _, t, _ in clips)),
-        clip_truth={name: t for name, t, _ in clips})
+        clip_truth={name: t for name, t, _ in clips},
+        move_share_travelling=(travel_move / travel_frames if travel_frames else 0.0) if lab.travelling else None)

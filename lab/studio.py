@@ -39,6 +39,7 @@ from mocapdb.evaluation.metrics import Scores, evaluate_annotation
 from mocapdb.features import motion_features
 from lab.cutting import clips_from_stretches
 from lab.recipe import OTHERS, Clip
+from lab.travel import travelling_frames
 from mocapdb.readers import read_motion
 
 __all__ = ["STUDIO_CONTENTS", "STUDIO_FOLDER", "STUDIO_GROUP", "STUDIO_TRAINING_CLASSES", "StudioDocuments",
@@ -79,11 +80,14 @@ class StudioDocuments:
         A document per clip (30 Hz words), truth = the content's labels over the whole clip.
     contents, styles : tuple of str
         Per document.
+    travelling : tuple of ndarray
+        Per document, a boolean per frame: the root travels (:func:`lab.travel.travelling_frames`).
     """
 
     docs: DocumentSet
     contents: tuple
     styles: tuple
+    travelling: tuple = ()
 
     def subset(self, keep) -> "StudioDocuments":
         """The documents where ``keep`` (a boolean per document) holds."""
@@ -97,7 +101,8 @@ class StudioDocuments:
         return StudioDocuments(DocumentSet(names, words, d.doc_lengths[keep], d.native_lengths[keep],
                                            pick(d.truth_native), pick(d.truth)),
                                tuple(c for c, k in zip(self.contents, keep) if k),
-                               tuple(s for s, k in zip(self.styles, keep) if k))
+                               tuple(s for s, k in zip(self.styles, keep) if k),
+                               tuple(t for t, k in zip(self.travelling, keep) if k))
 
 
 def studio_documents(data_dir, *, styles=None) -> StudioDocuments:
@@ -124,7 +129,7 @@ def studio_documents(data_dir, *, styles=None) -> StudioDocuments:
     paths = sorted(p for p in folder.glob("*.bvh*") if p.is_file())
     if not paths:
         raise ParameterError(f"no studio clips (*.bvh, *.bvh.gz) in {str(folder)!r}")
-    names, contents, style_of, words, native, truth_n, truth = [], [], [], [], [], [], []
+    names, contents, style_of, words, native, truth_n, truth, travelling = [], [], [], [], [], [], [], []
     for p in paths:
         stem = p.name.split(".bvh")[0]
         m = _NAME.match(stem)
@@ -140,6 +145,7 @@ def studio_documents(data_dir, *, styles=None) -> StudioDocuments:
         style_of.append(m["style"])
         words.append(w)
         native.append(motion.n_frames)
+        travelling.append(travelling_frames(motion))
         if labels:  # a gesture's truth is empty
             truth_n.append(label_rows([stem] * len(labels), labels, 1, motion.n_frames))
             truth.append(label_rows([stem] * len(labels), labels, 0, w.size - 1))
@@ -147,7 +153,7 @@ def studio_documents(data_dir, *, styles=None) -> StudioDocuments:
         raise ParameterError(f"no studio clips of the styles {list(styles)} in {str(folder)!r}")
     docs = DocumentSet(tuple(names), np.concatenate(words), np.array([w.size for w in words], np.int64),
                        np.array(native, np.int64), np.concatenate(truth_n), np.concatenate(truth))
-    return StudioDocuments(docs, tuple(contents), tuple(style_of))
+    return StudioDocuments(docs, tuple(contents), tuple(style_of), tuple(travelling))
 
 
 def studio_training(studio: StudioDocuments, **cut_params) -> dict:
@@ -193,6 +199,9 @@ class StudioScores:
         Locomotion frames (straight and turning clips) labelled ``move``.
     move_by_content : dict of str to float
         The same per locomotion content.
+    move_share_travelling : float or None
+        Locomotion frames where the root travels (:mod:`lab.travel`) labelled ``move``; None without
+        :attr:`StudioDocuments.travelling`.
     turning_with_turn, turning_clips : int
         Turning clips with a ``turn`` segment, of all turning clips.
     straight_with_turn, straight_clips : int
@@ -214,6 +223,7 @@ class StudioScores:
     gesture_wrong: float
     wrong_by_label: dict
     scores: Scores = field(repr=False)
+    move_share_travelling: float | None = None
 
 
 def _covered(rows, doc, labels, n):
@@ -240,6 +250,8 @@ def studio_measures(studio: StudioDocuments, auto, *, vocabulary=None) -> Studio
         raise ParameterError("auto must be label rows (mocapdb.annotation.labels.LABEL_DTYPE)")
     d = studio.docs
     move = {}
+    travel = [0, 0]   # travelling locomotion frames under move, of all
+    travelling = dict(zip(d.names, studio.travelling))
     turning = straight = turning_hits = straight_hits = 0
     gesture_frames = 0
     wrong = {}
@@ -254,8 +266,12 @@ def studio_measures(studio: StudioDocuments, auto, *, vocabulary=None) -> Studio
                 wrong[lab] = wrong.get(lab, 0) + int(_covered(mine, name, {lab}, n).sum())
             continue
         m = move.setdefault(content, [0, 0])
-        m[0] += int(_covered(auto, name, {"move"}, n).sum())
+        covered = _covered(auto, name, {"move"}, n)
+        m[0] += int(covered.sum())
         m[1] += n
+        if name in travelling:
+            travel[0] += int((covered & travelling[name]).sum())
+            travel[1] += int(travelling[name].sum())
         has_turn = bool(((auto["document"] == name) & (auto["label"] == "turn")).any())
         if kind == "turning":
             turning += 1
@@ -271,4 +287,5 @@ def studio_measures(studio: StudioDocuments, auto, *, vocabulary=None) -> Studio
         straight_with_turn=straight_hits, straight_clips=straight,
         gesture_wrong=wrong.pop("any", 0) / gesture_frames if gesture_frames else 0.0,
         wrong_by_label={k: v / gesture_frames for k, v in sorted(wrong.items(), key=lambda kv: -kv[1])},
-        scores=evaluate_annotation(d.truth, auto, labels=vocabulary))
+        scores=evaluate_annotation(d.truth, auto, labels=vocabulary),
+        move_share_travelling=(travel[0] / travel[1] if travel[1] else 0.0) if studio.travelling else None)

@@ -119,7 +119,7 @@ def test_studio_measures_of_a_perfect_and_a_spoilt_annotation(data):
     st = data.studio
     truth = st.docs.truth
     perfect = studio_measures(st, truth)
-    assert perfect.move_share == 1.0 and perfect.gesture_wrong == 0.0
+    assert perfect.move_share == 1.0 and perfect.gesture_wrong == 0.0 and perfect.move_share_travelling == 1.0
     assert (perfect.turning_with_turn, perfect.turning_clips) == (40, 40)
     assert (perfect.straight_with_turn, perfect.straight_clips) == (0, 40)
     assert perfect.scores.f1 == 1.0
@@ -133,6 +133,15 @@ def test_studio_measures_of_a_perfect_and_a_spoilt_annotation(data):
     assert m.gesture_wrong == pytest.approx(n_wave / gesture_frames)     # neutral is no wrong label
     assert m.wrong_by_label == {"grabDepR": pytest.approx(n_wave / gesture_frames)}
     assert m.straight_with_turn == 1 and m.scores.p1 < 1.0
+    # move taken off a walk's first half: missed over travelling frames too, where the walker travels
+    name, n_walk = st.docs.names[k_walk], int(st.docs.doc_lengths[k_walk])
+    half = truth[~((truth["document"] == name) & (truth["label"] == "move"))]
+    half = np.concatenate([half, label_rows(name, "move", n_walk // 2, n_walk - 1)]).astype(LABEL_DTYPE)
+    m = studio_measures(st, half)
+    moved = int(st.travelling[k_walk][:n_walk // 2].sum())
+    travelling = sum(int(t.sum()) for t, c in zip(st.travelling, st.contents) if STUDIO_CONTENTS[c][0] != "gesture")
+    assert moved > 0 and m.move_share_travelling == pytest.approx(1 - moved / travelling)
+    assert studio_measures(dataclasses.replace(st, travelling=()), half).move_share_travelling is None
 
 
 # -- the third lab's clips: per-clip truth --------------------------------------------------------
@@ -172,7 +181,7 @@ def test_lab_measures_of_a_perfect_and_a_spoilt_annotation(data):
     perfect = label_rows(*zip(*rows))
     m = lab_measures(lab, perfect)
     assert m.clips == 69 and m.clips_right == 68 and m.failures == {"Male1_A8_CrouchToLie": "missing sitLieDown"}
-    assert m.move_share == 1.0 and m.turning_with_turn == m.turning_clips >= 14
+    assert m.move_share == 1.0 and m.turning_with_turn == m.turning_clips >= 14 and m.move_share_travelling == 1.0
     assert m.straight_with_turn == 0 and m.straight_clips >= 10 and m.hops_found == m.hop_clips == 4
     walk = "Male1_B3_Walk"
     spoilt = np.concatenate([perfect[perfect["document"] != walk], label_rows([walk] * 2, ["move", "turn"], 0, 9),
@@ -180,7 +189,29 @@ def test_lab_measures_of_a_perfect_and_a_spoilt_annotation(data):
     m = lab_measures(lab, spoilt)
     assert m.clips_right == 66 and m.straight_with_turn == 1 and m.silent_right == m.silent_clips - 1
     assert m.failures == {walk: "wrong turn", "Male1_A2_Sway": "wrong kick", "Male1_A8_CrouchToLie": "missing sitLieDown"}
-    assert m.wrong_by_label == {"turn": 1, "kick": 1} and m.move_share < 1.0
+    assert m.wrong_by_label == {"turn": 1, "kick": 1} and m.move_share < 1.0 and m.move_share_travelling < 1.0
+    # move only where the root travels: every travelling frame is right, standing starts are not
+    travelling = dict(zip(lab.docs.names, lab.travelling))
+    rows = [r for r in perfect if r["label"] != "move"]
+    for name, t in zip(lab.docs.names, lab.truth):
+        on = np.flatnonzero(travelling[name]) if "move" in t.requires else []
+        rows += [(name, "move", k, k) for k in on]
+    m = lab_measures(lab, label_rows(*zip(*[(r[0], r[1], r[2], r[3]) for r in rows])))
+    assert m.move_share_travelling == 1.0 and m.move_share < 0.95
+
+
+@pytest.mark.shared
+def test_travelling_frames_of_the_third_lab(data):
+    """The root travels throughout a walk or run, in under half of a side step of 1 m, never standing."""
+    walked = {n: t.mean() for n, t in zip(data.lab.docs.names, data.lab.travelling)}
+    assert walked["Male1_B3_Walk"] == walked["Male1_C03_Run"] == walked["Male1_B6_WalkBackwards"] == 1.0
+    assert walked["Male1_B22_SideStepLeft"] < 0.5 and walked["Male1_B23_SideStepRight"] < 0.5
+    for still in ("Male1_A2_Sway", "Male1_A3_SwingArms", "Male1_A4_LookAround", "Male1_A6_LiftBox"):
+        assert walked[still] == 0.0, still
+    # a walk from standing: still, then travelling to the end
+    t = data.lab.travelling[data.lab.docs.names.index("Male1_B1_StandToWalk")]
+    first = int(np.argmax(t))
+    assert 10 < first < t.size // 2 and t[first:].all()
 
 
 # -- folds: leave one lab out, cut per fold -------------------------------------------------------
