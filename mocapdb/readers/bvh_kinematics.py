@@ -122,12 +122,15 @@ def _bvh_joints_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_a
     org = np.empty((nj, 3, _FK_BLOCK))
     end = np.empty((nj, 3, _FK_BLOCK))
     t = np.empty((3, _FK_BLOCK))
-    cs = np.ones(_FK_BLOCK)    # lanes past a block's frames stay a rotation by 0: no stale or subnormal values
+    cs = np.ones(_FK_BLOCK)    # lanes past a block's frames rotate by 0: no stale or subnormal values
     sn = np.zeros(_FK_BLOCK)
     acc = np.empty(_FK_BLOCK)
     for a in range(0, n, _FK_BLOCK):
         m = min(_FK_BLOCK, n - a)
         w = min(_FK_BLOCK, (m + _FK_LANE_GROUP - 1) // _FK_LANE_GROUP * _FK_LANE_GROUP)   # lanes computed
+        for f in range(m, w):   # a short last block: its lanes past the frames rotate by 0 (channels write < m)
+            cs[f] = 1.0
+            sn[f] = 0.0
         for j in range(nj):
             if not needed[j]:
                 continue
@@ -167,9 +170,6 @@ def _bvh_joints_kernel(values, parent, offset, ch_start, ch_count, ch_kind, ch_a
                         else:
                             cs[f] = math.cos(v)
                             sn[f] = math.sin(v)
-                    for f in range(m, w):
-                        cs[f] = 1.0
-                        sn[f] = 0.0
                     rotate_lanes(h, j, ax, cs, sn, w)
             for i in range(3):
                 oj = org[j, i]
