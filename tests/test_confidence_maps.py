@@ -8,6 +8,8 @@ import pytest
 
 import mocapdb
 from mocapdb.annotation import ConfidenceMap
+from mocapdb.annotation import postprocess
+from mocapdb.annotation.model import STEP_ORDER
 from mocapdb.annotation.postprocess import calibrate_confidence
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.annotation import SEGMENT_DTYPE
@@ -34,7 +36,18 @@ def test_a_map_is_a_rising_step_function_per_length():
     long = ConfidenceMap("move", (0.0, 0.5), (0.8, 0.99), min_length=45)
     segs = _segments(["move", "move", "move", "move", "kick", "move", "move"], [10, 10, 44, 10, 100, 45, 200])
     got = calibrate_confidence(segs, np.array([0.0, 0.39, 0.4, 1.0, 0.33, 0.2, 0.5]), [long, short])
-    assert got.tolist() == [0.5, 0.5, 0.7, 0.95, 0.33, 0.8, 0.99]   # a label without a map keeps its raw score
+    # a step's value, plus STEP_ORDER of the way to the next one (1 after the last) as far as the raw score lies
+    # towards the next cut (1); a label without a map keeps its raw score
+    want = [0.5, 0.5 + STEP_ORDER * 0.2 * (0.39 / 0.4), 0.7, 0.95 + STEP_ORDER * 0.05, 0.33,
+            0.8 + STEP_ORDER * 0.19 * (0.2 / 0.5), 0.99]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+    # within a step the raw score orders, and no segment reaches the next step's value
+    within = calibrate_confidence(_segments(["move"] * 5, [10] * 5), np.array([0.4, 0.5, 0.6, 0.79, 0.8]), [short])
+    assert 0.7 == within[0] < within[1] < within[2] < within[3] < 0.7 + STEP_ORDER * 0.25 < within[4] == 0.95
+    # nothing is added where the next value is no higher: a stored -0.0 stays -0.0
+    flat = calibrate_confidence(_segments(["move"] * 2, [10, 10]), np.array([0.1, 0.3]),
+                                [ConfidenceMap("move", (0.0, 0.5), (-0.0, 0.0))])
+    assert [np.signbit(x) for x in flat] == [True, True]
     # below the first cut: the first step; shorter than every map: the raw score
     assert calibrate_confidence(_segments(["move", "move"], [50, 30]), np.array([0.1, 0.1]),
                                 [ConfidenceMap("move", (0.2,), (0.6,), min_length=40)]).tolist() == [0.6, 0.1]
@@ -46,7 +59,7 @@ def test_a_map_is_a_rising_step_function_per_length():
         ConfidenceMap("move", (0.0,), (0.5,), min_length=-1)
 
 
-def test_fitted_maps_rise_and_follow_the_share_right():
+def test_fitted_maps_rise_and_follow_the_share_right(monkeypatch):
     """Isotonic steps per length band, each a cautious share right: rising, within [0, 1], below the share right
     of the segments it was fitted to but not far; every label of the model gets them."""
     rng = np.random.default_rng(0)
@@ -60,6 +73,13 @@ def test_fitted_maps_rise_and_follow_the_share_right():
     for m in maps:
         assert all(b >= a for a, b in zip(m.values, m.values[1:])) and 0 <= m.values[0] <= m.values[-1] <= 1
     got = calibrate_confidence(segs, raw, maps)
+    monkeypatch.setattr(postprocess, "STEP_ORDER", 0.0)
+    steps = calibrate_confidence(segs, raw, maps)           # the steps' own values
+    # the raw score moves a segment at most a hundredth of the way to 1 above its step, in the raw score's order
+    assert ((got >= steps) & (got - steps <= STEP_ORDER * (1 - steps) + 1e-15)).all()
+    same = steps[:, None] == steps[None, :]
+    assert not (same & (raw[:, None] < raw[None, :]) & (got[:, None] > got[None, :])).any()
+    got = steps
     # cautious on what it was fitted to: each step a user trusts (≥ 0.5) below its segments' share right,
     # not by much overall
     for v in np.unique(got[got >= 0.5]):

@@ -28,7 +28,8 @@ import mocapdb
 from mocapdb.extension.connection import NATIVE_ENV
 from mocapdb.storage.schema import connect_raw
 from mocapdb.extension.native_build import BINARY_NAME, MISSING_NAME, build, build_or_explain
-from conftest import DATA, run
+from conftest import DATA, REPO, run
+from mocapdb.annotation.model import STEP_ORDER
 
 # A client that never imported mocapdb: plain Python duckdb, the extension LOADed, the queries of a
 # JSON list on stdin run one by one; each answer is its rows or its error's first line.
@@ -241,10 +242,14 @@ def test_annotate_equals_the_python_udf(archive, native):
     assert len({lab for m, lab in labels if m == "default"}) >= 4, labels
     assert len({lab for m, lab in labels if m == "toolbox"}) >= 3, labels
     assert ("default", "turn") in labels and want[0] != want[2]  # preselection changes something
-    # the default model's confidence is calibrated: every segment's is a value of its stored maps
+    # the default model's confidence is calibrated: every segment's is a value of its stored maps or at most a
+    # hundredth of the way above one (STEP_ORDER: the raw score orders a step's segments)
     with mocapdb.connect(archive, read_only=True) as con:
-        values = {v for v, in con.execute("SELECT value FROM confidence_maps WHERE model = 'default'").fetchall()}
-    assert len(values) > 3 and {s["confidence"] for _, segs in want[0] for s in segs} <= values
+        values = np.array(sorted({v for v, in con.execute(
+            "SELECT value FROM confidence_maps WHERE model = 'default'").fetchall()}))
+    conf = np.array([s["confidence"] for _, segs in want[0] for s in segs])
+    below = values[np.searchsorted(values, conf, side="right") - 1]
+    assert len(values) > 3 and (conf - below <= STEP_ORDER * (1 - below) + 1e-15).all()
 
 
 @pytest.mark.shared
@@ -265,6 +270,12 @@ def test_the_bounded_delta_of_preselection_is_the_full_one(archive, native):
     # real segments were compared, fewer at τ = 0 than at 0.3
     count = [sum(len(segs or []) for _, segs in g["rows"]) for g in got[0:-1:2]]
     assert 0 < count[0] < count[3], count
+
+
+def test_the_step_order_is_the_python_one():
+    """extension/src/annotation.c's MDB_STEP_ORDER is mocapdb.annotation.model.STEP_ORDER."""
+    text = (REPO / "extension" / "src" / "annotation.c").read_text()
+    assert float(re.search(r"#define MDB_STEP_ORDER (\S+)", text).group(1)) == STEP_ORDER
 
 
 def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
@@ -456,8 +467,8 @@ def test_a_kept_model_follows_every_write_to_its_rows(archive, native, tmp_path)
     after each plain-SQL write to a model table the answer is the one of the same rows read afresh (a
     copy under another name, never read before), and differs from the answer before the write; an
     uncommitted write is not seen (the extension reads committed rows, as before), a committed one
-    is; a confidence value written as -0.0 instead of 0.0 (which DuckDB hashes alike) comes out as
-    -0.0."""
+    is; confidence values written as -0.0 instead of 0.0 (which DuckDB hashes alike) come out as
+    -0.0 (a step's value stands as stored where the raw score adds nothing to it)."""
     db = tmp_path / "kept_model.duckdb"
     shutil.copy(archive, db)
     # one text of every motion's segments: doubles as their shortest round-trip text, -0.0 included
@@ -469,8 +480,8 @@ def test_a_kept_model_follows_every_write_to_its_rows(archive, native, tmp_path)
         "UPDATE keyframes SET mask = 0, value = 0 WHERE model = 'default' AND k = 1",
         "DELETE FROM keyframe_queries WHERE model = 'default' AND class >= 'm'",
         "UPDATE models SET margin = margin + 0.05 WHERE model = 'default'",
-        "UPDATE confidence_maps SET value = 0.0 WHERE model = 'default' AND k = 1",
-        "UPDATE confidence_maps SET value = -(0.0::DOUBLE) WHERE model = 'default' AND k = 1",
+        "UPDATE confidence_maps SET value = 0.0 WHERE model = 'default'",
+        "UPDATE confidence_maps SET value = -(0.0::DOUBLE) WHERE model = 'default'",
     ]
     queries = [q.format(m="default", kf=kf) for kf in ("true", "false")]
     for i, w in enumerate(writes):

@@ -8,6 +8,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* mocapdb.annotation.model.STEP_ORDER: within a step of a confidence map the raw score moves the
+ * calibrated confidence this share of the way to the next step's value (a test compares the two) */
+#define MDB_STEP_ORDER 0.01
+
 void mdb_segments_free(mdb_segments *s) {
 	free(s->at);
 	memset(s, 0, sizeof *s);
@@ -305,7 +309,9 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 		double conf = 1.0 - best;
 		x.confidence = conf < 0.0 ? 0.0 : conf > 1.0 ? 1.0 : conf;
 		/* postprocess.calibrate_confidence: of the label's map with the largest min_length the
-		 * segment reaches, the value of the last step whose cut is <= the raw score */
+		 * segment reaches, the value of the last step whose cut is <= the raw score, plus
+		 * MDB_STEP_ORDER of the way to the next step's value (1 after the last) as far as the raw
+		 * score lies towards the next cut (1): the same operations in the same order */
 		size_t steps = rules->conf_n[x.label], g = steps;
 		const int64_t *min_length = steps ? rules->conf_min_length[x.label] : NULL;
 		for (size_t j = 0; j < steps; j++) {
@@ -318,7 +324,16 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 			while (g + 1 < steps && min_length[g + 1] == min_length[g] && cut[g + 1] <= x.confidence) {
 				g++;
 			}
-			x.confidence = rules->conf_value[x.label][g];
+			const double *value = rules->conf_value[x.label];
+			double c0 = cut[g], v0 = value[g], c1 = 1.0, v1 = 1.0;
+			if (g + 1 < steps && min_length[g + 1] == min_length[g]) {
+				c1 = cut[g + 1];
+				v1 = value[g + 1];
+			}
+			double frac = c1 > c0 ? (x.confidence - c0) / (c1 - c0) : 0.0;
+			frac = frac < 0.0 ? 0.0 : frac > 1.0 ? 1.0 : frac;
+			/* nothing added where nothing is to add: a step's value stands as stored (-0.0 too) */
+			x.confidence = frac > 0.0 && v1 > v0 ? v0 + MDB_STEP_ORDER * (v1 - v0) * frac : v0;
 		}
 		/* drop_short_segments */
 		if (x.end - x.start + 1 >= rules->min_frames[x.label] && push(out, x)) {

@@ -14,12 +14,16 @@ import numpy as np
 from mocapdb.errors import ParameterError, check_nonnegative
 from mocapdb.templates import MotionTemplate, QuantizedTemplate
 
-__all__ = ["ClassModel", "ConfidenceMap", "Model", "DEFAULT_DELTA", "DEFAULT_TAU"]
+__all__ = ["ClassModel", "ConfidenceMap", "Model", "DEFAULT_DELTA", "DEFAULT_TAU", "STEP_ORDER"]
 
 #: quantization threshold δ used by the annotation scripts (TEMPLATES.md §8)
 DEFAULT_DELTA = 0.05
 #: hit threshold τ of annotationScript.m (TEMPLATES.md §9.1)
 DEFAULT_TAU = 0.13
+#: how far towards the next step's value a segment's raw score moves its calibrated confidence within a step
+#: of a :class:`ConfidenceMap` (a hundredth: the step's value stands, the raw score orders its segments);
+#: extension/src/annotation.c's MDB_STEP_ORDER is the same number
+STEP_ORDER = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,9 +98,14 @@ class ConfidenceMap:
     last ``j`` with ``cuts[j] <= raw`` (``values[0]`` below ``cuts[0]``): the
     share of right segments seen at that raw score and length on recordings
     the model was not trained on
-    (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`). A step
-    function, not an interpolation, so that every implementation (the native
-    extension too) gives the same number bit for bit.
+    (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`) — plus,
+    so that the raw score still orders the segments of one step, a hundredth
+    (:data:`STEP_ORDER`) of the way to the next step's value (1 after the
+    last) as the raw score goes from ``cuts[j]`` to the next cut (1): a step
+    claims what its segments showed, and a better match within it ranks
+    higher. Five IEEE operations in a fixed order, so that every
+    implementation (the native extension too) gives the same number bit for
+    bit.
 
     Attributes
     ----------

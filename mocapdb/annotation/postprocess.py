@@ -29,6 +29,7 @@ All run inside :func:`mocapdb.annotation.annotate` (``min_length``,
 import numpy as np
 
 from mocapdb.annotation.chain_kernels import _margin_kernel, _segment_min_kernel, _won_kernel
+from mocapdb.annotation.model import STEP_ORDER
 from mocapdb.errors import ParameterError, check_nonnegative
 
 __all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
@@ -158,8 +159,11 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
     -------
     (n,) float64
         Per segment, of its label's map with the largest ``min_length`` ≤ its length, ``values[j]`` for the
-        last ``j`` with ``cuts[j] <= raw``, ``values[0]`` below the first cut (extension/src/annotation.c does
-        the same comparisons); the raw score where no map applies.
+        last ``j`` with ``cuts[j] <= raw`` (``values[0]`` below the first cut), plus :data:`STEP_ORDER` of the
+        way to the next step's value (1 after the last) as far as the raw score lies from ``cuts[j]`` towards
+        the next cut (1): the order of raw scores kept within a step (:class:`~mocapdb.annotation.ConfidenceMap`;
+        extension/src/annotation.c does the same operations in the same order); the raw score where no map
+        applies.
     """
     raw = np.asarray(raw, dtype=np.float64)
     out = raw.copy()
@@ -169,8 +173,17 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
     for m in maps:
         on = (labels == m.label) & (length >= m.min_length) & (m.min_length > chosen)
         if on.any():
-            j = np.searchsorted(np.asarray(m.cuts), raw[on], side="right") - 1
-            out[on] = np.asarray(m.values)[np.maximum(j, 0)]
+            cuts, values = np.asarray(m.cuts, dtype=np.float64), np.asarray(m.values, dtype=np.float64)
+            r = raw[on]
+            j = np.maximum(np.searchsorted(cuts, r, side="right") - 1, 0)
+            c0, v0 = cuts[j], values[j]
+            c1, v1 = np.append(cuts[1:], 1.0)[j], np.append(values[1:], 1.0)[j]
+            frac = np.zeros(r.size)
+            wide = c1 > c0
+            frac[wide] = (r[wide] - c0[wide]) / (c1[wide] - c0[wide])
+            frac = np.clip(frac, 0.0, 1.0)
+            # nothing added where nothing is to add: a step's value stands as stored (-0.0 too)
+            out[on] = np.where((frac > 0.0) & (v1 > v0), v0 + STEP_ORDER * (v1 - v0) * frac, v0)
             chosen[on] = m.min_length
     return out
 

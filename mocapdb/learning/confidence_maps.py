@@ -20,7 +20,10 @@ one raw score moved a whole step across 0.5 on the next lab (held out, the
 share right of segments ≥ 0.5 swung 0.80–0.91 with a design added or the
 step size moved, RESULTS.md issue 32); the cautious value holds 0.91–0.93
 over those changes. A confidence of 0.8 thus reads "of held-out segments
-like this one, at least about 80 % were right". The bands pool
+like this one, at least about 80 % were right"; within a step the raw score
+still orders the segments (:data:`mocapdb.annotation.model.STEP_ORDER`: up to
+a hundredth of the way to the next step's value — the steps alone tied a
+step's segments, which cost the ranking held out, RESULTS.md issue 32). The bands pool
 all labels: maps per label, fitted on the other labs, were worse on the lab
 left out than none (a label's reliability is its lab's: `move` is right on
 every studio walk and on half of HDM05's, whose truth calls the steps around
