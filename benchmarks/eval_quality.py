@@ -49,6 +49,7 @@ Usage: python benchmarks/eval_quality.py [--previous REV] [--shipped] [--record]
        [--only lolo,shipped]   (development: only these sections; the table in RESULTS.md runs them all)
 """
 import argparse
+import ast
 import dataclasses
 import json
 import os
@@ -86,8 +87,25 @@ PAPER = {"total, without keyframes": (0.60, 0.70), "total, with keyframes": (0.7
 MODES = {"keyframes": {}, "no keyframes": {"keyframes": False}}
 
 
+def _jsonable(x):
+    """Sets as sorted lists (their own order is the hash's, which moves between runs); anything else as text."""
+    return sorted(x) if isinstance(x, (set, frozenset)) else str(x)
+
+
+def previous_mirrors(rev):
+    """``DEFAULT_MIRRORS`` as it was at git revision ``rev`` (the recipe module has moved since)."""
+    for path in ("lab/recipe.py", "mocapdb/learning/recipe.py"):
+        run = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:{path}"], capture_output=True, text=True)
+        if run.returncode == 0:
+            for node in ast.parse(run.stdout).body:
+                if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "DEFAULT_MIRRORS"
+                                                        for t in node.targets):
+                    return ast.literal_eval(node.value)
+    raise SystemExit(f"revision {rev} has no DEFAULT_MIRRORS in lab/recipe.py or mocapdb/learning/recipe.py")
+
+
 def previous_recipe(rev):
-    """The default recipe as it was at git revision ``rev``: its class and keyframe definitions."""
+    """The default recipe as it was at git revision ``rev``: its class and keyframe definitions and its mirrors."""
     folder = Path(tempfile.mkdtemp(prefix="mocapdb-classes-"))
     names = subprocess.run(["git", "-C", str(REPO), "ls-tree", "--name-only", f"{rev}:mocapdb/shipped_models/classes"],
                            check=True, capture_output=True, text=True).stdout.split()
@@ -95,7 +113,7 @@ def previous_recipe(rev):
         blob = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:mocapdb/shipped_models/classes/{name}"],
                               check=True, capture_output=True).stdout
         (folder / name).write_bytes(blob)
-    return dataclasses.replace(default_recipe(folder), concurrent_labels=())
+    return dataclasses.replace(default_recipe(folder), mirrors=previous_mirrors(rev), concurrent_labels=())
 
 
 def builder(recipe, seed):
@@ -391,7 +409,7 @@ def main():
     total = time.perf_counter() - t0
     print("\ntimings: " + ", ".join(f"{k} {v:.0f} s" for k, v in timings.items()) + f"; total {total:.0f} s")
     if args.json:
-        args.json.write_text(json.dumps(out, indent=1, sort_keys=True, default=str) + "\n")
+        args.json.write_text(json.dumps(out, indent=1, sort_keys=True, default=_jsonable) + "\n")
         print(f"figures written to {args.json}")
 
 
