@@ -57,10 +57,6 @@ class TrainedModel:
     query_source: dict
 
 
-import os as _os
-_JR = int(_os.environ["MOCAPDB_JOIN_REACH"]) if _os.environ.get("MOCAPDB_JOIN_REACH") else None
-
-
 def half_median_template(model: Model, designed=()) -> Model:
     """``min_frames`` of every class: half the median *learned* template length of its label.
 
@@ -172,8 +168,7 @@ def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=1
         progress("classes")
     if learn_tau:
         model = with_taus(model, learn_taus(clips, recipe, grid=tau_grid, max_false_rate=max_false_rate,
-                                            max_still_rate=max_still_rate, cache=cache, keyframes=tau_keyframes,
-                                            join_reach=_JR))
+                                            max_still_rate=max_still_rate, cache=cache, keyframes=tau_keyframes))
         if progress is not None:
             progress("tau")
     if min_length:

@@ -58,7 +58,6 @@ learned ones get the τ at which unseen actors' clips are told apart best.
 from __future__ import annotations
 
 import dataclasses
-import zlib
 
 import numpy as np
 
@@ -162,62 +161,6 @@ def clip_costs(model: Model, clips, *, preselect=()) -> np.ndarray:
     return out
 
 
-def tail_costs(model: Model, pairs, *, reach=10, preselect=()) -> np.ndarray:
-    """``m[c, p]``: the smallest Δ of class c's template over the paths that start in pair p's first clip and end
-    ``reach`` frames or more into its second (+inf if none): how cheaply a hit of c runs on from one motion over
-    the start of the next, as in a recording where one follows the other.
-
-    Parameters
-    ----------
-    model : Model
-    pairs : sequence of ((n_a,) uint64, (n_b,) uint64)
-        The two clips' words, joined as they are (the first's last frame before the second's first).
-    reach : int, default 10
-        Frames of the second clip a path must cover to count.
-    preselect : collection of str
-        As :func:`clip_costs`, on the joined words.
-
-    Returns
-    -------
-    (n_classes, n_pairs) float64
-    """
-    n_cls = len(model.classes)
-    if not len(pairs):
-        return np.zeros((n_cls, 0))
-    words = [np.concatenate([np.asarray(a, dtype=np.uint64), np.asarray(b, dtype=np.uint64)]) for a, b in pairs]
-    flat = np.concatenate(words)
-    lengths = np.array([w.size for w in words], dtype=np.int64)
-    bounds = np.concatenate(([0], np.cumsum(lengths))).astype(np.int64)
-    join = bounds[:-1] + np.array([len(a) for a, _ in pairs], dtype=np.int64)   # first frame of each second clip
-    preselect = set(preselect)
-    pre = preselection_for(flat, lengths, model, True) if preselect else None
-    tc, ta, tb = [], [], []
-    for k in range(n_cls):
-        sl = None if pre is None or model.classes[k].name not in preselect else pre[k]
-        if sl is None:
-            tc.append(np.full(len(words), k))
-            ta.append(bounds[:-1])
-            tb.append(bounds[1:])
-        else:
-            sl = np.asarray(sl, dtype=np.int64).reshape(-1, 2)
-            tc.append(np.full(len(sl), k))
-            ta.append(sl[:, 0])
-            tb.append(sl[:, 1] + 1)
-    tc, ta, tb = (np.concatenate(x).astype(np.int64) for x in (tc, ta, tb))
-    delta, offsets, starts = mt_distance_slices(flat, [c.quantized for c in model.classes], tc, ta, tb,
-                                                steps=ANNOTATION_STEPS, rule="toolbox", return_starts=True)
-    out = np.full((n_cls, len(words)), np.inf)
-    doc = np.searchsorted(bounds, ta, side="right") - 1
-    for q in range(tc.size):
-        d = doc[q]
-        end = np.arange(ta[q], tb[q])
-        ok = (end >= join[d] + reach) & (starts[offsets[q]:offsets[q + 1]] < join[d]) \
-            & (starts[offsets[q]:offsets[q + 1]] >= bounds[d])
-        if ok.any():
-            out[tc[q], d] = min(out[tc[q], d], delta[offsets[q]:offsets[q + 1]][ok].min())
-    return out
-
-
 def _keyframe_alone(query, k):
     """Keyframe k of a query as a query of its own (same template position and length)."""
     none = np.zeros(0, np.int64)
@@ -288,7 +231,7 @@ def _f_beta(tp, fn, fp, beta):
 
 
 def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, max_still_rate=0.05, cache=None,
-               keyframes=False, max_keyframe_rate=0.02, join_reach=None):
+               keyframes=False, max_keyframe_rate=0.02):
     """τ per class of the model a recipe builds from ``clips`` (module docstring).
 
     Parameters
@@ -338,7 +281,6 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
                if keyframes else [])
     label_of = {c.name: c.label for c in full.classes}
     costs, owner, still_costs = [], [], []
-    join_costs, join_next = [], []
     for g in groups:
         rest = {c: [x for x in v if x.group != g] for c, v in clips.items()}
         model = build_model(rest, recipe, name=f"without_{g}", cache=cache)
@@ -357,24 +299,10 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
                            m[:, len(held):]])
             held += [(OTHERS, x) for x in negs]
         row = {c: k for k, c in enumerate(model.class_names)}
-
-        def all_rows(x):
-            out = np.full((len(names), x.shape[1]), np.inf)
-            for k, c in enumerate(names):
-                if c in row:
-                    out[k] = x[row[c]]
-            return out
-        full_m = all_rows(m)
-        if join_reach is not None and len(held) > 1:
-            # step 7: the group's clips one after another, in an order of their own, as a recording has them
-            order = np.random.default_rng(zlib.crc32(str(g).encode())).permutation(len(held))
-            pairs = [(a, b) for a, b in zip(order[:-1], order[1:])
-                     if label_of.get(held[a][0], held[a][0]) != label_of.get(held[b][0], held[b][0])]
-            if pairs:
-                t = tail_costs(model, [(held[a][1].words, held[b][1].words) for a, b in pairs], reach=join_reach,
-                               preselect=[c for c in through if c in model.class_names])
-                join_costs.append(all_rows(t))
-                join_next += [len(owner) + b for _, b in pairs]
+        full_m = np.full((len(names), m.shape[1]), np.inf)
+        for k, c in enumerate(names):
+            if c in row:
+                full_m[k] = m[row[c]]
         costs.append(full_m[:, :len(held)])
         still_costs.append(full_m[:, len(held):])
         owner += [c for c, _ in held]
@@ -387,14 +315,6 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
     for k, c in enumerate(names):
         mine = own_label == label_of[c]
         own_best[mine] = np.minimum(own_best[mine], m[k, mine])
-    n_base = m.shape[1]
-    if join_costs:
-        # a hit running on over the next clip claims its frames where the next clip's own label matches it worse
-        nxt = np.array(join_next, dtype=np.int64)
-        m = np.hstack([m, *join_costs])
-        owner = np.concatenate([owner, np.full(nxt.size, "", dtype=object)])
-        own_label = np.concatenate([own_label, own_label[nxt]])
-        own_best = np.concatenate([own_best, own_best[nxt]])
     out = {}
     for k, c in enumerate(full.classes):
         if still.shape[1] and not is_static(c):
@@ -404,11 +324,7 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
             cap = float(ok.max()) if ok.size else float(grid.min())
         else:
             cap = float(grid.max())
-        # a class without held-out clips of its own (designed, reversed) is not measured on joined clips: its
-        # author's τ is capped by whole motions only
-        n = m.shape[1] if (owner[:n_base] == c.name).any() else n_base
-        out[c.name] = min(_class_tau(k, c, m[:, :n], owner[:n], own_label[:n], own_best[:n], grid, beta,
-                                     max_false_rate), cap)
+        out[c.name] = min(_class_tau(k, c, m, owner, own_label, own_best, grid, beta, max_false_rate), cap)
     return out
 
 
