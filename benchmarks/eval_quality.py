@@ -34,7 +34,9 @@ motions of no class, hops).
 without each lab in turn (HDM05, CMU, bandai2_dev, accad_dev) annotates that
 lab — what a stranger with another lab's recordings sees —, with and
 without keyframes; per fold its figures, inside the fold per actor / document
-/ style, and the spread (min–max) across folds.
+/ style, and the spread (min–max) across folds; and the lab's short clips
+(:mod:`lab.short_clips`: a clip of one gait cycle, 0.7 and 1 s, with
+``move``; short excerpts of its other motions with a wrong label).
 The segments' confidence is judged there twice: the raw score, and
 calibrated — each lab's segments through confidence maps fitted on the other
 labs' segments only (:func:`lab.calibration.calibrated_by_lab`).
@@ -72,6 +74,7 @@ sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the developme
 from lab.calibration import calibrated_by_lab, confidence_calibration, held_out_segments
 from lab.development import SETTINGS, development_data, development_evaluation
 from lab.records import guard, headline_figures, raised_records, read_records, write_records
+from lab.short_clips import short_clip_measures, short_clips
 from lab.studio import studio_measures
 from lab.default_model import train_recipe
 from lab.recipe import PAPER_LABELS, default_recipe
@@ -256,6 +259,21 @@ def lolo_folds(res, studio):
     return out
 
 
+def lolo_short_clips(res, clips, mode):
+    """Per lab: its short clips (:mod:`lab.short_clips`) annotated by the model trained without it."""
+    out = {}
+    for lab, by_length in clips.items():
+        model = res.models.get(f"without_{lab}")
+        if model is None:
+            continue
+        for s, c in by_length.items():
+            m = short_clip_measures(c, model, keyframes=mode == "keyframes")
+            out.setdefault(lab, {})[f"cycles of {s} s with move"] = m["cycles with move"]
+            out[lab][f"excerpts of {s} s with a wrong label"] = m["excerpts with a wrong label"]
+            out[lab][f"excerpts of {s} s, wrong labels"] = m["wrong by label"]
+    return out
+
+
 def print_lolo(folds_by_mode):
     print("\nLeave-one-lab-out (the new recipe trained on none of the annotated lab's clips)")
     for mode, folds in folds_by_mode.items():
@@ -265,6 +283,8 @@ def print_lolo(folds_by_mode):
             for k, v in figs.items():
                 if isinstance(v, dict) and not v:
                     parts.append(f"{k} none")
+                elif isinstance(v, dict) and all(isinstance(x, int) for x in v.values()):   # counts
+                    parts.append(f"{k} " + ", ".join(f"{g} {x}" for g, x in v.items()))
                 elif isinstance(v, dict):
                     vals = list(v.values())
                     parts.append(f"{k} {min(vals):.3f}–{max(vals):.3f} (" + ", ".join(f"{g} {x:.3f}"
@@ -365,6 +385,11 @@ def main():
                                       leave_out_lab=True, **common)
         timings["leave-one-lab-out"] = time.perf_counter() - t
         folds = {m: lolo_folds(r, data.studio) for m, r in lolo.items()}
+        # a clip of one gait cycle, a short excerpt of another motion: a file of 0.7-1 s of its own
+        shorts = short_clips(DATA, data)
+        for m, r in lolo.items():
+            for lab, figs in lolo_short_clips(r, shorts, m).items():
+                folds[m].setdefault(lab, {}).update(figs)
         print_lolo(folds)
         print_lab({f"lolo {m}": r for m, r in lolo.items()})
         calibration = {m: calibration_rows(r) for m, r in lolo.items()}

@@ -43,7 +43,7 @@ from mocapdb.features import motion_features
 from mocapdb.readers import read_motion
 
 __all__ = ["LAB_FOLDER", "LOCOMOTION_EXTRAS", "ClipTruth", "LabDocuments", "LabScores", "parse_expected",
-           "lab_documents", "lab_measures"]
+           "lab_clip_files", "lab_documents", "lab_measures"]
 
 #: the folder of the development data that holds the clips
 LAB_FOLDER = "accad_dev"
@@ -132,8 +132,8 @@ class LabDocuments:
     travelling: tuple = ()  # per document, a boolean per frame: the root travels (:func:`lab.travel.travelling_frames`)
 
 
-def lab_documents(data_dir) -> LabDocuments:
-    """Read ``<data_dir>/accad_dev``: every clip ``truth.csv`` names, in its order.
+def lab_clip_files(data_dir) -> list:
+    """``(path, ClipTruth, content)`` of every clip ``<data_dir>/accad_dev/truth.csv`` names, in its order.
 
     Raises
     ------
@@ -148,15 +148,24 @@ def lab_documents(data_dir) -> LabDocuments:
             rows = list(csv.DictReader(f))
     except OSError as exc:
         raise ParameterError(f"{table}: cannot read the clips' truth ({exc.strerror})") from None
-    names, words, native, truth, contents, refused, travelling = [], [], [], [], [], [], []
+    out = []
     for line, r in enumerate(rows, start=2):
         if not {"file", "expected_labels"} <= set(r) or not r["file"]:
             raise ParameterError(f"{table}, line {line}: needs the columns file and expected_labels")
         path = folder / r["file"]
         if not path.is_file():
             raise ParameterError(f"{table}, line {line}: {r['file']!r} is not in {str(folder)!r}")
-        expected = parse_expected(r["expected_labels"], where=f"{table}, line {line}")
-        name = r["file"].split(".bvh")[0]
+        out.append((path, parse_expected(r["expected_labels"], where=f"{table}, line {line}"), r.get("content", "")))
+    return out
+
+
+def lab_documents(data_dir) -> LabDocuments:
+    """Read ``<data_dir>/accad_dev``: every clip ``truth.csv`` names (:func:`lab_clip_files`, whose errors it
+    raises), in its order; a clip the reader refuses goes to ``refused``."""
+    table = Path(data_dir) / LAB_FOLDER / "truth.csv"
+    names, words, native, truth, contents, refused, travelling = [], [], [], [], [], [], []
+    for path, expected, content in lab_clip_files(data_dir):
+        name = path.name.split(".bvh")[0]
         try:
             motion = read_motion(path)
         except ParseError as exc:
@@ -167,7 +176,7 @@ def lab_documents(data_dir) -> LabDocuments:
         names.append(name)
         words.append(w)
         native.append(motion.n_frames)
-        contents.append(r.get("content", ""))
+        contents.append(content)
         travelling.append(travelling_frames(motion))
     if not names:
         raise ParameterError(f"{table}: no clips")

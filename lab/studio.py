@@ -43,7 +43,7 @@ from lab.travel import travelling_frames
 from mocapdb.readers import read_motion
 
 __all__ = ["STUDIO_CONTENTS", "STUDIO_FOLDER", "STUDIO_GROUP", "STUDIO_TRAINING_CLASSES", "StudioDocuments",
-           "StudioScores", "studio_documents", "studio_measures", "studio_training", "studio_style"]
+           "StudioScores", "studio_clip_files", "studio_documents", "studio_measures", "studio_training", "studio_style"]
 
 #: the folder of the development data that holds the clips
 STUDIO_FOLDER = "bandai2_dev"
@@ -105,6 +105,28 @@ class StudioDocuments:
                                tuple(t for t, k in zip(self.travelling, keep) if k))
 
 
+def studio_clip_files(data_dir) -> list:
+    """``(path, name, content, style)`` of every studio clip (``<data_dir>/bandai2_dev``), in file-name order.
+
+    Raises
+    ------
+    ParameterError
+        No clips, or a clip whose name does not say its content.
+    """
+    folder = Path(data_dir) / STUDIO_FOLDER
+    paths = sorted(p for p in folder.glob("*.bvh*") if p.is_file())
+    if not paths:
+        raise ParameterError(f"no studio clips (*.bvh, *.bvh.gz) in {str(folder)!r}")
+    out = []
+    for p in paths:
+        stem = p.name.split(".bvh")[0]
+        m = _NAME.match(stem)
+        if m is None or m["content"] not in STUDIO_CONTENTS:
+            raise ParameterError(f"{p}: the name does not say a known content ({sorted(STUDIO_CONTENTS)})")
+        out.append((p, stem, m["content"], m["style"]))
+    return out
+
+
 def studio_documents(data_dir, *, styles=None) -> StudioDocuments:
     """Read the studio's clips (``<data_dir>/bandai2_dev``) as documents with their truth.
 
@@ -126,23 +148,16 @@ def studio_documents(data_dir, *, styles=None) -> StudioDocuments:
         No clips, or a clip whose name does not say its content.
     """
     folder = Path(data_dir) / STUDIO_FOLDER
-    paths = sorted(p for p in folder.glob("*.bvh*") if p.is_file())
-    if not paths:
-        raise ParameterError(f"no studio clips (*.bvh, *.bvh.gz) in {str(folder)!r}")
     names, contents, style_of, words, native, truth_n, truth, travelling = [], [], [], [], [], [], [], []
-    for p in paths:
-        stem = p.name.split(".bvh")[0]
-        m = _NAME.match(stem)
-        if m is None or m["content"] not in STUDIO_CONTENTS:
-            raise ParameterError(f"{p}: the name does not say a known content ({sorted(STUDIO_CONTENTS)})")
-        if styles is not None and m["style"] not in styles:
+    for p, stem, content, style in studio_clip_files(data_dir):
+        if styles is not None and style not in styles:
             continue
         motion = read_motion(p)
         w = motion_features(motion)
-        labels = STUDIO_CONTENTS[m["content"]][1]
+        labels = STUDIO_CONTENTS[content][1]
         names.append(stem)
-        contents.append(m["content"])
-        style_of.append(m["style"])
+        contents.append(content)
+        style_of.append(style)
         words.append(w)
         native.append(motion.n_frames)
         travelling.append(travelling_frames(motion))

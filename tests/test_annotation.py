@@ -305,7 +305,7 @@ def test_won_frames_equals_naive_on_random_label_deltas():
     rng = np.random.default_rng(11)
     labels = ("a", "b", "c", "d")
     for _ in range(20):
-        lengths = rng.integers(20, 120, size=3)
+        lengths = rng.integers(4, 120, size=3)   # short documents too: their need is capped
         cd = np.round(rng.uniform(0, 0.2, size=(4, lengths.sum())), 2)
         cd[rng.random(cd.shape) < 0.4] = np.inf
         bounds = np.concatenate(([0], np.cumsum(lengths)))
@@ -322,7 +322,9 @@ def test_won_frames_equals_naive_on_random_label_deltas():
         np.testing.assert_array_equal(won_frames(seg, cd, bounds, labels), want)
         need = rng.integers(0, 6, size=4)
         kept = drop_unwon_segments(seg, cd, bounds, labels, need)
-        mask = np.array([w >= need[labels.index(x["label"])] for w, x in zip(want, seg)], dtype=bool)
+        # in a document of n frames a label needs at most a third of ⌈n/2⌉ (postprocess.document_minimum)
+        cap = [int(np.ceil(((lengths[x["doc"]] + 1) // 2) / 3 - 1e-9)) for x in seg]
+        mask = np.array([w >= min(need[labels.index(x["label"])], c) for w, x, c in zip(want, seg, cap)], dtype=bool)
         np.testing.assert_array_equal(kept, seg[mask] if seg.size else seg)
         assert kept.dtype == SEGMENT_DTYPE
 

@@ -52,6 +52,26 @@ def test_a_concurrent_label_takes_no_frame_from_the_others():
     assert segs(annotate(w, Model("m", classes, concurrent_labels=()))) == segs(plain)
 
 
+def test_a_short_document_keeps_a_label_over_half_of_it_but_not_a_short_turn():
+    """A label's minimum length drops leftovers between labels; in a document shorter than twice it (a clip
+    of one gait cycle) a segment over half the document is kept — not a concurrent label's, whose minimum
+    is its own duration (a lasting turn)."""
+    import dataclasses
+
+    walk, turn = (dataclasses.replace(c, min_frames=26) for c in (cls("A", "walk", 0), cls("B", "turn", 1)))
+    model = Model("m", (walk, turn), concurrent_labels=("turn",))
+    short = words(21, [(0, (3, 16)), (1, (2, 19))])          # 0.7 s: a walk of 14 frames, a turn of 18
+    assert segs(annotate(short, model)) == [("walk", 3, 16)]
+    # the same walk inside a long document is a leftover: dropped
+    long_doc = words(60, [(0, (3, 16))])
+    assert segs(annotate(long_doc, model)) == []
+    # documents annotated together keep their own lengths: the short one keeps its walk
+    both = annotate(np.concatenate([long_doc, short]), model, doc_lengths=[60, 21])
+    assert sorted((int(s["doc"]), str(s["label"])) for s in both.segments) == [(1, "walk")]
+    # under half of the short document: dropped (⌈21/2⌉ = 11 > 9 frames)
+    assert segs(annotate(words(21, [(0, (3, 11))]), model)) == []
+
+
 def test_concurrent_labels_must_be_labels_of_the_model():
     with pytest.raises(ParameterError, match="not labels of the model"):
         Model("m", (cls("A", "walk", 0),), concurrent_labels=("turn",))

@@ -116,3 +116,34 @@ def test_the_confidence_is_calibrated_on_labs_left_out(shipped):
     assert cal["pooled"]["auc"] >= 0.85
     for s in ("loao", "loao_mirrored", "bandai2", "accad"):
         assert cal[s]["auc"] >= 0.80, s
+
+
+@pytest.mark.shared
+def test_a_clip_of_one_gait_cycle_gets_move(shipped, data_dir, monkeypatch):
+    """0.7 s of a walk or run (one gait cycle: CMU 02's walks and jog, ACCAD's clips of locomotion), each a
+    document of its own as a file of that length is: the shipped model labels most of them `move` and nothing
+    but `move` and `turn`. Without the short-document rule none, as before it: `move`'s minimum length (26
+    frames) is longer than the clip (21 frames)."""
+    from lab.lab_clips import lab_clip_files
+    from lab.short_clips import gait_cycle
+    from mocapdb.annotation import annotate, preselection_for
+    from mocapdb.annotation import postprocess
+    from mocapdb.readers import read_motion
+
+    model = shipped[0]
+    cmu = data_dir / "cmu" / "02"
+    motions = [read_motion(cmu / f"{d}.amc", asf=cmu / "02.asf") for d in ("02_01", "02_02", "02_03")]
+    motions += [read_motion(p) for p, truth, _ in lab_clip_files(data_dir) if truth.locomotion]
+    words = [gait_cycle(m, 0.7) for m in motions]
+    lengths = np.array([w.size for w in words])
+    assert len(words) >= 30 and (lengths <= 22).all()
+
+    def labels():
+        flat = np.concatenate(words)
+        segs = annotate(flat, model, doc_lengths=lengths, preselection=preselection_for(flat, lengths, model)).segments
+        return {int(d) for d, lab in zip(segs["doc"], segs["label"]) if lab == "move"}, set(segs["label"].tolist())
+
+    with_move, found = labels()
+    assert len(with_move) >= 0.5 * len(words) and found <= {"move", "turn"}, (len(with_move), found)
+    monkeypatch.setattr(postprocess, "document_minimum", lambda n: np.full(np.shape(n), 1 << 40, np.int64))
+    assert labels()[0] == set()

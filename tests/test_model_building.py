@@ -159,6 +159,13 @@ def test_segment_filters():
                           ("cost", np.float64)])
     kept = drop_short_segments(seg, ("a", "b"), [5, 0])
     assert kept["start"].tolist() == [0, 30]
+    # in a document of 6 frames a segment of 3 is half of it: kept, unless its label is concurrent (a
+    # concurrent label's minimum is its own duration)
+    assert drop_short_segments(seg, ("a", "b"), [5, 0], doc_lengths=[6])["start"].tolist() == [0, 20, 30]
+    assert drop_short_segments(seg, ("a", "b"), [5, 0], doc_lengths=[6], concurrent=("a",))["start"].tolist() == [0, 30]
+    # ⌈7/2⌉ = 4 > 3 frames: dropped; a long document changes nothing
+    assert drop_short_segments(seg, ("a", "b"), [5, 0], doc_lengths=[7])["start"].tolist() == [0, 30]
+    assert drop_short_segments(seg, ("a", "b"), [5, 0], doc_lengths=[100])["start"].tolist() == [0, 30]
     cd = np.array([[0.05, 0.05, 0.05, np.inf], [0.051, 0.09, np.inf, np.inf]])
     out = apply_margin(cd.copy(), 0.01)
     assert np.isinf(out[:, 0]).all()                          # 0.051 - 0.05 < 0.01: unlabelled

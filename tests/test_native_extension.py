@@ -96,6 +96,8 @@ def words_query(masks, vals, gap_min, gap_max, left, right):
 
 @pytest.fixture(scope="module")
 def native():
+    import mocapdb.api  # noqa: F401  (run alone, nothing else has imported it)
+
     return mocapdb.api.extension_path()
 
 
@@ -250,6 +252,45 @@ def test_annotate_equals_the_python_udf(archive, native):
     conf = np.array([s["confidence"] for _, segs in want[0] for s in segs])
     below = values[np.searchsorted(values, conf, side="right") - 1]
     assert len(values) > 3 and (conf - below <= STEP_ORDER * (1 - below) + 1e-15).all()
+
+
+def _amc_head(src, dst, frames):
+    """The AMC file ``src`` cut after its first ``frames`` frames, written to ``dst``."""
+    out = []
+    for line in src.read_text(encoding="latin-1").splitlines(keepends=True):
+        if line.strip().isdigit() and int(line) > frames:
+            break
+        out.append(line)
+    dst.write_text("".join(out), encoding="latin-1")
+
+
+@pytest.mark.shared
+def test_annotate_of_short_clips_equals_the_python_udf(native, tmp_path):
+    """Clips of 0.7 and 1 s (HDM05 jogs and sneaks cut to their first 84 and 120 frames, files of their
+    own): shorter than twice a label's minimum, where a segment over half the clip is kept
+    (postprocess.document_minimum) — the native segments are the Python UDF's, and there are some."""
+    clips = [p for c in ("jogLeftCircle4StepsRstart", "sneak2StepsLStart")
+             for p in sorted((DATA / "hdm05_cut" / c).glob("*.amc"))[:3]]
+    for p in clips:
+        for frames in (84, 120):
+            _amc_head(p, tmp_path / f"{p.stem}_{frames}.amc", frames)
+    db = tmp_path / "short.duckdb"
+    with mocapdb.connect(db) as con:
+        for actor in {p.name.split("_")[1] for p in clips}:
+            mocapdb.ingest(con, sorted(tmp_path.glob(f"HDM_{actor}_*.amc")), asf=DATA / "hdm05_cut" / f"HDM_{actor}.asf")
+        assert con.execute("SELECT count(*), max(n_frames) FROM motions").fetchall()[0] == (12, 30)  # 30 Hz
+    settings = ("NULL", "true", "false")
+    with python_udfs(db) as con:
+        want = [[list(r) for r in con.execute(f"SELECT motion_id, annotate(motion_id, keyframes := {k}) FROM motions "
+                                              "ORDER BY motion_id").fetchall()] for k in settings]
+        n_frames = dict(con.execute("SELECT motion_id, n_frames FROM motions").fetchall())
+    got = plain_client(db, native, [f"SELECT motion_id, annotate(motion_id, 'default', NULL, {k}) FROM motions "
+                                    "ORDER BY motion_id" for k in settings])
+    assert [g.get("error") for g in got] == [None] * len(settings)
+    for k, w, g in zip(settings, want, got):
+        assert g["rows"] == w, k
+    # segments of a label whose minimum is longer than half the clip, in clips of 0.7 s too
+    assert len({mid for mid, segs in want[0] if n_frames[mid] == 21 for s in segs if s["label"] == "move"}) >= 2
 
 
 @pytest.mark.shared

@@ -22,9 +22,6 @@ DUCKDB_EXTENSION_EXTERN
 
 #define WHAT "annotate"
 
-/* as mocapdb.annotation.postprocess.WON_FRACTION */
-#define WON_FRACTION (1.0 / 3.0)
-
 /* The models of one call, read once each. */
 typedef struct {
 	char *name;
@@ -122,7 +119,7 @@ static named_model *model_of(mdb_state *st, models *ms, const char *name, mdb_er
 		for (size_t q = 0; q < L; q++) {
 			x->name_rank[p] += strcmp(x->m->label[q], x->m->label[p]) < 0;
 		}
-		x->min_won[p] = (int64_t)ceil((double)x->min_frames[p] * WON_FRACTION - 1e-9);
+		x->min_won[p] = (int64_t)ceil((double)x->min_frames[p] * MDB_WON_FRACTION - 1e-9);
 	}
 	return x;
 }

@@ -261,11 +261,15 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 	if (form_segments((const double *const *)rows, ident, R, n, &segs)) {
 		goto done;
 	}
+	/* postprocess.document_minimum: in a motion shorter than twice a label's minimum, half of it
+	 * (rounded up) is the most the minimum asks, and a third of that the most min_won asks */
+	int64_t half = ((int64_t)n + 1) / 2;
+	int64_t half_won = (int64_t)ceil((double)half * MDB_WON_FRACTION - 1e-9);
 	/* drop_unwon_segments: the label must be Δarg on min_won of its frames */
 	size_t kept = 0;
 	for (size_t i = 0; i < segs.n; i++) {
 		mdb_segment x = segs.at[i];
-		int64_t want = rules->min_won[x.label];
+		int64_t want = rules->min_won[x.label] < half_won ? rules->min_won[x.label] : half_won;
 		if (want > 0) {
 			int64_t won = 0;
 			for (int64_t f = x.start; f <= x.end; f++) {
@@ -335,8 +339,12 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 			/* nothing added where nothing is to add: a step's value stands as stored (-0.0 too) */
 			x.confidence = frac > 0.0 && v1 > v0 ? v0 + MDB_STEP_ORDER * (v1 - v0) * frac : v0;
 		}
-		/* drop_short_segments */
-		if (x.end - x.start + 1 >= rules->min_frames[x.label] && push(out, x)) {
+		/* drop_short_segments: a concurrent label's minimum is its own duration, never capped */
+		int64_t need = rules->min_frames[x.label];
+		if (!rules->concurrent[x.label] && half < need) {
+			need = half;
+		}
+		if (x.end - x.start + 1 >= need && push(out, x)) {
 			goto done;
 		}
 	}

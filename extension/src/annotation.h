@@ -55,6 +55,9 @@ void mdb_hit_scratch_free(mdb_hit_scratch *s);
 int mdb_classification_delta(const double *delta, const int64_t *starts, size_t n, double tau, double *cd,
                              mdb_hit_scratch *scratch);
 
+/* as mocapdb.annotation.postprocess.WON_FRACTION: a segment wins this share of its label's minimum */
+#define MDB_WON_FRACTION (1.0 / 3.0)
+
 /* Segments of one motion of n frames (chain._segment_labels, then drop_short_segments):
  * label_cd (n_labels rows of n, the label's Δ̄^τ; overwritten) and label_ratio (Δ̄^τ / τ, for the
  * confidence). Appended to out sorted by (label, start). 0, or -1 when out of memory. */

@@ -551,7 +551,8 @@ def _chain(words, model, taus, *, doc_lengths, preselection, match_num_max, step
         if len(seg_parts) > 1:
             segments = _sort_by_label(segments, labels)
         if min_frames is not None:
-            segments = drop_short_segments(segments, labels, min_frames)
+            segments = drop_short_segments(segments, labels, min_frames, doc_lengths=bounds[1:] - bounds[:-1],
+                                           concurrent=model.concurrent_labels)
         if model.confidence_maps:
             segments["confidence"] = calibrate_confidence(segments, segments["confidence"], model.confidence_maps)
         hits = np.empty(0, dtype=HIT_DTYPE)
@@ -606,9 +607,12 @@ def annotate(words, model, *, doc_lengths=None, preselection=None, tau=None,
         frame with 15 classes). False leaves ``Annotation.hits`` empty; the
         segments are the same.
     min_length : bool, optional
-        Drop segments shorter than their label's ``min_frames``
-        (:mod:`mocapdb.annotation.postprocess`); default True (a class
-        without ``min_frames`` keeps everything, as the toolbox).
+        Drop segments shorter than their label's ``min_frames``, or than
+        half their document where that is shorter (a clip of one gait
+        cycle; not for a concurrent label,
+        :func:`mocapdb.annotation.postprocess.drop_short_segments`);
+        default True (a class without ``min_frames`` keeps everything, as
+        the toolbox).
     min_won : bool, optional
         Drop segments whose label is the best label (Δarg) on fewer than a
         third of its ``min_frames`` frames

@@ -6,6 +6,14 @@
   at most twice), so a shorter run of Δarg is a leftover where the label won
   only briefly between others. A label keeps segments as short as its most
   lenient class allows.
+* **short documents** (:func:`document_minimum`): in a document shorter
+  than twice a label's minimum, a segment over half of it is kept (and must
+  win a third of that). Both filters drop leftovers *between* labels; in a
+  clip of 0.7–1 s (one gait cycle, a take cut to one step) a label over
+  half of it is the clip's motion, not a leftover, and a minimum longer
+  than the clip dropped every segment (RESULTS.md, issue 32: single gait
+  cycles). A concurrent label (``turn``) keeps its minimum: it is its own
+  duration (a lasting turn), not a filter against neighbours.
 * **won frames** (:func:`won_frames`, :func:`drop_unwon_segments`): a
   segment's label must be the best label (Δarg) on at least a third of its
   ``min_frames`` (:data:`WON_FRACTION`). The segmenter extends a run of
@@ -32,7 +40,7 @@ from mocapdb.annotation.chain_kernels import _margin_kernel, _segment_min_kernel
 from mocapdb.annotation.model import STEP_ORDER
 from mocapdb.errors import ParameterError, check_nonnegative
 
-__all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
+__all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments", "document_minimum",
            "apply_margin", "segment_confidence", "calibrate_confidence", "WON_FRACTION"]
 
 #: a segment's label must win (be Δarg on) this share of its ``min_frames``
@@ -49,8 +57,23 @@ def label_min_frames(model) -> np.ndarray:
     return out
 
 
-def drop_short_segments(segments, labels, min_frames):
-    """Segments of at least their label's minimum length.
+def document_minimum(doc_lengths) -> np.ndarray:
+    """The most a label's minimum length asks of a segment in documents of these lengths: half, rounded up.
+
+    Parameters
+    ----------
+    doc_lengths : array_like of int
+
+    Returns
+    -------
+    ndarray of int64
+        ``⌈n/2⌉`` per document (module docstring, short documents).
+    """
+    return (np.asarray(doc_lengths, dtype=np.int64) + 1) // 2
+
+
+def drop_short_segments(segments, labels, min_frames, *, doc_lengths=None, concurrent=()):
+    """Segments of at least their label's minimum length (in a short document, of half of it).
 
     Parameters
     ----------
@@ -58,6 +81,11 @@ def drop_short_segments(segments, labels, min_frames):
     labels : sequence of str
         Label order of ``min_frames``.
     min_frames : (n_labels,) int
+    doc_lengths : array_like of int, optional
+        The length of every document ``segments["doc"]`` indexes: a label's minimum is at most
+        :func:`document_minimum` of its segment's document. Default: no cap.
+    concurrent : collection of str, optional
+        Labels whose minimum is never capped (concurrent labels: their minimum is their own duration).
 
     Returns
     -------
@@ -68,12 +96,21 @@ def drop_short_segments(segments, labels, min_frames):
     if not segments.size or not any(need.values()):
         return segments
     lo = np.array([need.get(lab, 0) for lab in segments["label"]], dtype=np.int64)
+    if doc_lengths is not None:
+        capped = np.array([lab not in concurrent for lab in segments["label"]], dtype=bool)
+        half = document_minimum(doc_lengths)[segments["doc"]]
+        lo = np.where(capped, np.minimum(lo, half), lo)
     return segments[segments["end"] - segments["start"] + 1 >= lo]
+
+
+def _won_need(min_frames):
+    """Frames a segment must win for a minimum length: ⌈:data:`WON_FRACTION` · min_frames⌉."""
+    return np.ceil(np.asarray(min_frames, dtype=np.int64) * WON_FRACTION - 1e-9).astype(np.int64)
 
 
 def label_min_won(model) -> np.ndarray:
     """(n_labels,) int64: frames a segment of each label must win, ⌈:data:`WON_FRACTION` · min_frames⌉."""
-    return np.ceil(label_min_frames(model) * WON_FRACTION - 1e-9).astype(np.int64)
+    return _won_need(label_min_frames(model))
 
 
 def won_frames(segments, label_cd, doc_bounds, labels) -> np.ndarray:
@@ -196,7 +233,8 @@ def drop_unwon_segments(segments, label_cd, doc_bounds, labels, min_won):
     segments, label_cd, doc_bounds, labels
         As :func:`won_frames`.
     min_won : (n_labels,) int
-        Per label (``labels`` order); 0 keeps every segment of the label.
+        Per label (``labels`` order); 0 keeps every segment of the label. In a short document at most
+        what a third of :func:`document_minimum` asks.
 
     Returns
     -------
@@ -208,6 +246,8 @@ def drop_unwon_segments(segments, label_cd, doc_bounds, labels, min_won):
         return segments
     lo = dict(zip(labels, need.tolist()))
     want = np.array([lo[x] for x in segments["label"]], dtype=np.int64)
+    b = np.asarray(doc_bounds, dtype=np.int64)
+    want = np.minimum(want, _won_need(document_minimum(b[1:] - b[:-1]))[segments["doc"]])
     check = want > 0
     keep = np.ones(segments.size, dtype=bool)
     if check.any():
