@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapdb.annotation.model import Model
-from lab.recipe import build_model
+from lab.recipe import build_model, recipe_copies
 from lab.robust_queries import learn_robust_queries
 from lab.thresholds import learn_taus, with_taus
 
@@ -57,7 +57,7 @@ class TrainedModel:
     query_source: dict
 
 
-def half_median_template(model: Model, designed=()) -> Model:
+def half_median_template(model: Model, designed=(), copies=()) -> Model:
     """``min_frames`` of every class: half the median *learned* template length of its label.
 
     A full match of a template of K columns covers at least K/2 frames (the
@@ -82,10 +82,15 @@ def half_median_template(model: Model, designed=()) -> Model:
     model : Model
     designed : collection of str, optional
         Names of the designed classes (default none: every template is learned).
+    copies : collection of str, optional
+        Names of copies of a learned class (its template under another query): the template counts once,
+        as its learned class.
     """
     lengths, designs, floor = {}, {}, {}
     for c in model.classes:
         k = len(c.quantized.expand())
+        if c.name in copies:
+            continue
         if c.name in designed:
             designs.setdefault(c.label, []).append(k)
             floor[c.label] = min(floor.get(c.label, c.min_frames), c.min_frames)
@@ -172,13 +177,16 @@ def train_recipe(clips, recipe, *, name, keyframes=False, runs=20, generations=1
         if progress is not None:
             progress("tau")
     if min_length:
-        model = half_median_template(model, {d.name for d in recipe.definitions})
+        model = half_median_template(model, {d.name for d in recipe.definitions}, recipe_copies(recipe))
     model = dataclasses.replace(model, margin=float(margin))
     source = {}
     mirrored = {m: c for c, m in recipe.mirrors.items()}
     reversed_ = {n: c for c, (n, _) in recipe.reversals.items()}
+    copies = recipe_copies(recipe)
     for c in model.classes:
-        if c.name in designed:
+        if c.name in copies:
+            source[c.name] = f"keyframe definition on {copies[c.name]}'s template"
+        elif c.name in designed:
             source[c.name] = "keyframe definition"
         elif c.name in robust:
             r = robust[c.name]

@@ -14,7 +14,11 @@ The paper's authors assembled each of their 15 classes from fine classes
   columns in reverse order, features by
   :func:`mocapdb.features.reverse_fuzzy_words`;
 * **designed** classes: hand-written class definitions
-  (:mod:`mocapdb.learning.class_definitions`, paper Sect. 8).
+  (:mod:`mocapdb.learning.class_definitions`, paper Sect. 8);
+* **copies**: a learned class's template under a query of its own (a
+  keyframe definition with ``template``: ``depositFloorRBothHands`` is
+  ``depositFloorR``'s template found where both hands reach the floor, as a
+  box is lifted), beside the learned class and its query.
 
 Keyframe queries (:func:`build_model`'s ``keyframes``): learned classes by the
 genetic algorithm (paper Sect. 6), with T− = the clips of every other learned
@@ -37,11 +41,11 @@ from mocapdb.annotation.labels import class_labels
 from mocapdb.annotation.model import DEFAULT_DELTA, DEFAULT_TAU, ClassModel, Model
 from mocapdb.errors import ParameterError
 from mocapdb.features import mirror_words
-from mocapdb.learning.class_definitions import attach_keyframes, compile_definition, read_definitions
+from mocapdb.learning.class_definitions import apply_keyframe_definitions, compile_definition, read_definitions
 from mocapdb.templates import learn_template
 
 __all__ = ["Clip", "Recipe", "PAPER_LABELS", "build_model", "mirror_class", "reverse_class", "clip_words",
-           "recipe_clips", "default_recipe", "DEFAULT_MIRRORS", "DEFAULT_REVERSALS", "DEFINITIONS_DIR",
+           "recipe_clips", "recipe_copies", "default_recipe", "DEFAULT_MIRRORS", "DEFAULT_REVERSALS", "DEFINITIONS_DIR",
            "DEFAULT_CONCURRENT", "OTHERS"]
 
 #: the shipped default model's mirrored classes (learned class -> mirror image):
@@ -102,7 +106,7 @@ class Recipe:
     keyframes : tuple of KeyframeDefinition
         Hand-designed keyframe queries of learned classes (they replace a
         learned query; mirrored and reversed classes take them mirrored /
-        reversed).
+        reversed), and of copies (a definition with ``template``).
     label_order : tuple of str
         Label order of the model (Δarg ties); labels not in it follow in
         order of appearance.
@@ -155,10 +159,18 @@ def _check(recipe, clips):
     if not isinstance(recipe, Recipe):
         raise ParameterError(f"recipe must be a lab.recipe.Recipe, got {type(recipe).__name__}")
     for what, keys in (("mirrors", recipe.mirrors), ("reversals", recipe.reversals),
-                       ("keyframes", [k.cls for k in recipe.keyframes])):
+                       ("keyframes", [k.template or k.cls for k in recipe.keyframes])):
         unknown = sorted(set(keys) - set(recipe.labels))
         if unknown:
             raise ParameterError(f"recipe.{what} names classes {unknown} that recipe.labels does not learn")
+    taken = sorted(set(recipe_copies(recipe)) & set(recipe.labels))
+    if taken:
+        raise ParameterError(f"recipe.keyframes copies a template to {taken}, which recipe.labels learns")
+
+
+def recipe_copies(recipe) -> dict:
+    """Copy → the learned class whose template it takes (keyframe definitions with ``template``)."""
+    return {k.cls: k.template for k in recipe.keyframes if k.template}
 
 
 def recipe_clips(clips, recipe):
@@ -202,7 +214,7 @@ def build_model(clips, recipe, *, name, keyframes=None, cache=None):
     -------
     Model
         Classes grouped by label in ``recipe.label_order``; within a label:
-        learned, mirrored, reversed, designed, each in recipe order.
+        learned, mirrored, reversed, copies, designed, each in recipe order.
     """
     _check(recipe, clips)
     learned = []
@@ -220,11 +232,11 @@ def build_model(clips, recipe, *, name, keyframes=None, cache=None):
     if keyframes is not None and learned:
         queries = keyframes(Model(name, tuple(learned)), recipe_clips(clips, recipe))
         learned = [dataclasses.replace(c, keyframe_query=queries.get(c.name, c.keyframe_query)) for c in learned]
-    designed_queries = {k.cls: k for k in recipe.keyframes}
-    learned = [attach_keyframes(c, designed_queries[c.name]) if c.name in designed_queries else c for c in learned]
+    learned, copies = (list(x) for x in apply_keyframe_definitions(learned, recipe.keyframes))
     by_name = {c.name: c for c in learned}
     derived = [mirror_class(by_name[c], m) for c, m in recipe.mirrors.items() if c in by_name]
     derived += [reverse_class(by_name[c], n, lab) for c, (n, lab) in recipe.reversals.items() if c in by_name]
+    derived += copies
     designed = [compile_definition(d) for d in recipe.definitions]
     classes = learned + derived + designed
     names = [c.name for c in classes]

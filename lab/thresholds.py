@@ -52,6 +52,11 @@ them — on actors the templates did not see:
    query meets them through its preselection, as annotation does: a class
    whose keyframes never hold in a wave need not give up τ for it.
 
+7. **Copies** (a learned class's template under a query of its own,
+   :func:`lab.recipe.recipe_copies`) have no clips of their own: the
+   false-claim rule, and never more than their template's class learned —
+   the same template, found in more places.
+
 Designed classes therefore never take more than their author gave them, and
 learned ones get the τ at which unseen actors' clips are told apart best.
 """
@@ -66,7 +71,7 @@ from mocapdb.annotation.preselection import preselection_for
 from mocapdb.errors import ParameterError
 from mocapdb.features import FEATURE_NAMES
 from mocapdb.keyframes import KeyframeQuery
-from lab.recipe import OTHERS, build_model, recipe_clips
+from lab.recipe import OTHERS, build_model, recipe_clips, recipe_copies
 from mocapdb.templates import ANNOTATION_STEPS, mt_distance_slices
 
 __all__ = ["TAU_GRID", "VELOCITY_FEATURES", "clip_costs", "learn_taus", "with_taus", "still_clips", "is_static",
@@ -325,6 +330,9 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
         else:
             cap = float(grid.max())
         out[c.name] = min(_class_tau(k, c, m, owner, own_label, own_best, grid, beta, max_false_rate), cap)
+    for copy, source in recipe_copies(recipe).items():   # step 7
+        if copy in out and source in out:
+            out[copy] = min(out[copy], out[source])
     return out
 
 

@@ -1,4 +1,5 @@
 """Hand-designed classes (paper Sect. 8): the definition format, its compiler, its errors, its CLI."""
+import dataclasses
 import math
 
 import numpy as np
@@ -371,11 +372,36 @@ def test_keyframes_on_runs_of_columns_span_the_runs():
     ("[[keyframes]]\nclass = 'k'\n[[keyframes.keyframe]]\nknee_left_bent = 1\n"
      "[[keyframes]]\nclass = 'k'\n[[keyframes.keyframe]]\nknee_left_bent = 0\n", 5, "given twice"),
     ("title = 'x'\n", 1, "unknown top-level key 'title'"),
+    ("[[keyframes]]\nclass = 'k'\ntemplate = 'k'\n[[keyframes.keyframe]]\nknee_left_bent = 1\n", 3,
+     "names the class itself"),
+    ("[[keyframes]]\nclass = 'k'\ntemplate = 3\n[[keyframes.keyframe]]\nknee_left_bent = 1\n", 3,
+     "expected a non-empty string"),
 ])
 def test_keyframe_definition_errors_name_file_and_line(text, line, match):
     with pytest.raises(ParseError, match=match) as e:
         parse_definitions(text, "kf.toml")
     assert str(e.value).startswith(f"kf.toml:{line}: ")
+
+
+def test_a_keyframe_definition_with_a_template_makes_a_copy_and_keeps_the_source_s_query():
+    """``template = …``: a class of its own with the template (label, δ, τ) of the named class and the
+    definition's query; the named class keeps its query; a definition whose template is absent is left out."""
+    from mocapdb.learning.class_definitions import apply_keyframe_definitions
+
+    text = ("[[keyframes]]\nclass = 'kickishLow'\ntemplate = 'kickish'\n[[keyframes.keyframe]]\nknee_left_bent = 1\n"
+            "[[keyframes]]\nclass = 'other'\ntemplate = 'absent'\n[[keyframes.keyframe]]\nknee_left_bent = 0\n")
+    _, kdefs = parse_definitions(text, "copy.toml")
+    assert [(k.cls, k.template) for k in kdefs] == [("kickishLow", "kickish"), ("other", "absent")]
+    real = np.full((20, 40), 0.5)
+    real[:, F["knee_left_bent"]] = 1.0
+    source = dataclasses.replace(_template_class(real), name="kickish", label="kick", tau=0.07)
+    own = attach_keyframes(source, KeyframeDefinition("kickish", ((1 << F["knee_left_bent"],) * 2,)))
+    classes, copies = apply_keyframe_definitions([own], kdefs)
+    assert classes == (own,) and classes[0].keyframe_query is own.keyframe_query
+    (copy,) = copies
+    assert (copy.name, copy.label, copy.tau, copy.template) == ("kickishLow", "kick", 0.07, own.template)
+    np.testing.assert_array_equal(copy.quantized.expand().mask, own.quantized.expand().mask)
+    assert copy.keyframe_query is not None and copy.keyframe_query is not own.keyframe_query
 
 
 def test_define_class_attaches_keyframes_to_a_model_s_classes(tmp_path):
@@ -393,6 +419,16 @@ def test_define_class_attaches_keyframes_to_a_model_s_classes(tmp_path):
         assert stored == [("keyframe definition",)]
         with pytest.raises(ParameterError, match="name classes \\['kickLFront1Reps'\\] that model 'empty'"):
             define_class(con, [SHIPPED / "kick.toml", SHIPPED / "turn.toml"], model="empty")
+        # grab_deposit.toml's copy: depositFloorR's template under the two-handed query, beside depositFloorR
+        m = define_class(con, [SHIPPED / "grab_deposit.toml"], model="toolbox")
+        copy, source = (m.classes[m.class_names.index(n)] for n in ("depositFloorRBothHands", "depositFloorR"))
+        assert copy.label == "grabDepR" and copy.template is source.template
+        assert copy.keyframe_query.n_keyframes == 2 and copy.keyframe_query is not source.keyframe_query
+        stored = con.execute("SELECT source FROM keyframe_queries WHERE model = 'toolbox' "
+                             "AND class = 'depositFloorRBothHands'").fetchall()
+        assert stored == [("keyframe definition",)]
+        with pytest.raises(ParameterError, match="already has the classes \\['depositFloorRBothHands'\\]"):
+            define_class(con, [SHIPPED / "grab_deposit.toml"], model="toolbox")
 
 
 def _covered_by(data_dir, path, prefix):
@@ -594,3 +630,43 @@ def test_the_designed_one_leg_hop_finds_no_front_kick_and_no_run(data_dir):
     words += [mirror_words(w) for w in words[:len(kicks)]]
     ann = annotate(np.concatenate(words), hops, doc_lengths=[w.size for w in words])   # no preselection
     assert ann.segments.size == 0, ann.segments
+
+
+@pytest.mark.shared
+def test_the_two_handed_lift_finds_box_lifts_and_no_deposit_crouch_toe_touch_or_lie_down(data_dir):
+    """depositFloorRBothHands (grab_deposit.toml: depositFloorR's template where both hands reach the floor ahead
+    of the head, bent over, knees bent), as shipped, keyframes on: ACCAD's box lifted and set down (A5, B19, B21;
+    the learned query, the right hand alone at the floor, found none of them), and not a crouch, a lie-down, a toe
+    touch (CMU 14_20), nor HDM05's squats, lie-downs, elbow-to-knees, kicks and grabs, mirrored or not; of
+    HDM05's 26 deposits the one where the free hand reaches the floor too (and its mirror image)."""
+    from mocapdb.annotation import Model
+    from mocapdb.features import mirror_words, motion_features
+    from mocapdb.readers import read_motion
+    from mocapdb.storage.model_store import load_model
+    import mocapdb
+
+    with mocapdb.connect() as con:
+        shipped = load_model(con, "default")
+    lift = Model("lift", tuple(c for c in shipped.classes if c.name == "depositFloorRBothHands"))
+    assert lift.classes[0].tau <= next(c.tau for c in shipped.classes if c.name == "depositFloorR")
+
+    def found(words):
+        words = list(words)
+        ann = annotate(np.concatenate(words), lift, doc_lengths=[w.size for w in words],
+                       preselection=preselection_for(np.concatenate(words), [w.size for w in words], lift))
+        return sorted(set(ann.segments["doc"].tolist()))
+
+    accad = data_dir / "accad_dev"
+    boxes = [accad / f"Male1_{n}.bvh.gz" for n in ("A5_PickUpBox", "B19_WalkToPickUpBox_Working",
+                                                   "B21_PutDownBoxToWalk")]
+    others = [accad / f"Male1_{n}.bvh.gz" for n in ("A7_Crouch", "B24_WalkToCrouch", "A9_LieDown", "A10_LieToCrouch",
+                                                    "A6_LiftBox")]
+    cmu = data_dir / "cmu"
+    words = [motion_features(read_motion(p)) for p in boxes + others]
+    words.append(motion_features(read_motion(cmu / "14" / "14_20.amc", asf=cmu / "02" / "02.asf")))
+    assert found(words) == [0, 1, 2]
+    hdm = data_dir / "hdm05_cut"
+    for cls, most in (("squat1Reps", 0), ("lieDownFloor", 0), ("elbowToKnee1RepsLelbowStart", 0),
+                      ("kickLFront1Reps", 0), ("grabHighR", 0), ("depositFloorR", 1)):
+        clips = [motion_features(read_motion(p)) for p in sorted((hdm / cls).glob("*.amc"))]
+        assert len(found(clips)) <= most and len(found(mirror_words(w) for w in clips)) <= most, cls

@@ -8,7 +8,7 @@ from mocapdb.annotation import class_labels, label_documents, read_class_labels,
 from mocapdb.errors import ParameterError
 from mocapdb.annotation import Model
 from mocapdb.learning import clips_from_folders, clips_from_segments, learn_keyframe_queries, train_model
-from mocapdb.learning.class_definitions import attach_keyframes, compile_definitions, read_definitions
+from mocapdb.learning.class_definitions import apply_keyframe_definitions, compile_definitions, read_definitions
 from mocapdb.storage.cache import connection_cache
 from mocapdb.storage.model_store import (DEFAULT_MODEL, SHIPPED_MODELS, ga_statistics_rows,
                                          keyframe_query_stats, model_fingerprint, model_metadata, save_model)
@@ -101,14 +101,19 @@ def _with_definitions(model, definitions, *, replace=False):
     if clash and not replace:
         raise ParameterError(f"model {model.name!r} already has the classes {clash}; pass replace=True "
                              "(--replace) to redefine them")
-    new = {c.name for c in designed}
+    copied = {k.cls for k in keyframes if k.template}
+    clash = sorted(copied & set(model.class_names))
+    if clash and not replace:
+        raise ParameterError(f"model {model.name!r} already has the classes {clash}; pass replace=True "
+                             "(--replace) to redefine them")
+    new = {c.name for c in designed} | copied
     classes = tuple(c for c in model.classes if c.name not in new) + tuple(designed)
-    by_class = {k.cls: k for k in keyframes}
-    unknown = sorted(set(by_class) - {c.name for c in classes})
+    unknown = sorted({k.template or k.cls for k in keyframes} - {c.name for c in classes})
     if unknown:
         raise ParameterError(f"keyframe definitions name classes {unknown} that model {model.name!r} does not "
                              f"have; its classes: {', '.join(c.name for c in classes)}")
-    classes = tuple(attach_keyframes(c, by_class[c.name]) if c.name in by_class else c for c in classes)
+    classes, copies = apply_keyframe_definitions(classes, keyframes)
+    classes += copies
     labels = tuple(dict.fromkeys(list(model.labels) + [c.label for c in designed]))
     return dataclasses.replace(model, classes=classes, labels=labels)
 
@@ -124,7 +129,8 @@ def define_class(con, definitions, *, model=DEFAULT_MODEL, replace=False, descri
         "Class definitions"); each class compiles to a quantized template
         and a keyframe query (:mod:`mocapdb.learning.class_definitions`);
         a ``[[keyframes]]`` table gives a class of the model a designed
-        keyframe query.
+        keyframe query (with ``template``, a copy of that class with the
+        query: a class of its own).
     model : str, keyword-only
         The model to add them to; a model the database does not have is
         created with just these classes.
@@ -150,8 +156,8 @@ def define_class(con, definitions, *, model=DEFAULT_MODEL, replace=False, descri
     for c in new.classes:
         if c.template is None and c.keyframe_query is not None and c.name not in base.class_names:
             stats[c.name] = {"source": "class definition"}
-        elif c.name in before and c.keyframe_query is not before[c.name]:
-            stats[c.name] = {"source": "keyframe definition"}
+        elif c.keyframe_query is not None and c.keyframe_query is not before.get(c.name):
+            stats[c.name] = {"source": "keyframe definition"}   # a class's own, or a copy's
     save_model(con, new, replace=True, description=description or meta["description"],
                source=f"{meta['source']}; class definitions {definitions}".lstrip("; "), keyframe_stats=stats,
                ga_statistics=ga)

@@ -90,7 +90,7 @@ from mocapdb.templates import QuantizedTemplate
 
 __all__ = ["Phase", "ClassDefinition", "KeyframeDefinition", "parse_class_definitions", "parse_definitions",
            "read_class_definitions", "read_definitions", "compile_definition", "compile_definitions",
-           "attach_keyframes", "mirror_definition", "reverse_definition", "WILDCARD"]
+           "attach_keyframes", "apply_keyframe_definitions", "mirror_definition", "reverse_definition", "WILDCARD"]
 
 #: the wildcard value of a feature in a definition
 WILDCARD = "*"
@@ -170,14 +170,24 @@ class KeyframeDefinition:
     moment, written as feature values, becomes the class's keyframe query
     (:func:`attach_keyframes`): the template is then matched only around it.
 
+    With ``template`` (``template = "depositFloorR"`` in the table) it makes a
+    class of its own: that learned class's template under another query, for
+    a form of the motion the learned query leaves out (the learned clips
+    deposit with the right hand alone; a box is lifted with both) — the query
+    of the learned class stays as it was.
+
     Attributes
     ----------
     cls : str
-        The class it is for (learned, in the recipe or the model).
+        The class it is for (learned, in the recipe or the model), or with
+        ``template`` the name of the new class.
     keyframes : tuple of (int, int)
         Per keyframe, in time order, (mask, value) as 40-bit words.
     names : tuple of str
     description, source : str
+    template : str
+        The learned class whose template the new class ``cls`` takes; empty:
+        the keyframes are ``cls``'s own.
     """
 
     cls: str
@@ -185,6 +195,7 @@ class KeyframeDefinition:
     names: tuple = ()
     description: str = ""
     source: str = ""
+    template: str = ""
 
 
 # ---------------------------------------------------------------------------
@@ -375,7 +386,7 @@ def _class(cls, where, ci):
     return out
 
 
-_KEYFRAMES_KEYS = {"class", "description", "keyframe"}
+_KEYFRAMES_KEYS = {"class", "description", "keyframe", "template"}
 
 
 def _keyframes(table, where, ki):
@@ -388,6 +399,10 @@ def _keyframes(table, where, ki):
         raise where.error(f"unknown key {unknown[0]!r} in [[keyframes]]; allowed: "
                           f"{', '.join(sorted(_KEYFRAMES_KEYS))}{hint}", ki, None, unknown[0])
     cls = _string(table, "class", where, ki)
+    template = _string(table, "template", where, ki) if "template" in table else ""
+    if template == cls:
+        raise where.error(f"template = {template!r} names the class itself; leave it out for the class's own "
+                          "keyframes", ki, None, "template")
     description = _description(table, where, ki)
     frames = table.get("keyframe")
     if not isinstance(frames, list) or not frames:
@@ -408,7 +423,8 @@ def _keyframes(table, where, ki):
             raise where.error(f"name = {name!r}: expected a string", ki, pi, "name")
         words.append((mask, value))
         names.append(name)
-    return KeyframeDefinition(cls, tuple(words), tuple(names), description, f"{where.path}:{where.line(ki)}")
+    return KeyframeDefinition(cls, tuple(words), tuple(names), description, f"{where.path}:{where.line(ki)}",
+                              template)
 
 
 def parse_definitions(text, path="<string>"):
@@ -516,6 +532,35 @@ def read_class_definitions(paths):
 
 # ---------------------------------------------------------------------------
 # mirror and compile
+
+
+def apply_keyframe_definitions(classes, keyframes) -> tuple:
+    """Keyframe definitions applied to classes: (the classes with their queries, the copies).
+
+    A definition for a class (:attr:`KeyframeDefinition.cls`) gives it its
+    query (:func:`attach_keyframes`); one with ``template`` makes a copy — a
+    class of its own, named ``cls``, with the template (label, δ, τ) of the
+    class ``template`` and the definition's query —, the template's class
+    keeping its own query. Definitions whose class or template is not among
+    ``classes`` are left out: the caller says which it expects (a training
+    fold without a class's clips has no class to attach to).
+
+    Parameters
+    ----------
+    classes : sequence of ClassModel
+    keyframes : sequence of KeyframeDefinition
+
+    Returns
+    -------
+    (tuple of ClassModel, tuple of ClassModel)
+        ``classes`` in their order, and the copies in definition order.
+    """
+    own = {k.cls: k for k in keyframes if not k.template}
+    out = tuple(attach_keyframes(c, own[c.name]) if c.name in own else c for c in classes)
+    by_name = {c.name: c for c in out}
+    copies = tuple(attach_keyframes(dataclasses.replace(by_name[k.template], name=k.cls, keyframe_query=None), k)
+                   for k in keyframes if k.template and k.template in by_name)
+    return out, copies
 
 
 def mirror_definition(defn: ClassDefinition, name: str) -> ClassDefinition:
