@@ -93,7 +93,8 @@ def define_class(ctx, definitions, model, replace):
     Each class is phases of 0/1/* values of named features with durations,
     compiled to a quantized template and a keyframe query (docs/MODEL.md "Class
     definitions"; paper Sect. 8). A [[keyframes]] table gives a class the
-    model already has (a learned one) a designed keyframe query.
+    model already has (a learned one) a designed keyframe query; with
+    template = "NAME", a new class with that class's template and the query.
 
     \b
     Example:
