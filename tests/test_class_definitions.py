@@ -705,3 +705,33 @@ def test_the_circle_jog_s_query_asks_for_a_stride_of_each_leg(data_dir):
     words, lengths = np.concatenate(jogs), [w.size for w in jogs]
     found = annotate(words, circle, doc_lengths=lengths, preselection=preselection_for(words, lengths, circle))
     assert len(set(found.segments["doc"].tolist())) >= 12 == len(jogs) - 1
+
+
+@pytest.mark.shared
+def test_the_arm_circle_s_query_asks_for_a_whole_circle(data_dir):
+    """rotateArmsBothBackward1Reps's query (rotate_arms.toml), as shipped: the straight arms swinging through the
+    front, the hands over the head, the straight arms swinging down behind — a whole backward circle. It holds in
+    every one of HDM05's 13 arm-circle clips and in 21 of the studio's 120 waves and raised hands (25 with the first
+    keyframe alone: a wave swings its arms forward as they rise, but they stay up)."""
+    import mocapdb
+    from mocapdb.annotation import Model
+    from mocapdb.features import motion_features
+    from mocapdb.readers import read_motion
+    from mocapdb.storage.model_store import load_model
+
+    with mocapdb.connect() as con:
+        shipped = load_model(con, "default")
+    circle = Model("circle", tuple(c for c in shipped.classes if c.name == "rotateArmsBothBackward1Reps"))
+    assert circle.classes[0].keyframe_query.n_keyframes == 3
+
+    def holding(paths):
+        words = [motion_features(read_motion(p)) for p in paths]
+        pre = preselection_for(np.concatenate(words), [w.size for w in words], circle)[0]
+        bounds = np.cumsum([w.size for w in words])
+        return len(set(np.searchsorted(bounds, np.asarray(pre)[:, 0], side="right").tolist()))
+
+    arms = sorted((data_dir / "hdm05_cut" / "rotateArmsBothBackward1Reps").glob("*.amc"))
+    gestures = sorted(p for p in (data_dir / "bandai2_dev").glob("dataset-2_*.bvh.gz")
+                      if p.name.split("_")[1].startswith(("wave", "raise")))
+    assert (len(arms), len(gestures)) == (13, 120)
+    assert holding(arms) == 13 and holding(gestures) <= 21
