@@ -43,7 +43,8 @@ from lab.travel import travelling_frames
 from mocapdb.readers import read_motion
 
 __all__ = ["STUDIO_CONTENTS", "STUDIO_FOLDER", "STUDIO_GROUP", "STUDIO_TRAINING_CLASSES", "StudioDocuments",
-           "StudioScores", "studio_clip_files", "studio_documents", "studio_measures", "studio_training", "studio_style"]
+           "StudioScores", "studio_clip_files", "studio_documents", "studio_measures", "studio_training",
+           "studio_style"]
 
 #: the folder of the development data that holds the clips
 STUDIO_FOLDER = "bandai2_dev"

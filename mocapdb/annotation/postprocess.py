@@ -40,8 +40,8 @@ from mocapdb.annotation.chain_kernels import _margin_kernel, _segment_min_kernel
 from mocapdb.annotation.model import STEP_ORDER
 from mocapdb.errors import ParameterError, check_nonnegative
 
-__all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments", "document_minimum",
-           "apply_margin", "segment_confidence", "calibrate_confidence", "WON_FRACTION"]
+__all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
+           "document_minimum", "apply_margin", "segment_confidence", "calibrate_confidence", "WON_FRACTION"]
 
 #: a segment's label must win (be Δarg on) this share of its ``min_frames``
 #: (development evaluation, RESULTS.md issue 11: 1/4 to 1/3 best everywhere)

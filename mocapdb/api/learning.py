@@ -97,16 +97,11 @@ def _with_definitions(model, definitions, *, replace=False):
     keyframe definitions' queries attached to the classes they name."""
     defs, keyframes = read_definitions(definitions)
     designed = compile_definitions(defs)
-    clash = sorted({c.name for c in designed} & set(model.class_names))
+    new = {c.name for c in designed} | {k.cls for k in keyframes if k.template}   # designed classes and copies
+    clash = sorted(new & set(model.class_names))
     if clash and not replace:
         raise ParameterError(f"model {model.name!r} already has the classes {clash}; pass replace=True "
                              "(--replace) to redefine them")
-    copied = {k.cls for k in keyframes if k.template}
-    clash = sorted(copied & set(model.class_names))
-    if clash and not replace:
-        raise ParameterError(f"model {model.name!r} already has the classes {clash}; pass replace=True "
-                             "(--replace) to redefine them")
-    new = {c.name for c in designed} | copied
     classes = tuple(c for c in model.classes if c.name not in new) + tuple(designed)
     unknown = sorted({k.template or k.cls for k in keyframes} - {c.name for c in classes})
     if unknown:
