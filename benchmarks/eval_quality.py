@@ -71,7 +71,7 @@ from mocapdb.storage.model_store import fingerprint
 from timing import model_at, model_dir
 
 sys.path.append(str(Path(__file__).resolve().parents[1]))  # lab/, the development harness beside benchmarks/ (not installed)
-from lab.calibration import calibrated_by_lab, confidence_calibration, held_out_segments
+from lab.calibration import calibrated_by_lab, confidence_calibration, held_out_segments, top_share_right
 from lab.development import SETTINGS, development_data, development_evaluation
 from lab.records import guard, headline_figures, raised_records, read_records, write_records
 from lab.short_clips import short_clip_measures, short_clips
@@ -316,6 +316,16 @@ def calibration_rows(res, calibrated=False):
     return out
 
 
+def raw_at_calibrated_count(res):
+    """Per judged set and pooled: the share right of the raw score's k most trusted segments, k the number the
+    calibrated confidence puts at ≥ 0.5 — the two confidences compared at the same coverage."""
+    raw = held_out_segments(res)
+    cal = calibrated_by_lab(PAPER_LABELS, raw)
+    pairs = {s: (raw[s][1], cal[s][0], raw[s][2]) for s in raw}
+    pairs["pooled"] = tuple(np.concatenate(x) for x in zip(*pairs.values()))
+    return {s: top_share_right(r, right, int((c >= 0.5).sum())) for s, (r, c, right) in pairs.items()}
+
+
 def print_calibration(title, by_mode):
     print(f"\n{title}: segments with confidence >= 0.5 that are right; AUC of right over wrong (target 0.90; 0.85)")
     for mode, rows in by_mode.items():
@@ -397,11 +407,16 @@ def main():
         calibrated = {m: calibration_rows(r, calibrated=True) for m, r in lolo.items()}
         print_calibration("Confidence calibrated (each lab's maps fitted on the other labs' segments), "
                           "leave-one-lab-out", calibrated)
+        same_count = {m: raw_at_calibrated_count(r) for m, r in lolo.items()}
+        print("  the raw score's as many most trusted segments (as the calibrated puts >= 0.5), share right:")
+        for m, rows in same_count.items():
+            print(f"  {m}: " + "; ".join(f"{s} {v:.3f}" for s, v in rows.items()))
         out["lolo"] = folds
         out["lolo_calibration"] = {m: {s: dataclasses.asdict(c) for s, c in rows.items()}
                                    for m, rows in calibration.items()}
         out["lolo_calibrated"] = {m: {s: dataclasses.asdict(c) for s, c in rows.items()}
                                   for m, rows in calibrated.items()}
+        out["lolo_raw_at_calibrated_count"] = same_count
     if args.shipped:
         t = time.perf_counter()
         shipped = {"previous shipped": model_at(args.previous),

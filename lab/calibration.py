@@ -17,6 +17,9 @@ is right:
 segments with confidence ≥ 0.5 that are right, and the ranking of right over
 wrong segments (AUC: the chance that a random right segment has a higher
 confidence than a random wrong one, ties counted half).
+:func:`top_share_right` compares two confidences at the same coverage: the
+share right of the k segments each trusts most (the share of segments ≥ 0.5
+alone favours the confidence that trusts fewer).
 
 The shipped model's confidence is calibrated
 (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`) on the
@@ -35,7 +38,7 @@ import numpy as np
 from mocapdb.evaluation.metrics import segments_correct
 
 __all__ = ["Calibration", "segment_verdicts", "confidence_calibration", "CALIBRATED", "held_out_segments",
-           "fit_maps", "recipe_confidence_maps", "calibrated_by_lab"]
+           "fit_maps", "recipe_confidence_maps", "calibrated_by_lab", "top_share_right"]
 
 #: the sets whose segments' confidence is judged (each annotated as such, not joined from others), and the lab
 #: each belongs to
@@ -134,3 +137,16 @@ def confidence_calibration(confidence, right) -> Calibration:
         auc = (ranks[r].sum() - n1 * (n1 + 1) / 2) / (n1 * n0)
     return Calibration(int(c.size), int(sure.sum()), float(r[sure].mean()) if sure.any() else float("nan"),
                        float(r.mean()) if r.size else float("nan"), float(auc))
+
+
+def top_share_right(confidence, right, k) -> float:
+    """Share right of the ``k`` segments with the highest confidence; segments tied at the cut count at their
+    mean (as if the tie were broken at random). NaN for ``k`` = 0."""
+    c = np.asarray(confidence, dtype=np.float64)
+    r = np.asarray(right, dtype=bool)
+    k = min(int(k), c.size)
+    if k <= 0:
+        return float("nan")
+    cut = np.sort(c)[::-1][k - 1]
+    above, at = c > cut, c == cut
+    return float((r[above].sum() + (k - above.sum()) * r[at].mean()) / k)

@@ -708,11 +708,14 @@ def test_the_circle_jog_s_query_asks_for_a_stride_of_each_leg(data_dir):
 
 
 @pytest.mark.shared
-def test_the_arm_circle_s_query_asks_for_a_whole_circle(data_dir):
+def test_the_arm_circle_s_and_the_high_grab_s_queries_miss_waves(data_dir):
     """rotateArmsBothBackward1Reps's query (rotate_arms.toml), as shipped: the straight arms swinging through the
-    front, the hands over the head, the straight arms swinging down behind — a whole backward circle. It holds in
-    every one of HDM05's 13 arm-circle clips and in 21 of the studio's 120 waves and raised hands (25 with the first
-    keyframe alone: a wave swings its arms forward as they rise, but they stay up)."""
+    front, straight over the head, swinging down behind and below the shoulders again — a whole backward circle. It
+    holds in every one of HDM05's 13 arm-circle clips and in 2 of the studio's 120 waves and raised hands (25 with
+    the first keyframe alone: a wave swings its arms forward as they rise, but they stay up; 21 before the hands
+    had to come down and the arms stay straight over the head). grabHighR's (grab_deposit.toml): the right hand up
+    ahead, not out to the side, then down with the arm bent — every one of HDM05's 22 grabHighR clips; the small CMU
+    circle's, the swing through the front followed by the arms below the shoulders."""
     import mocapdb
     from mocapdb.annotation import Model
     from mocapdb.features import motion_features
@@ -721,17 +724,26 @@ def test_the_arm_circle_s_query_asks_for_a_whole_circle(data_dir):
 
     with mocapdb.connect() as con:
         shipped = load_model(con, "default")
-    circle = Model("circle", tuple(c for c in shipped.classes if c.name == "rotateArmsBothBackward1Reps"))
-    assert circle.classes[0].keyframe_query.n_keyframes == 3
+    gestures = sorted(p for p in (data_dir / "bandai2_dev").glob("dataset-2_*.bvh.gz")
+                      if p.name.split("_")[1].startswith(("wave", "raise")))
+    gesture_words = [motion_features(read_motion(p)) for p in gestures]
+    assert len(gestures) == 120
 
-    def holding(paths):
-        words = [motion_features(read_motion(p)) for p in paths]
-        pre = preselection_for(np.concatenate(words), [w.size for w in words], circle)[0]
+    def holding(name, words):
+        one = Model(name, tuple(c for c in shipped.classes if c.name == name))
+        pre = preselection_for(np.concatenate(words), [w.size for w in words], one)[0]
         bounds = np.cumsum([w.size for w in words])
         return len(set(np.searchsorted(bounds, np.asarray(pre)[:, 0], side="right").tolist()))
 
-    arms = sorted((data_dir / "hdm05_cut" / "rotateArmsBothBackward1Reps").glob("*.amc"))
-    gestures = sorted(p for p in (data_dir / "bandai2_dev").glob("dataset-2_*.bvh.gz")
-                      if p.name.split("_")[1].startswith(("wave", "raise")))
-    assert (len(arms), len(gestures)) == (13, 120)
-    assert holding(arms) == 13 and holding(gestures) <= 21
+    def own(name):
+        return [motion_features(read_motion(p)) for p in sorted((data_dir / "hdm05_cut" / name).glob("*.amc"))]
+
+    circle = [c for c in shipped.classes if c.name == "rotateArmsBothBackward1Reps"][0]
+    assert circle.keyframe_query.n_keyframes == 4
+    arms, grabs = own("rotateArmsBothBackward1Reps"), own("grabHighR")
+    assert (len(arms), len(grabs)) == (13, 22)
+    assert holding("rotateArmsBothBackward1Reps", arms) == 13
+    assert holding("rotateArmsBothBackward1Reps", gesture_words) <= 2
+    assert holding("grabHighR", grabs) == 22
+    assert holding("grabHighR", gesture_words) <= 12              # 20 before "not out to the side"
+    assert holding("cmuArmCircle1Reps", gesture_words) <= 4        # 8 before "below the shoulders"

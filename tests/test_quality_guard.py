@@ -20,7 +20,7 @@ import mocapdb
 from conftest import REPO
 from mocapdb.annotation.labels import LABEL_DTYPE, label_rows
 from mocapdb.errors import ParameterError
-from lab.calibration import confidence_calibration
+from lab.calibration import confidence_calibration, top_share_right
 from lab.lab_clips import lab_measures, parse_expected
 from mocapdb.evaluation.metrics import segments_correct
 from lab.records import CLASSES
@@ -250,6 +250,26 @@ def test_calibration_of_hand_made_confidences():
     tied = confidence_calibration([1.0, 1.0, 1.0], [True, False, True])
     assert tied.auc == pytest.approx(0.5)                      # a constant confidence ranks nothing
     assert np.isnan(confidence_calibration([0.2], [True]).auc)
+
+
+def test_top_share_right_against_every_tie_break():
+    """The share right of the k most trusted segments, ties at the cut at their mean: the mean over every order
+    of the tied segments, counted by brute force."""
+    import itertools
+    rng = np.random.default_rng(32)
+    for _ in range(40):
+        n = int(rng.integers(1, 7))
+        c = rng.choice([0.2, 0.5, 1.0], n)
+        r = rng.random(n) < 0.6
+        for k in range(n + 1):
+            shares = []
+            for perm in itertools.permutations(range(n)):
+                order = sorted(perm, key=lambda i: -c[i])   # a stable sort keeps the permutation among ties
+                shares.append(r[order[:k]].mean() if k else np.nan)
+            want = np.mean(shares) if k else np.nan
+            got = top_share_right(c, r, k)
+            assert (np.isnan(got) and np.isnan(want)) or got == pytest.approx(want), (c, r, k)
+    assert top_share_right([0.9, 0.1], [False, True], 5) == pytest.approx(0.5)   # k beyond n: all of them
 
 
 def test_segments_correct_row_for_row():
