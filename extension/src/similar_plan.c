@@ -5,9 +5,9 @@
  *   ndarray.sum gives along a contiguous axis; np.average(x, weights=1) is pairwise(x) / K;
  * - −log2 is the C library's (mocapdb.retrieval.weights uses math.log2 for this reason);
  * - the byte tables are (Σ w·v pairwise over the byte's 8 features + Σ_k w_k(1 − 2v_k)·bit_k in
- *   order k = 0..7) · factor, clipped at 0: numpy's matmul of that (K, 8) by (8, 256) product sums
- *   in that order (checked bit for bit against OpenBLAS's SkylakeX, Haswell and Sandybridge
- *   kernels), and bit_k is 0 or 1, so every product is exact;
+ *   order k = 0..7) · factor, clipped at 0: weighted_cost_tables sums them elementwise in that
+ *   order (a BLAS matmul would sum in its CPU kernel's order: OpenBLAS's on AMD Zen differs in the
+ *   last bit), and bit_k is 0 or 1, so every product is exact;
  * - the keyframes' choices compare integers and correctly rounded quotients, and round halves to
  *   even (Python's round, numpy's round) with nearbyint. */
 #include "similar_plan.h"

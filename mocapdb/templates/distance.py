@@ -468,13 +468,19 @@ def weighted_cost_tables(template, feature_weights, *, doc_weight=1.0):
     w = np.where(unpack_words(template.mask), w, 0.0)
     total = w.sum(axis=1)
     factor = (template.weights + float(doc_weight)) / 2.0 / K / np.where(total > 0, total, 1.0)
-    # feature f of byte value x differs from v: x_f + v - 2·x_f·v, so a byte's table is an affine map of x's bits
+    # feature f of byte value x differs from v: x_f + v - 2·x_f·v, so a byte's table is an affine map of x's bits.
+    # The map's sum runs over the bits in order k = 0..7, elementwise: a BLAS matmul sums in the order of its CPU's
+    # kernel (OpenBLAS's on AMD Zen differs from its Haswell kernel in the last bit), and the native similar_to
+    # (extension/src/similar_plan.c) computes the same doubles in this order
     bits = ((np.arange(256)[:, None] >> np.arange(8)) & 1).astype(np.float64)  # (256, 8)
     out = np.empty((K, _N_BYTES, 256))
     for b in range(_N_BYTES):
         f = slice(8 * b, 8 * b + 8)
-        out[:, b, :] = ((w[:, f] * val[:, f]).sum(axis=1)[:, None] + (w[:, f] * (1.0 - 2.0 * val[:, f])) @ bits.T) \
-            * factor[:, None]
+        a = w[:, f] * (1.0 - 2.0 * val[:, f])
+        acc = np.zeros((K, 256))
+        for k in range(8):
+            acc = acc + a[:, k, None] * bits[None, :, k]
+        out[:, b, :] = ((w[:, f] * val[:, f]).sum(axis=1)[:, None] + acc) * factor[:, None]
     return np.maximum(out, 0.0, out=out)  # a full match sums to 0 up to rounding: never below
 
 
