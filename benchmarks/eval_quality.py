@@ -299,31 +299,31 @@ def print_lolo(folds_by_mode):
                       f"(sd {np.std(list(vals.values())):.3f})")
 
 
-def calibration_rows(res, calibrated=False):
-    """Per judged set and pooled: the confidence's calibration (segments ≥ 0.5 right, AUC).
-
-    ``calibrated``: each lab's segments through confidence maps fitted on the other labs' (the raw score of
-    models without maps otherwise: the evaluation trains its models without them)."""
-    parts = held_out_segments(res)
-    if calibrated:
-        parts = calibrated_by_lab(PAPER_LABELS, parts)
-    else:
-        parts = {s: (c, r) for s, (_, c, r) in parts.items()}
-    out = {s: confidence_calibration(*v) for s, v in parts.items()}
-    if parts:
-        out["pooled"] = confidence_calibration(np.concatenate([c for c, _ in parts.values()]),
-                                               np.concatenate([r for _, r in parts.values()]))
-    return out
+def confidence_parts(res, *, calibrated=False):
+    """Per judged set, (raw confidence, right); with ``calibrated`` also (calibrated confidence, right): each lab's
+    segments through confidence maps fitted on the other labs' (the evaluation trains its models without maps)."""
+    held = held_out_segments(res)
+    raw = {s: (c, r) for s, (_, c, r) in held.items()}
+    return (raw, calibrated_by_lab(PAPER_LABELS, held)) if calibrated else raw
 
 
-def raw_at_calibrated_count(res):
+def _with_pooled(parts):
+    """The parts and, if any, every set's pairs concatenated as ``pooled``."""
+    if not parts:
+        return dict(parts)
+    return dict(parts) | {"pooled": tuple(np.concatenate(x) for x in zip(*parts.values()))}
+
+
+def calibration_rows(parts):
+    """Per judged set and pooled: the confidence's calibration (segments ≥ 0.5 right, AUC)."""
+    return {s: confidence_calibration(*v) for s, v in _with_pooled(parts).items()}
+
+
+def raw_at_calibrated_count(raw, calibrated):
     """Per judged set and pooled: the share right of the raw score's k most trusted segments, k the number the
     calibrated confidence puts at ≥ 0.5 — the two confidences compared at the same coverage."""
-    raw = held_out_segments(res)
-    cal = calibrated_by_lab(PAPER_LABELS, raw)
-    pairs = {s: (raw[s][1], cal[s][0], raw[s][2]) for s in raw}
-    pairs["pooled"] = tuple(np.concatenate(x) for x in zip(*pairs.values()))
-    return {s: top_share_right(r, right, int((c >= 0.5).sum())) for s, (r, c, right) in pairs.items()}
+    raw, calibrated = _with_pooled(raw), _with_pooled(calibrated)
+    return {s: top_share_right(c, right, int((calibrated[s][0] >= 0.5).sum())) for s, (c, right) in raw.items()}
 
 
 def print_calibration(title, by_mode):
@@ -379,8 +379,8 @@ def main():
         print_table(columns)
         print_studio({k: v for k, v in columns.items() if k != "reference"})
         print_lab(columns)
-        print_calibration("Confidence, the new recipe's folds", {m: calibration_rows(results["new"][m])
-                                                                   for m in MODES})
+        print_calibration("Confidence, the new recipe's folds",
+                          {m: calibration_rows(confidence_parts(results["new"][m])) for m in MODES})
         print()
         for k, (f1, f2) in PAPER.items():
             print(f"paper {k:<34s} {f1:.2f}/{f2:.2f}")
@@ -402,12 +402,13 @@ def main():
                 folds[m].setdefault(lab, {}).update(figs)
         print_lolo(folds)
         print_lab({f"lolo {m}": r for m, r in lolo.items()})
-        calibration = {m: calibration_rows(r) for m, r in lolo.items()}
+        parts = {m: confidence_parts(r, calibrated=True) for m, r in lolo.items()}
+        calibration = {m: calibration_rows(raw) for m, (raw, _) in parts.items()}
         print_calibration("Confidence (raw score), leave-one-lab-out", calibration)
-        calibrated = {m: calibration_rows(r, calibrated=True) for m, r in lolo.items()}
+        calibrated = {m: calibration_rows(cal) for m, (_, cal) in parts.items()}
         print_calibration("Confidence calibrated (each lab's maps fitted on the other labs' segments), "
                           "leave-one-lab-out", calibrated)
-        same_count = {m: raw_at_calibrated_count(r) for m, r in lolo.items()}
+        same_count = {m: raw_at_calibrated_count(raw, cal) for m, (raw, cal) in parts.items()}
         print("  the raw score's as many most trusted segments (as the calibrated puts >= 0.5), share right:")
         for m, rows in same_count.items():
             print(f"  {m}: " + "; ".join(f"{s} {v:.3f}" for s, v in rows.items()))
