@@ -113,11 +113,12 @@ CREATE TABLE IF NOT EXISTS keyframes (
     PRIMARY KEY (model, class, k)
 );
 
--- Calibrated confidence (beyond the paper): per label and shortest segment length a step function
--- from a segment's raw score (1 − Δ̄^τ/τ at its best frame) to the share of right segments seen at
--- that score and length on recordings the model was not trained on. A segment takes its label's map
--- with the largest min_length it reaches; step k holds from raw score `cut` up to the next step's.
--- A label without rows keeps the raw score (the toolbox model has none).
+-- Calibrated confidence (beyond the paper): per label (and shortest segment length) a step function
+-- from a segment's score — (raw + length_weight · min(n, full_length) / full_length) / (1 + length_weight),
+-- raw = 1 − Δ̄^τ/τ at its best frame, n its length in 30 Hz frames — to the share of right segments seen
+-- at that score on recordings the model was not trained on. A segment takes its label's map with the
+-- largest min_length it reaches; step k holds from score `cut` up to the next step's. A label without
+-- rows keeps the raw score (the toolbox model has none).
 CREATE TABLE IF NOT EXISTS confidence_maps (
     model      VARCHAR NOT NULL,
     label      VARCHAR NOT NULL,
@@ -127,6 +128,9 @@ CREATE TABLE IF NOT EXISTS confidence_maps (
     value      DOUBLE NOT NULL,            -- the confidence from this cut on, in [0, 1]
     PRIMARY KEY (model, label, min_length, k)
 );
+-- the length in the score (databases from before it: the raw score alone); the same on every step of a map
+ALTER TABLE confidence_maps ADD COLUMN IF NOT EXISTS length_weight DOUBLE DEFAULT 0;
+ALTER TABLE confidence_maps ADD COLUMN IF NOT EXISTS full_length INTEGER DEFAULT 90;
 
 -- Per-generation statistics of the GA runs that learned a model's keyframe
 -- queries (population averages: paper Fig. 5; `mocapdb report --figure ga`).

@@ -1,5 +1,6 @@
-"""Calibrated confidence (issue 32 item 4): per label a monotone step map from the raw score to the share of
-right segments on held-out recordings, stored with the model and applied after the raw score."""
+"""Calibrated confidence (issue 32 item 4): per label a monotone step map from a score of the raw score and the
+segment's length to the share of right segments on held-out recordings, stored with the model and applied after
+the raw score."""
 import dataclasses
 
 import numpy as np
@@ -13,7 +14,8 @@ from mocapdb.annotation.model import STEP_ORDER
 from mocapdb.annotation.postprocess import calibrate_confidence
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.annotation import SEGMENT_DTYPE
-from mocapdb.learning.confidence_maps import CAUTION, LENGTH_EDGES, MIN_STEP, PRIOR_SEGMENTS, fit_confidence_maps
+from mocapdb.learning.confidence_maps import (CAUTION, FULL_LENGTH, MIN_STEP, PRIOR_SEGMENTS, RIDGE,
+                                             _logistic, fit_confidence_maps, length_weight)
 from mocapdb.storage.model_store import fingerprint, load_model, model_from_tables, model_tables, save_model
 
 
@@ -57,28 +59,58 @@ def test_a_map_is_a_rising_step_function_per_length():
             ConfidenceMap("move", cuts, values)
     with pytest.raises(ParameterError, match="min_length"):
         ConfidenceMap("move", (0.0,), (0.5,), min_length=-1)
+    for bad in ({"length_weight": -0.5}, {"length_weight": float("nan")}, {"length_weight": float("inf")},
+                {"full_length": 0}, {"full_length": 2.5}, {"full_length": True}):
+        with pytest.raises(ParameterError, match="length_weight|full_length"):
+            ConfidenceMap("move", (0.0,), (0.5,), **bad)
+
+
+def test_the_length_enters_the_score():
+    """The score (raw + w · min(n, F) / F) / (1 + w): a longer segment, up to F frames, scores higher at the same
+    raw score; w = 0 is the raw score itself, bit for bit."""
+    m = ConfidenceMap("move", (0.0, 0.5), (0.3, 0.9), length_weight=1.0, full_length=60)
+    segs = _segments(["move"] * 4, [30, 60, 120, 30])
+    got = calibrate_confidence(segs, np.array([0.4, 0.4, 0.4, 1.0]), [m])
+    score = np.array([(0.4 + 0.5) / 2, (0.4 + 1.0) / 2, (0.4 + 1.0) / 2, (1.0 + 0.5) / 2])
+    want = np.where(score < 0.5, 0.3 + STEP_ORDER * 0.6 * score / 0.5, 0.9 + STEP_ORDER * 0.1 * (score - 0.5) / 0.5)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+    assert got[0] < got[1] == got[2] and got[3] > got[0]
+    rng = np.random.default_rng(3)
+    raw = rng.random(200)
+    segs = _segments(["move"] * 200, rng.integers(1, 300, 200))
+    plain = ConfidenceMap("move", (0.0, 0.2, 0.7), (0.1, 0.4, 0.8))
+    zero = ConfidenceMap("move", (0.0, 0.2, 0.7), (0.1, 0.4, 0.8), length_weight=-0.0, full_length=7)
+    assert zero.length_weight == 0.0 and not np.signbit(zero.length_weight)
+    assert calibrate_confidence(segs, raw, [plain]).tobytes() == calibrate_confidence(segs, raw, [zero]).tobytes()
 
 
 def test_fitted_maps_rise_and_follow_the_share_right(monkeypatch):
-    """Isotonic steps per length band, each a cautious share right: rising, within [0, 1], below the share right
-    of the segments it was fitted to but not far; every label of the model gets them."""
+    """One map of the length-weighted score per label, a cautious share right per step: rising, within [0, 1],
+    below the share right of the segments it was fitted to but not far; every label of the model gets it."""
     rng = np.random.default_rng(0)
     raw = rng.random(400)
     lengths = rng.integers(10, 200, 400)
     right = rng.random(400) < 0.1 + 0.5 * raw + 0.3 * (lengths >= 90)   # higher raw score, longer: more often right
     segs = _segments(np.where(np.arange(400) < 300, "move", "kick"), lengths)
     maps = fit_confidence_maps(("move", "kick", "turn"), segs, raw, right)
-    assert {(m.label, m.min_length) for m in maps} == {(lab, lo) for lab in ("move", "kick", "turn")
-                                                       for lo in LENGTH_EDGES}
+    assert [m.label for m in maps] == ["move", "kick", "turn"] and {m.min_length for m in maps} == {0}
+    assert len({(m.cuts, m.values, m.length_weight, m.full_length) for m in maps}) == 1
+    w = maps[0].length_weight
+    assert w == length_weight(raw, lengths, right) > 0 and maps[0].full_length == FULL_LENGTH
     for m in maps:
         assert all(b >= a for a, b in zip(m.values, m.values[1:])) and 0 <= m.values[0] <= m.values[-1] <= 1
     got = calibrate_confidence(segs, raw, maps)
     monkeypatch.setattr(postprocess, "STEP_ORDER", 0.0)
     steps = calibrate_confidence(segs, raw, maps)           # the steps' own values
-    # the raw score moves a segment at most a hundredth of the way to 1 above its step, in the raw score's order
+    score = (raw + w * np.minimum(lengths, FULL_LENGTH) / FULL_LENGTH) / (1 + w)
+    # the score moves a segment at most a hundredth of the way to 1 above its step, in the score's order
     assert ((got >= steps) & (got - steps <= STEP_ORDER * (1 - steps) + 1e-15)).all()
     same = steps[:, None] == steps[None, :]
-    assert not (same & (raw[:, None] < raw[None, :]) & (got[:, None] > got[None, :])).any()
+    assert not (same & (score[:, None] < score[None, :]) & (got[:, None] > got[None, :])).any()
+    # one rising map of the score: a segment better in raw score and no shorter never ranks lower
+    better = (raw[:, None] >= raw[None, :]) & (np.minimum(lengths, FULL_LENGTH)[:, None]
+                                               >= np.minimum(lengths, FULL_LENGTH)[None, :])
+    assert not (better & (got[:, None] < got[None, :])).any()
     got = steps
     # cautious on what it was fitted to: each step a user trusts (≥ 0.5) below its segments' share right,
     # not by much overall
@@ -89,25 +121,69 @@ def test_fitted_maps_rise_and_follow_the_share_right(monkeypatch):
     assert got[longer & (raw > 0.7)].mean() > 0.7 > 0.3 > got[~longer & (raw < 0.3)].mean()
     with pytest.raises(ParameterError, match="held-out segments"):
         fit_confidence_maps(("move",), segs[:0], raw[:0], right[:0])
-    with pytest.raises(ParameterError, match="length_edges"):
-        fit_confidence_maps(("move",), segs, raw, right, length_edges=(10, 5))
+    with pytest.raises(ParameterError, match="end at or after"):
+        fit_confidence_maps(("move",), _segments(["move"] * 2, [0, 5]), raw[:2], right[:2])
     assert PRIOR_SEGMENTS > 0 and MIN_STEP > 1 and CAUTION > 0
+
+
+def test_the_length_weight_is_the_ratio_of_the_logistic_slopes():
+    """The Newton steps reach the penalized maximum likelihood (no move of the coefficients, in random
+    directions near and far, does better), length_weight is the ratio of its slopes, and the weight follows what
+    decides being right: the length with the raw score (> 0), the raw score alone (about 0), the raw score
+    hurting (0)."""
+    rng = np.random.default_rng(5)
+    n = 600
+    raw = rng.random(n)
+    lengths = rng.integers(5, 240, n)
+    ell = np.minimum(lengths, FULL_LENGTH) / FULL_LENGTH
+    right = rng.random(n) < 1 / (1 + np.exp(-(-2.0 + 2.0 * raw + 3.0 * ell)))
+    x, y = np.column_stack([np.ones(n), raw, ell]), right.astype(float)
+
+    def objective(b):
+        z = x @ b
+        return float((y * z - np.logaddexp(0.0, z)).sum() - RIDGE / 2 * (b[1:] ** 2).sum())
+
+    b = _logistic(x, y, RIDGE)
+    top = objective(b)
+    for scale in (1e-3, 0.05, 0.5, 3.0):
+        for _ in range(200):
+            assert objective(b + rng.normal(0, scale, 3)) <= top + 1e-9
+    w = length_weight(raw, lengths, right)
+    assert w == b[2] / b[1] and 0.8 < w < 3.0            # the generating ratio 3 / 2, shrunk by the ridge
+    assert length_weight(raw, lengths, rng.random(n) < 0.1 + 0.8 * raw) < 0.2
+    assert length_weight(raw, lengths, rng.random(n) < 0.8 - 0.6 * raw) == 0.0   # the raw score hurts: no ratio
+    assert length_weight(raw, lengths, np.ones(n, dtype=bool)) >= 0.0
 
 
 def test_the_maps_are_stored_and_change_the_fingerprint(default, tmp_path):
     model, toolbox = default
     assert toolbox.confidence_maps == ()                      # the reference mode keeps the raw score
-    maps = tuple(ConfidenceMap(lab, (0.0, 0.5), (0.25, 0.75), min_length=lo) for lab in model.labels[::-1]
-                 for lo in (40, 0))
+    maps = tuple(ConfidenceMap(lab, (0.0, 0.5), (0.25, 0.75), min_length=lo, length_weight=lo / 80,
+                               full_length=60 + lo) for lab in model.labels[::-1] for lo in (40, 0))
     cal = dataclasses.replace(model, name="cal", confidence_maps=maps)
     assert fingerprint(cal) != fingerprint(dataclasses.replace(cal, confidence_maps=()))
+    heavier = tuple(dataclasses.replace(m, length_weight=m.length_weight * 2) for m in maps)
+    assert fingerprint(cal) != fingerprint(dataclasses.replace(cal, confidence_maps=heavier))
     with mocapdb.connect(tmp_path / "a.duckdb") as con:
         fp = save_model(con, cal)
         back = load_model(con, "cal")
     assert fingerprint(back) == fp
-    assert ({(m.label, m.min_length, m.cuts, m.values) for m in back.confidence_maps}
-            == {(m.label, m.min_length, m.cuts, m.values) for m in maps})
+    def rows(ms):
+        return {(m.label, m.min_length, m.cuts, m.values, m.length_weight, m.full_length) for m in ms}
+
+    assert rows(back.confidence_maps) == rows(maps)
+    # maps stored before the length entered the score: the raw score alone
     tables = model_tables(cal)
+    old = tables["confidence_maps"].drop_columns(["length_weight", "full_length"])
+    back = model_from_tables(tables | {"confidence_maps": old}).confidence_maps
+    assert rows(back) == rows(dataclasses.replace(m, length_weight=0.0, full_length=90) for m in maps)
+    # the steps of one map disagreeing on its score is damage, not a choice
+    mixed = tables["confidence_maps"]
+    weights = mixed.column("length_weight").to_numpy().copy()
+    weights[mixed.column("k").to_numpy() == 2] += 1
+    with pytest.raises(SchemaError, match="disagree on its length_weight"):
+        model_from_tables(tables | {"confidence_maps": mixed.set_column(
+            mixed.schema.get_field_index("length_weight"), "length_weight", pa.array(weights))})
     rows = tables["confidence_maps"]
     tables["confidence_maps"] = rows.set_column(1, "label", pa.array(["nolabel"] * rows.num_rows))
     with pytest.raises(SchemaError, match="confidence maps of labels it lacks"):
@@ -125,7 +201,8 @@ def test_annotation_gives_the_map_s_values(default):
     w = np.concatenate([np.asarray(x, dtype=np.uint64) for x, in words])
     lengths = [len(x) for x, in words]
     raw_model = dataclasses.replace(model, confidence_maps=())
-    maps = tuple(ConfidenceMap(lab, (0.0, 0.3, 0.9), (0.1 + k / 100, 0.5, 0.9 + lo / 1000), min_length=lo)
+    maps = tuple(ConfidenceMap(lab, (0.0, 0.3, 0.9), (0.1 + k / 100, 0.5, 0.9 + lo / 1000), min_length=lo,
+                               length_weight=k / 10, full_length=45 + lo)
                  for k, lab in enumerate(model.labels) for lo in (0, 60))
     raw = mocapdb.annotation.annotate(w, raw_model, doc_lengths=lengths).segments
     cal = mocapdb.annotation.annotate(w, dataclasses.replace(model, confidence_maps=maps), doc_lengths=lengths).segments

@@ -320,9 +320,10 @@ def test_the_step_order_is_the_python_one():
 
 
 def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
-    """A confidence map whose values fall is an error naming the model and the table; a database from before
-    calibrated confidence (no table confidence_maps) gives the raw score, as the Python UDF gives it under the
-    model without its maps."""
+    """A confidence map whose values fall, whose length weight is NaN or whose steps disagree on it is an error
+    naming the model and the table; a database from before the length entered the score (no columns
+    length_weight, full_length) gives the maps of the raw score alone, and one from before calibrated
+    confidence (no table confidence_maps) the raw score, as the Python UDF gives them under such models."""
     import dataclasses
 
     from mocapdb.storage.model_store import load_model, save_model
@@ -331,18 +332,36 @@ def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
     shutil.copy(archive, db)
     with mocapdb.connect(db) as con:
         model = load_model(con, "default")
-        assert model.confidence_maps
-        save_model(con, dataclasses.replace(model, name="raw", confidence_maps=()))
-        want = con.execute("SELECT motion_id, annotate(motion_id, model := 'raw') FROM motions "
-                           "ORDER BY motion_id").fetchall()
+        assert model.confidence_maps and all(m.length_weight > 0 for m in model.confidence_maps)
+        unweighted = tuple(dataclasses.replace(m, length_weight=0.0) for m in model.confidence_maps)
+        for name, maps in (("raw", ()), ("unweighted", unweighted), ("nan", model.confidence_maps),
+                           ("mixed", model.confidence_maps)):
+            save_model(con, dataclasses.replace(model, name=name, confidence_maps=maps))
+        want = {name: con.execute(f"SELECT motion_id, annotate(motion_id, model := '{name}') FROM motions "
+                                  "ORDER BY motion_id").fetchall() for name in ("raw", "unweighted", "default")}
+    every = "SELECT motion_id, annotate(motion_id, 'default') FROM motions ORDER BY motion_id"
     got = plain_client(db, native, [
         "UPDATE confidence_maps SET value = 0 WHERE model = 'default' AND k = 2",
         "SELECT annotate(1, 'default')",
+        "UPDATE confidence_maps SET length_weight = 'nan'::DOUBLE WHERE model = 'nan'",
+        "SELECT annotate(1, 'nan')",
+        "UPDATE confidence_maps SET length_weight = length_weight + 1 WHERE model = 'mixed' AND k = 2",
+        "SELECT annotate(1, 'mixed')",
+        "DELETE FROM confidence_maps WHERE model = 'default'",
+        "INSERT INTO confidence_maps SELECT * REPLACE ('default' AS model) FROM confidence_maps "
+        "WHERE model = 'unweighted'",
+        "ALTER TABLE confidence_maps DROP COLUMN length_weight",
+        "ALTER TABLE confidence_maps DROP COLUMN full_length",
+        every,
         "DROP TABLE confidence_maps",
-        "SELECT motion_id, annotate(motion_id, 'default') FROM motions ORDER BY motion_id"], read_only=False)
-    assert "model 'default': its confidence_maps rows are damaged" in got[1]["error"]
-    assert got[3]["rows"] == [list(r) for r in want]
-    assert any(s["confidence"] not in (0.0, 1.0) for _, segs in want for s in segs)
+        every], read_only=False)
+    for k, name in ((1, "default"), (3, "nan"), (5, "mixed")):
+        assert f"model '{name}': its confidence_maps rows are damaged" in got[k]["error"]
+    assert got[10]["rows"] == [list(r) for r in want["unweighted"]]
+    assert got[12]["rows"] == [list(r) for r in want["raw"]]
+    # the three answers differ: the length counts, the maps count
+    assert want["raw"] != want["unweighted"] != want["default"]
+    assert any(s["confidence"] not in (0.0, 1.0) for _, segs in want["raw"] for s in segs)
 
 
 def test_annotate_arguments(archive, native):
@@ -521,6 +540,7 @@ def test_a_kept_model_follows_every_write_to_its_rows(archive, native, tmp_path)
         "UPDATE keyframes SET mask = 0, value = 0 WHERE model = 'default' AND k = 1",
         "DELETE FROM keyframe_queries WHERE model = 'default' AND class >= 'm'",
         "UPDATE models SET margin = margin + 0.05 WHERE model = 'default'",
+        "UPDATE confidence_maps SET length_weight = length_weight * 2 WHERE model = 'default'",
         "UPDATE confidence_maps SET value = 0.0 WHERE model = 'default'",
         "UPDATE confidence_maps SET value = -(0.0::DOUBLE) WHERE model = 'default'",
     ]
@@ -543,10 +563,10 @@ def test_a_kept_model_follows_every_write_to_its_rows(archive, native, tmp_path)
         assert now != before, w  # the write changed the answer (keyframes on, off or both)
         before = now
     # -0.0: the rows as text keep the sign; both answers had zero confidences
-    assert "'confidence': 0.0}" in got[2 + 5 * step + 1]["rows"][0][0]
-    assert "'confidence': -0.0}" in got[2 + 6 * step + 1]["rows"][0][0]
+    assert "'confidence': 0.0}" in got[2 + 6 * step + 1]["rows"][0][0]
+    assert "'confidence': -0.0}" in got[2 + 7 * step + 1]["rows"][0][0]
     uncommitted, committed = got[-3]["rows"], got[-1]["rows"]
-    assert uncommitted == got[2 + 6 * step + 1]["rows"] != committed
+    assert uncommitted == got[2 + 7 * step + 1]["rows"] != committed
 
 
 def test_a_model_stored_again_through_mocapdb_is_seen(archive, native, tmp_path):

@@ -320,8 +320,18 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 			}
 		}
 	}
-	mdb_label_rules rules = {L,         m->concurrent, nm->min_frames, nm->min_won,     m->margin,
-	                         m->conf_n, m->conf_cut,   m->conf_value,  m->conf_min_length, w->touched};
+	mdb_label_rules rules = {L,
+	                         m->concurrent,
+	                         nm->min_frames,
+	                         nm->min_won,
+	                         m->margin,
+	                         m->conf_n,
+	                         m->conf_cut,
+	                         m->conf_value,
+	                         m->conf_min_length,
+	                         m->conf_length_weight,
+	                         m->conf_full_length,
+	                         w->touched};
 	if (mdb_label_segments(w->label_cd, w->label_ratio, n, &rules, out)) {
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");
 		return -1;

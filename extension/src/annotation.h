@@ -24,8 +24,10 @@ void mdb_segments_free(mdb_segments *s);
 /* How a model turns per-label rows into segments: per label whether it is concurrent
  * (annotated on its own beside the others), its minimum length and the frames it must win
  * (0: none); the margin (0: none); per label its confidence maps (conf_n steps in all, sorted by
- * (conf_min_length, cut): from raw score conf_cut[k] on, confidence conf_value[k], for segments of
- * at least conf_min_length[k] frames; 0 steps: the raw score). */
+ * (conf_min_length, cut): from score conf_cut[k] on, confidence conf_value[k], for segments of
+ * at least conf_min_length[k] frames, the score (raw + w · min(n, F) / F) / (1 + w) of a segment of
+ * n frames, w = conf_length_weight[k], F = conf_full_length[k] (alike on a map's steps); 0 steps:
+ * the raw score). */
 typedef struct {
 	size_t n_labels;
 	const char *concurrent;
@@ -35,6 +37,8 @@ typedef struct {
 	const size_t *conf_n;
 	double *const *conf_cut, *const *conf_value;
 	int64_t *const *conf_min_length;
+	double *const *conf_length_weight;
+	int64_t *const *conf_full_length;
 	const char *set; /* per label: whether its rows are set (NULL: all are); the others are +inf throughout,
 	                  * never read */
 } mdb_label_rules;

@@ -181,6 +181,8 @@ typedef struct {
 	size_t *conf_n;       /* per label: steps of its confidence map (0: the raw score) */
 	double **conf_cut, **conf_value; /* per label: the steps (mocapdb.annotation.ConfidenceMap) */
 	int64_t **conf_min_length;       /* per label and step: its map's shortest segment */
+	double **conf_length_weight;     /* per label and step: its map's weight of the length in the score */
+	int64_t **conf_full_length;      /* per label and step: its map's length that counts in full */
 } mdb_model;
 
 void mdb_model_free(mdb_model *m);

@@ -10,7 +10,8 @@
  * key (one snapshot: a write between the key and the read cannot pair a new model with an old key
  * or the other way round). What the key does not see is a column's type changed with its values
  * kept: the read's rows, and so the model, are the same. Where the key query fails (a database
- * from before confidence maps has no table confidence_maps) or the read in one transaction does,
+ * from before confidence maps has no table confidence_maps, one from before the length entered their
+ * score no column length_weight) or the read in one transaction does,
  * the model is read as before, every call, and errors are the read's. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -31,8 +32,8 @@ DUCKDB_EXTENSION_EXTERN
 	"UNION ALL SELECT 3, count(*), sum(hash(class, template_length)) FROM keyframe_queries WHERE model = $1 "         \
 	"UNION ALL SELECT 4, count(*), sum(hash(class, k, mask, value, position, d_min, d_max)) FROM keyframes "         \
 	"WHERE model = $1 "                                                                                                \
-	"UNION ALL SELECT 5, count(*), sum(hash(label, min_length, k, cut, signbit(cut), value, signbit(value))) "       \
-	"FROM confidence_maps WHERE model = $1"
+	"UNION ALL SELECT 5, count(*), sum(hash(label, min_length, k, cut, signbit(cut), value, signbit(value), "          \
+	"length_weight, full_length)) FROM confidence_maps WHERE model = $1"
 /* models kept per database (a call uses one or a few; each is a few MB at most) */
 #define MAX_KEPT 8
 

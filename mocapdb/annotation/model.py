@@ -20,8 +20,8 @@ __all__ = ["ClassModel", "ConfidenceMap", "Model", "DEFAULT_DELTA", "DEFAULT_TAU
 DEFAULT_DELTA = 0.05
 #: hit threshold τ of annotationScript.m (TEMPLATES.md §9.1)
 DEFAULT_TAU = 0.13
-#: how far towards the next step's value a segment's raw score moves its calibrated confidence within a step
-#: of a :class:`ConfidenceMap` (a hundredth: the step's value stands, the raw score orders its segments);
+#: how far towards the next step's value a segment's score moves its calibrated confidence within a step
+#: of a :class:`ConfidenceMap` (a hundredth: the step's value stands, the score orders its segments);
 #: extension/src/annotation.c's MDB_STEP_ORDER is the same number
 STEP_ORDER = 0.01
 
@@ -89,39 +89,49 @@ class ClassModel:
 
 @dataclass(frozen=True, eq=False)
 class ConfidenceMap:
-    """Calibrated confidence of a label's segments of some length: a rising step function of the raw score.
+    """Calibrated confidence of a label's segments: a rising step function of the raw score and the length.
 
     The raw score of a segment is ``1 − Δ̄^τ/τ`` at its best frame
-    (:func:`mocapdb.annotation.postprocess.segment_confidence`). A segment
-    takes the map of its label with the largest ``min_length`` it reaches
-    (none: it keeps the raw score); its confidence is ``values[j]`` for the
-    last ``j`` with ``cuts[j] <= raw`` (``values[0]`` below ``cuts[0]``): the
-    share of right segments seen at that raw score and length on recordings
-    the model was not trained on
+    (:func:`mocapdb.annotation.postprocess.segment_confidence`); its length
+    ``n`` is ``end − start + 1`` (30 Hz frames). A segment takes the map of
+    its label with the largest ``min_length`` it reaches (none: it keeps the
+    raw score). The map's score of the segment is
+    ``s = (raw + length_weight · min(n, full_length) / full_length) / (1 + length_weight)``
+    (in [0, 1]; ``raw`` itself where ``length_weight`` is 0): a better match
+    and a longer segment, up to ``full_length``, both count for it. Its
+    confidence is ``values[j]`` for the last ``j`` with ``cuts[j] <= s``
+    (``values[0]`` below ``cuts[0]``): the share of right segments seen at
+    that score on recordings the model was not trained on
     (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`) — plus,
-    so that the raw score still orders the segments of one step, a hundredth
+    so that the score still orders the segments of one step, a hundredth
     (:data:`STEP_ORDER`) of the way to the next step's value (1 after the
-    last) as the raw score goes from ``cuts[j]`` to the next cut (1): a step
-    claims what its segments showed, and a better match within it ranks
-    higher. Five IEEE operations in a fixed order, so that every
-    implementation (the native extension too) gives the same number bit for
-    bit.
+    last) as the score goes from ``cuts[j]`` to the next cut (1): a step
+    claims what its segments showed, and a better one within it ranks
+    higher. IEEE operations in a fixed order, so that every implementation
+    (the native extension too) gives the same number bit for bit.
 
     Attributes
     ----------
     label : str
     cuts : tuple of float
-        Ascending raw scores where a step starts.
+        Ascending scores where a step starts.
     values : tuple of float
         Non-decreasing confidences in [0, 1], one per cut.
     min_length : int, default 0
-        Shortest segment (30 Hz frames) the map is for.
+        Shortest segment (30 Hz frames) the map is for (the fitted maps are
+        for every length: the length is in their score).
+    length_weight : float, default 0
+        Weight of the length in the score, ≥ 0 (0: the raw score alone).
+    full_length : int, default 90
+        Length (30 Hz frames) from which a segment counts as long as any, ≥ 1.
     """
 
     label: str
     cuts: tuple
     values: tuple
     min_length: int = 0
+    length_weight: float = 0.0
+    full_length: int = 90
 
     def __post_init__(self):
         cuts = tuple(float(x) for x in self.cuts)
@@ -140,7 +150,17 @@ class ConfidenceMap:
                                  f"got {self.min_length!r}")
         object.__setattr__(self, "cuts", cuts)
         object.__setattr__(self, "values", values)
+        if isinstance(self.full_length, bool) or not isinstance(self.full_length, (int, np.integer)) \
+                or self.full_length < 1:
+            raise ParameterError(f"confidence map of {self.label!r}: full_length must be a positive integer, "
+                                 f"got {self.full_length!r}")
+        weight = float(self.length_weight)
+        if not (np.isfinite(weight) and weight >= 0.0):
+            raise ParameterError(f"confidence map of {self.label!r}: length_weight must be finite and >= 0, "
+                                 f"got {self.length_weight!r}")
         object.__setattr__(self, "min_length", int(self.min_length))
+        object.__setattr__(self, "length_weight", weight + 0.0)   # -0.0 as 0.0: one stored weight per value
+        object.__setattr__(self, "full_length", int(self.full_length))
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,9 +185,10 @@ class Model:
         a walker who turns round is walking and turning, so ``turn`` takes no
         frame from ``move``. Each must be a label of the model; () is the paper.
     confidence_maps : tuple of ConfidenceMap, default ()
-        Per label and shortest segment length the map from a segment's raw
-        score to its calibrated confidence (beyond the paper), kept in label
-        and length order; a label without one keeps the raw score.
+        Per label (and shortest segment length) the map from a segment's raw
+        score and length to its calibrated confidence (beyond the paper),
+        kept in label and length order; a label without one keeps the raw
+        score.
     """
 
     name: str

@@ -25,7 +25,7 @@
 * **confidence** (:func:`segment_confidence`): not a filter — each
   segment's ``1 − Δ̄^τ/τ`` at its best frame, so users can filter; a model
   with ``confidence_maps`` turns it into the share of right segments seen at
-  that score on held-out recordings (:func:`calibrate_confidence`);
+  that score and length on held-out recordings (:func:`calibrate_confidence`);
 * **margin** (:func:`apply_margin`): a frame where the best label's Δ̄^τ
   beats the second best by less than ``Model.margin`` is left unlabelled —
   two labels fit about equally well, so neither is trusted.
@@ -186,7 +186,7 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
     Parameters
     ----------
     segments : ndarray of SEGMENT_DTYPE
-        Their labels and lengths (``end − start + 1``, 30 Hz frames) choose the map.
+        Their labels and lengths (``end − start + 1``, 30 Hz frames) choose the map and enter its score.
     raw : (n,) float64
         Each segment's raw score (:func:`segment_confidence`).
     maps : sequence of ConfidenceMap
@@ -195,12 +195,13 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
     Returns
     -------
     (n,) float64
-        Per segment, of its label's map with the largest ``min_length`` ≤ its length, ``values[j]`` for the
-        last ``j`` with ``cuts[j] <= raw`` (``values[0]`` below the first cut), plus :data:`STEP_ORDER` of the
-        way to the next step's value (1 after the last) as far as the raw score lies from ``cuts[j]`` towards
-        the next cut (1): the order of raw scores kept within a step (:class:`~mocapdb.annotation.ConfidenceMap`;
-        extension/src/annotation.c does the same operations in the same order); the raw score where no map
-        applies.
+        Per segment, of its label's map with the largest ``min_length`` ≤ its length, the score
+        ``s = (raw + w · min(length, F) / F) / (1 + w)`` (``w`` the map's ``length_weight``, ``F`` its
+        ``full_length``), then ``values[j]`` for the last ``j`` with ``cuts[j] <= s`` (``values[0]`` below the
+        first cut), plus :data:`STEP_ORDER` of the way to the next step's value (1 after the last) as far as
+        ``s`` lies from ``cuts[j]`` towards the next cut (1): the order of scores kept within a step
+        (:class:`~mocapdb.annotation.ConfidenceMap`; extension/src/annotation.c does the same operations in
+        the same order); the raw score where no map applies.
     """
     raw = np.asarray(raw, dtype=np.float64)
     out = raw.copy()
@@ -211,7 +212,9 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
         on = (labels == m.label) & (length >= m.min_length) & (m.min_length > chosen)
         if on.any():
             cuts, values = np.asarray(m.cuts, dtype=np.float64), np.asarray(m.values, dtype=np.float64)
-            r = raw[on]
+            w = np.float64(m.length_weight)
+            full = np.minimum(length[on], m.full_length).astype(np.float64) / np.float64(m.full_length)
+            r = (raw[on] + w * full) / (np.float64(1.0) + w)
             j = np.maximum(np.searchsorted(cuts, r, side="right") - 1, 0)
             c0, v0 = cuts[j], values[j]
             c1, v1 = np.append(cuts[1:], 1.0)[j], np.append(values[1:], 1.0)[j]

@@ -1,4 +1,4 @@
-"""Calibrated confidence: a monotone map from a segment's raw score, per length, to the share of right segments.
+"""Calibrated confidence: a monotone map from a segment's raw score and length to the share of right segments.
 
 The raw score of a segment (``1 − Δ̄^τ/τ`` at its best frame) ranks
 segments within a label but says nothing about how often they are right: a
@@ -8,26 +8,34 @@ What else a wrong segment shows, on three labs of four left out: it is short
 (median 32–58 frames against 88–105 right, RESULTS.md issue 32 item 4).
 :func:`fit_confidence_maps` learns, from segments the model's recipe
 annotated on recordings left out of its training (leave-one-lab-out folds,
-each judged right or wrong), for each length band (:data:`LENGTH_EDGES`) a
-non-decreasing step function of the raw score — isotonic regression (pool
-adjacent violators) of right-or-wrong on the raw score, its steps joined
-until each stands on :data:`MIN_STEP` segments; a step's value is a cautious
-share right: the posterior of its segments (a Beta, with the band's share
-right as :data:`PRIOR_SEGMENTS` pseudo-segments) less :data:`CAUTION`
-standard deviations, so a step that stands on few segments claims less. The
-point estimate alone made the maps fragile: a handful of right segments at
-one raw score moved a whole step across 0.5 on the next lab (held out, the
-share right of segments ≥ 0.5 swung 0.80–0.91 with a design added or the
-step size moved, RESULTS.md issue 32); the cautious value holds 0.91–0.93
-over those changes. A confidence of 0.8 thus reads "of held-out segments
-like this one, at least about 80 % were right"; within a step the raw score
-still orders the segments (:data:`mocapdb.annotation.model.STEP_ORDER`: up to
-a hundredth of the way to the next step's value — the steps alone tied a
-step's segments, which cost the ranking held out, RESULTS.md issue 32). The bands pool
-all labels: maps per label, fitted on the other labs, were worse on the lab
-left out than none (a label's reliability is its lab's: `move` is right on
-every studio walk and on half of HDM05's, whose truth calls the steps around
-a kick the kick). Every label of the model gets the maps
+each judged right or wrong), one score of the two —
+``s = (raw + w · ℓ) / (1 + w)``, ``ℓ = min(length, FULL_LENGTH) / FULL_LENGTH``,
+the weight ``w`` the ratio of the length's coefficient to the raw score's in a
+logistic regression of right-or-wrong on both (:func:`length_weight`) — and
+a non-decreasing step function of that score: isotonic regression (pool
+adjacent violators) of right-or-wrong on ``s``, its steps joined until each
+stands on :data:`MIN_STEP` segments; a step's value is a cautious share
+right: the posterior of its segments (a Beta, with the share right of all
+as :data:`PRIOR_SEGMENTS` pseudo-segments) less :data:`CAUTION` standard
+deviations, so a step that stands on few segments claims less. The point
+estimate alone made the maps fragile: a handful of right segments at one raw
+score moved a whole step across 0.5 on the next lab (held out, the share
+right of segments ≥ 0.5 swung 0.80–0.91 with a design added or the step
+size moved, RESULTS.md issue 32); the cautious value holds over those
+changes. A confidence of 0.8 thus reads "of held-out segments like this one,
+at least about 80 % were right"; within a step the score still orders the
+segments (:data:`mocapdb.annotation.model.STEP_ORDER`: up to a hundredth of
+the way to the next step's value). The length enters the score, not as
+bands with a map each (the maps before): a map per band ranked a
+middle-length segment of a poor match above a long one of a good match
+where the other labs' middle band happened to be right more often, and the
+held-out ranking (AUC) stayed under 0.85 on HDM05 and the CMU documents; one
+rising map of a score rising in both cannot invert them (RESULTS.md issue
+32, "Length in the score"). The maps pool all labels: maps per label,
+fitted on the other labs, were worse on the lab left out than none (a
+label's reliability is its lab's: `move` is right on every studio walk and
+on half of HDM05's, whose truth calls the steps around a kick the kick).
+Every label of the model gets the map
 (:class:`mocapdb.annotation.ConfidenceMap`, stored with the model), applied
 after the raw score (:func:`mocapdb.annotation.postprocess.calibrate_confidence`).
 """
@@ -38,7 +46,8 @@ import numpy as np
 from mocapdb.annotation.model import ConfidenceMap
 from mocapdb.errors import ParameterError
 
-__all__ = ["fit_confidence_maps", "PRIOR_SEGMENTS", "MIN_STEP", "CAUTION", "LENGTH_EDGES"]
+__all__ = ["fit_confidence_maps", "length_weight", "PRIOR_SEGMENTS", "MIN_STEP", "CAUTION", "FULL_LENGTH",
+           "RIDGE"]
 
 #: weight, in segments, of the prior each step is shrunk towards (a label's share right, all labels' share)
 PRIOR_SEGMENTS = 4.0
@@ -47,9 +56,12 @@ MIN_STEP = 5
 #: standard deviations of a step's posterior share right taken off its mean (one: a step's value is exceeded
 #: by its true share right about five times in six)
 CAUTION = 1.0
-#: the length bands (shortest segment of each, 30 Hz frames): under 1.5 s, 1.5–3 s, longer (RESULTS.md issue 32:
-#: of the bands tried, the best held out)
-LENGTH_EDGES = (0, 45, 90)
+#: the length (30 Hz frames) from which a segment counts as long as any in the score: 3 s (held out, 2–3 s
+#: ranked best; 4–5 s let the long segments of a poor match, HDM05's exercises, outrank short right ones)
+FULL_LENGTH = 90
+#: L2 penalty on the two slopes of the logistic regression that weighs the length against the raw score
+#: (the weight moves little with it: 0.49–0.78 without, 0.45–0.72 with 1, 0.38–0.62 with 10, over the folds)
+RIDGE = 1.0
 
 
 def _pav(y, w):
@@ -86,11 +98,11 @@ def _coarsen(starts, means, weights):
     return np.array(out_s, dtype=np.int64), np.array(out_m), np.array(out_w)
 
 
-def _step_map(raw, right, prior):
-    """(cuts, values): isotonic steps over raw scores, each the cautious share right of its posterior."""
-    order = np.argsort(raw, kind="stable")
-    x, y = raw[order], right[order].astype(np.float64)
-    # equal raw scores form one point: a step cannot split them
+def _step_map(score, right, prior):
+    """(cuts, values): isotonic steps over scores, each the cautious share right of its posterior."""
+    order = np.argsort(score, kind="stable")
+    x, y = score[order], right[order].astype(np.float64)
+    # equal scores form one point: a step cannot split them
     ux, first, counts = np.unique(x, return_index=True, return_counts=True)
     sums = np.add.reduceat(y, first)
     starts, means, weights = _coarsen(*_pav(sums / counts, counts))
@@ -106,26 +118,69 @@ def _step_map(raw, right, prior):
     return tuple(cuts.tolist()), tuple(np.clip(m2, 0.0, 1.0).tolist())
 
 
-def fit_confidence_maps(model_labels, segments, raw, right, *, length_edges=LENGTH_EDGES) -> tuple:
+def _logistic(x, y, ridge):
+    """Coefficients of the logistic regression of ``y`` (0/1) on the columns of ``x`` (the first all ones,
+    unpenalized), maximising the log-likelihood less ``ridge / 2`` times the other coefficients' squares: Newton's
+    method (the objective is concave; the ridge keeps it strictly so when the classes separate)."""
+    penalty = np.diag([0.0] + [ridge] * (x.shape[1] - 1))
+    b = np.zeros(x.shape[1])
+    for _ in range(100):
+        p = 1.0 / (1.0 + np.exp(-(x @ b)))
+        grad = x.T @ (y - p) - penalty @ b
+        hess = x.T @ (x * (p * (1.0 - p))[:, None]) + penalty + 1e-12 * np.eye(x.shape[1])
+        step = np.linalg.solve(hess, grad)
+        b += step
+        if np.abs(step).max() < 1e-10:
+            break
+    return b
+
+
+def length_weight(raw, length, right, *, full_length=FULL_LENGTH, ridge=RIDGE) -> float:
+    """How much a segment's length counts against its raw score for being right: ``b_ℓ / b_raw`` of the
+    logistic regression ``P(right) = σ(b_0 + b_raw · raw + b_ℓ · min(length, full_length) / full_length)``
+    (Newton's method, ``ridge`` on the two slopes); 0 where either slope is not positive (the raw score
+    alone: a length that does not help, or a raw score that does not, gives no ratio to trust).
+
+    Parameters
+    ----------
+    raw : (n,) float
+        Raw scores in [0, 1].
+    length : (n,) int
+        Segment lengths, 30 Hz frames.
+    right : (n,) bool
+    full_length : int
+    ridge : float
+
+    Returns
+    -------
+    float
+        The weight ``w`` ≥ 0 of :class:`~mocapdb.annotation.ConfidenceMap`.
+    """
+    x = np.column_stack([np.ones(len(raw)), np.asarray(raw, dtype=np.float64),
+                         np.minimum(np.asarray(length, dtype=np.float64), full_length) / full_length])
+    b = _logistic(x, np.asarray(right, dtype=np.float64), ridge)
+    return float(b[2] / b[1]) if b[1] > 0.0 and b[2] > 0.0 else 0.0
+
+
+def fit_confidence_maps(model_labels, segments, raw, right) -> tuple:
     """The :class:`~mocapdb.annotation.ConfidenceMap` of every label of a model, learned from held-out segments.
 
     Parameters
     ----------
     model_labels : sequence of str
-        The model's labels: each gets the maps.
+        The model's labels: each gets the map.
     segments : ndarray with fields ``start``, ``end``
         The held-out segments (30 Hz frames, inclusive).
     raw : (n,) float
         Each segment's raw score in [0, 1] (``1 − Δ̄^τ/τ``, as annotated by a model without maps).
     right : (n,) bool
         Whether the segment is right (:func:`lab.calibration.segment_verdicts`).
-    length_edges : sequence of int
-        Ascending, from 0: the shortest segment of each length band.
 
     Returns
     -------
     tuple of ConfidenceMap
-        Per label, per band; a band with fewer than :data:`MIN_STEP` segments takes the map of all of them.
+        One per label, all alike: for every length (``min_length`` 0), the steps over the score weighing the
+        length by :func:`length_weight` up to :data:`FULL_LENGTH`.
     """
     raw = np.asarray(raw, dtype=np.float64)
     right = np.asarray(right, dtype=bool)
@@ -137,14 +192,10 @@ def fit_confidence_maps(model_labels, segments, raw, right, *, length_edges=LENG
         raise ParameterError("fitting confidence maps needs held-out segments; got none")
     if not np.all((raw >= 0) & (raw <= 1)):
         raise ParameterError("raw scores must lie in [0, 1]")
-    edges = [int(e) for e in length_edges]
-    if not edges or edges[0] != 0 or any(b <= a for a, b in zip(edges, edges[1:])):
-        raise ParameterError(f"length_edges must ascend from 0, got {tuple(length_edges)}")
-    overall = _step_map(raw, right, float(right.mean()))
-    band = np.searchsorted(edges, length, side="right") - 1
-    bands = []
-    for k, lo in enumerate(edges):
-        on = band == k
-        cuts, values = overall if on.sum() < MIN_STEP else _step_map(raw[on], right[on], float(right[on].mean()))
-        bands.append((lo, cuts, values))
-    return tuple(ConfidenceMap(lab, cuts, values, lo) for lab in model_labels for lo, cuts, values in bands)
+    if (length < 1).any():
+        raise ParameterError("segments must end at or after their start")
+    w = length_weight(raw, length, right)
+    # the score as calibrate_confidence computes it, operation for operation
+    score = (raw + w * (np.minimum(length, FULL_LENGTH).astype(np.float64) / np.float64(FULL_LENGTH))) / (1.0 + w)
+    cuts, values = _step_map(score, right, float(right.mean()))
+    return tuple(ConfidenceMap(lab, cuts, values, 0, w, FULL_LENGTH) for lab in model_labels)

@@ -66,6 +66,8 @@ def fingerprint(model: Model) -> str:
                 h.update(np.ascontiguousarray(a).tobytes())
     for m in model.confidence_maps:  # models without maps keep their fingerprints
         h.update(f"confidence|{m.label}|{m.min_length}|{m.cuts!r}|{m.values!r}".encode())
+        if m.length_weight:  # and maps of the raw score alone theirs
+            h.update(f"length|{m.length_weight!r}|{m.full_length}".encode())
     return h.hexdigest()[:16]
 
 
@@ -117,7 +119,8 @@ def model_tables(model: Model, *, description=None, source=None, keyframe_stats=
             keyframes.append((name, c.name, k + 1, kq.feature_sets[k], int(kq.mask[k]), int(kq.value[k]),
                               int(kq.positions[k]) + 1, None if last else int(kq.d_min[k]), d_max))
 
-    maps = [(name, m.label, m.min_length, k + 1, cut, value) for m in model.confidence_maps
+    maps = [(name, m.label, m.min_length, k + 1, cut, value, m.length_weight, m.full_length)
+            for m in model.confidence_maps
             for k, (cut, value) in enumerate(zip(m.cuts, m.values))]
 
     def table(rows, schema):
@@ -152,7 +155,8 @@ _SCHEMAS = {
     "keyframes": pa.schema([("model", _STR), ("class", _STR), ("k", _I32), ("feature_set", _STR), ("mask", _U64),
                             ("value", _U64), ("position", _I32), ("d_min", _I32), ("d_max", _I32)]),
     "confidence_maps": pa.schema([("model", _STR), ("label", _STR), ("min_length", _I32), ("k", _I32),
-                                  ("cut", _F64), ("value", _F64)]),
+                                  ("cut", _F64), ("value", _F64), ("length_weight", _F64),
+                                  ("full_length", _I32)]),
     "ga_statistics": pa.schema([("model", _STR), ("class", _STR), ("run", _I32), ("generation", _I32),
                                 ("mean_precision", _F64), ("mean_recall", _F64), ("mean_fitness", _F64),
                                 ("best_fitness", _F64), ("mean_keyframes", _F64)]),
@@ -224,12 +228,24 @@ def model_from_tables(tables: dict) -> Model:
     maps = tables.get("confidence_maps")
     steps = {}
     order = [(c, "ascending") for c in ("label", "min_length", "k")]
+    scores = {}
     for r in (maps.sort_by(order).to_pylist() if maps is not None else ()):
         steps.setdefault((r["label"], r["min_length"]), []).append((r["cut"], r["value"]))
+        # maps stored before the length entered the score weigh the raw score alone
+        score = (r.get("length_weight", 0.0), r.get("full_length", ConfidenceMap.full_length))
+        if None in score:
+            raise SchemaError(f"model {name!r}: a confidence map of {r['label']!r} has no length_weight or "
+                              f"full_length")
+        scores.setdefault((r["label"], r["min_length"]), set()).add(score)
     stray = sorted({lab for lab, _ in steps} - set(labels))
     if stray:
         raise SchemaError(f"model {name!r}: confidence maps of labels it lacks: {stray}")
-    conf = tuple(ConfidenceMap(lab, *zip(*rows), min_length=lo) for (lab, lo), rows in steps.items())
+    mixed = sorted(key for key, v in scores.items() if len(v) > 1)
+    if mixed:
+        raise SchemaError(f"model {name!r}: the steps of a confidence map disagree on its length_weight or "
+                          f"full_length: {mixed}")
+    conf = tuple(ConfidenceMap(lab, *zip(*rows), min_length=lo, length_weight=w, full_length=f)
+                 for ((lab, lo), rows), ((w, f),) in zip(steps.items(), (scores[k] for k in steps)))
     return Model(name, tuple(out), labels=tuple(labels), margin=float(margin or 0.0),
                  concurrent_labels=tuple(concurrent or ()), confidence_maps=conf)
 
