@@ -3,10 +3,14 @@
 A take whose poses fold the trunk was refused as "not a human skeleton: trunk 0.11 × the leg length" while
 files with a byte-identical hierarchy were accepted: the distance root → neck is measured over the take's
 frames, so it is the pose that failed. The skeleton's own proportions (its rest pose) now tell the two apart.
+A human's skeleton whose take keeps a human's proportions but never stands (crawling, lying) is read.
 """
 import gzip
 
+import numpy as np
 import pytest
+
+from mocapdb.bodies import JOINT_INDEX
 
 from mocapdb.errors import ParseError
 from mocapdb.readers import read_motion
@@ -35,6 +39,21 @@ def test_a_folded_pose_is_named_the_pose_not_the_skeleton(tmp_path):
     assert why.startswith("not a human pose: ") and "not a human skeleton" not in why
     assert "trunk 0.07 × the leg length over the take's frames, 0.56 in its rest pose" in why
     assert why.endswith("the skeleton has a human's proportions at rest: it is the take's poses")
+
+
+def test_a_human_who_never_stands_is_read():
+    """Crawling on all fours and a crouch that ends lying never stand upright (two legs to the floor, arms off
+    it): the skeleton and every frame keep a human's proportions, so it is a human lying or crawling, read as
+    such (refused as "not a human pose" before). The dog keeps failing on its trunk, the folded take on its
+    poses (the tests beside)."""
+    for name in ("Male1_A11_CrawlForward", "Male1_A12_CrawlBackward", "Male1_A8_CrouchToLie"):
+        m = read_motion(DATA / "accad_dev" / f"{name}.bvh.gz")
+        assert m.n_frames > 150
+        j = m.joints
+        # never upright indeed: the head is never a trunk's length above the hips
+        head_over_root = j[:, JOINT_INDEX["head"], 1] - j[:, JOINT_INDEX["root"], 1]
+        trunk = np.linalg.norm(j[:, JOINT_INDEX["neck"]] - j[:, JOINT_INDEX["root"]], axis=1)
+        assert (head_over_root < trunk).mean() > 0.4, name
 
 
 def test_an_animal_is_still_not_a_human_skeleton():

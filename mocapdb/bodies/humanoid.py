@@ -759,7 +759,11 @@ def humanoid_problem(joints: np.ndarray, rest: np.ndarray | None = None, *, leg:
     if not problems and upright is None:
         return None
     rest_leg, rest_med, _, _ = _human_measures(rest[None]) if rest is not None else (0.0, None, None, None)
-    if rest_leg > 0 and not _proportion_problems(rest_med, rest_leg):
+    human_rest = rest_leg > 0 and not _proportion_problems(rest_med, rest_leg)
+    if human_rest and not problems:
+        # a human's skeleton keeping a human's proportions that never stands: lying, crawling, rolling
+        return None
+    if human_rest:
         # the skeleton has a human's proportions (other takes share it): the take's frames are what fails
         at_rest = _proportions(rest_med, rest_leg)
         why = [upright] if upright else []
