@@ -117,7 +117,7 @@ def short_clips(data_dir, data, *, seconds=SHORT_SECONDS) -> dict:
     for path, truth, _ in lab_clip_files(data_dir):
         try:
             motion = read_motion(path)
-        except ParseError:      # crawling: no upright human to the reader, a user gets nothing there
+        except ParseError:      # a file the reader refuses: a user gets nothing there
             continue
         if truth.locomotion:
             sources["accad"][0].append(motion)

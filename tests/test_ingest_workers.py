@@ -149,7 +149,8 @@ def test_processes_store_what_threads_store_and_refuse_what_they_refuse(tmp_path
 @pytest.mark.shared
 def test_every_shared_recording_stores_the_words_d3b3f07_stored(tmp_path, on_processes):
     """Issue 35: features bit-identical to the code before it, for every recording of ../shared/data,
-    ingested on worker processes (digests of the stored words made by d3b3f07: tests/feature_digests.py)."""
+    ingested on worker processes (digests of the stored words made by d3b3f07: tests/feature_digests.py; the
+    three ACCAD takes d3b3f07 refused, read since cd10d4b, by cd10d4b)."""
     want = json.loads(DIGESTS.read_text())["files"]
     got = ingest_digests(mocapdb, DATA, tmp_path / "all.duckdb")
     assert got.keys() == want.keys()
