@@ -15,7 +15,7 @@ from mocapdb.annotation.postprocess import calibrate_confidence
 from mocapdb.errors import ParameterError, SchemaError
 from mocapdb.annotation import SEGMENT_DTYPE
 from mocapdb.learning.confidence_maps import (CAUTION, FULL_LENGTH, MIN_STEP, PRIOR_SEGMENTS, RIDGE,
-                                             _logistic, fit_confidence_maps, length_weight)
+                                             MAX_LENGTH_WEIGHT, _logistic, fit_confidence_maps, length_weight)
 from mocapdb.storage.model_store import fingerprint, load_model, model_from_tables, model_tables, save_model
 
 
@@ -130,7 +130,7 @@ def test_the_length_weight_is_the_ratio_of_the_logistic_slopes():
     """The Newton steps reach the penalized maximum likelihood (no move of the coefficients, in random
     directions near and far, does better), length_weight is the ratio of its slopes, and the weight follows what
     decides being right: the length with the raw score (> 0), the raw score alone (about 0), the raw score
-    hurting (0)."""
+    ranking the wrong way or not at all (the length alone, capped; or nothing where the length does not help)."""
     rng = np.random.default_rng(5)
     n = 600
     raw = rng.random(n)
@@ -151,8 +151,16 @@ def test_the_length_weight_is_the_ratio_of_the_logistic_slopes():
     w = length_weight(raw, lengths, right)
     assert w == b[2] / b[1] and 0.8 < w < 3.0            # the generating ratio 3 / 2, shrunk by the ridge
     assert length_weight(raw, lengths, rng.random(n) < 0.1 + 0.8 * raw) < 0.2
-    assert length_weight(raw, lengths, rng.random(n) < 0.8 - 0.6 * raw) == 0.0   # the raw score hurts: no ratio
+    # the raw score ranking the wrong way: no ratio through it — the length alone where it helps, else nothing
+    assert length_weight(raw, lengths, rng.random(n) < 0.5 - 0.4 * raw + 0.4 * ell) == MAX_LENGTH_WEIGHT
+    assert length_weight(raw, lengths, rng.random(n) < 0.9 - 0.4 * raw - 0.4 * ell) == 0.0
     assert length_weight(raw, lengths, np.ones(n, dtype=bool)) >= 0.0
+    # raw scores all alike (designed classes' 1s): their slope is rounding, the length decides, capped
+    w = length_weight(np.ones(n), lengths, right)
+    assert w == MAX_LENGTH_WEIGHT
+    maps = fit_confidence_maps(("move",), _segments(["move"] * n, lengths), np.ones(n), right)
+    got = calibrate_confidence(_segments(["move"] * n, lengths), np.ones(n), maps)
+    assert np.isfinite(got).all() and not (((ell[:, None] > ell[None, :]) & (got[:, None] < got[None, :])).any())
 
 
 def test_the_maps_are_stored_and_change_the_fingerprint(default, tmp_path):

@@ -47,7 +47,7 @@ from mocapdb.annotation.model import ConfidenceMap
 from mocapdb.errors import ParameterError
 
 __all__ = ["fit_confidence_maps", "length_weight", "PRIOR_SEGMENTS", "MIN_STEP", "CAUTION", "FULL_LENGTH",
-           "RIDGE"]
+           "RIDGE", "MAX_LENGTH_WEIGHT"]
 
 #: weight, in segments, of the prior each step is shrunk towards (a label's share right, all labels' share)
 PRIOR_SEGMENTS = 4.0
@@ -62,6 +62,11 @@ FULL_LENGTH = 90
 #: L2 penalty on the two slopes of the logistic regression that weighs the length against the raw score
 #: (the weight moves little with it: 0.49–0.78 without, 0.45–0.72 with 1, 0.38–0.62 with 10, over the folds)
 RIDGE = 1.0
+#: the largest length weight: where the raw scores barely rank (all alike, their slope near 0) the ratio
+#: grows without bound; capped, the length decides and the weight stays a number to store
+MAX_LENGTH_WEIGHT = 1000.0
+#: a fitted slope at most this is none: far above the rounding of coefficients of order 1
+_SLOPE_EPS = 1e-9
 
 
 def _pav(y, w):
@@ -138,8 +143,9 @@ def _logistic(x, y, ridge):
 def length_weight(raw, length, right, *, full_length=FULL_LENGTH, ridge=RIDGE) -> float:
     """How much a segment's length counts against its raw score for being right: ``b_ℓ / b_raw`` of the
     logistic regression ``P(right) = σ(b_0 + b_raw · raw + b_ℓ · min(length, full_length) / full_length)``
-    (Newton's method, ``ridge`` on the two slopes); 0 where either slope is not positive (the raw score
-    alone: a length that does not help, or a raw score that does not, gives no ratio to trust).
+    (Newton's method, ``ridge`` on the two slopes); 0 where the length's slope is not positive (the raw
+    score alone: a length that does not help gives no ratio to trust); :data:`MAX_LENGTH_WEIGHT`, the length
+    alone, where the raw score's is not (raw scores all alike, or ranking the wrong way) — and never more.
 
     Parameters
     ----------
@@ -159,7 +165,11 @@ def length_weight(raw, length, right, *, full_length=FULL_LENGTH, ridge=RIDGE) -
     x = np.column_stack([np.ones(len(raw)), np.asarray(raw, dtype=np.float64),
                          np.minimum(np.asarray(length, dtype=np.float64), full_length) / full_length])
     b = _logistic(x, np.asarray(right, dtype=np.float64), ridge)
-    return float(b[2] / b[1]) if b[1] > 0.0 and b[2] > 0.0 else 0.0
+    # a slope within rounding of 0 (raw scores all alike leave theirs to the intercept) counts as none
+    raw_slope, length_slope = (float(x) if x > _SLOPE_EPS else 0.0 for x in b[1:])
+    if not length_slope:
+        return 0.0
+    return min(length_slope / raw_slope, MAX_LENGTH_WEIGHT) if raw_slope else MAX_LENGTH_WEIGHT
 
 
 def fit_confidence_maps(model_labels, segments, raw, right) -> tuple:
