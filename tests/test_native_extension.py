@@ -880,7 +880,7 @@ for i in range(n):
             q = f"SELECT count(*) FROM keyframe_search({', '.join([cls.replace(' || motion_id', '')] + named)})"
     if rng.random() < 0.02:  # annotate: motions, models, taus and keyframe settings good and bad
         args = [rng.choice(["NULL", "1", "0", "-1", "2147483648", "motion_id", "'1'"])]
-        for choices in (["'default'", "'toolbox'", "NULL", "'nomodel'", "''"],
+        for choices in (["'default'", "'toolbox'", "NULL", "'nomodel'", "''", "'extreme'"],
                         ["NULL", "0", "0.13", "1e308", "-1", "'nan'::DOUBLE", "'inf'::DOUBLE", "'x'"],
                         ["NULL", "true", "false", "3"]):
             if rng.random() < 0.7:
@@ -926,8 +926,9 @@ print(json.dumps([n_rows, n_errors, n_released, n_similar]))
 @pytest.mark.slow  # subprocesses: another client, a sanitizer build
 def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     """A build with -fsanitize=address,undefined (UBSan aborting on the first finding) LOADed into
-    Python duckdb with libasan preloaded, in two databases of one process: 3,000 seeded random calls,
-    none may crash; after mocapdb_release() every call on that database is refused, and it opens
+    Python duckdb with libasan preloaded, in two databases of one process (the second also holding a model
+    whose confidence maps weigh the length the most they may, counted in full from one frame): 3,000 seeded
+    random calls, none may crash; after mocapdb_release() every call on that database is refused, and it opens
     and loads again once closed."""
     cc = os.environ.get("CC") or shutil.which("gcc")
     assert cc, "the sanitizer test needs gcc"
@@ -939,6 +940,16 @@ def test_thousands_of_random_calls_under_the_sanitizers(archive, tmp_path):
     env = dict(os.environ, LD_PRELOAD=f"{asan} {ubsan}", ASAN_OPTIONS="detect_leaks=0:abort_on_error=1",
                UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
     second = shutil.copyfile(archive, tmp_path / "second.duckdb")
+    import dataclasses
+
+    from mocapdb.learning.confidence_maps import MAX_LENGTH_WEIGHT
+    from mocapdb.storage.model_store import load_model, save_model
+
+    with mocapdb.connect(second) as con:   # the second database also holds maps at the extremes of their score
+        model = load_model(con, "default")
+        maps = tuple(dataclasses.replace(m, length_weight=MAX_LENGTH_WEIGHT, full_length=1)
+                     for m in model.confidence_maps)
+        save_model(con, dataclasses.replace(model, name="extreme", confidence_maps=maps))
     run = subprocess.run([sys.executable, "-c", FUZZ_CLIENT],
                          input=json.dumps([str(archive), str(second), str(ext), 31, 3000]),
                          capture_output=True, text=True, env=env, timeout=1200)
