@@ -41,7 +41,8 @@ from mocapdb.annotation.model import STEP_ORDER
 from mocapdb.errors import ParameterError, check_nonnegative
 
 __all__ = ["label_min_frames", "drop_short_segments", "label_min_won", "won_frames", "drop_unwon_segments",
-           "document_minimum", "apply_margin", "segment_confidence", "calibrate_confidence", "WON_FRACTION"]
+           "document_minimum", "apply_margin", "segment_confidence", "length_score", "calibrate_confidence",
+           "WON_FRACTION"]
 
 #: a segment's label must win (be Δarg on) this share of its ``min_frames``
 #: (development evaluation, RESULTS.md issue 11: 1/4 to 1/3 best everywhere)
@@ -180,6 +181,16 @@ def segment_confidence(segments, label_ratio, doc_bounds, labels) -> np.ndarray:
     return np.clip(1.0 - best, 0.0, 1.0)
 
 
+def length_score(raw, length, length_weight, full_length) -> np.ndarray:
+    """A :class:`~mocapdb.annotation.ConfidenceMap`'s score of segments: ``(raw + w · min(n, F) / F) / (1 + w)``
+    (``w`` = ``length_weight``, ``F`` = ``full_length``, ``n`` the length in 30 Hz frames), in [0, 1]; ``raw``
+    itself, bit for bit, where ``w`` is 0. The fit (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`)
+    and the calibration score alike; extension/src/annotation.c does these operations in this order."""
+    w = np.float64(length_weight)
+    share = np.minimum(np.asarray(length), full_length).astype(np.float64) / np.float64(full_length)
+    return (np.asarray(raw, dtype=np.float64) + w * share) / (np.float64(1.0) + w)
+
+
 def calibrate_confidence(segments, raw, maps) -> np.ndarray:
     """Segments' confidences through their :class:`~mocapdb.annotation.ConfidenceMap` (raw where none).
 
@@ -212,9 +223,7 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
         on = (labels == m.label) & (length >= m.min_length) & (m.min_length > chosen)
         if on.any():
             cuts, values = np.asarray(m.cuts, dtype=np.float64), np.asarray(m.values, dtype=np.float64)
-            w = np.float64(m.length_weight)
-            full = np.minimum(length[on], m.full_length).astype(np.float64) / np.float64(m.full_length)
-            r = (raw[on] + w * full) / (np.float64(1.0) + w)
+            r = length_score(raw[on], length[on], m.length_weight, m.full_length)
             j = np.maximum(np.searchsorted(cuts, r, side="right") - 1, 0)
             c0, v0 = cuts[j], values[j]
             c1, v1 = np.append(cuts[1:], 1.0)[j], np.append(values[1:], 1.0)[j]

@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapdb.annotation.model import ConfidenceMap
+from mocapdb.annotation.postprocess import length_score
 from mocapdb.errors import ParameterError
 
 __all__ = ["fit_confidence_maps", "length_weight", "PRIOR_SEGMENTS", "MIN_STEP", "CAUTION", "FULL_LENGTH",
@@ -166,7 +167,7 @@ def length_weight(raw, length, right, *, full_length=FULL_LENGTH, ridge=RIDGE) -
                          np.minimum(np.asarray(length, dtype=np.float64), full_length) / full_length])
     b = _logistic(x, np.asarray(right, dtype=np.float64), ridge)
     # a slope within rounding of 0 (raw scores all alike leave theirs to the intercept) counts as none
-    raw_slope, length_slope = (float(x) if x > _SLOPE_EPS else 0.0 for x in b[1:])
+    raw_slope, length_slope = (float(v) if v > _SLOPE_EPS else 0.0 for v in b[1:])
     if not length_slope:
         return 0.0
     return min(length_slope / raw_slope, MAX_LENGTH_WEIGHT) if raw_slope else MAX_LENGTH_WEIGHT
@@ -205,7 +206,5 @@ def fit_confidence_maps(model_labels, segments, raw, right) -> tuple:
     if (length < 1).any():
         raise ParameterError("segments must end at or after their start")
     w = length_weight(raw, length, right)
-    # the score as calibrate_confidence computes it, operation for operation
-    score = (raw + w * (np.minimum(length, FULL_LENGTH).astype(np.float64) / np.float64(FULL_LENGTH))) / (1.0 + w)
-    cuts, values = _step_map(score, right, float(right.mean()))
+    cuts, values = _step_map(length_score(raw, length, w, FULL_LENGTH), right, float(right.mean()))
     return tuple(ConfidenceMap(lab, cuts, values, 0, w, FULL_LENGTH) for lab in model_labels)

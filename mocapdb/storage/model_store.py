@@ -226,26 +226,25 @@ def model_from_tables(tables: dict) -> Model:
                   else None)
     # models stored before calibrated confidence have no maps (the raw score)
     maps = tables.get("confidence_maps")
-    steps = {}
+    steps = {}   # (label, min_length) -> [(cut, value, length_weight, full_length)] in step order
     order = [(c, "ascending") for c in ("label", "min_length", "k")]
-    scores = {}
     for r in (maps.sort_by(order).to_pylist() if maps is not None else ()):
-        steps.setdefault((r["label"], r["min_length"]), []).append((r["cut"], r["value"]))
         # maps stored before the length entered the score weigh the raw score alone
         score = (r.get("length_weight", 0.0), r.get("full_length", ConfidenceMap.full_length))
         if None in score:
             raise SchemaError(f"model {name!r}: a confidence map of {r['label']!r} has no length_weight or "
                               f"full_length")
-        scores.setdefault((r["label"], r["min_length"]), set()).add(score)
+        steps.setdefault((r["label"], r["min_length"]), []).append((r["cut"], r["value"], *score))
     stray = sorted({lab for lab, _ in steps} - set(labels))
     if stray:
         raise SchemaError(f"model {name!r}: confidence maps of labels it lacks: {stray}")
-    mixed = sorted(key for key, v in scores.items() if len(v) > 1)
+    mixed = sorted(key for key, rows in steps.items() if len({row[2:] for row in rows}) > 1)
     if mixed:
         raise SchemaError(f"model {name!r}: the steps of a confidence map disagree on its length_weight or "
                           f"full_length: {mixed}")
-    conf = tuple(ConfidenceMap(lab, *zip(*rows), min_length=lo, length_weight=w, full_length=f)
-                 for ((lab, lo), rows), ((w, f),) in zip(steps.items(), (scores[k] for k in steps)))
+    conf = tuple(ConfidenceMap(lab, [x[0] for x in rows], [x[1] for x in rows], min_length=lo,
+                               length_weight=rows[0][2], full_length=rows[0][3])
+                 for (lab, lo), rows in steps.items())
     return Model(name, tuple(out), labels=tuple(labels), margin=float(margin or 0.0),
                  concurrent_labels=tuple(concurrent or ()), confidence_maps=conf)
 
