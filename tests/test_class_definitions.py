@@ -747,3 +747,43 @@ def test_the_arm_circle_s_and_the_high_grab_s_queries_miss_waves(data_dir):
     assert holding("grabHighR", grabs) == 22
     assert holding("grabHighR", gesture_words) <= 12              # 20 before "not out to the side"
     assert holding("cmuArmCircle1Reps", gesture_words) <= 4        # 8 before "below the shoulders"
+
+
+@pytest.mark.shared
+def test_the_designed_kick_finds_front_kicks_of_either_leg_and_nothing_else(data_dir):
+    """kickLStraightLeg1Reps / kickRStraightLeg1Reps (kick.toml), as shipped, keyframes off (every frame matched):
+    of HDM05's 24 front kicks and their mirror images, 18 of each are found (bk's four lift the foot slowly, Δ
+    0.062; two more match for less than kick's 26-frame minimum segment); none of the motions nearest the design over the development data is a kick — HDM05's
+    elbow-to-knees and lie-downs (one, lying on the back, raises a stretched leg: the chamber and the retraction
+    ask for an upright trunk), CMU's exercise takes (jumping jacks, knee raises) and jogs, ACCAD's skips, backward
+    runs, hops in a walk or a run, and the studio's runs."""
+    from mocapdb.annotation import Model
+    from mocapdb.features import mirror_words, motion_features
+    from mocapdb.readers import read_motion
+    from mocapdb.storage.model_store import load_model
+    import mocapdb
+
+    with mocapdb.connect() as con:
+        shipped = load_model(con, "default")
+    kick = Model("kick", tuple(c for c in shipped.classes if c.name.startswith("kick") and "StraightLeg" in c.name))
+    assert sorted(c.name for c in kick.classes) == ["kickLStraightLeg1Reps", "kickRStraightLeg1Reps"]
+    hdm = data_dir / "hdm05_cut"
+    kicks = sorted((hdm / "kickLFront1Reps").glob("*.amc"))
+    others = (sorted((hdm / "elbowToKnee1RepsLelbowStart").glob("*.amc")) + sorted((hdm / "lieDownFloor").glob("*.amc"))
+              + sorted((data_dir / "accad_dev").glob("Male1_[AC]1[3-5]_*.bvh.gz"))
+              + sorted((data_dir / "accad_dev").glob("Male1_C0[6-8]_*.bvh.gz"))
+              + [data_dir / "accad_dev" / f"Male1_{n}.bvh.gz" for n in ("B17_Walk2Hop2Walk", "C19_Run2Hop2Walk")]
+              + sorted((data_dir / "bandai2_dev").glob("dataset-2_run_*_00[12].bvh.gz")))
+    assert len(kicks) == 24 and len(others) == 20 + 18 + 6 + 3 + 2 + 10, len(others)
+    words = [motion_features(read_motion(p)) for p in kicks]
+    words += [mirror_words(w) for w in words]
+    cmu = data_dir / "cmu"
+    words += [motion_features(read_motion(p, asf=cmu / "02" / "02.asf")) for p in
+              sorted(cmu.glob("1[34]/*.amc"))] + [motion_features(read_motion(p)) for p in others]
+    ann = annotate(np.concatenate(words), kick, doc_lengths=[w.size for w in words])   # no preselection
+    docs = set(ann.segments["doc"].tolist())
+    left = [d for d in docs if d < 24]
+    right = [d for d in docs if 24 <= d < 48]
+    assert len(left) >= 18 and len(right) >= 18, (len(left), len(right))
+    assert set(ann.segments[ann.segments["doc"] < 24]["label"]) == {"kick"}
+    assert docs <= set(range(48)), sorted(d for d in docs if d >= 48)
