@@ -57,6 +57,12 @@ them — on actors the templates did not see:
    false-claim rule, and never more than their template's class learned —
    the same template, found in more places.
 
+8. **Caps.** A keyframe definition's ``tau`` caps its class and the class's
+   mirror image (:class:`mocapdb.learning.class_definitions.KeyframeDefinition`):
+   steps 5 and 6 meet motions through the query, which annotation without
+   keyframes does not, and a query that shuts motions of no class out would
+   otherwise raise τ for that mode too.
+
 Designed classes therefore never take more than their author gave them, and
 learned ones get the τ at which unseen actors' clips are told apart best.
 """
@@ -333,6 +339,11 @@ def learn_taus(clips, recipe, *, grid=TAU_GRID, max_false_rate=0.02, beta=1.0, m
     for copy, source in recipe_copies(recipe).items():   # step 7
         if copy in out and source in out:
             out[copy] = min(out[copy], out[source])
+    for k in recipe.keyframes:                           # step 8
+        if k.tau is not None:
+            for c in (k.cls, recipe.mirrors.get(k.cls)):
+                if c in out:
+                    out[c] = min(out[c], k.tau)
     return out
 
 

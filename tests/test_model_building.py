@@ -252,6 +252,13 @@ def test_taus_per_class(cut_clips):
     assert set(taus) == {"squat1Reps", "hopBothLegs1hops", "kickLFront1Reps", "kickRFront1Reps", "turnHeading"}
     assert set(taus.values()) <= set(grid)
     assert taus["turnHeading"] <= defs[0].tau                # a designed class never gets more than its author gave
+    # step 8: a keyframe definition's tau caps its class and the class's mirror, whatever was learned
+    kick = [k for k in default_recipe().keyframes if k.cls == "kickLFront1Reps"]
+    assert len(kick) == 1 and kick[0].tau is None
+    capped = learn_taus(clips, dataclasses.replace(recipe, keyframes=(dataclasses.replace(kick[0], tau=0.03),)),
+                        grid=grid, max_false_rate=0.0)
+    assert min(taus["kickLFront1Reps"], taus["kickRFront1Reps"]) > 0.03
+    assert capped == taus | {"kickLFront1Reps": 0.03, "kickRFront1Reps": 0.03}
     with pytest.raises(ParameterError, match="two groups"):
         learn_taus({c: [dataclasses.replace(x, group="one") for x in v] for c, v in clips.items()}, recipe)
 

@@ -65,7 +65,10 @@ Each keyframe is placed at the template column where it most probably
 holds; a mirrored class takes the query mirrored. A query specific to its
 class also lets the class's τ be learned through it
 (:func:`lab.thresholds.learn_taus`, step 5); one that holds in
-other motions too only filters.
+other motions too only filters. ``tau = …`` in the table caps the class's τ
+(its mirror's too): the query is met only with keyframes on, the τ in both
+modes, and a query that shuts motions out may leave the τ learned through it
+too high for the motions ``--no-keyframes`` meets whole.
 
 Errors are :class:`~mocapdb.errors.ParseError` naming the file and line.
 """
@@ -188,6 +191,9 @@ class KeyframeDefinition:
     template : str
         The learned class whose template the new class ``cls`` takes; empty:
         the keyframes are ``cls``'s own.
+    tau : float or None
+        τ at most this for the class (and its mirror image), however it is
+        learned; None: no cap.
     """
 
     cls: str
@@ -196,6 +202,7 @@ class KeyframeDefinition:
     description: str = ""
     source: str = ""
     template: str = ""
+    tau: float | None = None
 
 
 # ---------------------------------------------------------------------------
@@ -354,9 +361,7 @@ def _class(cls, where, ci):
     name = _string(cls, "name", where, ci)
     label = _string(cls, "label", where, ci)
     default = _value(cls.get("default", WILDCARD), where, ci, None, "default")
-    tau = cls.get("tau", DEFAULT_TAU)
-    if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not 0 <= tau < math.inf:
-        raise where.error(f"tau = {tau!r}: expected a non-negative number", ci, None, "tau")
+    tau = _tau(cls.get("tau", DEFAULT_TAU), where, ci)
     keyframes = cls.get("keyframes", True)
     if not isinstance(keyframes, bool):
         raise where.error(f"keyframes = {keyframes!r}: expected true or false", ci, None, "keyframes")
@@ -386,7 +391,14 @@ def _class(cls, where, ci):
     return out
 
 
-_KEYFRAMES_KEYS = {"class", "description", "keyframe", "template"}
+def _tau(tau, where, ci):
+    """A ``tau = …`` value: a non-negative number."""
+    if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not 0 <= tau < math.inf:
+        raise where.error(f"tau = {tau!r}: expected a non-negative number", ci, None, "tau")
+    return float(tau)
+
+
+_KEYFRAMES_KEYS = {"class", "description", "keyframe", "template", "tau"}
 
 
 def _keyframes(table, where, ki):
@@ -423,8 +435,9 @@ def _keyframes(table, where, ki):
             raise where.error(f"name = {name!r}: expected a string", ki, pi, "name")
         words.append((mask, value))
         names.append(name)
+    tau = _tau(table["tau"], where, ki) if "tau" in table else None
     return KeyframeDefinition(cls, tuple(words), tuple(names), description, f"{where.path}:{where.line(ki)}",
-                              template)
+                              template, tau)
 
 
 def parse_definitions(text, path="<string>"):
@@ -684,7 +697,7 @@ def attach_keyframes(cls: ClassModel, kdef: KeyframeDefinition) -> ClassModel:
     (:func:`mocapdb.keyframes.annot_margins`). For the same reason a single
     keyframe that fits a run of columns becomes a chain of itself at both
     ends of the run (the pose held: any two frames of it up to twice the
-    run apart).
+    run apart). The definition's ``tau``, if any, caps the class's τ.
     """
     if not isinstance(kdef, KeyframeDefinition):
         raise ParameterError(f"expected a KeyframeDefinition, got {type(kdef).__name__}")
@@ -729,4 +742,5 @@ def attach_keyframes(cls: ClassModel, kdef: KeyframeDefinition) -> ClassModel:
     d_max = np.maximum(d_min, np.floor(far * WARP)).astype(np.int64)
     q = KeyframeQuery(np.array([m for m, _ in words], np.uint64), np.array([v for _, v in words], np.uint64),
                       np.array(pos, np.int64), d_min, d_max, L)
-    return dataclasses.replace(cls, keyframe_query=q)
+    tau = cls.tau if kdef.tau is None else min(cls.tau, kdef.tau)
+    return dataclasses.replace(cls, keyframe_query=q, tau=tau)
