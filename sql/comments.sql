@@ -14,7 +14,7 @@ COMMENT ON TABLE classes IS 'mocapdb: the fine classes of each model with label,
 COMMENT ON TABLE templates IS 'mocapdb: motion template columns of each class, quantized as (mask, value) words.';
 COMMENT ON TABLE keyframe_queries IS 'mocapdb: one keyframe query per class and model.';
 COMMENT ON TABLE keyframes IS 'mocapdb: the keyframes of each keyframe query, with gap bounds in 30 Hz frames.';
-COMMENT ON TABLE confidence_maps IS 'mocapdb: per label of a model, the step function from a segment''s score (its raw score, and its length by length_weight) to its calibrated confidence (share right on held-out recordings).';
+COMMENT ON TABLE confidence_maps IS 'mocapdb: per label of a model, the step function from a segment''s score (its raw score, and its length by length_weight: multiplying the raw score where length_product, else added) to its calibrated confidence (share right on held-out recordings).';
 COMMENT ON TABLE ga_statistics IS 'mocapdb: per-generation statistics of the genetic algorithm that learned keyframe queries.';
 COMMENT ON TABLE annotations IS 'mocapdb: stored results of `mocapdb annotate`; fresh ones from annotate(motion_id) on a connection from mocapdb.connect() or `mocapdb --db FILE sql`.';
 COMMENT ON TABLE ingest_log IS 'mocapdb: one row per file an ingest or import-features looked at: path, archive member, outcome (ingested, skipped, failed, not a motion file), reason, the reader''s notes, motion_id, time; run_id groups a call.';

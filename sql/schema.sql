@@ -114,7 +114,8 @@ CREATE TABLE IF NOT EXISTS keyframes (
 );
 
 -- Calibrated confidence (beyond the paper): per label (and shortest segment length) a step function
--- from a segment's score — (raw + length_weight · min(n, full_length) / full_length) / (1 + length_weight),
+-- from a segment's score — with ℓ = min(n, full_length) / full_length, raw · (1 + length_weight · ℓ) /
+-- (1 + length_weight) where length_product, else (raw + length_weight · ℓ) / (1 + length_weight);
 -- raw = 1 − Δ̄^τ/τ at its best frame, n its length in 30 Hz frames — to the share of right segments seen
 -- at that score on recordings the model was not trained on. A segment takes its label's map with the
 -- largest min_length it reaches; step k holds from score `cut` up to the next step's. A label without
@@ -131,6 +132,8 @@ CREATE TABLE IF NOT EXISTS confidence_maps (
 -- the length in the score (databases from before it: the raw score alone); the same on every step of a map
 ALTER TABLE confidence_maps ADD COLUMN IF NOT EXISTS length_weight DOUBLE DEFAULT 0;
 ALTER TABLE confidence_maps ADD COLUMN IF NOT EXISTS full_length INTEGER DEFAULT 90;
+-- the length multiplies the match rather than adding to it (databases from before it: added)
+ALTER TABLE confidence_maps ADD COLUMN IF NOT EXISTS length_product BOOLEAN DEFAULT false;
 
 -- Per-generation statistics of the GA runs that learned a model's keyframe
 -- queries (population averages: paper Fig. 5; `mocapdb report --figure ga`).

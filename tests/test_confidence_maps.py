@@ -60,28 +60,37 @@ def test_a_map_is_a_rising_step_function_per_length():
     with pytest.raises(ParameterError, match="min_length"):
         ConfidenceMap("move", (0.0,), (0.5,), min_length=-1)
     for bad in ({"length_weight": -0.5}, {"length_weight": float("nan")}, {"length_weight": float("inf")},
-                {"full_length": 0}, {"full_length": 2.5}, {"full_length": True}):
-        with pytest.raises(ParameterError, match="length_weight|full_length"):
+                {"full_length": 0}, {"full_length": 2.5}, {"full_length": True}, {"length_product": 1},
+                {"length_product": "yes"}):
+        with pytest.raises(ParameterError, match="length_weight|full_length|length_product"):
             ConfidenceMap("move", (0.0,), (0.5,), **bad)
 
 
 def test_the_length_enters_the_score():
-    """The score (raw + w · min(n, F) / F) / (1 + w): a longer segment, up to F frames, scores higher at the same
-    raw score; w = 0 is the raw score itself, bit for bit."""
-    m = ConfidenceMap("move", (0.0, 0.5), (0.3, 0.9), length_weight=1.0, full_length=60)
-    segs = _segments(["move"] * 4, [30, 60, 120, 30])
-    got = calibrate_confidence(segs, np.array([0.4, 0.4, 0.4, 1.0]), [m])
-    score = np.array([(0.4 + 0.5) / 2, (0.4 + 1.0) / 2, (0.4 + 1.0) / 2, (1.0 + 0.5) / 2])
-    want = np.where(score < 0.5, 0.3 + STEP_ORDER * 0.6 * score / 0.5, 0.9 + STEP_ORDER * 0.1 * (score - 0.5) / 0.5)
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
-    assert got[0] < got[1] == got[2] and got[3] > got[0]
+    """With ℓ = min(n, F) / F the score raw · (1 + w · ℓ) / (1 + w) (``length_product``; maps fitted before it:
+    (raw + w · ℓ) / (1 + w)): a longer segment, up to F frames, scores higher at the same raw score — multiplied,
+    a match of raw score 0 stays 0 however long; w = 0 is the raw score itself, bit for bit, either way."""
+    segs = _segments(["move"] * 5, [30, 60, 120, 30, 120])
+    raw = np.array([0.4, 0.4, 0.4, 1.0, 0.0])
+    ell = np.array([0.5, 1.0, 1.0, 0.5, 1.0])
+    for product, score in ((False, (raw + ell) / 2), (True, raw * (1 + ell) / 2)):
+        m = ConfidenceMap("move", (0.0, 0.5), (0.3, 0.9), length_weight=1.0, full_length=60, length_product=product)
+        got = calibrate_confidence(segs, raw, [m])
+        want = np.where(score < 0.5, 0.3 + STEP_ORDER * 0.6 * score / 0.5,
+                        0.9 + STEP_ORDER * 0.1 * (score - 0.5) / 0.5)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+        assert got[0] < got[1] == got[2] and got[3] > got[0]
+        np.testing.assert_array_equal(postprocess.length_score(raw, [30, 60, 120, 30, 120], 1.0, 60, product), score)
+    assert got[4] == 0.3                                   # multiplied: no match, no lift for the length
     rng = np.random.default_rng(3)
     raw = rng.random(200)
     segs = _segments(["move"] * 200, rng.integers(1, 300, 200))
     plain = ConfidenceMap("move", (0.0, 0.2, 0.7), (0.1, 0.4, 0.8))
-    zero = ConfidenceMap("move", (0.0, 0.2, 0.7), (0.1, 0.4, 0.8), length_weight=-0.0, full_length=7)
-    assert zero.length_weight == 0.0 and not np.signbit(zero.length_weight)
-    assert calibrate_confidence(segs, raw, [plain]).tobytes() == calibrate_confidence(segs, raw, [zero]).tobytes()
+    for product in (False, True):
+        zero = ConfidenceMap("move", (0.0, 0.2, 0.7), (0.1, 0.4, 0.8), length_weight=-0.0, full_length=7,
+                             length_product=product)
+        assert zero.length_weight == 0.0 and not np.signbit(zero.length_weight)
+        assert calibrate_confidence(segs, raw, [plain]).tobytes() == calibrate_confidence(segs, raw, [zero]).tobytes()
 
 
 def test_fitted_maps_rise_and_follow_the_share_right(monkeypatch):
@@ -94,15 +103,16 @@ def test_fitted_maps_rise_and_follow_the_share_right(monkeypatch):
     segs = _segments(np.where(np.arange(400) < 300, "move", "kick"), lengths)
     maps = fit_confidence_maps(("move", "kick", "turn"), segs, raw, right)
     assert [m.label for m in maps] == ["move", "kick", "turn"] and {m.min_length for m in maps} == {0}
-    assert len({(m.cuts, m.values, m.length_weight, m.full_length) for m in maps}) == 1
+    assert len({(m.cuts, m.values, m.length_weight, m.full_length, m.length_product) for m in maps}) == 1
     w = maps[0].length_weight
     assert w == length_weight(raw, lengths, right) > 0 and maps[0].full_length == FULL_LENGTH
+    assert maps[0].length_product
     for m in maps:
         assert all(b >= a for a, b in zip(m.values, m.values[1:])) and 0 <= m.values[0] <= m.values[-1] <= 1
     got = calibrate_confidence(segs, raw, maps)
     monkeypatch.setattr(postprocess, "STEP_ORDER", 0.0)
     steps = calibrate_confidence(segs, raw, maps)           # the steps' own values
-    score = (raw + w * np.minimum(lengths, FULL_LENGTH) / FULL_LENGTH) / (1 + w)
+    score = raw * (1 + w * np.minimum(lengths, FULL_LENGTH) / FULL_LENGTH) / (1 + w)
     # the score moves a segment at most a hundredth of the way to 1 above its step, in the score's order
     assert ((got >= steps) & (got - steps <= STEP_ORDER * (1 - steps) + 1e-15)).all()
     same = steps[:, None] == steps[None, :]
@@ -128,16 +138,20 @@ def test_fitted_maps_rise_and_follow_the_share_right(monkeypatch):
 
 def test_the_length_weight_is_the_ratio_of_the_logistic_slopes():
     """The Newton steps reach the penalized maximum likelihood (no move of the coefficients, in random
-    directions near and far, does better), length_weight is the ratio of its slopes, and the weight follows what
-    decides being right: the length with the raw score (> 0), the raw score alone (about 0), the raw score
-    ranking the wrong way or not at all (the length alone, capped; or nothing where the length does not help)."""
+    directions near and far, does better), length_weight is the ratio of its slopes — of raw · ℓ to raw, or (the
+    maps before it, ``product=False``) of ℓ to raw —, and the weight follows what decides being right: the
+    length with the raw score (> 0), the raw score alone (about 0), the raw score ranking the wrong way or not at
+    all (the length alone, capped; or nothing where the length does not help)."""
     rng = np.random.default_rng(5)
     n = 600
     raw = rng.random(n)
     lengths = rng.integers(5, 240, n)
     ell = np.minimum(lengths, FULL_LENGTH) / FULL_LENGTH
-    right = rng.random(n) < 1 / (1 + np.exp(-(-2.0 + 2.0 * raw + 3.0 * ell)))
-    x, y = np.column_stack([np.ones(n), raw, ell]), right.astype(float)
+    added = rng.random(n) < 1 / (1 + np.exp(-(-2.0 + 2.0 * raw + 3.0 * ell)))
+    b = _logistic(np.column_stack([np.ones(n), raw, ell]), added.astype(float), RIDGE)
+    assert length_weight(raw, lengths, added, product=False) == b[2] / b[1]
+    right = rng.random(n) < 1 / (1 + np.exp(-(-2.0 + 2.0 * raw + 3.0 * raw * ell)))
+    x, y = np.column_stack([np.ones(n), raw, raw * ell]), right.astype(float)
 
     def objective(b):
         z = x @ b
@@ -150,10 +164,11 @@ def test_the_length_weight_is_the_ratio_of_the_logistic_slopes():
             assert objective(b + rng.normal(0, scale, 3)) <= top + 1e-9
     w = length_weight(raw, lengths, right)
     assert w == b[2] / b[1] and 0.8 < w < 3.0            # the generating ratio 3 / 2, shrunk by the ridge
-    assert length_weight(raw, lengths, rng.random(n) < 0.1 + 0.8 * raw) < 0.2
+    # the raw score alone: small (raw · ℓ carries much of the raw score, so the ridge leaves it a little)
+    assert length_weight(raw, lengths, rng.random(n) < 0.1 + 0.8 * raw) < 0.4
     # the raw score ranking the wrong way: no ratio through it — the length alone where it helps, else nothing
-    assert length_weight(raw, lengths, rng.random(n) < 0.5 - 0.4 * raw + 0.4 * ell) == MAX_LENGTH_WEIGHT
-    assert length_weight(raw, lengths, rng.random(n) < 0.9 - 0.4 * raw - 0.4 * ell) == 0.0
+    assert length_weight(raw, lengths, rng.random(n) < 0.6 - 0.5 * raw + 0.4 * raw * ell) == MAX_LENGTH_WEIGHT
+    assert length_weight(raw, lengths, rng.random(n) < 0.9 - 0.4 * raw - 0.4 * raw * ell) == 0.0
     assert length_weight(raw, lengths, np.ones(n, dtype=bool)) >= 0.0
     # raw scores all alike (designed classes' 1s): their slope is rounding, the length decides, capped
     w = length_weight(np.ones(n), lengths, right)
@@ -167,24 +182,37 @@ def test_the_maps_are_stored_and_change_the_fingerprint(default, tmp_path):
     model, toolbox = default
     assert toolbox.confidence_maps == ()                      # the reference mode keeps the raw score
     maps = tuple(ConfidenceMap(lab, (0.0, 0.5), (0.25, 0.75), min_length=lo, length_weight=lo / 80,
-                               full_length=60 + lo) for lab in model.labels[::-1] for lo in (40, 0))
+                               full_length=60 + lo, length_product=k % 2 == 0)
+                 for k, lab in enumerate(model.labels[::-1]) for lo in (40, 0))
     cal = dataclasses.replace(model, name="cal", confidence_maps=maps)
     assert fingerprint(cal) != fingerprint(dataclasses.replace(cal, confidence_maps=()))
     heavier = tuple(dataclasses.replace(m, length_weight=m.length_weight * 2) for m in maps)
     assert fingerprint(cal) != fingerprint(dataclasses.replace(cal, confidence_maps=heavier))
+    added = tuple(dataclasses.replace(m, length_product=False) for m in maps)
+    assert fingerprint(cal) != fingerprint(dataclasses.replace(cal, confidence_maps=added))
+    # maps without a length weight keep their fingerprints whatever their rule
+    flat = tuple(dataclasses.replace(m, length_weight=0.0) for m in maps)
+    assert fingerprint(dataclasses.replace(cal, confidence_maps=flat)) == fingerprint(
+        dataclasses.replace(cal, confidence_maps=tuple(dataclasses.replace(m, length_product=False) for m in flat)))
     with mocapdb.connect(tmp_path / "a.duckdb") as con:
         fp = save_model(con, cal)
         back = load_model(con, "cal")
     assert fingerprint(back) == fp
     def rows(ms):
-        return {(m.label, m.min_length, m.cuts, m.values, m.length_weight, m.full_length) for m in ms}
+        return {(m.label, m.min_length, m.cuts, m.values, m.length_weight, m.full_length, m.length_product)
+                for m in ms}
 
     assert rows(back.confidence_maps) == rows(maps)
     # maps stored before the length entered the score: the raw score alone
     tables = model_tables(cal)
-    old = tables["confidence_maps"].drop_columns(["length_weight", "full_length"])
+    old = tables["confidence_maps"].drop_columns(["length_weight", "full_length", "length_product"])
     back = model_from_tables(tables | {"confidence_maps": old}).confidence_maps
-    assert rows(back) == rows(dataclasses.replace(m, length_weight=0.0, full_length=90) for m in maps)
+    assert rows(back) == rows(dataclasses.replace(m, length_weight=0.0, full_length=90, length_product=False)
+                              for m in maps)
+    # maps stored before the length multiplied the match: added
+    old = tables["confidence_maps"].drop_columns(["length_product"])
+    back = model_from_tables(tables | {"confidence_maps": old}).confidence_maps
+    assert rows(back) == rows(dataclasses.replace(m, length_product=False) for m in maps)
     # the steps of one map disagreeing on its score is damage, not a choice
     mixed = tables["confidence_maps"]
     weights = mixed.column("length_weight").to_numpy().copy()
@@ -192,10 +220,36 @@ def test_the_maps_are_stored_and_change_the_fingerprint(default, tmp_path):
     with pytest.raises(SchemaError, match="disagree on its length_weight"):
         model_from_tables(tables | {"confidence_maps": mixed.set_column(
             mixed.schema.get_field_index("length_weight"), "length_weight", pa.array(weights))})
+    flags = mixed.column("length_product").to_numpy(zero_copy_only=False).copy()
+    flags[mixed.column("k").to_numpy() == 2] ^= True
+    with pytest.raises(SchemaError, match="length_product"):
+        model_from_tables(tables | {"confidence_maps": mixed.set_column(
+            mixed.schema.get_field_index("length_product"), "length_product", pa.array(flags))})
     rows = tables["confidence_maps"]
     tables["confidence_maps"] = rows.set_column(1, "label", pa.array(["nolabel"] * rows.num_rows))
     with pytest.raises(SchemaError, match="confidence maps of labels it lacks"):
         model_from_tables(tables)
+
+
+def test_an_archive_from_before_the_length_multiplied_reads_its_maps_as_added(default, tmp_path):
+    """An archive whose confidence_maps has no column length_product (made before it), opened by mocapdb:
+    the column is added, false on the rows there were, and the stored maps read as they were made — the
+    length added to the raw score."""
+    import duckdb
+
+    model, _ = default
+    maps = tuple(ConfidenceMap(lab, (0.0, 0.5), (0.25, 0.75), length_weight=0.5, length_product=True)
+                 for lab in model.labels)
+    db = tmp_path / "old.duckdb"
+    with mocapdb.connect(db) as con:
+        save_model(con, dataclasses.replace(model, name="mine", confidence_maps=maps))
+    with duckdb.connect(str(db)) as raw:
+        raw.execute("ALTER TABLE confidence_maps DROP COLUMN length_product")
+    with mocapdb.connect(db) as con:
+        assert con.execute("SELECT count(*), bool_or(length_product) FROM confidence_maps "
+                           "WHERE model = 'mine'").fetchone() == (2 * len(maps), False)
+        back = load_model(con, "mine").confidence_maps
+    assert [(m.label, m.length_weight, m.length_product) for m in back] == [(m.label, 0.5, False) for m in maps]
 
 
 def test_annotation_gives_the_map_s_values(default):
@@ -210,7 +264,7 @@ def test_annotation_gives_the_map_s_values(default):
     lengths = [len(x) for x, in words]
     raw_model = dataclasses.replace(model, confidence_maps=())
     maps = tuple(ConfidenceMap(lab, (0.0, 0.3, 0.9), (0.1 + k / 100, 0.5, 0.9 + lo / 1000), min_length=lo,
-                               length_weight=k / 10, full_length=45 + lo)
+                               length_weight=k / 10, full_length=45 + lo, length_product=bool(k % 2))
                  for k, lab in enumerate(model.labels) for lo in (0, 60))
     raw = mocapdb.annotation.annotate(w, raw_model, doc_lengths=lengths).segments
     cal = mocapdb.annotation.annotate(w, dataclasses.replace(model, confidence_maps=maps), doc_lengths=lengths).segments

@@ -320,10 +320,12 @@ def test_the_step_order_is_the_python_one():
 
 
 def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
-    """A confidence map whose values fall, whose length weight is NaN or whose steps disagree on it is an error
-    naming the model and the table; a database from before the length entered the score (no columns
-    length_weight, full_length) gives the maps of the raw score alone, and one from before calibrated
-    confidence (no table confidence_maps) the raw score, as the Python UDF gives them under such models."""
+    """A confidence map whose values fall, whose length weight is NaN or whose steps disagree on it or on
+    length_product is an error naming the model and the table; a database from before the length multiplied
+    the match (no column length_product) gives the maps of the length added, one from before the length entered
+    the score (no columns length_weight, full_length) the maps of the raw score alone, and one from before
+    calibrated confidence (no table confidence_maps) the raw score, as the Python UDF gives them under such
+    models."""
     import dataclasses
 
     from mocapdb.storage.model_store import load_model, save_model
@@ -332,13 +334,17 @@ def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
     shutil.copy(archive, db)
     with mocapdb.connect(db) as con:
         model = load_model(con, "default")
-        assert model.confidence_maps and all(m.length_weight > 0 for m in model.confidence_maps)
-        unweighted = tuple(dataclasses.replace(m, length_weight=0.0) for m in model.confidence_maps)
-        for name, maps in (("raw", ()), ("unweighted", unweighted), ("nan", model.confidence_maps),
-                           ("mixed", model.confidence_maps)):
+        assert model.confidence_maps and all(m.length_weight > 0 and m.length_product
+                                             for m in model.confidence_maps)
+        unweighted = tuple(dataclasses.replace(m, length_weight=0.0, length_product=False)
+                           for m in model.confidence_maps)
+        added = tuple(dataclasses.replace(m, length_product=False) for m in model.confidence_maps)
+        for name, maps in (("raw", ()), ("unweighted", unweighted), ("added", added), ("nan", model.confidence_maps),
+                           ("mixed", model.confidence_maps), ("flip", model.confidence_maps)):
             save_model(con, dataclasses.replace(model, name=name, confidence_maps=maps))
         want = {name: con.execute(f"SELECT motion_id, annotate(motion_id, model := '{name}') FROM motions "
-                                  "ORDER BY motion_id").fetchall() for name in ("raw", "unweighted", "default")}
+                                  "ORDER BY motion_id").fetchall() for name in ("raw", "unweighted", "added",
+                                                                                "default")}
     every = "SELECT motion_id, annotate(motion_id, 'default') FROM motions ORDER BY motion_id"
     got = plain_client(db, native, [
         "UPDATE confidence_maps SET value = 0 WHERE model = 'default' AND k = 2",
@@ -347,6 +353,13 @@ def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
         "SELECT annotate(1, 'nan')",
         "UPDATE confidence_maps SET length_weight = length_weight + 1 WHERE model = 'mixed' AND k = 2",
         "SELECT annotate(1, 'mixed')",
+        "UPDATE confidence_maps SET length_product = NOT length_product WHERE model = 'flip' AND k = 2",
+        "SELECT annotate(1, 'flip')",
+        "DELETE FROM confidence_maps WHERE model = 'default'",
+        "INSERT INTO confidence_maps SELECT * REPLACE ('default' AS model) FROM confidence_maps "
+        "WHERE model = 'added'",
+        "ALTER TABLE confidence_maps DROP COLUMN length_product",
+        every,
         "DELETE FROM confidence_maps WHERE model = 'default'",
         "INSERT INTO confidence_maps SELECT * REPLACE ('default' AS model) FROM confidence_maps "
         "WHERE model = 'unweighted'",
@@ -355,12 +368,13 @@ def test_a_damaged_or_missing_confidence_map(archive, native, tmp_path):
         every,
         "DROP TABLE confidence_maps",
         every], read_only=False)
-    for k, name in ((1, "default"), (3, "nan"), (5, "mixed")):
+    for k, name in ((1, "default"), (3, "nan"), (5, "mixed"), (7, "flip")):
         assert f"model '{name}': its confidence_maps rows are damaged" in got[k]["error"]
-    assert got[10]["rows"] == [list(r) for r in want["unweighted"]]
-    assert got[12]["rows"] == [list(r) for r in want["raw"]]
-    # the three answers differ: the length counts, the maps count
-    assert want["raw"] != want["unweighted"] != want["default"]
+    assert got[11]["rows"] == [list(r) for r in want["added"]]
+    assert got[16]["rows"] == [list(r) for r in want["unweighted"]]
+    assert got[18]["rows"] == [list(r) for r in want["raw"]]
+    # the four answers differ: the length counts, and how it counts; the maps count
+    assert len({str(want[k]) for k in ("raw", "unweighted", "added", "default")}) == 4
     assert any(s["confidence"] not in (0.0, 1.0) for _, segs in want["raw"] for s in segs)
 
 
@@ -541,6 +555,7 @@ def test_a_kept_model_follows_every_write_to_its_rows(archive, native, tmp_path)
         "DELETE FROM keyframe_queries WHERE model = 'default' AND class >= 'm'",
         "UPDATE models SET margin = margin + 0.05 WHERE model = 'default'",
         "UPDATE confidence_maps SET length_weight = length_weight * 2 WHERE model = 'default'",
+        "UPDATE confidence_maps SET length_product = NOT length_product WHERE model = 'default'",
         "UPDATE confidence_maps SET value = 0.0 WHERE model = 'default'",
         "UPDATE confidence_maps SET value = -(0.0::DOUBLE) WHERE model = 'default'",
     ]
@@ -563,10 +578,10 @@ def test_a_kept_model_follows_every_write_to_its_rows(archive, native, tmp_path)
         assert now != before, w  # the write changed the answer (keyframes on, off or both)
         before = now
     # -0.0: the rows as text keep the sign; both answers had zero confidences
-    assert "'confidence': 0.0}" in got[2 + 6 * step + 1]["rows"][0][0]
-    assert "'confidence': -0.0}" in got[2 + 7 * step + 1]["rows"][0][0]
+    assert "'confidence': 0.0}" in got[2 + 7 * step + 1]["rows"][0][0]
+    assert "'confidence': -0.0}" in got[2 + 8 * step + 1]["rows"][0][0]
     uncommitted, committed = got[-3]["rows"], got[-1]["rows"]
-    assert uncommitted == got[2 + 7 * step + 1]["rows"] != committed
+    assert uncommitted == got[2 + 8 * step + 1]["rows"] != committed
 
 
 def test_a_model_stored_again_through_mocapdb_is_seen(archive, native, tmp_path):

@@ -331,6 +331,7 @@ static int annotate_motion(const named_model *nm, const uint64_t *words, size_t 
 	                         m->conf_min_length,
 	                         m->conf_length_weight,
 	                         m->conf_full_length,
+	                         m->conf_length_product,
 	                         w->touched};
 	if (mdb_label_segments(w->label_cd, w->label_ratio, n, &rules, out)) {
 		snprintf(err->text, sizeof err->text, WHAT ": out of memory");

@@ -313,7 +313,9 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 		double conf = 1.0 - best;
 		x.confidence = conf < 0.0 ? 0.0 : conf > 1.0 ? 1.0 : conf;
 		/* postprocess.calibrate_confidence: of the label's map with the largest min_length the
-		 * segment reaches, the score (raw + w · min(n, F) / F) / (1 + w), then the value of the last
+		 * segment reaches, the score (postprocess.length_score: with l = min(n, F) / F,
+		 * raw · (1 + w · l) / (1 + w) where the length multiplies, else (raw + w · l) / (1 + w)), then
+		 * the value of the last
 		 * step whose cut is <= the score, plus MDB_STEP_ORDER of the way to the next step's value (1
 		 * after the last) as far as the score lies towards the next cut (1): the same operations in
 		 * the same order */
@@ -329,7 +331,9 @@ int mdb_label_segments(double *label_cd, const double *label_ratio, size_t n, co
 			int64_t len = x.end - x.start + 1, full = rules->conf_full_length[x.label][g];
 			double weight = rules->conf_length_weight[x.label][g];
 			double share = (double)(len < full ? len : full) / (double)full;
-			x.confidence = (x.confidence + weight * share) / (1.0 + weight);
+			x.confidence = rules->conf_length_product[x.label][g]
+			                   ? x.confidence * (1.0 + weight * share) / (1.0 + weight)
+			                   : (x.confidence + weight * share) / (1.0 + weight);
 			while (g + 1 < steps && min_length[g + 1] == min_length[g] && cut[g + 1] <= x.confidence) {
 				g++;
 			}

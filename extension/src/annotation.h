@@ -25,8 +25,9 @@ void mdb_segments_free(mdb_segments *s);
  * (annotated on its own beside the others), its minimum length and the frames it must win
  * (0: none); the margin (0: none); per label its confidence maps (conf_n steps in all, sorted by
  * (conf_min_length, cut): from score conf_cut[k] on, confidence conf_value[k], for segments of
- * at least conf_min_length[k] frames, the score (raw + w · min(n, F) / F) / (1 + w) of a segment of
- * n frames, w = conf_length_weight[k], F = conf_full_length[k] (alike on a map's steps); 0 steps:
+ * at least conf_min_length[k] frames, the score of a segment of n frames, with l = min(n, F) / F,
+ * raw · (1 + w · l) / (1 + w) where conf_length_product[k], else (raw + w · l) / (1 + w),
+ * w = conf_length_weight[k], F = conf_full_length[k] (alike on a map's steps); 0 steps:
  * the raw score). */
 typedef struct {
 	size_t n_labels;
@@ -39,6 +40,7 @@ typedef struct {
 	int64_t *const *conf_min_length;
 	double *const *conf_length_weight;
 	int64_t *const *conf_full_length;
+	char *const *conf_length_product;
 	const char *set; /* per label: whether its rows are set (NULL: all are); the others are +inf throughout,
 	                  * never read */
 } mdb_label_rules;

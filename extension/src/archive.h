@@ -183,6 +183,7 @@ typedef struct {
 	int64_t **conf_min_length;       /* per label and step: its map's shortest segment */
 	double **conf_length_weight;     /* per label and step: its map's weight of the length in the score */
 	int64_t **conf_full_length;      /* per label and step: its map's length that counts in full */
+	char **conf_length_product;      /* per label and step: its map's length multiplies the raw score */
 } mdb_model;
 
 void mdb_model_free(mdb_model *m);

@@ -11,7 +11,8 @@
  * or the other way round). What the key does not see is a column's type changed with its values
  * kept: the read's rows, and so the model, are the same. Where the key query fails (a database
  * from before confidence maps has no table confidence_maps, one from before the length entered their
- * score no column length_weight) or the read in one transaction does,
+ * score no column length_weight, one from before the length multiplied the match no column
+ * length_product) or the read in one transaction does,
  * the model is read as before, every call, and errors are the read's. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -33,7 +34,7 @@ DUCKDB_EXTENSION_EXTERN
 	"UNION ALL SELECT 4, count(*), sum(hash(class, k, mask, value, position, d_min, d_max)) FROM keyframes "         \
 	"WHERE model = $1 "                                                                                                \
 	"UNION ALL SELECT 5, count(*), sum(hash(label, min_length, k, cut, signbit(cut), value, signbit(value), "          \
-	"length_weight, full_length)) FROM confidence_maps WHERE model = $1"
+	"length_weight, full_length, length_product)) FROM confidence_maps WHERE model = $1"
 /* models kept per database (a call uses one or a few; each is a few MB at most) */
 #define MAX_KEPT 8
 

@@ -356,17 +356,21 @@ static int model_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err)
 }
 
 /* calibrated confidence: a database from before it has no table confidence_maps (raw scores), one from
- * before the length entered the score no columns length_weight and full_length (the raw score alone):
- * the table's columns of the two, 0 without the table */
+ * before the length entered the score no columns length_weight and full_length (the raw score alone),
+ * one from before the length multiplied the match no column length_product (the length added): the
+ * table's columns of the label and the three, 0 without the table */
 #define HAS_MAPS_SQL                                                                                                   \
 	"SELECT count(*) FROM duckdb_columns() WHERE table_name = 'confidence_maps' "                                     \
-	"AND column_name IN ('label', 'length_weight', 'full_length') "                                                   \
+	"AND column_name IN ('label', 'length_weight', 'full_length', 'length_product') "                                 \
 	"AND database_name = current_database() AND schema_name = current_schema()"
 #define MAPS_SQL                                                                                                       \
-	"SELECT label, cut, value, min_length, length_weight, full_length FROM confidence_maps WHERE model = $1 "         \
+	"SELECT label, cut, value, min_length, length_weight, full_length, length_product FROM confidence_maps "          \
+	"WHERE model = $1 ORDER BY label, min_length, k"
+#define MAPS_ADDED_SQL                                                                                                 \
+	"SELECT label, cut, value, min_length, length_weight, full_length, false FROM confidence_maps WHERE model = $1 " \
 	"ORDER BY label, min_length, k"
 #define MAPS_RAW_SQL                                                                                                   \
-	"SELECT label, cut, value, min_length, 0.0::DOUBLE, 90 FROM confidence_maps WHERE model = $1 "                    \
+	"SELECT label, cut, value, min_length, 0.0::DOUBLE, 90, false FROM confidence_maps WHERE model = $1 "             \
 	"ORDER BY label, min_length, k"
 
 typedef struct {
@@ -385,10 +389,12 @@ static int maps_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) 
 	COLUMN(chunk, 3, int32_t, min_length, v3);
 	COLUMN(chunk, 4, double, weight, v4);
 	COLUMN(chunk, 5, int32_t, full, v5);
+	COLUMN(chunk, 6, bool, product, v6);
 	for (idx_t i = 0; i < n; i++) {
 		if (!duckdb_validity_row_is_valid(v0, i) || !duckdb_validity_row_is_valid(v1, i) ||
 		    !duckdb_validity_row_is_valid(v2, i) || !duckdb_validity_row_is_valid(v3, i) ||
-		    !duckdb_validity_row_is_valid(v4, i) || !duckdb_validity_row_is_valid(v5, i) || min_length[i] < 0 ||
+		    !duckdb_validity_row_is_valid(v4, i) || !duckdb_validity_row_is_valid(v5, i) ||
+		    !duckdb_validity_row_is_valid(v6, i) || min_length[i] < 0 ||
 		    !(isfinite(weight[i]) && weight[i] >= 0.0) || full[i] < 1) {
 			c->bad = 1;
 			return 1;
@@ -413,16 +419,18 @@ static int maps_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) 
 			    mdb_grow(&m->conf_value[p], sizeof **m->conf_value, c->cap[p]) ||
 			    mdb_grow(&m->conf_min_length[p], sizeof **m->conf_min_length, c->cap[p]) ||
 			    mdb_grow(&m->conf_length_weight[p], sizeof **m->conf_length_weight, c->cap[p]) ||
-			    mdb_grow(&m->conf_full_length[p], sizeof **m->conf_full_length, c->cap[p])) {
+			    mdb_grow(&m->conf_full_length[p], sizeof **m->conf_full_length, c->cap[p]) ||
+			    mdb_grow(&m->conf_length_product[p], sizeof **m->conf_length_product, c->cap[p])) {
 				return mdb_out_of_memory(err, "a confidence map");
 			}
 		}
 		/* ConfidenceMap's rules, within a map (a label's steps of one min_length): finite ascending
-		 * cuts, non-decreasing values in [0, 1], one length_weight and full_length */
+		 * cuts, non-decreasing values in [0, 1], one length_weight, full_length and length_product */
 		int same = k > 0 && m->conf_min_length[p][k - 1] == min_length[i];
 		if (!isfinite(cut[i]) || !(value[i] >= 0.0 && value[i] <= 1.0) ||
 		    (same && !(cut[i] > m->conf_cut[p][k - 1] && value[i] >= m->conf_value[p][k - 1] &&
-		               weight[i] == m->conf_length_weight[p][k - 1] && full[i] == m->conf_full_length[p][k - 1]))) {
+		               weight[i] == m->conf_length_weight[p][k - 1] && full[i] == m->conf_full_length[p][k - 1] &&
+		               (char)product[i] == m->conf_length_product[p][k - 1]))) {
 			c->bad = 1;
 			return 1;
 		}
@@ -431,6 +439,7 @@ static int maps_sink(void *p, duckdb_data_chunk chunk, idx_t n, mdb_error *err) 
 		m->conf_min_length[p][k] = min_length[i];
 		m->conf_length_weight[p][k] = weight[i] + 0.0; /* -0.0 as 0.0, as ConfidenceMap keeps it */
 		m->conf_full_length[p][k] = full[i];
+		m->conf_length_product[p][k] = (char)product[i];
 		m->conf_n[p] = k + 1;
 	}
 	return 0;
@@ -445,30 +454,31 @@ static int read_confidence_maps(mdb_state *st, const char *name, mdb_model *m, m
 	m->conf_min_length = calloc(L, sizeof *m->conf_min_length);
 	m->conf_length_weight = calloc(L, sizeof *m->conf_length_weight);
 	m->conf_full_length = calloc(L, sizeof *m->conf_full_length);
+	m->conf_length_product = calloc(L, sizeof *m->conf_length_product);
 	maps_ctx c = {m, calloc(L, sizeof(size_t)), 0};
 	if (!m->conf_n || !m->conf_cut || !m->conf_value || !m->conf_min_length || !m->conf_length_weight ||
-	    !m->conf_full_length || !c.cap) {
+	    !m->conf_full_length || !m->conf_length_product || !c.cap) {
 		free(c.cap);
 		return mdb_out_of_memory(err, "a model");
 	}
 	duckdb_type count_type[] = {DUCKDB_TYPE_BIGINT};
-	duckdb_type want[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_DOUBLE,  DUCKDB_TYPE_DOUBLE,
-	                      DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_INTEGER};
+	duckdb_type want[] = {DUCKDB_TYPE_VARCHAR, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_DOUBLE, DUCKDB_TYPE_INTEGER,
+	                      DUCKDB_TYPE_DOUBLE,  DUCKDB_TYPE_INTEGER, DUCKDB_TYPE_BOOLEAN};
 	int64_t has_maps = 0;
 	int rc = 0;
 	if (mdb_rows(st, HAS_MAPS_SQL, "duckdb_columns()", NULL, 0, NULL, 0, count_type, 1, count_sink, &has_maps,
 	             err)) {
 		rc = -1;
 	} else if (has_maps) {
-		rc = mdb_rows(st, has_maps == 3 ? MAPS_SQL : MAPS_RAW_SQL, "confidence_maps", &name, 1, NULL, 0, want, 6,
-		              maps_sink, &c, err);
+		rc = mdb_rows(st, has_maps == 4 ? MAPS_SQL : has_maps == 3 ? MAPS_ADDED_SQL : MAPS_RAW_SQL,
+		              "confidence_maps", &name, 1, NULL, 0, want, 7, maps_sink, &c, err);
 	}
 	free(c.cap);
 	if (c.bad) {
 		snprintf(err->text, sizeof err->text,
 		         "model '%s': its confidence_maps rows are damaged (NULLs, a label it lacks, cuts not ascending, "
 		         "values not rising within [0, 1], a length_weight below 0 or a full_length below 1, or steps of "
-		         "a map disagreeing on them); train or install the model again",
+		         "a map disagreeing on them or on length_product); train or install the model again",
 		         name);
 		rc = -1;
 	}
@@ -476,12 +486,13 @@ static int read_confidence_maps(mdb_state *st, const char *name, mdb_model *m, m
 }
 
 void mdb_model_free(mdb_model *m) {
-	for (size_t p = 0; m->conf_n && p < m->n_labels; p++) { /* the six are allocated together */
+	for (size_t p = 0; m->conf_n && p < m->n_labels; p++) { /* the seven are allocated together */
 		free(m->conf_cut ? m->conf_cut[p] : NULL);
 		free(m->conf_value ? m->conf_value[p] : NULL);
 		free(m->conf_min_length ? m->conf_min_length[p] : NULL);
 		free(m->conf_length_weight ? m->conf_length_weight[p] : NULL);
 		free(m->conf_full_length ? m->conf_full_length[p] : NULL);
+		free(m->conf_length_product ? m->conf_length_product[p] : NULL);
 	}
 	free(m->conf_n);
 	free(m->conf_cut);
@@ -489,6 +500,7 @@ void mdb_model_free(mdb_model *m) {
 	free(m->conf_min_length);
 	free(m->conf_length_weight);
 	free(m->conf_full_length);
+	free(m->conf_length_product);
 	for (size_t k = 0; k < m->n_classes; k++) {
 		free(m->label[k]);
 		if (m->tpl) {

@@ -95,10 +95,14 @@ class ConfidenceMap:
     (:func:`mocapdb.annotation.postprocess.segment_confidence`); its length
     ``n`` is ``end − start + 1`` (30 Hz frames). A segment takes the map of
     its label with the largest ``min_length`` it reaches (none: it keeps the
-    raw score). The map's score of the segment is
-    ``s = (raw + length_weight · min(n, full_length) / full_length) / (1 + length_weight)``
-    (in [0, 1]; ``raw`` itself where ``length_weight`` is 0): a better match
-    and a longer segment, up to ``full_length``, both count for it. Its
+    raw score). With ``ℓ = min(n, full_length) / full_length`` and ``w`` the
+    ``length_weight``, the map's score of the segment is, with
+    ``length_product``, ``s = raw · (1 + w · ℓ) / (1 + w)`` — the length
+    lifts a match by up to its weight and lifts no match at all, so a long
+    segment barely under τ is not trusted for its length — and otherwise
+    (maps fitted before it) ``s = (raw + w · ℓ) / (1 + w)``; in [0, 1] either
+    way, ``raw`` itself where ``w`` is 0: a better match and a longer
+    segment, up to ``full_length``, both count for it. Its
     confidence is ``values[j]`` for the last ``j`` with ``cuts[j] <= s``
     (``values[0]`` below ``cuts[0]``): the share of right segments seen at
     that score on recordings the model was not trained on
@@ -124,6 +128,10 @@ class ConfidenceMap:
         Weight of the length in the score, ≥ 0 (0: the raw score alone).
     full_length : int, default 90
         Length (30 Hz frames) from which a segment counts as long as any, ≥ 1.
+    length_product : bool, default False
+        The length scales the raw score (``raw · (1 + w · ℓ) / (1 + w)``)
+        instead of adding to it (``(raw + w · ℓ) / (1 + w)``, the maps of
+        mocapdb before it, read from their archives as they were).
     """
 
     label: str
@@ -132,6 +140,7 @@ class ConfidenceMap:
     min_length: int = 0
     length_weight: float = 0.0
     full_length: int = 90
+    length_product: bool = False
 
     def __post_init__(self):
         cuts = tuple(float(x) for x in self.cuts)
@@ -161,6 +170,10 @@ class ConfidenceMap:
         object.__setattr__(self, "min_length", int(self.min_length))
         object.__setattr__(self, "length_weight", weight + 0.0)   # -0.0 as 0.0: one stored weight per value
         object.__setattr__(self, "full_length", int(self.full_length))
+        if not isinstance(self.length_product, (bool, np.bool_)):
+            raise ParameterError(f"confidence map of {self.label!r}: length_product must be True or False, "
+                                 f"got {self.length_product!r}")
+        object.__setattr__(self, "length_product", bool(self.length_product))
 
 
 @dataclass(frozen=True, eq=False)

@@ -181,14 +181,18 @@ def segment_confidence(segments, label_ratio, doc_bounds, labels) -> np.ndarray:
     return np.clip(1.0 - best, 0.0, 1.0)
 
 
-def length_score(raw, length, length_weight, full_length) -> np.ndarray:
-    """A :class:`~mocapdb.annotation.ConfidenceMap`'s score of segments: ``(raw + w · min(n, F) / F) / (1 + w)``
-    (``w`` = ``length_weight``, ``F`` = ``full_length``, ``n`` the length in 30 Hz frames), in [0, 1]; ``raw``
-    itself, bit for bit, where ``w`` is 0. The fit (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`)
-    and the calibration score alike; extension/src/annotation.c does these operations in this order."""
+def length_score(raw, length, length_weight, full_length, product=False) -> np.ndarray:
+    """A :class:`~mocapdb.annotation.ConfidenceMap`'s score of segments, with ``ℓ = min(n, F) / F`` (``w`` =
+    ``length_weight``, ``F`` = ``full_length``, ``n`` the length in 30 Hz frames): ``raw · (1 + w · ℓ) / (1 + w)``
+    with ``product`` (the length lifts the match), else ``(raw + w · ℓ) / (1 + w)``; in [0, 1], ``raw`` itself,
+    bit for bit, where ``w`` is 0. The fit (:func:`mocapdb.learning.confidence_maps.fit_confidence_maps`) and the
+    calibration score alike; extension/src/annotation.c does these operations in this order."""
     w = np.float64(length_weight)
     share = np.minimum(np.asarray(length), full_length).astype(np.float64) / np.float64(full_length)
-    return (np.asarray(raw, dtype=np.float64) + w * share) / (np.float64(1.0) + w)
+    raw = np.asarray(raw, dtype=np.float64)
+    if product:
+        return raw * (np.float64(1.0) + w * share) / (np.float64(1.0) + w)
+    return (raw + w * share) / (np.float64(1.0) + w)
 
 
 def calibrate_confidence(segments, raw, maps) -> np.ndarray:
@@ -207,8 +211,8 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
     -------
     (n,) float64
         Per segment, of its label's map with the largest ``min_length`` ≤ its length, the score
-        ``s = (raw + w · min(length, F) / F) / (1 + w)`` (``w`` the map's ``length_weight``, ``F`` its
-        ``full_length``), then ``values[j]`` for the last ``j`` with ``cuts[j] <= s`` (``values[0]`` below the
+        (:func:`length_score`: ``w`` the map's ``length_weight``, ``F`` its ``full_length``, its
+        ``length_product``), then ``values[j]`` for the last ``j`` with ``cuts[j] <= s`` (``values[0]`` below the
         first cut), plus :data:`STEP_ORDER` of the way to the next step's value (1 after the last) as far as
         ``s`` lies from ``cuts[j]`` towards the next cut (1): the order of scores kept within a step
         (:class:`~mocapdb.annotation.ConfidenceMap`; extension/src/annotation.c does the same operations in
@@ -223,7 +227,7 @@ def calibrate_confidence(segments, raw, maps) -> np.ndarray:
         on = (labels == m.label) & (length >= m.min_length) & (m.min_length > chosen)
         if on.any():
             cuts, values = np.asarray(m.cuts, dtype=np.float64), np.asarray(m.values, dtype=np.float64)
-            r = length_score(raw[on], length[on], m.length_weight, m.full_length)
+            r = length_score(raw[on], length[on], m.length_weight, m.full_length, m.length_product)
             j = np.maximum(np.searchsorted(cuts, r, side="right") - 1, 0)
             c0, v0 = cuts[j], values[j]
             c1, v1 = np.append(cuts[1:], 1.0)[j], np.append(values[1:], 1.0)[j]

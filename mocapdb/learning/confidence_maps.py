@@ -9,9 +9,11 @@ What else a wrong segment shows, on three labs of four left out: it is short
 :func:`fit_confidence_maps` learns, from segments the model's recipe
 annotated on recordings left out of its training (leave-one-lab-out folds,
 each judged right or wrong), one score of the two —
-``s = (raw + w · ℓ) / (1 + w)``, ``ℓ = min(length, FULL_LENGTH) / FULL_LENGTH``,
-the weight ``w`` the ratio of the length's coefficient to the raw score's in a
-logistic regression of right-or-wrong on both (:func:`length_weight`) — and
+``s = raw · (1 + w · ℓ) / (1 + w)``, ``ℓ = min(length, FULL_LENGTH) / FULL_LENGTH``,
+the weight ``w`` the ratio of the coefficient of ``raw · ℓ`` to the raw
+score's in a logistic regression of right-or-wrong on both
+(:func:`length_weight`): the length lifts a match by up to ``w`` and lifts no
+match at all — and
 a non-decreasing step function of that score: isotonic regression (pool
 adjacent violators) of right-or-wrong on ``s``, its steps joined until each
 stands on :data:`MIN_STEP` segments; a step's value is a cautious share
@@ -31,7 +33,14 @@ middle-length segment of a poor match above a long one of a good match
 where the other labs' middle band happened to be right more often, and the
 held-out ranking (AUC) stayed under 0.85 on HDM05 and the CMU documents; one
 rising map of a score rising in both cannot invert them (RESULTS.md issue
-32, "Length in the score"). The maps pool all labels: maps per label,
+32, "Length in the score"). The length multiplies the match rather than
+adding to it (the maps before, ``(raw + w · ℓ) / (1 + w)``, still read as
+they were): added, any segment of 3 s scored at least ``w / (1 + w)``
+however poorly it matched, and a long wrong segment barely under τ (an
+exercise template's hit running on over the next motion) was trusted more
+than a short right one; multiplied, held out, the share right of segments
+≥ 0.5 rose on every lab but one (RESULTS.md issue 32, "The length lifts a
+match"). The maps pool all labels: maps per label,
 fitted on the other labs, were worse on the lab left out than none (a
 label's reliability is its lab's: `move` is right on every studio walk and
 on half of HDM05's, whose truth calls the steps around a kick the kick).
@@ -141,12 +150,13 @@ def _logistic(x, y, ridge):
     return b
 
 
-def length_weight(raw, length, right, *, full_length=FULL_LENGTH, ridge=RIDGE) -> float:
+def length_weight(raw, length, right, *, full_length=FULL_LENGTH, ridge=RIDGE, product=True) -> float:
     """How much a segment's length counts against its raw score for being right: ``b_ℓ / b_raw`` of the
-    logistic regression ``P(right) = σ(b_0 + b_raw · raw + b_ℓ · min(length, full_length) / full_length)``
-    (Newton's method, ``ridge`` on the two slopes); 0 where the length's slope is not positive (the raw
-    score alone: a length that does not help gives no ratio to trust); :data:`MAX_LENGTH_WEIGHT`, the length
-    alone, where the raw score's is not (raw scores all alike, or ranking the wrong way) — and never more.
+    logistic regression ``P(right) = σ(b_0 + b_raw · raw + b_ℓ · raw · ℓ)``, ``ℓ = min(length, full_length) /
+    full_length`` (with ``product``; without, ``b_ℓ · ℓ``: the weight of the maps before it) — Newton's method,
+    ``ridge`` on the two slopes; 0 where the length's slope is not positive (the raw score alone: a length that
+    does not help gives no ratio to trust); :data:`MAX_LENGTH_WEIGHT`, the length alone, where the raw score's is
+    not (raw scores all alike, or ranking the wrong way) — and never more.
 
     Parameters
     ----------
@@ -157,14 +167,17 @@ def length_weight(raw, length, right, *, full_length=FULL_LENGTH, ridge=RIDGE) -
     right : (n,) bool
     full_length : int
     ridge : float
+    product : bool
+        The weight of ``length_score(…, product=True)`` (:func:`mocapdb.annotation.postprocess.length_score`).
 
     Returns
     -------
     float
         The weight ``w`` ≥ 0 of :class:`~mocapdb.annotation.ConfidenceMap`.
     """
-    x = np.column_stack([np.ones(len(raw)), np.asarray(raw, dtype=np.float64),
-                         np.minimum(np.asarray(length, dtype=np.float64), full_length) / full_length])
+    raw = np.asarray(raw, dtype=np.float64)
+    share = np.minimum(np.asarray(length, dtype=np.float64), full_length) / full_length
+    x = np.column_stack([np.ones(len(raw)), raw, raw * share if product else share])
     b = _logistic(x, np.asarray(right, dtype=np.float64), ridge)
     # a slope within rounding of 0 (raw scores all alike leave theirs to the intercept) counts as none
     raw_slope, length_slope = (float(v) if v > _SLOPE_EPS else 0.0 for v in b[1:])
@@ -190,8 +203,8 @@ def fit_confidence_maps(model_labels, segments, raw, right) -> tuple:
     Returns
     -------
     tuple of ConfidenceMap
-        One per label, all alike: for every length (``min_length`` 0), the steps over the score weighing the
-        length by :func:`length_weight` up to :data:`FULL_LENGTH`.
+        One per label, all alike: for every length (``min_length`` 0), the steps over the score where the
+        length lifts the match (``length_product``) by :func:`length_weight` up to :data:`FULL_LENGTH`.
     """
     raw = np.asarray(raw, dtype=np.float64)
     right = np.asarray(right, dtype=bool)
@@ -206,5 +219,5 @@ def fit_confidence_maps(model_labels, segments, raw, right) -> tuple:
     if (length < 1).any():
         raise ParameterError("segments must end at or after their start")
     w = length_weight(raw, length, right)
-    cuts, values = _step_map(length_score(raw, length, w, FULL_LENGTH), right, float(right.mean()))
-    return tuple(ConfidenceMap(lab, cuts, values, 0, w, FULL_LENGTH) for lab in model_labels)
+    cuts, values = _step_map(length_score(raw, length, w, FULL_LENGTH, product=True), right, float(right.mean()))
+    return tuple(ConfidenceMap(lab, cuts, values, 0, w, FULL_LENGTH, length_product=True) for lab in model_labels)

@@ -68,6 +68,8 @@ def fingerprint(model: Model) -> str:
         h.update(f"confidence|{m.label}|{m.min_length}|{m.cuts!r}|{m.values!r}".encode())
         if m.length_weight:  # and maps of the raw score alone theirs
             h.update(f"length|{m.length_weight!r}|{m.full_length}".encode())
+            if m.length_product:  # and maps of the length added, as before
+                h.update(b"product")
     return h.hexdigest()[:16]
 
 
@@ -119,7 +121,7 @@ def model_tables(model: Model, *, description=None, source=None, keyframe_stats=
             keyframes.append((name, c.name, k + 1, kq.feature_sets[k], int(kq.mask[k]), int(kq.value[k]),
                               int(kq.positions[k]) + 1, None if last else int(kq.d_min[k]), d_max))
 
-    maps = [(name, m.label, m.min_length, k + 1, cut, value, m.length_weight, m.full_length)
+    maps = [(name, m.label, m.min_length, k + 1, cut, value, m.length_weight, m.full_length, m.length_product)
             for m in model.confidence_maps
             for k, (cut, value) in enumerate(zip(m.cuts, m.values))]
 
@@ -156,7 +158,7 @@ _SCHEMAS = {
                             ("value", _U64), ("position", _I32), ("d_min", _I32), ("d_max", _I32)]),
     "confidence_maps": pa.schema([("model", _STR), ("label", _STR), ("min_length", _I32), ("k", _I32),
                                   ("cut", _F64), ("value", _F64), ("length_weight", _F64),
-                                  ("full_length", _I32)]),
+                                  ("full_length", _I32), ("length_product", pa.bool_())]),
     "ga_statistics": pa.schema([("model", _STR), ("class", _STR), ("run", _I32), ("generation", _I32),
                                 ("mean_precision", _F64), ("mean_recall", _F64), ("mean_fitness", _F64),
                                 ("best_fitness", _F64), ("mean_keyframes", _F64)]),
@@ -226,24 +228,26 @@ def model_from_tables(tables: dict) -> Model:
                   else None)
     # models stored before calibrated confidence have no maps (the raw score)
     maps = tables.get("confidence_maps")
-    steps = {}   # (label, min_length) -> [(cut, value, length_weight, full_length)] in step order
+    steps = {}   # (label, min_length) -> [(cut, value, length_weight, full_length, length_product)] in order
     order = [(c, "ascending") for c in ("label", "min_length", "k")]
     for r in (maps.sort_by(order).to_pylist() if maps is not None else ()):
-        # maps stored before the length entered the score weigh the raw score alone
-        score = (r.get("length_weight", 0.0), r.get("full_length", ConfidenceMap.full_length))
+        # maps stored before the length entered the score weigh the raw score alone, and those stored before
+        # it multiplied the match add it
+        score = (r.get("length_weight", 0.0), r.get("full_length", ConfidenceMap.full_length),
+                 r.get("length_product", False))
         if None in score:
-            raise SchemaError(f"model {name!r}: a confidence map of {r['label']!r} has no length_weight or "
-                              f"full_length")
+            raise SchemaError(f"model {name!r}: a confidence map of {r['label']!r} has no length_weight, "
+                              f"full_length or length_product")
         steps.setdefault((r["label"], r["min_length"]), []).append((r["cut"], r["value"], *score))
     stray = sorted({lab for lab, _ in steps} - set(labels))
     if stray:
         raise SchemaError(f"model {name!r}: confidence maps of labels it lacks: {stray}")
     mixed = sorted(key for key, rows in steps.items() if len({row[2:] for row in rows}) > 1)
     if mixed:
-        raise SchemaError(f"model {name!r}: the steps of a confidence map disagree on its length_weight or "
-                          f"full_length: {mixed}")
+        raise SchemaError(f"model {name!r}: the steps of a confidence map disagree on its length_weight, "
+                          f"full_length or length_product: {mixed}")
     conf = tuple(ConfidenceMap(lab, [x[0] for x in rows], [x[1] for x in rows], min_length=lo,
-                               length_weight=rows[0][2], full_length=rows[0][3])
+                               length_weight=rows[0][2], full_length=rows[0][3], length_product=rows[0][4])
                  for (lab, lo), rows in steps.items())
     return Model(name, tuple(out), labels=tuple(labels), margin=float(margin or 0.0),
                  concurrent_labels=tuple(concurrent or ()), confidence_maps=conf)
